@@ -1,0 +1,1 @@
+"""Gymnasium environments of handsim (imported as ``handsim.envs``)."""

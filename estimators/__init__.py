@@ -1,0 +1,1 @@
+"""Pose estimators of handsim (imported as ``handsim.estimators``); torch is imported lazily."""

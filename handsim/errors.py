@@ -1,0 +1,40 @@
+"""Exceptions raised by handsim.
+
+Every public entry point validates its input once and raises a subclass of
+:class:`HandSimError`. Messages say what was expected, what was received and
+what is valid (or how to fix it).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "HandSimError",
+    "InvalidHandParams",
+    "InvalidPose",
+    "InvalidKeypoints",
+    "UnknownName",
+]
+
+
+class HandSimError(Exception):
+    """Base class of every error raised by handsim."""
+
+
+class InvalidHandParams(HandSimError, ValueError):
+    """A hand parameter is outside its valid range."""
+
+
+class InvalidPose(HandSimError, ValueError):
+    """A hand pose has the wrong shape, a non-finite value or an angle outside its limits."""
+
+
+class InvalidKeypoints(HandSimError, ValueError):
+    """Keypoints have the wrong shape, order or non-finite values."""
+
+
+class UnknownName(HandSimError, KeyError):
+    """A name (gesture, grasp, keypoint format, ...) is not registered."""
+
+    def __str__(self) -> str:
+        # KeyError quotes its argument; show the message as written.
+        return str(self.args[0]) if self.args else ""

@@ -1,0 +1,1 @@
+"""MJCF scene templates and object assets, shipped as package data."""
