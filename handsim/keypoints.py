@@ -11,7 +11,8 @@ handsim's canonical order is the MediaPipe / OpenPose 21-point hand (:data:`KEYP
 
 Keypoints are arrays of shape ``(..., N, D)``: any leading batch shape, ``N`` points in the
 order of the format, ``D`` coordinates (``D = 3`` for metres in any frame, ``D = 2`` for
-pixels; any ``D >= 1`` works). Conversions never change units or frames.
+pixels; any ``D >= 1`` works). Conversions never change units or frames, and left and right
+hands use the same order (nothing is mirrored).
 
 Formats (``FORMATS[name]`` holds the names of a format's points in its own order):
 
