@@ -140,7 +140,7 @@ _SKIN_RGBA = (0.87, 0.72, 0.63, 1.0)
 _DENSITY_KG_M3 = 1060.0  # soft tissue
 
 ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
-    # joint kind: (kp in N m/rad, torque limit in N m)
+    # joint kind: (minimum kp in N m/rad, torque limit in N m)
     "thumb_cmc_flex": (2.0, 3.0),
     "thumb_cmc_abd": (2.0, 3.0),
     "thumb_mcp_flex": (1.0, 1.5),
@@ -151,7 +151,8 @@ ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
     "pip_flex": (1.0, 1.5),
     "dip_flex": (0.4, 0.6),
 }
-"""Position-actuator stiffness and torque limit per joint kind. The limits give fingertip
+"""Position-actuator stiffness (raised where a joint's inertia needs more for the bandwidth) and
+torque limit per joint kind. The limits give fingertip
 forces of a few tens of newtons (e.g. 2.5 N m at the index MCP over ~90 mm is ~28 N) and a
 power grip of a few hundred newtons over all contacts."""
 
@@ -169,7 +170,10 @@ HAND_PHYSICS_OPTIONS: dict[str, object] = {
 objects from slipping; facts section 3.2)."""
 
 _WELD_SOLREF = (0.01, 1.0)
-_MIN_ARMATURE = 1e-6
+# Negative solref = (-stiffness, -damping) in rad/s^2 per rad and per rad/s: critically damped
+# at 500 rad/s.
+_LIMIT_SOLREF = (-2.5e5, -1000.0)
+_LIMIT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
 
 
 def _scaled(value: float, hand_length: float) -> float:
@@ -558,6 +562,11 @@ class Hand:
 
         hand_cls = spec.add_default("hand", spec.default)
         hand_cls.joint.type = mujoco.mjtJoint.mjJNT_HINGE
+        # Joint limits use direct (mass-independent) stiffness: with MuJoCo's default
+        # time-constant form the limits of the light distal segments are too soft to hold
+        # against the inertial loads of a fast thumb or finger motion.
+        hand_cls.joint.solref_limit = _LIMIT_SOLREF
+        hand_cls.joint.solimp_limit = _LIMIT_SOLIMP
         visual = spec.add_default("visual", hand_cls)
         visual.geom.contype = 0
         visual.geom.conaffinity = 0
@@ -641,7 +650,7 @@ class Hand:
                     name1=f"{f}_dip_flex",
                     name2=f"{f}_pip_flex",
                     objtype=mujoco.mjtObj.mjOBJ_JOINT,
-                    data=[0, 2.0 / 3.0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+                    data=[0, 2.0 / 3.0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
                 )
         for i in self.actuated:
             name = JOINT_NAMES[i]
@@ -660,28 +669,36 @@ class Hand:
         return spec
 
     def _tune_actuators(self) -> None:
-        """Set armature, kp and kv of every hinge for the step response in the module doc."""
+        """Set armature, kp and kv of every hinge for the step response in the module doc.
+
+        A joint's inertia ``I`` varies with the pose (MCP abduction of a flexed finger turns
+        the finger about its own axis, with ~1 % of the flat-hand inertia), and ``kp`` is
+        integrated explicitly, so every joint gets an armature of at least ``kp (2 dt)^2``
+        (stable at ``omega dt <= 0.5`` even if the link inertia vanished). At the flat pose:
+        ``kp = max(kp_kind, I omega^2 / (1 - (2 dt omega)^2))``, armature
+        ``max(kp (2 dt)^2, kp / omega^2 - I)`` and critical damping ``kv = 2 sqrt(kp (I + arm))``.
+        """
         model = self.compile()
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         inertia = np.empty((model.nv, model.nv))
         mujoco.mj_fullM(model, data, inertia)
+        stable = (2.0 * HAND_PHYSICS_OPTIONS["timestep"]) ** 2
         joints = {self.prefix + j.name: j for j in self.spec.joints}
-        for i, name in enumerate(JOINT_NAMES):
-            dof = model.jnt_dofadr[model.joint(self.prefix + name).id]
-            kp, _ = ACTUATOR_GAINS[_joint_kind(name)]
-            target_inertia = kp / FINGER_OMEGA**2
-            armature = max(_MIN_ARMATURE, target_inertia - inertia[dof, dof])
-            joints[self.prefix + name].armature = armature
         actuators = {self.prefix + a.name: a for a in self.spec.actuators}
-        for i in self.actuated:
-            name = JOINT_NAMES[i]
-            dof = model.jnt_dofadr[model.joint(self.prefix + name).id]
-            kp, _ = ACTUATOR_GAINS[_joint_kind(name)]
-            effective = inertia[dof, dof] + joints[self.prefix + name].armature
-            actuators[f"{self.prefix}{name}_act"].set_to_position(
-                kp=kp, kv=2.0 * np.sqrt(kp * effective)
+        for i, name in enumerate(JOINT_NAMES):
+            full_name = self.prefix + name
+            dof = model.jnt_dofadr[model.joint(full_name).id]
+            link_inertia = inertia[dof, dof]
+            kp = max(
+                ACTUATOR_GAINS[_joint_kind(name)][0],
+                link_inertia * FINGER_OMEGA**2 / (1.0 - stable * FINGER_OMEGA**2),
             )
+            armature = max(kp * stable, kp / FINGER_OMEGA**2 - link_inertia)
+            joints[full_name].armature = armature
+            if i in self.actuated:
+                kv = 2.0 * np.sqrt(kp * (link_inertia + armature))
+                actuators[f"{full_name}_act"].set_to_position(kp=kp, kv=kv)
 
     # Using ----------------------------------------------------------------------------------
 

@@ -140,7 +140,8 @@ class LimitViolation(NamedTuple):
 
 
 def _as_float_array(value: object, name: str, last_dim: int) -> np.ndarray:
-    array = np.asarray(value, dtype=np.float64)
+    # A copy: poses do not alias (or get mutated through) the caller's arrays.
+    array = np.array(value, dtype=np.float64)
     if array.ndim == 0 or array.shape[-1] != last_dim:
         raise InvalidPose(f"{name} must have shape (..., {last_dim}); received shape {array.shape}")
     if not np.all(np.isfinite(array)):

@@ -8,12 +8,14 @@ Method:
 1. ``wrist_pos`` is the wrist keypoint (the origin of the hand frame by definition).
 2. The wrist rotation is initialized by Kabsch alignment of the wrist-to-{thumb CMC, four MCP}
    vectors of the input with those of the target hand (scale-free).
-3. Rotation and the 21 angles are refined together by bounded least squares on **bone
-   directions** (unit vectors wrist->CMC/MCP and along each of the 15 digit bones), so a
-   source hand of another size gives the same angles rather than distorted ones. A weak prior
-   (1e-3 per radian) toward zero keeps abduction defined when a finger is fully flexed.
-4. Angles the unconstrained fit puts outside :data:`~handsim.pose.JOINT_LIMITS` are clamped,
-   the fit is redone within the limits, and the clamped joints are reported.
+3. The input is scaled about the wrist by the ratio of the target hand's summed bone lengths
+   to the input's (bone lengths do not depend on the pose), so a source hand of another size
+   gives the same angles rather than distorted ones. Rotation and the 21 angles are then fitted
+   together by bounded least squares on the 20 keypoint positions (1 mm residual unit). A weak
+   prior (1e-3 per radian) toward zero keeps abduction defined when a finger is fully flexed.
+4. The fit is bounded by :data:`~handsim.pose.JOINT_LIMITS`. Where it ends on a bound, an
+   unbounded refit from there tells how far past the limit the input asked that joint to go;
+   those joints are reported as clamped.
 
 Accuracy (tests and ``benchmarks/bench_hand.py``): at the same size and within limits the
 round trip FK -> retarget -> FK is exact to well under 1 mm; with 5 mm isotropic keypoint noise
@@ -202,22 +204,25 @@ class Retargeter:
         else:
             x0 = np.concatenate([initial.wrist_rotvec, initial.angles])
 
-        # Unconstrained fit first, to see which joints the input asks to move past a limit.
-        wide = np.full(3 + NUM_ANGLES, np.inf)
-        x = self._solve(x0, wrist, target, -wide, wide)
-        # Hinge angles are 2 pi periodic; compare their principal values with the limits.
-        angles = np.mod(x[3:] + np.pi, 2 * np.pi) - np.pi
-        x = np.concatenate([x[:3], angles])
         lower, upper = JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]
-        outside = (angles < lower - 1e-6) | (angles > upper + 1e-6)
-        clamped = tuple(
-            LimitViolation(JOINT_NAMES[j], float(angles[j]), float(lower[j]), float(upper[j]))
-            for j in np.nonzero(outside)[0]
+        free = np.full(3, np.inf)
+        x = self._solve(
+            x0, wrist, target, np.concatenate([-free, lower]), np.concatenate([free, upper])
         )
-        if clamped:
-            bounds_lo = np.concatenate([np.full(3, -np.inf), lower])
-            bounds_hi = np.concatenate([np.full(3, np.inf), upper])
-            x = self._solve(x, wrist, target, bounds_lo, bounds_hi)
+        clamped: tuple[LimitViolation, ...] = ()
+        at_bound = (x[3:] <= lower + 1e-6) | (x[3:] >= upper - 1e-6)
+        if np.any(at_bound):
+            # Refit without bounds from the bounded fit (so it stays on the same solution
+            # branch) to see how far past its limits the input asks each joint to go.
+            wide = np.full(3 + NUM_ANGLES, np.inf)
+            x_free = self._solve(x, wrist, target, -wide, wide)
+            # Hinge angles are 2 pi periodic; compare their principal values with the limits.
+            wanted = np.mod(x_free[3:] + np.pi, 2 * np.pi) - np.pi
+            outside = (wanted < lower - 1e-4) | (wanted > upper + 1e-4)
+            clamped = tuple(
+                LimitViolation(JOINT_NAMES[j], float(wanted[j]), float(lower[j]), float(upper[j]))
+                for j in np.nonzero(outside & at_bound)[0]
+            )
         pose = HandPose(wrist, x[:3], np.clip(x[3:], lower, upper))
         fitted = self.fk.keypoints(pose)
         cosines = np.clip(np.sum(_directions(fitted) * _directions(kp), axis=-1), -1.0, 1.0)
