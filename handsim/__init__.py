@@ -1,3 +1,60 @@
-"""handsim: a MuJoCo simulation of a 27-DoF human hand for depth-based hand pose estimation."""
+"""handsim: a MuJoCo simulation of a 27-DoF human hand for depth-based hand pose estimation.
+
+``import handsim`` never imports torch (estimators live in ``handsim.estimators``).
+"""
+
+from handsim.errors import (
+    HandSimError,
+    InvalidHandParams,
+    InvalidKeypoints,
+    InvalidPose,
+    UnknownName,
+)
+from handsim.hand import (
+    HAND_PHYSICS_OPTIONS,
+    HAND_SIZES,
+    KEYPOINT_NAMES,
+    Hand,
+    HandBinding,
+    HandParams,
+    build_skeleton,
+    hand_params,
+)
+from handsim.kinematics import ForwardKinematics
+from handsim.pose import (
+    JOINT_LIMITS,
+    JOINT_LIMITS_DEG,
+    JOINT_NAMES,
+    HandPose,
+    LimitViolation,
+)
+from handsim.retarget import Retargeter, RetargetResult
 
 __version__ = "0.1.0"
+
+__all__ = [
+    # errors
+    "HandSimError",
+    "InvalidHandParams",
+    "InvalidKeypoints",
+    "InvalidPose",
+    "UnknownName",
+    # the hand model
+    "HAND_PHYSICS_OPTIONS",
+    "HAND_SIZES",
+    "KEYPOINT_NAMES",
+    "Hand",
+    "HandBinding",
+    "HandParams",
+    "build_skeleton",
+    "hand_params",
+    # poses and kinematics
+    "JOINT_LIMITS",
+    "JOINT_LIMITS_DEG",
+    "JOINT_NAMES",
+    "HandPose",
+    "LimitViolation",
+    "ForwardKinematics",
+    "Retargeter",
+    "RetargetResult",
+]

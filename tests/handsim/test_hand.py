@@ -24,6 +24,7 @@ MIRROR = np.array([-1.0, 1.0, 1.0])
 
 @pytest.fixture(scope="module", params=PRESETS, ids=[f"{s}-{h}" for s, h in PRESETS])
 def preset_hand(request):
+    """Every preset size x side, built and compiled once per module."""
     size, side = request.param
     hand = Hand(hand_params(size, side))
     return hand, hand.compile()
@@ -38,12 +39,12 @@ def _warnings(data: mujoco.MjData) -> dict[str, int]:
 
 
 def test_structure(preset_hand):
+    """27 DoF, 21 actuators on the 21 hinges, 21 keypoint sites in order."""
     hand, model = preset_hand
     assert model.nv == 27
     assert model.nu == 21
     assert model.njnt == 22
     p = hand.prefix
-    assert [model.joint(i).name for i in range(1, 22)] != []
     assert {model.joint(n).name for n in hand.joint_names} == {p + n for n in JOINT_NAMES}
     assert model.joint(hand.root_joint).type == mujoco.mjtJoint.mjJNT_FREE
     for i, name in enumerate(hand.actuator_names):
@@ -53,6 +54,7 @@ def test_structure(preset_hand):
 
 
 def test_every_element_is_named_with_the_side_prefix(preset_hand):
+    """No element is unnamed; every name carries the side prefix."""
     hand, model = preset_hand
     for kind, count in (
         (mujoco.mjtObj.mjOBJ_BODY, model.nbody),
@@ -69,6 +71,7 @@ def test_every_element_is_named_with_the_side_prefix(preset_hand):
 
 
 def test_geom_groups_split_visual_and_collision(preset_hand):
+    """Visual geoms are group 2 without contacts; collision geoms group 3; pads condim 4."""
     hand, model = preset_hand
     for i in range(model.ngeom):
         name = model.geom(i).name
@@ -83,6 +86,7 @@ def test_geom_groups_split_visual_and_collision(preset_hand):
 
 
 def test_hand_length_matches_request(preset_hand):
+    """Wrist to middle fingertip, keypoints and skin, is the requested hand length within 1 %."""
     hand, model = preset_hand
     data = mujoco.MjData(model)
     binding = hand.bind(model)
@@ -97,12 +101,14 @@ def test_hand_length_matches_request(preset_hand):
 
 
 def test_mass_is_human(preset_hand):
+    """The hand with its forearm stub weighs what a human one does."""
     hand, model = preset_hand
     mass = model.body_subtreemass[model.body(hand.root_body).id]
     assert 0.3 < mass < 1.2  # hand (~0.6 % of body mass) plus a 10 cm forearm stub
 
 
 def test_two_seconds_of_random_targets_without_warnings(preset_hand):
+    """2 s of random wrist and finger targets raise no MuJoCo warning and stay finite."""
     hand, model = preset_hand
     data = mujoco.MjData(model)
     binding = hand.bind(model)
@@ -199,6 +205,7 @@ def test_step_response_of_every_joint(size):
 
 
 def test_gains_give_the_design_bandwidth():
+    """No joint is faster than the design frequency, and every one is critically damped."""
     hand = Hand()
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -215,6 +222,7 @@ def test_gains_give_the_design_bandwidth():
 
 
 def test_mirror_symmetry_of_left_and_right():
+    """A left hand in the mirrored pose is the exact mirror image of the right hand."""
     rng = np.random.default_rng(3)
     right, left = Hand(HandParams(side="right")), Hand(HandParams(side="left"))
     models = right.compile(), left.compile()
@@ -234,6 +242,7 @@ def test_mirror_symmetry_of_left_and_right():
 
 
 def test_kinematic_set_pose_round_trip():
+    """Kinematic mode writes a pose that reads back exactly, with targets set to match."""
     hand = Hand()
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -248,6 +257,7 @@ def test_kinematic_set_pose_round_trip():
 
 
 def test_out_of_limit_targets_are_clamped():
+    """Targets past a limit are clamped to it."""
     hand = Hand()
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -257,6 +267,7 @@ def test_out_of_limit_targets_are_clamped():
 
 
 def test_weld_drives_the_wrist_to_the_mocap_target():
+    """The soft weld brings the free wrist to its mocap target."""
     hand = Hand()
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -273,6 +284,7 @@ def test_weld_drives_the_wrist_to_the_mocap_target():
 
 
 def test_coupled_dip_follows_two_thirds_of_pip():
+    """With coupling, each DIP follows 2/3 of its PIP and has no actuator."""
     hand = Hand(HandParams(couple_dip=True))
     model = hand.compile()
     assert model.nu == 17
@@ -291,6 +303,7 @@ def test_coupled_dip_follows_two_thirds_of_pip():
 
 
 def test_fk_of_the_skeleton_matches_the_model_sites():
+    """NumPy FK of a non-default left hand equals MuJoCo's sites."""
     hand = Hand(HandParams(hand_length=0.2, side="left", thickness_scale=1.2))
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -301,6 +314,7 @@ def test_fk_of_the_skeleton_matches_the_model_sites():
 
 
 def test_two_hands_share_a_scene():
+    """A right and a left hand attach to one scene without name clashes."""
     scene = mujoco.MjSpec()
     right, left = Hand(HandParams(side="right")), Hand(HandParams(side="left"))
     right.attach_to(scene)
@@ -311,6 +325,7 @@ def test_two_hands_share_a_scene():
 
 
 def test_bind_to_a_model_without_the_hand():
+    """Binding to a model that lacks the hand names the missing side and the fix."""
     model = Hand(HandParams(side="left")).compile()
     with pytest.raises(UnknownName, match=r"does not contain the right hand \(prefix 'rh_'\)"):
         Hand().bind(model)
@@ -328,11 +343,13 @@ def test_bind_to_a_model_without_the_hand():
     ],
 )
 def test_invalid_params(kwargs, message):
+    """Every invalid parameter is refused with its valid range."""
     with pytest.raises(InvalidHandParams, match=message):
         HandParams(**kwargs)
 
 
 def test_unknown_size_preset():
+    """An unknown size preset lists the valid presets."""
     with pytest.raises(
         UnknownName, match=r"unknown hand size 'huge'; valid presets: small, medium"
     ):
@@ -340,6 +357,7 @@ def test_unknown_size_preset():
 
 
 def test_forearm_is_optional():
+    """Without the forearm stub the hand loses exactly its two capsules (visual + collision)."""
     with_arm = Hand(HandParams(forearm=True)).compile()
     without = Hand(HandParams(forearm=False)).compile()
     assert with_arm.ngeom == without.ngeom + 4

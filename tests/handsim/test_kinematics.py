@@ -15,6 +15,7 @@ from handsim.pose import JOINT_LIMITS, HandPose
     ("size", "side"), list(itertools.product(HAND_SIZES.values(), ("right", "left")))
 )
 def test_keypoints_match_mujoco_sites(size, side):
+    """NumPy FK agrees with MuJoCo's keypoint sites to < 1e-6 m for random poses."""
     hand = Hand(HandParams(hand_length=size, side=side, palm_breadth=0.42 * size))
     model = hand.compile()
     data = mujoco.MjData(model)
@@ -34,6 +35,7 @@ def test_keypoints_match_mujoco_sites(size, side):
 
 
 def test_batch_shapes_and_single_pose_agree():
+    """A batched FK call equals the single-pose call for each element."""
     fk = ForwardKinematics(HandParams())
     rng = np.random.default_rng(1)
     poses = HandPose.from_vector(rng.normal(size=(2, 3, 27)) * 0.3)
@@ -43,6 +45,7 @@ def test_batch_shapes_and_single_pose_agree():
 
 
 def test_rigid_motion_of_the_wrist_moves_all_keypoints_rigidly():
+    """Moving the wrist moves every keypoint by the same rigid transform."""
     fk = ForwardKinematics(HandParams())
     angles = np.deg2rad(np.linspace(0, 40, 21))
     local = fk.keypoints(HandPose(np.zeros(3), np.zeros(3), angles))
@@ -54,6 +57,7 @@ def test_rigid_motion_of_the_wrist_moves_all_keypoints_rigidly():
 
 
 def test_axis_angle_matrices_are_rotations():
+    """Rodrigues matrices are proper rotations that fix their axis."""
     axis = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
     rots = axis_angle_matrices(axis, np.linspace(-3, 3, 7))
     np.testing.assert_allclose(

@@ -16,6 +16,7 @@ from handsim.pose import (
 
 
 def test_joint_order_follows_design():
+    """The 21 angles follow DESIGN.md: thumb CMC/MCP/IP, then each finger MCP flex/abd, PIP, DIP."""
     assert len(JOINT_NAMES) == 21
     assert JOINT_NAMES[:5] == (
         "thumb_cmc_flex",
@@ -34,6 +35,7 @@ def test_joint_order_follows_design():
 
 
 def test_limits_are_ordered_and_contain_the_flat_hand():
+    """Every range is non-empty, contains 0, and the degree and radian tables agree."""
     assert JOINT_LIMITS.shape == (21, 2)
     assert np.all(JOINT_LIMITS[:, 0] < JOINT_LIMITS[:, 1])
     assert np.all((JOINT_LIMITS[:, 0] <= 0) & (JOINT_LIMITS[:, 1] >= 0))
@@ -42,6 +44,7 @@ def test_limits_are_ordered_and_contain_the_flat_hand():
 
 
 def test_vector_round_trip_single_and_batch():
+    """27-vector -> HandPose -> 27-vector is exact, for any batch shape."""
     rng = np.random.default_rng(0)
     v = rng.normal(size=(4, 5, NUM_DOF))
     pose = HandPose.from_vector(v)
@@ -52,6 +55,7 @@ def test_vector_round_trip_single_and_batch():
 
 
 def test_quat_wxyz_matches_rotvec():
+    """quat_wxyz is the rotation vector in MuJoCo's (w, x, y, z) order."""
     rotvec = np.array([0.3, -0.2, 1.1])
     pose = HandPose.neutral(wrist_rotvec=rotvec)
     quat_xyzw = Rotation.from_rotvec(rotvec).as_quat()
@@ -59,12 +63,14 @@ def test_quat_wxyz_matches_rotvec():
 
 
 def test_from_angles_and_angle_by_name():
+    """Named angles land at their index; unnamed ones are zero."""
     pose = HandPose.from_angles({"index_pip_flex": 1.0})
     assert pose.angle("index_pip_flex") == 1.0
     assert np.count_nonzero(pose.angles) == 1
 
 
 def test_clip_and_violations():
+    """Violations name the offending joints; clip() clamps them to their limits."""
     angles = np.zeros(21)
     angles[joint_index("index_pip_flex")] = np.deg2rad(130)
     angles[joint_index("middle_mcp_abd")] = np.deg2rad(-25)
@@ -79,12 +85,14 @@ def test_clip_and_violations():
 
 
 def test_mirrored_is_an_involution():
+    """Mirroring twice is the identity and keeps the angles."""
     pose = HandPose.from_vector(np.random.default_rng(1).normal(size=NUM_DOF))
     np.testing.assert_allclose(pose.mirrored().mirrored().vector, pose.vector)
     np.testing.assert_array_equal(pose.mirrored().angles, pose.angles)
 
 
 def test_errors_are_handsim_errors():
+    """Pose errors are HandSimErrors and ValueErrors."""
     assert issubclass(InvalidPose, HandSimError)
     assert issubclass(InvalidPose, ValueError)
 
@@ -114,10 +122,12 @@ def test_errors_are_handsim_errors():
     ],
 )
 def test_error_messages(make, message):
+    """Every pose error says what was expected and what was received."""
     with pytest.raises(InvalidPose, match=message):
         make()
 
 
 def test_len_of_single_pose_raises():
+    """len() of a single pose is an error, not 27 or 3."""
     with pytest.raises(TypeError, match="not a batch"):
         len(HandPose.neutral())
