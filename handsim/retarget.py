@@ -17,9 +17,11 @@ Method:
    unbounded refit from there tells how far past the limit the input asked that joint to go;
    those joints are reported as clamped.
 
-Accuracy (tests and ``benchmarks/bench_hand.py``): at the same size and within limits the
-round trip FK -> retarget -> FK is exact to well under 1 mm; with 5 mm isotropic keypoint noise
-the mean keypoint error of the fit is reported by the benchmark.
+Accuracy (``python benchmarks/bench_hand.py``, 50 random poses within limits, medium hand):
+clean keypoints round-trip to < 0.001 mm mean keypoint error; with 5 mm isotropic Gaussian
+noise on every keypoint (mean displacement ~8 mm) the fitted hand is 6.8 mm from the true
+keypoints on average, with a mean joint-angle error of 10.4 deg (distal joints, with their short
+bones, take most of it). About 17 ms per frame on one CPU core.
 """
 
 from __future__ import annotations
