@@ -13,13 +13,13 @@ from handsim.errors import (
 from handsim.hand import (
     HAND_PHYSICS_OPTIONS,
     HAND_SIZES,
-    KEYPOINT_NAMES,
     Hand,
     HandBinding,
     HandParams,
     build_skeleton,
     hand_params,
 )
+from handsim.keypoints import KEYPOINT_NAMES
 from handsim.kinematics import ForwardKinematics
 from handsim.pose import (
     JOINT_LIMITS,

@@ -63,6 +63,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handsim.errors import InvalidHandParams, UnknownName
+from handsim.keypoints import KEYPOINT_NAMES
 from handsim.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
 
 __all__ = [
@@ -75,7 +76,6 @@ __all__ = [
     "build_skeleton",
     "Hand",
     "HandBinding",
-    "KEYPOINT_NAMES",
     "ACTUATOR_GAINS",
     "FINGER_OMEGA",
     "HAND_PHYSICS_OPTIONS",
@@ -92,14 +92,6 @@ HAND_SIZES: dict[str, float] = {"small": 0.165, "medium": 0.189, "large": 0.210}
 """Preset hand lengths, metres: about the women's mean, the ANSUR II mixed mean, and a large
 man's hand (facts table 2.5)."""
 
-KEYPOINT_NAMES: tuple[str, ...] = (
-    "wrist",
-    "thumb_cmc",
-    "thumb_mcp",
-    "thumb_ip",
-    "thumb_tip",
-) + tuple(f"{f}_{j}" for f in FINGERS for j in ("mcp", "pip", "dip", "tip"))
-"""The 21 keypoints in MediaPipe/OpenPose order."""
 
 # Buchholz et al. 1992 segment lengths / hand length (metacarpal, proximal, middle, distal).
 _BUCHHOLZ = {

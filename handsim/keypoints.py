@@ -98,6 +98,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from handsim.errors import InvalidKeypoints, UnknownName
+from handsim.pose import FINGERS
 
 __all__ = [
     "FORMATS",
@@ -108,7 +109,6 @@ __all__ = [
     "to_format",
 ]
 
-_FINGERS = ("index", "middle", "ring", "little")
 
 KEYPOINT_NAMES: tuple[str, ...] = (
     "wrist",
@@ -116,7 +116,7 @@ KEYPOINT_NAMES: tuple[str, ...] = (
     "thumb_mcp",
     "thumb_ip",
     "thumb_tip",
-    *(f"{finger}_{joint}" for finger in _FINGERS for joint in ("mcp", "pip", "dip", "tip")),
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "dip", "tip")),
 )
 """Names of the 21 canonical keypoints, in canonical order."""
 
@@ -143,7 +143,7 @@ def _combo(weights: Mapping[str, float]) -> _Rule:
     return tuple((_INDEX[name], float(w)) for name, w in weights.items())
 
 
-_PALM_CENTRE = _combo({"wrist": 0.2, **{f"{finger}_mcp": 0.2 for finger in _FINGERS}})
+_PALM_CENTRE = _combo({"wrist": 0.2, **{f"{finger}_mcp": 0.2 for finger in FINGERS}})
 
 
 def _metacarpal_base(finger: str) -> _Rule:
@@ -200,7 +200,7 @@ _MSRA_NAMES = (
 )
 _MSRA_SOURCES = (
     "wrist",
-    *(f"{finger}_{joint}" for finger in _FINGERS for joint in ("mcp", "pip", "dip", "tip")),
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "dip", "tip")),
     "thumb_cmc",
     "thumb_mcp",
     "thumb_ip",
@@ -215,11 +215,11 @@ _BIGHAND_NAMES = (
 _BIGHAND_SOURCES = (
     "wrist",
     "thumb_cmc",
-    *(f"{finger}_mcp" for finger in _FINGERS),
+    *(f"{finger}_mcp" for finger in FINGERS),
     "thumb_mcp",
     "thumb_ip",
     "thumb_tip",
-    *(f"{finger}_{joint}" for finger in _FINGERS for joint in ("pip", "dip", "tip")),
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("pip", "dip", "tip")),
 )
 
 _ICVL_NAMES = (
@@ -235,7 +235,7 @@ _ICVL_SOURCES = (
     "thumb_mcp",
     "thumb_ip",
     "thumb_tip",
-    *(f"{finger}_{joint}" for finger in _FINGERS for joint in ("mcp", "pip", "tip")),
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "tip")),
 )
 
 _NYU_NAMES = (
@@ -248,7 +248,7 @@ _NYU_NAMES = (
     "PALM_3",
 )
 _NYU_SOURCES = (
-    *(f"{finger}_{joint}" for finger in reversed(_FINGERS) for joint in ("tip", "pip")),
+    *(f"{finger}_{joint}" for finger in reversed(FINGERS) for joint in ("tip", "pip")),
     "thumb_tip",
     "thumb_ip",
     "thumb_mcp",
@@ -265,7 +265,7 @@ _OPENXR_NAMES = tuple(
         *(f"THUMB_{b}" for b in ("METACARPAL", "PROXIMAL", "DISTAL", "TIP")),
         *(
             f"{finger.upper()}_{b}"
-            for finger in _FINGERS
+            for finger in FINGERS
             for b in ("METACARPAL", "PROXIMAL", "INTERMEDIATE", "DISTAL", "TIP")
         ),
     )
@@ -285,7 +285,7 @@ _OPENXR_SOURCES = (
     "thumb_tip",
     *(
         s
-        for finger in _FINGERS
+        for finger in FINGERS
         for s in (
             _metacarpal_base(finger),
             f"{finger}_mcp",

@@ -10,11 +10,11 @@ from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand import (
     FINGER_OMEGA,
     HAND_SIZES,
-    KEYPOINT_NAMES,
     Hand,
     HandParams,
     hand_params,
 )
+from handsim.keypoints import KEYPOINT_NAMES
 from handsim.kinematics import ForwardKinematics
 from handsim.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose, joint_index
 
