@@ -90,7 +90,7 @@ class ForwardKinematics:
             pose: a single pose or a batch.
 
         Returns:
-            (..., 21, 3) keypoint positions, metres, in :data:`~handsim.hand.KEYPOINT_NAMES`
+            (..., 21, 3) keypoint positions, metres, in :data:`~handsim.keypoints.KEYPOINT_NAMES`
             order.
         """
         rots, poss = self.body_frames(pose)

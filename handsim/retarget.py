@@ -1,7 +1,7 @@
 """Retargeting: 21 keypoints (any hand size) -> the 27-DoF pose of a handsim hand.
 
 The keypoints may come from a tracker, an estimator or another hand model of the same side,
-in :data:`~handsim.hand.KEYPOINT_NAMES` order, in any frame (the pose comes out in that frame).
+in :data:`~handsim.keypoints.KEYPOINT_NAMES` order, in any frame (the pose comes out in that frame).
 
 Method:
 
