@@ -1,7 +1,16 @@
 """handsim: a MuJoCo simulation of a 27-DoF human hand for depth-based hand pose estimation.
 
 ``import handsim`` never imports torch (estimators live in ``handsim.estimators``).
+Without a display and without ``MUJOCO_GL`` set, it selects MuJoCo's headless EGL backend
+(this must happen before MuJoCo is first imported).
 """
+
+import os
+
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"
+
+# ruff: noqa: E402 (the backend is chosen before MuJoCo is imported)
 
 from handsim.errors import (
     HandSimError,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -65,7 +64,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     Returns:
         The process exit status.
     """
-    os.environ.setdefault("MUJOCO_GL", "egl")
     parser = _parser()
     args = parser.parse_args(argv)
     if args.command is None:
