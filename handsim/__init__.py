@@ -37,6 +37,18 @@ from handsim.pose import (
     HandPose,
     LimitViolation,
 )
+from handsim.pose_sources import (
+    GESTURES,
+    GRASP_TYPES,
+    gesture,
+    grasp_pose,
+    random_motion,
+    sample_grasp,
+    sample_synergy,
+    sample_uniform,
+    smooth_motion,
+    synergy_basis,
+)
 from handsim.retarget import Retargeter, RetargetResult
 
 __version__ = "0.1.0"
@@ -66,4 +78,15 @@ __all__ = [
     "ForwardKinematics",
     "Retargeter",
     "RetargetResult",
+    # pose sources
+    "GESTURES",
+    "GRASP_TYPES",
+    "gesture",
+    "grasp_pose",
+    "random_motion",
+    "sample_grasp",
+    "sample_synergy",
+    "sample_uniform",
+    "smooth_motion",
+    "synergy_basis",
 ]
