@@ -12,6 +12,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 # ruff: noqa: E402 (the backend is chosen before MuJoCo is imported)
 
+from handsim.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.errors import (
     HandSimError,
     InvalidHandParams,
@@ -49,6 +50,7 @@ from handsim.pose_sources import (
     smooth_motion,
     synergy_basis,
 )
+from handsim.render import DepthRenderer
 from handsim.retarget import Retargeter, RetargetResult
 
 __version__ = "0.1.0"
@@ -78,6 +80,11 @@ __all__ = [
     "ForwardKinematics",
     "Retargeter",
     "RetargetResult",
+    # cameras and rendering
+    "CAMERA_PRESETS",
+    "CameraIntrinsics",
+    "camera_preset",
+    "DepthRenderer",
     # pose sources
     "GESTURES",
     "GRASP_TYPES",

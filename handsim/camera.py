@@ -1,0 +1,232 @@
+"""Pinhole cameras with exact intrinsics, in the OpenCV convention, and their MuJoCo cameras.
+
+Conventions (DESIGN.md): the camera frame is OpenCV's (``+x`` right, ``+y`` down, ``+z`` forward);
+pixel ``(u, v)`` has its centre at integer coordinates, ``u`` to the right, ``v`` down. MuJoCo
+cameras look along their ``-z`` with ``+y`` up; the rotation between the two frames,
+:data:`R_MJCAM_FROM_CV`, is applied here and nowhere else.
+
+Exact intrinsics in MuJoCo: a camera with ``resolution = (W, H)``, ``focal_pixel = (fx, fy)``
+and ``principal_pixel = (px, py)`` renders a point ``(X, Y, Z)`` (OpenCV camera frame) at pixel
+index ``u = fx X / Z + (W - 1) / 2 - px`` and ``v = fy Y / Z + (H - 1) / 2 - py`` (measured by
+rendering small spheres, and pinned by a projection test for every preset), so OpenCV's
+``(cx, cy)`` needs ``principal_pixel = ((W - 1) / 2 - cx, (H - 1) / 2 - cy)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from handsim.errors import HandSimError, UnknownName
+
+__all__ = [
+    "CameraIntrinsics",
+    "CAMERA_PRESETS",
+    "R_MJCAM_FROM_CV",
+    "camera_preset",
+    "add_camera",
+    "look_at_quat_wxyz",
+    "T_cam_from_world",
+]
+
+R_MJCAM_FROM_CV: np.ndarray = np.diag([1.0, -1.0, -1.0])
+"""Rotation from the OpenCV camera frame to MuJoCo's camera frame (its own inverse)."""
+R_MJCAM_FROM_CV.setflags(write=False)
+
+# MuJoCo needs a physical sensor size with focal_pixel; any value works (it only fixes units).
+_SENSOR_PIXEL_PITCH_M = 6e-6
+
+
+class InvalidCamera(HandSimError, ValueError):
+    """Camera intrinsics or placement are invalid."""
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraIntrinsics:
+    """Pinhole intrinsics of a depth camera (OpenCV convention, no distortion).
+
+    Attributes:
+        width: image width, pixels.
+        height: image height, pixels.
+        fx: focal length along u, pixels.
+        fy: focal length along v, pixels.
+        cx: principal point u, pixels (pixel centres at integers).
+        cy: principal point v, pixels.
+        name: preset name, for reports.
+    """
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    name: str = "custom"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.width, int) and isinstance(self.height, int)):
+            raise InvalidCamera(
+                f"width and height must be integers; received {self.width!r}, {self.height!r}"
+            )
+        if self.width < 1 or self.height < 1:
+            raise InvalidCamera(
+                f"width and height must be >= 1 pixel; received {self.width} x {self.height}"
+            )
+        if not (np.isfinite(self.fx) and np.isfinite(self.fy) and self.fx > 0 and self.fy > 0):
+            raise InvalidCamera(
+                f"fx and fy must be positive pixels; received fx={self.fx!r}, fy={self.fy!r}"
+            )
+        if not (np.isfinite(self.cx) and np.isfinite(self.cy)):
+            raise InvalidCamera(f"cx and cy must be finite; received {self.cx!r}, {self.cy!r}")
+
+    @property
+    def K(self) -> np.ndarray:  # noqa: N802 (the standard name of the matrix)
+        """(3, 3) intrinsic matrix."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def fovy_deg(self) -> float:
+        """Vertical field of view, degrees (for information; the camera uses fx, fy)."""
+        return float(np.rad2deg(2.0 * np.arctan(self.height / (2.0 * self.fy))))
+
+    @property
+    def mujoco_principal_pixel(self) -> tuple[float, float]:
+        """MuJoCo ``principal_pixel`` that puts the principal point at ``(cx, cy)``."""
+        return ((self.width - 1) / 2.0 - self.cx, (self.height - 1) / 2.0 - self.cy)
+
+    def project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Project points given in the camera frame to pixels.
+
+        Args:
+            points_cam: (..., 3) points in the OpenCV camera frame, metres (z > 0).
+
+        Returns:
+            (..., 2) pixel coordinates ``(u, v)``.
+        """
+        p = np.asarray(points_cam, dtype=np.float64)
+        z = p[..., 2]
+        return np.stack([self.fx * p[..., 0] / z + self.cx, self.fy * p[..., 1] / z + self.cy], -1)
+
+    def backproject(self, depth_m: np.ndarray) -> np.ndarray:
+        """Back-project a depth image to camera-frame points.
+
+        Args:
+            depth_m: (H, W) depth along the optical axis, metres (0 = no measurement).
+
+        Returns:
+            (H, W, 3) points in the OpenCV camera frame, metres (zeros where depth is 0).
+        """
+        depth = np.asarray(depth_m, dtype=np.float64)
+        v, u = np.indices(depth.shape)
+        x = (u - self.cx) / self.fx * depth
+        y = (v - self.cy) / self.fy * depth
+        return np.stack([x, y, depth], axis=-1)
+
+
+CAMERA_PRESETS: dict[str, CameraIntrinsics] = {
+    # NYU hand dataset, PrimeSense Carmine 1.09 (structured light).
+    "nyu_carmine": CameraIntrinsics(640, 480, 588.036865, 587.075073, 320.0, 240.0, "nyu_carmine"),
+    # ICVL and MSRA15, Intel Creative Interactive Gesture Camera (time of flight).
+    "icvl": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "icvl"),
+    "msra": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "msra"),
+    # BigHand2.2M / HANDS17 / FPHA, Intel RealSense SR300.
+    "sr300": CameraIntrinsics(640, 480, 475.065948, 475.065857, 315.944855, 245.287079, "sr300"),
+}
+"""Depth-sensor intrinsics of the hand-pose datasets (facts section 6.1)."""
+
+
+def camera_preset(name: str) -> CameraIntrinsics:
+    """A camera preset by name.
+
+    Raises:
+        UnknownName: listing the valid presets.
+    """
+    if name not in CAMERA_PRESETS:
+        raise UnknownName(
+            f"unknown camera preset {name!r}; valid presets: {', '.join(CAMERA_PRESETS)}"
+        )
+    return CAMERA_PRESETS[name]
+
+
+def look_at_quat_wxyz(eye: np.ndarray, target: np.ndarray, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """Orientation of a MuJoCo camera at ``eye`` looking at ``target``.
+
+    Args:
+        eye: (3,) camera position, world frame, metres.
+        target: (3,) point to look at, world frame, metres.
+        up: (3,) world direction that appears up in the image.
+
+    Returns:
+        (4,) quaternion ``world_from_mjcam`` in (w, x, y, z) order.
+
+    Raises:
+        InvalidCamera: if eye and target coincide or the view is parallel to ``up``.
+    """
+    forward = np.asarray(target, float) - np.asarray(eye, float)
+    norm = np.linalg.norm(forward)
+    if norm < 1e-9:
+        raise InvalidCamera(f"camera eye and target coincide at {np.asarray(eye).tolist()}")
+    forward /= norm
+    right = np.cross(forward, np.asarray(up, float))
+    if np.linalg.norm(right) < 1e-6:
+        raise InvalidCamera(
+            f"the viewing direction {forward.tolist()} is parallel to up {list(up)}; pass "
+            "another up vector"
+        )
+    right /= np.linalg.norm(right)
+    cam_up = np.cross(right, forward)
+    # MuJoCo camera axes in world: x right, y up, z backward.
+    rot = np.stack([right, cam_up, -forward], axis=1)
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, rot.flatten())
+    return quat
+
+
+def add_camera(
+    parent: mujoco.MjsBody,
+    name: str,
+    intrinsics: CameraIntrinsics,
+    pos: np.ndarray,
+    quat_wxyz: np.ndarray,
+) -> mujoco.MjsCamera:
+    """Add a MuJoCo camera that renders exactly with ``intrinsics``.
+
+    Args:
+        parent: body (or world body) of an ``MjSpec`` to attach the camera to.
+        name: camera name.
+        intrinsics: pinhole intrinsics.
+        pos: (3,) camera position in the parent frame, metres.
+        quat_wxyz: (4,) orientation ``parent_from_mjcam`` (see :func:`look_at_quat_wxyz`).
+
+    Returns:
+        The camera spec. Render it with an image of ``intrinsics.width x intrinsics.height``.
+    """
+    cam = parent.add_camera(name=name, pos=pos, quat=quat_wxyz)
+    cam.resolution = [intrinsics.width, intrinsics.height]
+    cam.focal_pixel = [intrinsics.fx, intrinsics.fy]
+    cam.principal_pixel = list(intrinsics.mujoco_principal_pixel)
+    cam.sensor_size = [
+        intrinsics.width * _SENSOR_PIXEL_PITCH_M,
+        intrinsics.height * _SENSOR_PIXEL_PITCH_M,
+    ]
+    return cam
+
+
+def T_cam_from_world(data: mujoco.MjData, camera_id: int) -> np.ndarray:  # noqa: N802
+    """The OpenCV camera's pose: maps world points into the camera frame.
+
+    Args:
+        data: simulation data after ``mj_forward`` / ``mj_kinematics``.
+        camera_id: MuJoCo camera id.
+
+    Returns:
+        (4, 4) homogeneous transform ``T_cam_from_world``.
+    """
+    R_world_from_mjcam = data.cam_xmat[camera_id].reshape(3, 3)  # noqa: N806
+    R_cam_from_world = R_MJCAM_FROM_CV @ R_world_from_mjcam.T  # noqa: N806
+    T = np.eye(4)  # noqa: N806
+    T[:3, :3] = R_cam_from_world
+    T[:3, 3] = -R_cam_from_world @ data.cam_xpos[camera_id]
+    return T
