@@ -31,6 +31,15 @@ from handsim.hand import (
 )
 from handsim.keypoints import KEYPOINT_NAMES
 from handsim.kinematics import ForwardKinematics
+from handsim.objects import (
+    OBJECT_NAMES,
+    OBJECTS,
+    Symmetry,
+    YCBObject,
+    add_object,
+    get_object,
+    load_object,
+)
 from handsim.pose import (
     JOINT_LIMITS,
     JOINT_LIMITS_DEG,
@@ -80,6 +89,14 @@ __all__ = [
     "ForwardKinematics",
     "Retargeter",
     "RetargetResult",
+    # objects
+    "OBJECTS",
+    "OBJECT_NAMES",
+    "Symmetry",
+    "YCBObject",
+    "add_object",
+    "get_object",
+    "load_object",
     # cameras and rendering
     "CAMERA_PRESETS",
     "CameraIntrinsics",
