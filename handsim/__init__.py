@@ -61,6 +61,18 @@ from handsim.pose_sources import (
 )
 from handsim.render import DepthRenderer
 from handsim.retarget import Retargeter, RetargetResult
+from handsim.scene import (
+    SEGMENT_LABELS,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+    egocentric_camera,
+    sample_placements,
+    sample_viewpoint,
+    third_person_camera,
+)
+from handsim.sensors import StructuredLight, TimeOfFlight, sensor_model
 
 __version__ = "0.1.0"
 
@@ -102,6 +114,19 @@ __all__ = [
     "CameraIntrinsics",
     "camera_preset",
     "DepthRenderer",
+    # scenes and sensors
+    "SEGMENT_LABELS",
+    "CameraSpec",
+    "ObjectPlacement",
+    "Scene",
+    "SceneSpec",
+    "egocentric_camera",
+    "sample_placements",
+    "sample_viewpoint",
+    "third_person_camera",
+    "StructuredLight",
+    "TimeOfFlight",
+    "sensor_model",
     # pose sources
     "GESTURES",
     "GRASP_TYPES",
