@@ -20,6 +20,7 @@ from handsim.errors import (
     InvalidPose,
     UnknownName,
 )
+from handsim.frame import Frame, FrameRenderer, ObjectLabel
 from handsim.hand import (
     HAND_PHYSICS_OPTIONS,
     HAND_SIZES,
@@ -114,7 +115,10 @@ __all__ = [
     "CameraIntrinsics",
     "camera_preset",
     "DepthRenderer",
-    # scenes and sensors
+    # scenes, sensors, frames
+    "Frame",
+    "FrameRenderer",
+    "ObjectLabel",
     "SEGMENT_LABELS",
     "CameraSpec",
     "ObjectPlacement",

@@ -57,14 +57,23 @@ class ObjectPlacement:
     """One object instance on the table.
 
     Attributes:
-        name: object name or alias (see :data:`handsim.objects.OBJECTS`).
+        name: object name or alias (see :data:`handsim.objects.OBJECTS`); for an imported
+            mesh, its name.
         pos_m: (3,) object-frame origin in the world, metres.
         quat_wxyz: (4,) orientation ``world_from_obj``.
+        mesh: an object from :func:`handsim.objects.load_object`, used instead of the
+            registry entry.
     """
 
     name: str
     pos_m: tuple[float, float, float]
     quat_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    mesh: YCBObject | None = None
+
+    @property
+    def object(self) -> YCBObject:
+        """The object (imported mesh, or the registry entry by name)."""
+        return self.mesh if self.mesh is not None else get_object(self.name)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -283,7 +292,7 @@ class SceneSpec:
         if len(set(names)) != len(names):
             raise InvalidScene(f"camera names must be unique; received {names}")
         for placement in self.objects:
-            get_object(placement.name)  # raises UnknownName listing the valid names
+            placement.object  # noqa: B018 (raises UnknownName listing the valid names)
 
 
 class Scene:
@@ -328,7 +337,7 @@ class Scene:
         self.objects: list[tuple[str, YCBObject]] = []
         counts: dict[str, int] = {}
         for placement in spec.objects:
-            obj = get_object(placement.name)
+            obj = placement.object
             k = counts.get(obj.name, 0)
             counts[obj.name] = k + 1
             body = obj.body_name if k == 0 else f"{obj.body_name}_{k}"

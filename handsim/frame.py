@@ -1,0 +1,361 @@
+"""The Frame: one rendered view with all its labels, shared by envs, datasets and metrics.
+
+:class:`FrameRenderer` is bound to one :class:`~handsim.scene.Scene` and one of its cameras; it
+keeps one :class:`~handsim.render.DepthRenderer` and renders :class:`Frame` records.
+
+Keypoint visibility rule (tolerance :data:`VISIBILITY_TOLERANCE_M`): a keypoint is a point
+*inside* the hand (a joint centre, or the end of a fingertip's skin), so the surface the camera
+sees at its pixel is normally its own skin, up to one skin radius ``r`` in front of it. The
+keypoint is **visible** when it is in front of the camera, inside the image, and the rendered
+depth ``D`` at its (rounded) pixel is not nearer than ``z - (r + tolerance)`` (``z``: the
+keypoint's depth; no surface at the pixel also counts as visible: the keypoint sits on the
+silhouette edge). Otherwise it is **occluded**, and the occluder is what the camera sees at the
+pixel: a hand part (its own digit folded in front included) -> :data:`OCCLUDER_SELF`; an object
+instance ``k`` -> ``k``; the table -> :data:`OCCLUDER_SCENE`. ``r`` is the largest collision
+radius of the segments meeting at the keypoint (the palm's half thickness at the wrist and MCPs).
+
+Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
+``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
+nothing else in the scene) that is visible in the full render (pixels where the full render sees
+the object). The hand occlusion ratio is ``1 - visible hand pixels / hand pixels with every
+object hidden``; it needs one more render and is computed on request.
+
+Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
+object instance, position in the camera frame, normal force in newtons).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from handsim.camera import T_cam_from_world
+from handsim.keypoints import KEYPOINT_NAMES
+from handsim.pose import HandPose
+from handsim.render import DepthRenderer
+from handsim.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, Scene
+from handsim.sensors import NoNoise, SensorModel
+
+__all__ = [
+    "Frame",
+    "ObjectLabel",
+    "Contact",
+    "FrameRenderer",
+    "OCCLUDER_NONE",
+    "OCCLUDER_SELF",
+    "OCCLUDER_SCENE",
+    "VISIBILITY_TOLERANCE_M",
+]
+
+OCCLUDER_NONE = -1
+"""The keypoint is visible (or outside the image)."""
+OCCLUDER_SELF = -2
+"""Hidden by the hand itself."""
+OCCLUDER_SCENE = -3
+"""Hidden by the table or other scene geometry."""
+VISIBILITY_TOLERANCE_M = 0.005
+"""Allowance beyond the skin radius for a surface in front of a keypoint, metres."""
+
+_HIDDEN_GROUP = 5  # a geom group no camera renders
+_PALM_LABEL = SEGMENT_LABELS.index("palm")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectLabel:
+    """Pose and visibility of one object instance in a frame.
+
+    Attributes:
+        instance: index in the scene's object list (segmentation label ``8 + instance``).
+        name: object name, e.g. ``"005_tomato_soup_can"``.
+        ycbv_id: YCB-Video object id (``None`` for imported meshes).
+        T_cam_from_obj: (4, 4) object pose in the OpenCV camera frame, metres.
+        corners_cam: (8, 3) bounding-box corners in the camera frame, metres.
+        visib_fract: visible fraction of the object's silhouette (BOP), 0 when out of view.
+        px_count_all: silhouette pixels of the object alone.
+        px_count_visib: pixels where the full render sees the object.
+    """
+
+    instance: int
+    name: str
+    ycbv_id: int | None
+    T_cam_from_obj: np.ndarray  # noqa: N815 (the design's name)
+    corners_cam: np.ndarray
+    visib_fract: float
+    px_count_all: int
+    px_count_visib: int
+
+
+@dataclasses.dataclass(frozen=True)
+class Contact:
+    """A contact between the hand and an object.
+
+    Attributes:
+        hand_part: segmentation label of the hand part (2 palm ... 7 little).
+        instance: object instance index.
+        pos_cam: (3,) contact position in the camera frame, metres.
+        normal_force_n: normal force, newtons.
+    """
+
+    hand_part: int
+    instance: int
+    pos_cam: np.ndarray
+    normal_force_n: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Frame:
+    """One labelled view (DESIGN.md "The Frame"); arrays are read-only copies.
+
+    Attributes:
+        camera: camera name.
+        K: (3, 3) intrinsic matrix.
+        T_cam_from_world: (4, 4) world-to-camera transform (OpenCV frame).
+        depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
+        depth_clean: (H, W) float32 noise-free depth (``None`` unless requested).
+        segmentation: (H, W) int16 labels (:data:`~handsim.scene.SEGMENT_LABELS`, objects 8+).
+        keypoints_cam: (21, 3) keypoints in the camera frame, metres.
+        keypoints_px: (21, 2) keypoint pixels ``(u, v)``.
+        in_frame: (21,) bool, in front of the camera and inside the image.
+        visible: (21,) bool (rule in the module docstring).
+        occluder: (21,) int, :data:`OCCLUDER_NONE`, :data:`OCCLUDER_SELF`,
+            :data:`OCCLUDER_SCENE` or an object instance index.
+        hand_pose: the 27-DoF pose (world frame).
+        hand_length_m: hand length, metres.
+        handedness: ``"right"`` or ``"left"``.
+        objects: per object instance.
+        hand_occlusion_ratio: 1 - visible hand pixels / hand pixels without objects (``None``
+            unless requested).
+        contacts: hand-object contacts.
+    """
+
+    camera: str
+    K: np.ndarray  # noqa: N815
+    T_cam_from_world: np.ndarray  # noqa: N815
+    depth: np.ndarray
+    depth_clean: np.ndarray | None
+    segmentation: np.ndarray
+    keypoints_cam: np.ndarray
+    keypoints_px: np.ndarray
+    in_frame: np.ndarray
+    visible: np.ndarray
+    occluder: np.ndarray
+    hand_pose: HandPose
+    hand_length_m: float
+    handedness: str
+    objects: tuple[ObjectLabel, ...]
+    hand_occlusion_ratio: float | None
+    contacts: tuple[Contact, ...]
+
+    @property
+    def keypoint_names(self) -> tuple[str, ...]:
+        """Names of the 21 keypoints, in order."""
+        return KEYPOINT_NAMES
+
+
+def _keypoint_radii(scene: Scene) -> np.ndarray:
+    """Largest collision radius of the segments that meet at each keypoint, metres."""
+    skeleton = scene.hand.skeleton
+    radius_of_body = []
+    for body in skeleton.bodies:
+        radii = [g.radius for g in body.geoms if hasattr(g, "radius")]
+        if body.part == "palm":
+            # Half the palm thickness (the box's z half size).
+            radii = [g.half_size[2] for g in body.geoms if hasattr(g, "half_size")]
+        radius_of_body.append(max(radii))
+    parents = [b.parent for b in skeleton.bodies]
+    radii = []
+    for body_index, _ in skeleton.keypoints:
+        r = radius_of_body[body_index]
+        if parents[body_index] >= 0:
+            r = max(r, radius_of_body[parents[body_index]])
+        radii.append(r)
+    return np.array(radii)
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array = np.array(array)
+    array.setflags(write=False)
+    return array
+
+
+class FrameRenderer:
+    """Renders labelled frames of one scene from one camera.
+
+    Args:
+        scene: a scene with a hand.
+        camera: name of one of the scene's cameras.
+        sensor: depth noise model (default: none).
+
+    Raises:
+        InvalidScene: for an unknown camera.
+        UnknownName: if the scene has no hand.
+    """
+
+    def __init__(self, scene: Scene, camera: str, sensor: SensorModel | None = None) -> None:
+        from handsim.errors import UnknownName
+
+        if scene.hand is None:
+            raise UnknownName("a FrameRenderer needs a scene with a hand; SceneSpec(hand=None)")
+        self.scene = scene
+        self.camera_spec = scene.camera(camera)
+        self.intrinsics = self.camera_spec.intrinsics
+        self.sensor = sensor if sensor is not None else NoNoise()
+        self.renderer = DepthRenderer(scene.model, camera, self.intrinsics)
+        self._kp_radius = _keypoint_radii(scene)
+        model = scene.model
+        self._object_geoms = [
+            np.nonzero(scene.geom_labels == OBJECT_LABEL_OFFSET + k)[0]
+            for k in range(len(scene.objects))
+        ]
+        self._object_bodies = [model.body(body).id for body, _ in scene.objects]
+        labels = scene.geom_labels
+        self._is_hand_geom = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
+
+    def close(self) -> None:
+        """Free the renderer."""
+        self.renderer.close()
+
+    def __enter__(self) -> FrameRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _render_only(self, data: mujoco.MjData, visible_geoms: np.ndarray) -> np.ndarray:
+        """Geom-id image with every geom hidden except ``visible_geoms``."""
+        groups = self.scene.model.geom_group
+        saved = groups.copy()
+        hide = np.ones(len(groups), dtype=bool)
+        hide[visible_geoms] = False
+        groups[hide] = _HIDDEN_GROUP
+        try:
+            _, geom_id = self.renderer.render(data)
+        finally:
+            groups[:] = saved
+        return geom_id
+
+    def render(
+        self,
+        rng: np.random.Generator,
+        *,
+        keep_clean: bool = False,
+        hand_occlusion: bool = False,
+    ) -> Frame:
+        """Render the scene's current state and label it.
+
+        Args:
+            rng: random generator of the sensor noise.
+            keep_clean: also return the noise-free depth.
+            hand_occlusion: compute the hand occlusion ratio (one more render).
+
+        Returns:
+            The labelled frame.
+        """
+        scene, model, data = self.scene, self.scene.model, self.scene.data
+        intr = self.intrinsics
+        depth_clean, geom_id = self.renderer.render(data)
+        labels = scene.segment(geom_id)
+        depth = self.sensor.apply(depth_clean, intr, rng)
+        T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
+        R, t = T[:3, :3], T[:3, 3]  # noqa: N806
+
+        # Keypoints.
+        kp_world = scene.binding.keypoints(data)
+        kp_cam = kp_world @ R.T + t
+        z = kp_cam[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            kp_px = intr.project(np.where(z[:, None] > 0, kp_cam, np.nan))
+        col = np.rint(kp_px[:, 0])
+        row = np.rint(kp_px[:, 1])
+        in_frame = (z > 0) & (col >= 0) & (col < intr.width) & (row >= 0) & (row < intr.height)
+        visible = np.zeros(21, dtype=bool)
+        occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
+        for k in np.nonzero(in_frame)[0]:
+            v, u = int(row[k]), int(col[k])
+            seen = depth_clean[v, u]
+            limit = z[k] - (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)
+            if seen == 0 or seen >= limit:
+                visible[k] = True
+                continue
+            label = int(labels[v, u])
+            if label >= OBJECT_LABEL_OFFSET:
+                occluder[k] = label - OBJECT_LABEL_OFFSET
+            elif label >= _PALM_LABEL:
+                occluder[k] = OCCLUDER_SELF
+            else:
+                occluder[k] = OCCLUDER_SCENE
+
+        # Objects.
+        objects = []
+        for k, (body, obj) in enumerate(scene.objects):
+            T_world_obj = np.eye(4)  # noqa: N806
+            T_world_obj[:3, :3] = data.body(body).xmat.reshape(3, 3)
+            T_world_obj[:3, 3] = data.body(body).xpos
+            T_cam_obj = T @ T_world_obj  # noqa: N806
+            corners = obj.corners_m @ T_cam_obj[:3, :3].T + T_cam_obj[:3, 3]
+            alone = self._render_only(data, self._object_geoms[k])
+            px_all = int(np.count_nonzero(alone >= 0))
+            px_visib = int(np.count_nonzero(labels == OBJECT_LABEL_OFFSET + k))
+            objects.append(
+                ObjectLabel(
+                    instance=k,
+                    name=obj.name,
+                    ycbv_id=obj.ycbv_id,
+                    T_cam_from_obj=_read_only(T_cam_obj),
+                    corners_cam=_read_only(corners),
+                    visib_fract=px_visib / px_all if px_all else 0.0,
+                    px_count_all=px_all,
+                    px_count_visib=px_visib,
+                )
+            )
+
+        occlusion_ratio = None
+        if hand_occlusion:
+            no_objects = np.ones(model.ngeom, dtype=bool)
+            for geoms in self._object_geoms:
+                no_objects[geoms] = False
+            hand_only = self._render_only(data, np.nonzero(no_objects)[0])
+            hand_px = np.count_nonzero(self._is_hand_geom[hand_only[hand_only >= 0]])
+            visible_px = np.count_nonzero((labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET))
+            occlusion_ratio = 1.0 - visible_px / hand_px if hand_px else 0.0
+
+        contacts = []
+        body_instance = {b: k for k, b in enumerate(self._object_bodies)}
+        force = np.zeros(6)
+        for i in range(data.ncon):
+            c = data.contact[i]
+            for hand_geom, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
+                instance = body_instance.get(int(model.geom_bodyid[other]))
+                if self._is_hand_geom[hand_geom] and instance is not None:
+                    mujoco.mj_contactForce(model, data, i, force)
+                    contacts.append(
+                        Contact(
+                            hand_part=int(scene.geom_labels[hand_geom]),
+                            instance=instance,
+                            pos_cam=_read_only(R @ c.pos + t),
+                            normal_force_n=float(force[0]),
+                        )
+                    )
+
+        hand = scene.hand.params
+        return Frame(
+            camera=self.camera_spec.name,
+            K=_read_only(intr.K),
+            T_cam_from_world=_read_only(T),
+            depth=_read_only(depth),
+            depth_clean=_read_only(depth_clean) if keep_clean else None,
+            segmentation=_read_only(labels),
+            keypoints_cam=_read_only(kp_cam),
+            keypoints_px=_read_only(kp_px),
+            in_frame=_read_only(in_frame),
+            visible=_read_only(visible),
+            occluder=_read_only(occluder),
+            hand_pose=scene.binding.pose(data),
+            hand_length_m=hand.hand_length,
+            handedness=hand.side,
+            objects=tuple(objects),
+            hand_occlusion_ratio=occlusion_ratio,
+            contacts=tuple(contacts),
+        )

@@ -1,0 +1,166 @@
+"""The Frame: keypoint visibility and occluders, object labels, occlusion ratio, contacts."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from handsim.camera import camera_preset
+from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, FrameRenderer
+from handsim.keypoints import KEYPOINT_NAMES
+from handsim.objects import load_object
+from handsim.pose_sources import gesture
+from handsim.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+
+ICVL = camera_preset("icvl")
+PANEL_HALF_M = np.array([0.05, 0.01, 0.12])  # an axis-aligned panel: 10 x 2 x 24 cm
+
+
+@pytest.fixture(scope="module")
+def panel(tmp_path_factory):
+    """An imported box mesh with known, axis-aligned faces."""
+    path = tmp_path_factory.mktemp("panel") / "panel.stl"
+    trimesh.creation.box(extents=2 * PANEL_HALF_M).export(path)
+    return load_object(path, name="panel", mass_kg=0.2, decomposition="convex_hull")
+
+
+@pytest.fixture(scope="module")
+def cube(tmp_path_factory):
+    """A 3 cm cube mesh."""
+    path = tmp_path_factory.mktemp("cube") / "cube.stl"
+    trimesh.creation.box(extents=(0.03, 0.03, 0.03)).export(path)
+    return load_object(path, name="cube", mass_kg=0.05, decomposition="convex_hull")
+
+
+TIPS = [KEYPOINT_NAMES.index(f"{f}_tip") for f in ("index", "middle", "ring", "little")]
+STANDING = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # object y axis -> world z
+
+
+def _flat_hand_facing(camera_y: float):
+    """A flat right hand at (0, 0.5, 0.2), fingers up (+z), palm toward -y."""
+    # Hand x (radial) -> world +x, y (distal) -> +z, z (palmar) -> -y.
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_matrix(np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]).T)
+    return gesture("open").replace(
+        wrist_pos=np.array([0.0, 0.5, 0.1]), wrist_rotvec=rot.as_rotvec()
+    )
+
+
+def test_flat_hand_facing_the_camera_is_fully_visible():
+    """Every keypoint of a flat hand seen from the palm side is in frame and visible."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    assert frame.in_frame.all()
+    assert frame.visible.all(), [KEYPOINT_NAMES[k] for k in np.nonzero(~frame.visible)[0]]
+    assert np.all(frame.occluder == OCCLUDER_NONE)
+    np.testing.assert_allclose(frame.keypoints_px, ICVL.project(frame.keypoints_cam))
+
+
+def test_box_between_camera_and_fingertip_occludes_it(cube):
+    """A box on the ray to the index tip hides it, with the box as occluder."""
+    eye = np.array([0.0, 0.0, 0.19])
+    cam = CameraSpec.look_at("front", ICVL, tuple(eye), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    tip = scene.binding.keypoints(scene.data)[KEYPOINT_NAMES.index("index_tip")]
+    # A 3 cm cube on the ray from the camera to the tip, 5 cm in front of the tip.
+    ray = (tip - eye) / np.linalg.norm(tip - eye)
+    box_pos = tip - 0.05 * ray
+    spec = SceneSpec(
+        cameras=(cam,),
+        table=False,
+        objects=(ObjectPlacement("cube", tuple(box_pos), mesh=cube),),
+    )
+    scene = Scene(spec)
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    k = KEYPOINT_NAMES.index("index_tip")
+    assert frame.in_frame[k] and not frame.visible[k]
+    assert frame.occluder[k] == 0  # object instance 0
+    wrist = KEYPOINT_NAMES.index("wrist")
+    assert frame.visible[wrist] and frame.occluder[wrist] == OCCLUDER_NONE
+    assert 0.0 < frame.hand_occlusion_ratio < 1.0
+
+
+def test_fist_seen_from_the_back_hides_its_fingertips():
+    """Fingertips curled into the palm are self-occluded when the back of the hand faces us."""
+    from scipy.spatial.transform import Rotation
+
+    # Palm toward +y (away from the camera at y = 0), fingers up.
+    rot = Rotation.from_matrix(np.array([[-1.0, 0, 0], [0, 0, 1.0], [0, 1.0, 0]]).T)
+    pose = gesture("fist").replace(
+        wrist_pos=np.array([0.0, 0.5, 0.1]), wrist_rotvec=rot.as_rotvec()
+    )
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.17), (0.0, 0.5, 0.17))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(pose)
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    assert frame.in_frame[TIPS].all()
+    assert not frame.visible[TIPS].any()
+    assert np.all(frame.occluder[TIPS] == OCCLUDER_SELF)
+
+
+def test_half_covered_object_has_visib_fract_one_half(panel):
+    """A panel whose edge lies in the plane of the camera and a can's axis hides half of it."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.05), (0.0, 1.0, 0.05))
+    objects = (
+        # The can's axis is its y axis: stand it up.
+        ObjectPlacement("005_tomato_soup_can", (0.0, 0.6, 0.05), STANDING),
+        # The panel's +x face at x = 0, 0.3 m from the camera, tall enough to cover the can.
+        ObjectPlacement("panel", (-PANEL_HALF_M[0], 0.3, 0.05), mesh=panel),
+    )
+    scene = Scene(SceneSpec(cameras=(cam,), objects=objects, table=False))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    can, box = frame.objects
+    assert can.name == "005_tomato_soup_can"
+    assert can.visib_fract == pytest.approx(0.5, abs=0.02)
+    assert box.visib_fract == pytest.approx(1.0)
+    # Pose and corners in the camera frame: the can is 0.6 m ahead on the optical axis.
+    np.testing.assert_allclose(can.T_cam_from_obj[:3, 3], [0.0, 0.0, 0.6], atol=1e-3)
+    np.testing.assert_allclose(can.corners_cam.mean(axis=0), can.T_cam_from_obj[:3, 3], atol=1e-3)
+
+
+def test_contacts_between_hand_and_object(panel):
+    """A fingertip pressed into an object yields a contact labelled with its digit and a force."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    base = Scene(SceneSpec(cameras=(cam,), table=False))
+    base.reset(_flat_hand_facing(0.0))
+    tip = base.binding.keypoints(base.data)[KEYPOINT_NAMES.index("middle_tip")]
+    # The panel's bottom face 2 mm below the middle fingertip.
+    box_pos = tip + np.array([0.0, 0.0, PANEL_HALF_M[2] - 0.002])
+    scene = Scene(
+        SceneSpec(
+            cameras=(cam,),
+            table=False,
+            objects=(ObjectPlacement("panel", tuple(box_pos), mesh=panel),),
+        )
+    )
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    parts = {c.hand_part for c in frame.contacts}
+    assert 5 in parts  # the middle finger's label
+    assert all(c.instance == 0 for c in frame.contacts)
+    assert max(c.normal_force_n for c in frame.contacts) > 0
+
+
+def test_frame_is_read_only_and_seeded():
+    """Frame arrays cannot be written; the same seed gives the same noisy depth."""
+    from handsim.sensors import StructuredLight
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, -0.2, 0.4), (0.0, 0.0, 0.1))
+    scene = Scene(SceneSpec(cameras=(cam,)))
+    with FrameRenderer(scene, "front", StructuredLight()) as renderer:
+        a = renderer.render(np.random.default_rng(1), keep_clean=True)
+        b = renderer.render(np.random.default_rng(1))
+    np.testing.assert_array_equal(a.depth, b.depth)
+    assert b.depth_clean is None and a.depth_clean is not None
+    with pytest.raises(ValueError, match="read-only"):
+        a.depth[0, 0] = 1.0
+    assert a.handedness == "right" and a.hand_length_m == pytest.approx(0.189)
