@@ -17,7 +17,8 @@ radius of the segments meeting at the keypoint (the palm's half thickness at the
 Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
 ``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
 nothing else in the scene) that is visible in the full render (pixels where the full render sees
-the object). The hand occlusion ratio is ``1 - visible hand pixels / hand pixels with every
+the object). Objects whose projected boxes do not overlap share one silhouette render. The hand
+occlusion ratio is ``1 - visible hand pixels / hand pixels with every
 object hidden``; it needs one more render and is computed on request.
 
 Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
@@ -231,10 +232,34 @@ class FrameRenderer:
         hide[visible_geoms] = False
         groups[hide] = _HIDDEN_GROUP
         try:
-            _, geom_id = self.renderer.render(data)
+            return self.renderer.render_segmentation(data)
         finally:
             groups[:] = saved
-        return geom_id
+
+    def _object_silhouettes(self, data: mujoco.MjData, boxes: list[np.ndarray]) -> list:
+        """Silhouette mask of each object rendered alone (BOP's ``mask``).
+
+        Objects whose projected bounding boxes do not overlap cannot overlap on the image, so
+        they share one render (usually one render for all of them).
+        """
+        masks: list[np.ndarray | None] = [None] * len(boxes)
+        pending = list(range(len(boxes)))
+        while pending:
+            group, taken = [], []
+            for k in pending:
+                lo, hi = boxes[k]
+                if all(np.any(hi < tlo) or np.any(lo > thi) for tlo, thi in taken):
+                    group.append(k)
+                    taken.append((lo, hi))
+            geom_id = self._render_only(
+                data, np.concatenate([self._object_geoms[k] for k in group])
+            )
+            labels = self.scene.geom_labels
+            seen = np.where(geom_id >= 0, labels[np.maximum(geom_id, 0)], -1)
+            for k in group:
+                masks[k] = seen == OBJECT_LABEL_OFFSET + k
+            pending = [k for k in pending if k not in group]
+        return masks
 
     def render(
         self,
@@ -288,16 +313,25 @@ class FrameRenderer:
                 occluder[k] = OCCLUDER_SCENE
 
         # Objects.
-        objects = []
-        for k, (body, obj) in enumerate(scene.objects):
+        poses, boxes = [], []
+        for body, obj in scene.objects:
             T_world_obj = np.eye(4)  # noqa: N806
             T_world_obj[:3, :3] = data.body(body).xmat.reshape(3, 3)
             T_world_obj[:3, 3] = data.body(body).xpos
             T_cam_obj = T @ T_world_obj  # noqa: N806
             corners = obj.corners_m @ T_cam_obj[:3, :3].T + T_cam_obj[:3, 3]
-            alone = self._render_only(data, self._object_geoms[k])
-            px_all = int(np.count_nonzero(alone >= 0))
-            px_visib = int(np.count_nonzero(labels == OBJECT_LABEL_OFFSET + k))
+            poses.append((T_cam_obj, corners))
+            if np.all(corners[:, 2] > 1e-3):
+                uv = intr.project(corners)
+                boxes.append((uv.min(axis=0), uv.max(axis=0)))
+            else:  # partly behind the camera: its image extent is unbounded
+                boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
+        silhouettes = self._object_silhouettes(data, boxes) if scene.objects else []
+        objects = []
+        for k, (_, obj) in enumerate(scene.objects):
+            T_cam_obj, corners = poses[k]  # noqa: N806
+            px_all = int(np.count_nonzero(silhouettes[k]))
+            px_visib = int(np.count_nonzero(silhouettes[k] & (labels == OBJECT_LABEL_OFFSET + k)))
             objects.append(
                 ObjectLabel(
                     instance=k,
@@ -316,7 +350,7 @@ class FrameRenderer:
             no_objects = np.ones(model.ngeom, dtype=bool)
             for geoms in self._object_geoms:
                 no_objects[geoms] = False
-            hand_only = self._render_only(data, np.nonzero(no_objects)[0])
+            hand_only = self._render_only(data, np.nonzero(no_objects)[0])  # objects hidden
             hand_px = np.count_nonzero(self._is_hand_geom[hand_only[hand_only >= 0]])
             visible_px = np.count_nonzero((labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET))
             occlusion_ratio = 1.0 - visible_px / hand_px if hand_px else 0.0

@@ -1,17 +1,20 @@
 """Depth and segmentation rendering from a MuJoCo camera, in the OpenCV convention.
 
 One :class:`DepthRenderer` per (model, camera) holds one offscreen OpenGL context and is reused
-for every frame. Depth is float32 metres along the optical axis (``0.0`` = no surface); the
-segmentation is the MuJoCo geom id seen at each pixel (``-1`` = background). Cameras render the
-geom groups in :data:`RENDERED_GEOM_GROUPS`: the visual geoms (group 2) and scene geometry (groups
-0 and 1), never the hand's collision geoms (group 3). Headless rendering needs
-``MUJOCO_GL=egl`` (``import handsim`` sets it when there is no display).
+for every frame; depth and segmentation come from the same draw (MuJoCo's segmentation colours
+in the colour buffer, metric depth from the depth buffer). Depth is float32 metres along the
+optical axis (``0.0`` = no surface); the segmentation is the MuJoCo geom id seen at each pixel
+(``-1`` = background). Cameras render the geom groups in :data:`RENDERED_GEOM_GROUPS`: the
+visual geoms (group 2) and scene geometry (groups 0 and 1), never the hand's collision geoms
+(group 3). Headless rendering needs ``MUJOCO_GL=egl`` (``import handsim`` sets it when there is
+no display).
 """
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
+from mujoco import gl_context
 
 from handsim.camera import CameraIntrinsics
 from handsim.errors import HandSimError, UnknownName
@@ -27,7 +30,7 @@ class RenderError(HandSimError, RuntimeError):
 
 
 class DepthRenderer:
-    """Renders depth and geom segmentation of one camera.
+    """Renders depth and geom segmentation of one camera in a single OpenGL pass.
 
     Args:
         model: compiled model containing the camera.
@@ -57,11 +60,58 @@ class DepthRenderer:
         self.camera = camera
         self.camera_id = int(model.camera(camera).id)
         self.intrinsics = intrinsics
-        self._renderer = mujoco.Renderer(model, h, w)
+        self._gl = gl_context.GLContext(w, h) if gl_context.GLContext is not None else None
+        if self._gl is not None:
+            self._gl.make_current()
+        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
+        # Reversed Z (0 = far) keeps depth precise far from the camera.
+        self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._scene = mujoco.MjvScene(model, maxgeom=10_000)
+        # One pass gives both: geoms are drawn in their segmentation id colours.
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._camera.fixedcamid = self.camera_id
         self._option = mujoco.MjvOption()
         self._option.geomgroup[:] = 0
         self._option.geomgroup[list(RENDERED_GEOM_GROUPS)] = 1
         self._option.sitegroup[:] = 0
+        self._rect = mujoco.MjrRect(0, 0, w, h)
+        self._rgb = np.empty((h, w, 3), dtype=np.uint8)
+        self._zbuffer = np.empty((h, w), dtype=np.float32)
+        extent = model.stat.extent
+        near = np.float32(model.vis.map.znear * extent)
+        far = np.float32(model.vis.map.zfar * extent)
+        # OpenGL perspective depth, remapped for reversed Z: metric = d / (buffer + c).
+        self._c = np.float32(-0.5) * (-(far + near) / (far - near)) - np.float32(0.5)
+        self._d = np.float32(-0.5) * (-(np.float32(2) * far * near) / (far - near))
+
+    def _draw(self, data: mujoco.MjData) -> None:
+        if self._context is None:
+            raise RenderError("render() called after close()")
+        if self._gl is not None:
+            self._gl.make_current()
+        mujoco.mjv_updateScene(
+            self.model, data, self._option, None, self._camera,
+            mujoco.mjtCatBit.mjCAT_ALL, self._scene,
+        )  # fmt: skip
+        mujoco.mjr_render(self._rect, self._scene, self._context)
+
+    def _geom_ids(self) -> np.ndarray:
+        # The offscreen buffer is bottom-up.
+        rgb = self._rgb[::-1]
+        segid = (
+            rgb[..., 0].astype(np.int32)
+            | (rgb[..., 1].astype(np.int32) << 8)
+            | (rgb[..., 2].astype(np.int32) << 16)
+        )  # 0 = background
+        lut = np.full(self._scene.ngeom + 1, -1, dtype=np.int32)
+        for g in self._scene.geoms[: self._scene.ngeom]:
+            if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+                lut[g.segid + 1] = g.objid
+        return lut[np.minimum(segid, len(lut) - 1)]
 
     def render(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """Render the current state.
@@ -73,22 +123,32 @@ class DepthRenderer:
             ``(depth_m, geom_id)``: (H, W) float32 depth along the optical axis, metres, 0 where
             no geom is seen; (H, W) int32 geom id, -1 for background.
         """
-        r = self._renderer
-        r.update_scene(data, camera=self.camera_id, scene_option=self._option)
-        r.enable_segmentation_rendering()
-        seg = r.render()
-        r.disable_segmentation_rendering()
-        r.enable_depth_rendering()
-        depth = r.render()
-        r.disable_depth_rendering()
-        is_geom = seg[..., 1] == mujoco.mjtObj.mjOBJ_GEOM
-        geom_id = np.where(is_geom, seg[..., 0], -1).astype(np.int32)
-        depth_m = np.where(is_geom, depth, 0.0).astype(np.float32)
+        self._draw(data)
+        mujoco.mjr_readPixels(self._rgb, self._zbuffer, self._rect, self._context)
+        geom_id = self._geom_ids()
+        zbuffer = self._zbuffer[::-1].astype(np.float64)
+        depth = self._d.astype(np.float64) / (zbuffer + self._c)
+        depth_m = np.where(geom_id >= 0, depth, 0.0).astype(np.float32)
         return depth_m, geom_id
 
+    def render_segmentation(self, data: mujoco.MjData) -> np.ndarray:
+        """Only the geom-id image (cheaper: the depth buffer is not read).
+
+        Returns:
+            (H, W) int32 geom id, -1 for background.
+        """
+        self._draw(data)
+        mujoco.mjr_readPixels(self._rgb, None, self._rect, self._context)
+        return self._geom_ids()
+
     def close(self) -> None:
-        """Free the OpenGL context."""
-        self._renderer.close()
+        """Free the OpenGL context (idempotent)."""
+        if self._context is not None:
+            self._context.free()
+            self._context = None
+        if self._gl is not None:
+            self._gl.free()
+            self._gl = None
 
     def __enter__(self) -> DepthRenderer:
         return self
