@@ -32,6 +32,13 @@ from handsim.hand import (
 )
 from handsim.keypoints import KEYPOINT_NAMES
 from handsim.kinematics import ForwardKinematics
+from handsim.metrics import (
+    evaluate_dexter_object,
+    evaluate_hand_poses,
+    evaluate_object_poses,
+    plot_f_tau,
+    plot_pck,
+)
 from handsim.objects import (
     OBJECT_NAMES,
     OBJECTS,
@@ -102,6 +109,12 @@ __all__ = [
     "ForwardKinematics",
     "Retargeter",
     "RetargetResult",
+    # metrics
+    "evaluate_dexter_object",
+    "evaluate_hand_poses",
+    "evaluate_object_poses",
+    "plot_f_tau",
+    "plot_pck",
     # objects
     "OBJECTS",
     "OBJECT_NAMES",
