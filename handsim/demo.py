@@ -6,7 +6,10 @@ Writes to the output folder:
   rendered at the end of each gesture's hold;
 - ``summary.txt`` and ``summary.json``: per hand the model figures (mass, build time) and how
   well the physics hand tracked its targets (joint error at the end of each hold, wrist error),
-  and the simulation speed.
+  and the simulation speed;
+- ``frames.png``: noisy structured-light depth frames of a hand among YCB-like objects from
+  random viewpoints, coloured by segmentation (shade = depth), keypoints drawn as filled dots
+  when visible and as crosses when occluded (red: by an object, yellow: by the hand itself).
 
 Runs headless (``MUJOCO_GL=egl``) with nothing downloaded.
 """
@@ -24,8 +27,12 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handsim.camera import camera_preset
+from handsim.frame import OCCLUDER_SELF, Frame, FrameRenderer
 from handsim.hand import HAND_SIZES, Hand, HandParams
 from handsim.pose_sources import gesture, smooth_motion
+from handsim.scene import Scene, SceneSpec, sample_placements, sample_viewpoint
+from handsim.sensors import StructuredLight
 
 __all__ = ["DEMO_GESTURES", "run_demo"]
 
@@ -136,6 +143,62 @@ def _contact_sheet(runs: Sequence[_HandRun], gestures: Sequence[str]) -> np.ndar
     return np.vstack(rows)
 
 
+_FRAME_OBJECTS = ("005_tomato_soup_can", "003_cracker_box", "025_mug", "011_banana")
+_FRAME_GESTURES = ("open", "pinch", "point", "fist", "ok", "relaxed", "victory", "spread")
+# BGR colour per segmentation label: background, table, palm, thumb..little, then objects.
+_LABEL_BGR = np.array(
+    [
+        (0, 0, 0), (90, 90, 90), (60, 180, 230), (40, 120, 255), (60, 220, 120),
+        (230, 200, 60), (230, 120, 200), (160, 100, 240),
+        (80, 80, 230), (230, 90, 70), (70, 200, 200), (200, 200, 70), (150, 230, 150),
+    ],
+    dtype=np.float64,
+)  # fmt: skip
+
+
+def _frame_tile(frame: Frame) -> np.ndarray:
+    labels = np.minimum(frame.segmentation, len(_LABEL_BGR) - 1)
+    depth = frame.depth
+    valid = depth > 0
+    near, far = np.percentile(depth[valid], [2, 98]) if valid.any() else (0.0, 1.0)
+    shade = 1.0 - 0.6 * np.clip((depth - near) / max(far - near, 1e-6), 0.0, 1.0)
+    tile = (_LABEL_BGR[labels] * shade[..., None] * valid[..., None]).astype(np.uint8)
+    for k in range(21):
+        if not frame.in_frame[k]:
+            continue
+        u, v = (int(round(c)) for c in frame.keypoints_px[k])
+        if frame.visible[k]:
+            cv2.circle(tile, (u, v), 3, (255, 255, 255), -1)
+        else:
+            colour = (0, 255, 255) if frame.occluder[k] == OCCLUDER_SELF else (0, 0, 255)
+            cv2.drawMarker(tile, (u, v), colour, cv2.MARKER_TILTED_CROSS, 8, 2)
+    return tile
+
+
+def _labelled_frames(seed: int = 0) -> tuple[np.ndarray, dict]:
+    """Noisy labelled frames of a hand among objects, and their visibility statistics."""
+    rng = np.random.default_rng(seed)
+    intrinsics = camera_preset("icvl")
+    placements = sample_placements(rng, _FRAME_OBJECTS)
+    tiles, visible, total = [], 0, 0
+    for i, name in enumerate(_FRAME_GESTURES):
+        camera = sample_viewpoint(rng, intrinsics, name="view", distance_range_m=(0.45, 0.7))
+        scene = Scene(SceneSpec(objects=placements, cameras=(camera,)))
+        # Palm down over the objects, fingers toward +y.
+        pose = gesture(name).replace(
+            wrist_pos=np.array([0.0, -0.08 + 0.01 * i, 0.14]), wrist_rotvec=np.array([0, np.pi, 0])
+        )
+        scene.reset(pose)
+        with FrameRenderer(scene, "view", StructuredLight()) as renderer:
+            frame = renderer.render(rng)
+        tiles.append(_frame_tile(frame))
+        visible += int(frame.visible.sum())
+        total += int(frame.in_frame.sum())
+    rows = [np.hstack(tiles[:4]), np.hstack(tiles[4:])]
+    stats = {"frames": len(tiles), "keypoints_in_frame": total, "keypoints_visible": visible}
+    return np.vstack(rows), stats
+
+
 def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: int = 200) -> dict:
     """Run the demo and write its outputs.
 
@@ -175,6 +238,9 @@ def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: 
             for r in runs
         ],
     }
+    frames, frame_stats = _labelled_frames()
+    cv2.imwrite(str(out / "frames.png"), frames)
+    summary["labelled_frames"] = frame_stats
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     lines = [
         "handsim demo: gesture sequence under physics (soft wrist weld, position-actuated fingers)",
@@ -189,6 +255,14 @@ def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: 
             f"{h['max_joint_error_deg_after_hold']:>15.2f}{h['max_wrist_error_mm_after_hold']:>14.2f}"
             f"{h['realtime_factor']:>12.1f}"
         )
-    lines += ["", f"contact sheet: {out / 'gestures.png'}"]
+    lines += [
+        "",
+        f"labelled noisy depth frames: {frame_stats['frames']} views, "
+        f"{frame_stats['keypoints_visible']} of {frame_stats['keypoints_in_frame']} keypoints "
+        "in view are visible",
+        "",
+        f"contact sheet: {out / 'gestures.png'}",
+        f"depth frames: {out / 'frames.png'}",
+    ]
     (out / "summary.txt").write_text("\n".join(lines) + "\n")
     return summary

@@ -9,7 +9,7 @@ from handsim.hand import HAND_SIZES
 
 
 def test_demo_writes_contact_sheet_and_summary(tmp_path):
-    """Six hands x every gesture: a full contact sheet, and the physics hands track targets."""
+    """Gesture contact sheet (6 hands), noisy labelled depth frames, and a consistent summary."""
     summary = run_demo(tmp_path, width=48, height=48)
     sheet = cv2.imread(str(tmp_path / "gestures.png"))
     rows, cols = 2 * len(HAND_SIZES), len(DEMO_GESTURES)
@@ -17,6 +17,10 @@ def test_demo_writes_contact_sheet_and_summary(tmp_path):
     assert sheet.std() > 10  # rendered hands, not a blank image
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
     assert "contact sheet" in (tmp_path / "summary.txt").read_text()
+    frames = cv2.imread(str(tmp_path / "frames.png"))
+    assert frames.shape == (2 * 240, 4 * 320, 3) and frames.std() > 10
+    stats = summary["labelled_frames"]
+    assert stats["frames"] == 8 and 0 < stats["keypoints_visible"] <= stats["keypoints_in_frame"]
     assert len(summary["hands"]) == rows
     for hand in summary["hands"]:
         # Holds end with every joint near its target (contacts in fist/pinch stop a few deg
