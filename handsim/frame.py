@@ -17,7 +17,8 @@ radius of the segments meeting at the keypoint (the palm's half thickness at the
 Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
 ``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
 nothing else in the scene) that is visible in the full render (pixels where the full render sees
-the object). Objects whose projected boxes do not overlap share one silhouette render. The hand
+the object). Unoccluded objects need no extra render (see ``FrameRenderer._silhouettes``);
+the others share one silhouette render when their projected boxes do not overlap. The hand
 occlusion ratio is ``1 - visible hand pixels / hand pixels with every
 object hidden``; it needs one more render and is computed on request.
 
@@ -29,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import mujoco
 import numpy as np
 
@@ -60,6 +62,9 @@ VISIBILITY_TOLERANCE_M = 0.005
 """Allowance beyond the skin radius for a surface in front of a keypoint, metres."""
 
 _HIDDEN_GROUP = 5  # a geom group no camera renders
+# A neighbouring hand/object surface up to this far behind an object still counts as a
+# possible occluder (conservative: it only costs a silhouette render).
+_OCCLUSION_MARGIN_M = 0.005
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
 
 
@@ -236,14 +241,42 @@ class FrameRenderer:
         finally:
             groups[:] = saved
 
-    def _object_silhouettes(self, data: mujoco.MjData, boxes: list[np.ndarray]) -> list:
+    def _silhouettes(
+        self,
+        data: mujoco.MjData,
+        labels: np.ndarray,
+        depth_m: np.ndarray,
+        boxes: list[tuple[np.ndarray, np.ndarray]],
+    ) -> list[np.ndarray]:
         """Silhouette mask of each object rendered alone (BOP's ``mask``).
 
-        Objects whose projected bounding boxes do not overlap cannot overlap on the image, so
-        they share one render (usually one render for all of them).
+        An object whose visible region nowhere borders a nearer hand or other object is not
+        occluded (its silhouette is connected, so a hidden part would border its occluder):
+        its silhouette is its visible region, with no render. The others are rendered alone;
+        objects whose projected boxes do not overlap share one render.
         """
+        h, w = labels.shape
         masks: list[np.ndarray | None] = [None] * len(boxes)
-        pending = list(range(len(boxes)))
+        kernel = np.ones((3, 3), np.uint8)
+        pending = []
+        for k, (lo, hi) in enumerate(boxes):
+            own = labels == OBJECT_LABEL_OFFSET + k
+            in_image = np.all(hi >= 0) and hi[0] >= 0 and lo[0] < w and lo[1] < h
+            if not own.any():
+                if in_image:
+                    pending.append(k)  # fully hidden, or too small to see
+                else:
+                    masks[k] = own
+                continue
+            ring = cv2.dilate(own.astype(np.uint8), kernel).astype(bool) & ~own
+            foreign = ring & (labels >= _PALM_LABEL)
+            if foreign.any():
+                # Depth of the neighbouring object pixels at each ring pixel.
+                near = cv2.dilate(np.where(own, depth_m, 0.0).astype(np.float32), kernel)
+                if np.any(depth_m[foreign] < near[foreign] + _OCCLUSION_MARGIN_M):
+                    pending.append(k)
+                    continue
+            masks[k] = own
         while pending:
             group, taken = [], []
             for k in pending:
@@ -254,8 +287,7 @@ class FrameRenderer:
             geom_id = self._render_only(
                 data, np.concatenate([self._object_geoms[k] for k in group])
             )
-            labels = self.scene.geom_labels
-            seen = np.where(geom_id >= 0, labels[np.maximum(geom_id, 0)], -1)
+            seen = np.where(geom_id >= 0, self.scene.geom_labels[np.maximum(geom_id, 0)], -1)
             for k in group:
                 masks[k] = seen == OBJECT_LABEL_OFFSET + k
             pending = [k for k in pending if k not in group]
@@ -326,7 +358,7 @@ class FrameRenderer:
                 boxes.append((uv.min(axis=0), uv.max(axis=0)))
             else:  # partly behind the camera: its image extent is unbounded
                 boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
-        silhouettes = self._object_silhouettes(data, boxes) if scene.objects else []
+        silhouettes = self._silhouettes(data, labels, depth_clean, boxes)
         objects = []
         for k, (_, obj) in enumerate(scene.objects):
             T_cam_obj, corners = poses[k]  # noqa: N806

@@ -164,3 +164,21 @@ def test_frame_is_read_only_and_seeded():
     with pytest.raises(ValueError, match="read-only"):
         a.depth[0, 0] = 1.0
     assert a.handedness == "right" and a.hand_length_m == pytest.approx(0.189)
+
+
+def test_silhouette_shortcut_matches_rendering_each_object_alone():
+    """Skipping the silhouette render for unoccluded objects gives BOP's exact counts."""
+    from handsim.scene import sample_placements, sample_viewpoint
+
+    rng = np.random.default_rng(11)
+    placements = sample_placements(rng, ("005_tomato_soup_can", "003_cracker_box", "025_mug"))
+    for _ in range(4):
+        cam = sample_viewpoint(rng, ICVL, name="view")
+        scene = Scene(SceneSpec(objects=placements, cameras=(cam,)))
+        with FrameRenderer(scene, "view") as renderer:
+            frame = renderer.render(rng)
+            for label in frame.objects:
+                alone = renderer._render_only(scene.data, renderer._object_geoms[label.instance])
+                seen = scene.geom_labels[np.maximum(alone, 0)]
+                expected = int(np.count_nonzero((alone >= 0) & (seen == 8 + label.instance)))
+                assert label.px_count_all == expected
