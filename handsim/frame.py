@@ -229,15 +229,20 @@ class FrameRenderer:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _render_only(self, data: mujoco.MjData, visible_geoms: np.ndarray) -> np.ndarray:
-        """Geom-id image with every geom hidden except ``visible_geoms``."""
+    def _render_only(
+        self,
+        data: mujoco.MjData,
+        visible_geoms: np.ndarray,
+        region: tuple[int, int, int, int] | None = None,
+    ) -> np.ndarray:
+        """Geom-id image (of ``region``) with every geom hidden except ``visible_geoms``."""
         groups = self.scene.model.geom_group
         saved = groups.copy()
         hide = np.ones(len(groups), dtype=bool)
         hide[visible_geoms] = False
         groups[hide] = _HIDDEN_GROUP
         try:
-            return self.renderer.render_segmentation(data)
+            return self.renderer.render_segmentation(data, region)
         finally:
             groups[:] = saved
 
@@ -284,10 +289,18 @@ class FrameRenderer:
                 if all(np.any(hi < tlo) or np.any(lo > thi) for tlo, thi in taken):
                     group.append(k)
                     taken.append((lo, hi))
-            geom_id = self._render_only(
-                data, np.concatenate([self._object_geoms[k] for k in group])
+            # Read only the group's projected box (the corner boxes enclose the objects).
+            lo = np.min([boxes[k][0] for k in group], axis=0)
+            hi = np.max([boxes[k][1] for k in group], axis=0)
+            u0, v0 = np.floor(np.clip(lo, 0, [w, h])).astype(int)
+            u1, v1 = np.ceil(np.clip(hi + 1, 0, [w, h])).astype(int)
+            geom_ids = self._render_only(
+                data, np.concatenate([self._object_geoms[k] for k in group]), (u0, v0, u1, v1)
             )
-            seen = np.where(geom_id >= 0, self.scene.geom_labels[np.maximum(geom_id, 0)], -1)
+            seen = np.full((h, w), -1, dtype=np.int32)
+            seen[v0:v1, u0:u1] = np.where(
+                geom_ids >= 0, self.scene.geom_labels[np.maximum(geom_ids, 0)], -1
+            )
             for k in group:
                 masks[k] = seen == OBJECT_LABEL_OFFSET + k
             pending = [k for k in pending if k not in group]

@@ -99,9 +99,9 @@ class DepthRenderer:
         )  # fmt: skip
         mujoco.mjr_render(self._rect, self._scene, self._context)
 
-    def _geom_ids(self) -> np.ndarray:
+    def _geom_ids(self, rgb_bottom_up: np.ndarray) -> np.ndarray:
         # The offscreen buffer is bottom-up.
-        rgb = self._rgb[::-1]
+        rgb = rgb_bottom_up[::-1]
         segid = (
             rgb[..., 0].astype(np.int32)
             | (rgb[..., 1].astype(np.int32) << 8)
@@ -125,21 +125,37 @@ class DepthRenderer:
         """
         self._draw(data)
         mujoco.mjr_readPixels(self._rgb, self._zbuffer, self._rect, self._context)
-        geom_id = self._geom_ids()
+        geom_id = self._geom_ids(self._rgb)
         zbuffer = self._zbuffer[::-1].astype(np.float64)
         depth = self._d.astype(np.float64) / (zbuffer + self._c)
         depth_m = np.where(geom_id >= 0, depth, 0.0).astype(np.float32)
         return depth_m, geom_id
 
-    def render_segmentation(self, data: mujoco.MjData) -> np.ndarray:
+    def render_segmentation(
+        self, data: mujoco.MjData, region: tuple[int, int, int, int] | None = None
+    ) -> np.ndarray:
         """Only the geom-id image (cheaper: the depth buffer is not read).
 
+        Args:
+            data: simulation data.
+            region: ``(u0, v0, u1, v1)`` pixel box to read (end exclusive, clipped to the
+                image); default: the whole image. Reading less is faster.
+
         Returns:
-            (H, W) int32 geom id, -1 for background.
+            (v1 - v0, u1 - u0) int32 geom ids of the region, -1 for background.
         """
+        w, h = self.intrinsics.width, self.intrinsics.height
+        u0, v0, u1, v1 = (0, 0, w, h) if region is None else region
+        u0, u1 = max(0, u0), min(w, u1)
+        v0, v1 = max(0, v0), min(h, v1)
+        if u1 <= u0 or v1 <= v0:
+            return np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
         self._draw(data)
-        mujoco.mjr_readPixels(self._rgb, None, self._rect, self._context)
-        return self._geom_ids()
+        rgb = np.empty((v1 - v0, u1 - u0, 3), dtype=np.uint8)
+        # MjrRect counts rows from the bottom of the image.
+        rect = mujoco.MjrRect(u0, h - v1, u1 - u0, v1 - v0)
+        mujoco.mjr_readPixels(rgb, None, rect, self._context)
+        return self._geom_ids(rgb)
 
     def close(self) -> None:
         """Free the OpenGL context (idempotent)."""
