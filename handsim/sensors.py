@@ -139,6 +139,13 @@ def _check_positive(name: str, value: float) -> None:
         raise InvalidSensor(f"{name} must be a positive number; received {value!r}")
 
 
+def _check_range(min_range_m: float, max_range_m: float) -> None:
+    if not 0 <= min_range_m < max_range_m:
+        raise InvalidSensor(
+            f"need 0 <= min_range_m < max_range_m; received {min_range_m}, {max_range_m}"
+        )
+
+
 def _check_probability(name: str, value: float) -> None:
     if not (0.0 <= value <= 1.0):
         raise InvalidSensor(f"{name} must be a probability in [0, 1]; received {value!r}")
@@ -188,11 +195,7 @@ class StructuredLight:
             raise InvalidSensor(
                 f"max_incidence_deg must be in (0, 90]; received {self.max_incidence_deg}"
             )
-        if not 0 <= self.min_range_m < self.max_range_m:
-            raise InvalidSensor(
-                f"need 0 <= min_range_m < max_range_m; received {self.min_range_m}, "
-                f"{self.max_range_m}"
-            )
+        _check_range(self.min_range_m, self.max_range_m)
 
     def apply(
         self, depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: np.random.Generator
@@ -263,11 +266,7 @@ class TimeOfFlight:
         _check_positive("edge_threshold_m", self.edge_threshold_m)
         _check_probability("flying_pixel_prob", self.flying_pixel_prob)
         _check_probability("dropout_prob", self.dropout_prob)
-        if not 0 <= self.min_range_m < self.max_range_m:
-            raise InvalidSensor(
-                f"need 0 <= min_range_m < max_range_m; received {self.min_range_m}, "
-                f"{self.max_range_m}"
-            )
+        _check_range(self.min_range_m, self.max_range_m)
 
     def apply(
         self, depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: np.random.Generator
