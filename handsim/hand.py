@@ -509,6 +509,13 @@ def _joint_kind(joint: str) -> str:
     return joint if joint.startswith("thumb") else joint.split("_", 1)[1]
 
 
+def _joint_class(joint: str) -> str:
+    """Default class of a joint: one per kind, unless the fingers' ranges differ (abduction)."""
+    kind = _joint_kind(joint)
+    ranges = {tuple(JOINT_LIMITS[i]) for i, n in enumerate(JOINT_NAMES) if _joint_kind(n) == kind}
+    return kind if len(ranges) == 1 else joint
+
+
 class Hand:
     """A hand model: owns its ``MjSpec`` and knows the names of everything in it.
 
@@ -573,12 +580,12 @@ class Hand:
         pad.geom.condim = 4
         pad.geom.friction = (1.0, 0.01, 0.0001)
         joint_classes = {}
-        for kind in sorted({_joint_kind(n) for n in JOINT_NAMES}):
+        for kind in sorted({_joint_class(n) for n in JOINT_NAMES}):
             cls = spec.add_default(f"{kind}", hand_cls)
             joint_classes[kind] = cls
 
         for i, name in enumerate(JOINT_NAMES):
-            cls = joint_classes[_joint_kind(name)]
+            cls = joint_classes[_joint_class(name)]
             cls.joint.range = JOINT_LIMITS[i]
             cls.joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
             kp, torque = ACTUATOR_GAINS[_joint_kind(name)]
@@ -600,7 +607,7 @@ class Hand:
                 name = JOINT_NAMES[angle_index]
                 body.add_joint(
                     name=name,
-                    default=joint_classes[_joint_kind(name)],
+                    default=joint_classes[_joint_class(name)],
                     axis=axis,
                 )
             distal = b.name.endswith("distal") and b.part != "palm"
@@ -648,7 +655,7 @@ class Hand:
             name = JOINT_NAMES[i]
             spec.add_actuator(
                 name=f"{name}_act",
-                default=joint_classes[_joint_kind(name)],
+                default=joint_classes[_joint_class(name)],
                 target=name,
                 trntype=mujoco.mjtTrn.mjTRN_JOINT,
             )
@@ -747,7 +754,6 @@ class HandBinding:
                 [model.site(n).id for n in hand.keypoint_site_names], dtype=np.intp
             )
             self.mocap_id = int(model.body(hand.mocap_body).mocapid[0])
-            self.root_body_id = int(model.body(hand.root_body).id)
         except KeyError as err:
             raise UnknownName(
                 f"the model does not contain the {hand.params.side} hand "

@@ -53,6 +53,16 @@ def test_structure(preset_hand):
     assert sites == [f"{p}kp_{k}" for k in KEYPOINT_NAMES]
 
 
+def test_joint_and_actuator_ranges_equal_the_limit_table(preset_hand):
+    """Every hinge range and actuator ctrlrange is its own row of JOINT_LIMITS."""
+    hand, model = preset_hand
+    for i, name in enumerate(hand.joint_names):
+        np.testing.assert_allclose(model.joint(name).range, JOINT_LIMITS[i], err_msg=name)
+        np.testing.assert_allclose(
+            model.actuator(hand.actuator_names[i]).ctrlrange, JOINT_LIMITS[i], err_msg=name
+        )
+
+
 def test_every_element_is_named_with_the_side_prefix(preset_hand):
     """No element is unnamed; every name carries the side prefix."""
     hand, model = preset_hand
