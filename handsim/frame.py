@@ -35,6 +35,7 @@ import mujoco
 import numpy as np
 
 from handsim.camera import T_cam_from_world
+from handsim.errors import UnknownName
 from handsim.keypoints import KEYPOINT_NAMES
 from handsim.pose import HandPose
 from handsim.render import DepthRenderer
@@ -200,8 +201,6 @@ class FrameRenderer:
     """
 
     def __init__(self, scene: Scene, camera: str, sensor: SensorModel | None = None) -> None:
-        from handsim.errors import UnknownName
-
         if scene.hand is None:
             raise UnknownName("a FrameRenderer needs a scene with a hand; SceneSpec(hand=None)")
         self.scene = scene
