@@ -217,6 +217,8 @@ class FrameRenderer:
         self._object_bodies = [model.body(body).id for body, _ in scene.objects]
         labels = scene.geom_labels
         self._is_hand_geom = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
+        # instance -> (pose key, silhouette mask); see _silhouettes.
+        self._silhouette_cache: dict[int, tuple[bytes, np.ndarray]] = {}
 
     def close(self) -> None:
         """Free the renderer."""
@@ -257,13 +259,25 @@ class FrameRenderer:
         An object whose visible region nowhere borders a nearer hand or other object is not
         occluded (its silhouette is connected, so a hidden part would border its occluder):
         its silhouette is its visible region, with no render. The others are rendered alone;
-        objects whose projected boxes do not overlap share one render.
+        objects whose projected boxes do not overlap share one render. A silhouette depends only
+        on the object's and the camera's poses, so it is reused while both are unchanged (bit
+        for bit): objects at rest under a moving hand cost no render.
         """
         h, w = labels.shape
         masks: list[np.ndarray | None] = [None] * len(boxes)
+        cam = self.renderer.camera_id
+        camera_key = data.cam_xpos[cam].tobytes() + data.cam_xmat[cam].tobytes()
+        keys = [
+            camera_key + data.xpos[b].tobytes() + data.xmat[b].tobytes()
+            for b in self._object_bodies
+        ]
         kernel = np.ones((3, 3), np.uint8)
         pending = []
         for k, (lo, hi) in enumerate(boxes):
+            cached = self._silhouette_cache.get(k)
+            if cached is not None and cached[0] == keys[k]:
+                masks[k] = cached[1]
+                continue
             own = labels == OBJECT_LABEL_OFFSET + k
             in_image = np.all(hi >= 0) and hi[0] >= 0 and lo[0] < w and lo[1] < h
             if not own.any():
@@ -303,6 +317,9 @@ class FrameRenderer:
             for k in group:
                 masks[k] = seen == OBJECT_LABEL_OFFSET + k
             pending = [k for k in pending if k not in group]
+        for k, mask in enumerate(masks):
+            mask.setflags(write=False)
+            self._silhouette_cache[k] = (keys[k], mask)
         return masks
 
     def render(

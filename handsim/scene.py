@@ -317,6 +317,8 @@ class Scene:
         mj.modelname = "handsim_scene"
         mj.visual.global_.offwidth = max(c.intrinsics.width for c in spec.cameras)
         mj.visual.global_.offheight = max(c.intrinsics.height for c in spec.cameras)
+        # Depth sensors do not antialias, and resolving a multisampled buffer costs a blit.
+        mj.visual.quality.offsamples = 0
         mj.worldbody.add_light(name="key", pos=[0.3, -0.5, 1.2], dir=[-0.2, 0.4, -1.0])
         mj.worldbody.add_light(name="fill", pos=[-0.4, 0.3, 1.0], dir=[0.3, -0.2, -1.0])
         if spec.table:

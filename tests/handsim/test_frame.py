@@ -182,3 +182,33 @@ def test_silhouette_shortcut_matches_rendering_each_object_alone():
                 seen = scene.geom_labels[np.maximum(alone, 0)]
                 expected = int(np.count_nonzero((alone >= 0) & (seen == 8 + label.instance)))
                 assert label.px_count_all == expected
+
+
+def test_reused_silhouettes_equal_fresh_renders():
+    """Silhouettes kept while objects rest give the counts a fresh renderer computes."""
+    from handsim.pose_sources import GESTURES
+    from handsim.scene import sample_placements, third_person_camera
+
+    rng = np.random.default_rng(5)
+    placements = sample_placements(rng, ("005_tomato_soup_can", "003_cracker_box", "025_mug"))
+    scene = Scene(SceneSpec(objects=placements, cameras=(third_person_camera(ICVL),)))
+    counts = []
+    with FrameRenderer(scene, "third_person") as reused:
+        for i, name in enumerate(list(GESTURES)[:6]):
+            # The hand sweeps over the objects; the last step also moves an object.
+            if i == 5:
+                scene.data.qpos[scene.model.body(scene.objects[0][0]).jntadr[0]] += 0.03
+            scene.binding.set_pose(
+                scene.data,
+                gesture(name).replace(
+                    wrist_pos=np.array([-0.12 + 0.05 * i, 0.0, 0.1]),
+                    wrist_rotvec=np.array([0.0, np.pi, 0.0]),
+                ),
+            )
+            kept = reused.render(rng)
+            with FrameRenderer(scene, "third_person") as fresh:
+                new = fresh.render(rng)
+            counts.append([(o.px_count_all, o.px_count_visib) for o in kept.objects])
+            assert counts[-1] == [(o.px_count_all, o.px_count_visib) for o in new.objects]
+    # The sweep did occlude something (else the test would prove nothing).
+    assert any(all_px > visib for row in counts for all_px, visib in row)
