@@ -151,3 +151,151 @@ def test_errors():
         NoNoise().apply(np.zeros((10, 10)), ICVL, np.random.default_rng())
     with pytest.raises(InvalidSensor, match=r"finite and >= 0 m"):
         NoNoise().apply(np.full((240, 320), np.nan), ICVL, np.random.default_rng())
+
+
+def _scan_from_the_right(depth, intrinsics, baseline_m):
+    """Reference projector-shadow mask, a Python scan of the definition.
+
+    A pixel is lit iff its projector column is left of every column claimed to its right.
+    """
+    fb = intrinsics.fx * baseline_m
+    lit = np.zeros(depth.shape, dtype=bool)
+    for v in range(depth.shape[0]):
+        smallest = np.inf
+        for u in range(depth.shape[1] - 1, -1, -1):
+            z = float(depth[v, u])
+            col = u - fb / z if z > 0 else np.inf
+            lit[v, u] = z > 0 and col < smallest
+            smallest = min(smallest, col)
+    return lit
+
+
+def test_projector_shadow_equals_the_scan_from_the_right():
+    """Random boxes and holes: the dropped pixels are exactly those the scan leaves unlit."""
+    rng = np.random.default_rng(8)
+    depth = np.full((ICVL.height, ICVL.width), 1.8, dtype=np.float32)
+    for _ in range(25):
+        v, u = rng.integers(0, ICVL.height - 20), rng.integers(0, ICVL.width - 30)
+        hh, ww = rng.integers(3, 40), rng.integers(2, 60)
+        depth[v : v + hh, u : u + ww] = rng.choice([0.0, rng.uniform(0.4, 1.7)])
+    sensor = StructuredLight(lateral_jitter_px=0.0, max_incidence_deg=90.0)
+    out = sensor.apply(depth, ICVL, np.random.default_rng(0))
+    np.testing.assert_array_equal(out > 0, _scan_from_the_right(depth, ICVL, sensor.baseline_m))
+
+
+@pytest.mark.parametrize("sigma", [0.5, 3.0])
+def test_jitter_displacements_are_rounded_gaussians(sigma):
+    """Lateral-jitter offsets follow rint(N(0, s)) on each axis, independently.
+
+    Both samplers: the table (0.5 px) and the wide jitter (3 px); offsets stay within the image.
+    """
+    from scipy.stats import norm
+
+    from handsim.sensors import _jitter_offsets, _Scratch
+
+    rng = np.random.default_rng(9)
+    out = np.empty((240, 320, 2), dtype=np.int16)
+    scratch = _Scratch()
+    draws = np.concatenate(
+        [_jitter_offsets(rng, sigma, out, scratch).reshape(-1, 2).copy() for _ in range(5)]
+    )
+    assert np.abs(draws).max() <= 320
+    k = np.arange(-3, 4) if sigma < 1 else np.arange(-6, 7)
+    expected = norm.cdf((k + 0.5) / sigma) - norm.cdf((k - 0.5) / sigma)
+    for axis in (0, 1):
+        freq = np.array([np.mean(draws[:, axis] == j) for j in k])
+        tolerance = 5 * np.sqrt(expected * (1 - expected) / len(draws)) + 1e-6
+        assert np.all(np.abs(freq - expected) <= tolerance)
+    both_zero = np.mean((draws[:, 0] == 0) & (draws[:, 1] == 0))
+    p0 = expected[k == 0][0]
+    assert both_zero == pytest.approx(p0 * p0, abs=5 * np.sqrt(p0 * p0 / len(draws)))
+
+
+def test_incidence_angle_matches_the_cross_product_of_central_differences():
+    """The closed-form incidence equals the cross product of the points' central differences.
+
+    Also no normal across depth edges and holes, as in the explicit computation.
+    """
+    v, u = np.indices((NYU.height, NYU.width))
+    # A sphere of radius 0.3 m centred 1 m in front of the camera, on a wall at 1.5 m.
+    x, y = (u - NYU.cx) / NYU.fx, (v - NYU.cy) / NYU.fy
+    a, b, c = x * x + y * y + 1.0, -2.0, 1.0 - 0.3**2
+    disc = b * b - 4 * a * c
+    depth = np.where(disc > 0, (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a), 1.5)
+    depth[100:110, 400:420] = 0.0
+    points = NYU.backproject(depth)
+    du = np.zeros_like(points)
+    dv = np.zeros_like(points)
+    du[:, 1:-1] = points[:, 2:] - points[:, :-2]
+    dv[1:-1] = points[2:] - points[:-2]
+    normal = np.cross(du, dv)
+    cos = np.abs(np.sum(normal * points, axis=-1)) / np.maximum(
+        np.linalg.norm(normal, axis=-1) * np.linalg.norm(points, axis=-1), 1e-12
+    )
+    reference = np.arccos(np.clip(cos, 0.0, 1.0))
+    ok = np.zeros(depth.shape, dtype=bool)
+    centre = depth[1:-1, 1:-1]
+    ok[1:-1, 1:-1] = centre > 0
+    for neighbour in (depth[2:, 1:-1], depth[:-2, 1:-1], depth[1:-1, 2:], depth[1:-1, :-2]):
+        ok[1:-1, 1:-1] &= (neighbour > 0) & (np.abs(neighbour - centre) <= 0.05 * centre)
+    reference = np.where(ok, reference, 0.0)
+    np.testing.assert_allclose(incidence_angle(depth, NYU), reference, atol=1e-9)
+    assert np.any(reference > np.deg2rad(75))  # the sphere's rim is grazing
+
+
+def test_inputs_are_copied_to_fresh_float32_outputs():
+    """Every model returns a new writable float32 array and leaves its input untouched.
+
+    float64, read-only and non-contiguous inputs are accepted (an empty Compose too); the output
+    shares no memory with them and is the same for the same values in float32 or float64.
+    """
+    clean64 = np.full((ICVL.height, ICVL.width), 0.5)
+    clean64[60:120, 100:180] = 0.45
+    read_only = clean64.astype(np.float32)
+    read_only.setflags(write=False)
+    strided = np.asfortranarray(clean64)
+    for model in (NoNoise(), StructuredLight(), TimeOfFlight(), Compose([])):
+        outputs = []
+        for clean in (clean64, read_only, strided):
+            before = clean.copy()
+            out = model.apply(clean, ICVL, np.random.default_rng(3))
+            assert out.dtype == np.float32 and out.flags.c_contiguous and out.flags.writeable
+            assert not np.shares_memory(out, clean)
+            np.testing.assert_array_equal(clean, before)
+            outputs.append(out)
+        for out in outputs[1:]:
+            np.testing.assert_array_equal(out, outputs[0])
+
+
+def test_models_give_the_same_output_from_several_threads():
+    """Concurrent calls (each thread has its own scratch arrays) equal sequential ones."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    clean = _plane(NYU, 0.8)
+    clean[150:300, 200:400] = 0.6
+    jobs = [(model, seed) for model in (StructuredLight(), TimeOfFlight()) for seed in range(6)]
+
+    def run(job):
+        model, seed = job
+        return model.apply(clean, NYU, np.random.default_rng(seed))
+
+    sequential = [run(job) for job in jobs]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        concurrent = list(pool.map(run, jobs))
+    for a, b in zip(sequential, concurrent, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("probability", [0.02, 0.3])
+def test_tof_dropout_rate(probability):
+    """Dropouts remove about their probability of pixels and leave the others unchanged.
+
+    Small probabilities are sampled as a binomial count of distinct pixels, large ones with a
+    uniform per pixel.
+    """
+    clean = _plane(ICVL, 0.5)
+    out = TimeOfFlight(sigma_m=0.0, dropout_prob=probability).apply(
+        clean, ICVL, np.random.default_rng(10)
+    )
+    assert np.mean(out == 0) == pytest.approx(probability, abs=0.01)
+    assert np.all((out == 0) | np.isclose(out, 0.5))
