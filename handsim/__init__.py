@@ -14,11 +14,23 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 from handsim.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.errors import (
+    EstimatorStateError,
     HandSimError,
+    InvalidEstimate,
+    InvalidEstimatorInput,
+    InvalidEstimatorParams,
     InvalidHandParams,
     InvalidKeypoints,
     InvalidPose,
     UnknownName,
+)
+from handsim.estimator import (
+    Estimate,
+    Estimator,
+    EstimatorBase,
+    PrivilegedEstimator,
+    estimate_errors,
+    hand_center,
 )
 from handsim.frame import Frame, FrameRenderer, ObjectLabel
 from handsim.hand import (
@@ -91,6 +103,17 @@ __all__ = [
     "InvalidKeypoints",
     "InvalidPose",
     "UnknownName",
+    "InvalidEstimate",
+    "InvalidEstimatorInput",
+    "InvalidEstimatorParams",
+    "EstimatorStateError",
+    # the estimator protocol (implementations live in handsim.estimators)
+    "Estimate",
+    "Estimator",
+    "EstimatorBase",
+    "PrivilegedEstimator",
+    "estimate_errors",
+    "hand_center",
     # the hand model
     "HAND_PHYSICS_OPTIONS",
     "HAND_SIZES",

@@ -13,6 +13,10 @@ __all__ = [
     "InvalidPose",
     "InvalidKeypoints",
     "UnknownName",
+    "InvalidEstimate",
+    "InvalidEstimatorInput",
+    "InvalidEstimatorParams",
+    "EstimatorStateError",
 ]
 
 
@@ -38,3 +42,19 @@ class UnknownName(HandSimError, KeyError):
     def __str__(self) -> str:
         # KeyError quotes its argument; show the message as written.
         return str(self.args[0]) if self.args else ""
+
+
+class InvalidEstimate(HandSimError, ValueError):
+    """An estimate has a wrong shape, a non-finite value or fields that contradict ``valid``."""
+
+
+class InvalidEstimatorInput(HandSimError, ValueError):
+    """An estimator received a depth image, intrinsics or ground-truth frame it cannot use."""
+
+
+class InvalidEstimatorParams(HandSimError, ValueError):
+    """An estimator's constructor argument is outside its valid range."""
+
+
+class EstimatorStateError(HandSimError, RuntimeError):
+    """An estimator was called out of order (an oracle's ``predict`` before ``observe_truth``)."""
