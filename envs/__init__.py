@@ -1,1 +1,35 @@
-"""Gymnasium environments of handsim (imported as ``handsim.envs``)."""
+"""Gymnasium environments of handsim (imported as ``handsim.envs``).
+
+Importing this package registers the envs; make them with ``gymnasium.make``::
+
+    import gymnasium as gym
+    import handsim.envs  # noqa: F401 (registers the ids)
+
+    env = gym.make("handsim/Grasp-v0", objects="mustard_bottle", obs_mode="depth+state")
+
+========================  ==================================================  =============
+id                        task                                                episode steps
+========================  ==================================================  =============
+handsim/HandPose-v0       the hand alone reaches a goal hand pose             150 (3 s)
+handsim/Grasp-v0          grasp one object on a table, lift 10 cm, hold 2 s   400 (8 s)
+handsim/GraspClutter-v0   the same for a named target among 3-6 objects       400 (8 s)
+========================  ==================================================  =============
+
+Episode lengths are at the default ``frame_skip=10`` (50 Hz control).
+
+Vector envs: ``gymnasium.vector.AsyncVectorEnv(fns, context="spawn")`` with
+``gym.make("handsim.envs:handsim/Grasp-v0")`` in each ``fn`` (the ``module:id`` form registers the
+ids in the worker). Use ``"spawn"`` or ``"forkserver"``: a worker forked after its parent created
+an OpenGL (EGL) context can hang.
+"""
+
+from gymnasium.envs.registration import register
+
+ENV_IDS: tuple[str, ...] = ("handsim/HandPose-v0", "handsim/Grasp-v0", "handsim/GraspClutter-v0")
+"""Every registered id."""
+
+register(
+    id="handsim/HandPose-v0",
+    entry_point="handsim.envs.hand_pose:HandPoseEnv",
+    max_episode_steps=150,
+)

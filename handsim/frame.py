@@ -181,6 +181,34 @@ def _keypoint_radii(scene: Scene) -> np.ndarray:
     return np.array(radii)
 
 
+def _equal(a: object, b: object) -> bool:
+    """Exact equality of label values: arrays bitwise (NaN equals NaN), records field-wise."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        return (
+            a.shape == b.shape
+            and a.dtype == b.dtype
+            and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+        )
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
+    return bool(a == b)
+
+
+def _records_equal(self: object, other: object) -> bool:
+    if type(other) is not type(self):
+        return NotImplemented
+    return all(
+        _equal(getattr(self, f.name), getattr(other, f.name)) for f in dataclasses.fields(self)
+    )
+
+
+# The generated dataclass __eq__ cannot compare array fields (it would raise).
+ObjectLabel.__eq__ = _records_equal  # type: ignore[method-assign]
+Contact.__eq__ = _records_equal  # type: ignore[method-assign]
+Frame.__eq__ = _records_equal  # type: ignore[method-assign]
+
+
 def _read_only(array: np.ndarray) -> np.ndarray:
     array = np.array(array)
     array.setflags(write=False)

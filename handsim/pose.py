@@ -177,6 +177,21 @@ class HandPose:
         object.__setattr__(self, "wrist_rotvec", rotvec)
         object.__setattr__(self, "angles", angles)
 
+    def __eq__(self, other: object) -> bool:
+        """Exact (bitwise) equality of all fields; poses are compared, not identities."""
+        if not isinstance(other, HandPose):
+            return NotImplemented
+        return all(
+            np.array_equal(a, b)
+            for a, b in (
+                (self.wrist_pos, other.wrist_pos),
+                (self.wrist_rotvec, other.wrist_rotvec),
+                (self.angles, other.angles),
+            )
+        )
+
+    __hash__ = None  # type: ignore[assignment]  (mutable arrays)
+
     # Construction ---------------------------------------------------------------------------
 
     @classmethod

@@ -1,0 +1,602 @@
+"""What every handsim env shares: configuration, the scene, control, observation, rendering.
+
+:class:`HandSimEnv` is the base of the registered envs. It validates its keyword arguments once
+(:class:`EnvConfig`), builds a :class:`~handsim.scene.Scene` per episode (rebuilt only when the
+hand or the object list changes; object placements and camera poses are written into the
+compiled model), steps MuJoCo ``frame_skip`` times per action, renders one labelled
+:class:`~handsim.frame.Frame` per step and splits it: images into the observation, labels into
+``info["frame"]`` (the Frame without its images).
+
+Control (``control_mode``):
+
+- ``"pose"``: the action is an absolute 27-DoF target ``[wrist_pos (3) m, wrist_rotvec (3) rad,
+  angles (21) rad]`` (:class:`~handsim.pose.HandPose` order, world frame). The wrist target
+  moves the mocap body the hand is softly welded to; the angles are the position actuators'
+  targets. Bounds: the wrist inside :data:`WORKSPACE_M`, each rotation-vector component in
+  [-pi, pi], each angle within its joint limits. Out-of-bound actions are clipped. The mocap
+  body moves toward the wrist target at most :data:`WRIST_TRACKING_SPEED` m/s and
+  :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s (an arm cannot teleport the hand; a far target
+  is reached over several steps).
+- ``"delta"``: the action is in [-1, 1]^27 and moves the current target by at most
+  :data:`~handsim.pose_sources.MAX_WRIST_SPEED` m/s, :data:`DELTA_ANGULAR_SPEED` rad/s (wrist
+  rotation, world axes) and :data:`DELTA_JOINT_SPEED` rad/s (each joint) times the control
+  period; the result is clipped to the ``"pose"`` bounds. Out-of-range actions are clipped.
+
+NaN/Inf actions raise ``ValueError``; an action of the wrong shape raises ``ValueError`` naming
+the expected shape. If the physics diverges (a MuJoCo instability warning or a non-finite state)
+the step returns the last valid observation with ``truncated=True`` and
+``info["physics_diverged"] = True``; observations are never non-finite.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from scipy.spatial.transform import Rotation
+
+from handsim.camera import CAMERA_PRESETS, camera_preset
+from handsim.errors import HandSimError
+from handsim.frame import Frame, FrameRenderer
+from handsim.hand import HAND_SIZES, hand_params
+from handsim.objects import OBJECTS
+from handsim.pose import JOINT_LIMITS, HandPose
+from handsim.pose_sources import MAX_WRIST_SPEED
+from handsim.scene import (
+    OBJECT_LABEL_OFFSET,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+    egocentric_camera,
+    sample_viewpoint,
+    third_person_camera,
+)
+from handsim.sensors import sensor_model
+
+__all__ = [
+    "HandSimEnv",
+    "EnvConfig",
+    "InvalidEnvConfig",
+    "OBS_MODES",
+    "CONTROL_MODES",
+    "REWARD_TYPES",
+    "VIEWPOINTS",
+    "HANDEDNESS",
+    "OBJECT_SETS",
+    "WORKSPACE_M",
+    "SENSORS",
+    "WRIST_TRACKING_SPEED",
+    "WRIST_TRACKING_ANGULAR_SPEED",
+    "DEPTH_MAX_M",
+    "DELTA_ANGULAR_SPEED",
+    "DELTA_JOINT_SPEED",
+]
+
+OBS_MODES: tuple[str, ...] = ("depth", "depth+segmentation", "state", "depth+state")
+"""Observation modes: which keys the observation ``Dict`` has (see :class:`HandSimEnv`)."""
+CONTROL_MODES: tuple[str, ...] = ("pose", "delta")
+"""Absolute 27-DoF pose targets, or normalized deltas of the current target."""
+REWARD_TYPES: tuple[str, ...] = ("dense", "sparse")
+VIEWPOINTS: tuple[str, ...] = ("third_person", "egocentric", "random")
+"""Camera placements: across the table, head-mounted, or a seeded random view per episode."""
+HANDEDNESS: tuple[str, ...] = ("right", "left", "random")
+OBJECT_SETS: dict[str, tuple[str, ...]] = {"ycbv": tuple(OBJECTS)}
+"""Named object sets accepted for ``objects``."""
+WORKSPACE_M: tuple[tuple[float, float], ...] = ((-0.5, 0.5), (-0.5, 0.5), (0.0, 0.6))
+"""Bounds of the wrist target (x, y, z), world frame, metres (table top at z = 0)."""
+DEPTH_MAX_M = 10.0
+"""Upper bound of the depth observation, metres."""
+DELTA_ANGULAR_SPEED = 3.0
+"""Wrist rotation per unit delta action, rad/s."""
+DELTA_JOINT_SPEED = 6.0
+"""Joint motion per unit delta action, rad/s."""
+WRIST_TRACKING_SPEED = 2.0
+"""Fastest motion of the mocap body toward the wrist target, m/s (fast human reaching)."""
+WRIST_TRACKING_ANGULAR_SPEED = 4 * np.pi
+"""Fastest rotation of the mocap body toward the wrist target, rad/s."""
+SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
+"""Sensor model names (:func:`handsim.sensors.sensor_model`)."""
+SETTLE_S = 0.1
+"""Physics time run at reset so objects and the hand settle before the first observation."""
+
+_JOINT_LO = np.array([lo for lo, _ in JOINT_LIMITS])
+_JOINT_HI = np.array([hi for _, hi in JOINT_LIMITS])
+_POSE_LO = np.concatenate([[w[0] for w in WORKSPACE_M], [-np.pi] * 3, _JOINT_LO])
+_POSE_HI = np.concatenate([[w[1] for w in WORKSPACE_M], [np.pi] * 3, _JOINT_HI])
+_DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+)
+
+
+class InvalidEnvConfig(HandSimError, ValueError):
+    """An env keyword argument is invalid."""
+
+
+def _choice(value: object, name: str, valid: tuple[str, ...]) -> str:
+    if value not in valid:
+        raise InvalidEnvConfig(f"{name}={value!r} is not valid; choose one of {', '.join(valid)}")
+    return str(value)
+
+
+def _hand_size(value: object) -> tuple[float, float]:
+    """(low, high) hand length in metres from a preset name, a length or a range."""
+    if isinstance(value, str):
+        if value not in HAND_SIZES:
+            raise InvalidEnvConfig(
+                f"hand_size={value!r} is not a size; use one of {', '.join(HAND_SIZES)}, "
+                "a hand length in metres, or a (low, high) range in metres"
+            )
+        length = HAND_SIZES[value]
+        return (length, length)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        value = (float(value), float(value))
+    try:
+        lo, hi = (float(v) for v in value)  # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise InvalidEnvConfig(
+            f"hand_size={value!r} is not valid; use one of {', '.join(HAND_SIZES)}, a hand "
+            "length in metres, or a (low, high) range in metres"
+        ) from None
+    if not lo <= hi:
+        raise InvalidEnvConfig(f"hand_size range ({lo}, {hi}) has low > high")
+    for length in (lo, hi):
+        hand_params(length)  # raises InvalidHandParams with the valid range
+    return (lo, hi)
+
+
+def _object_names(value: object, min_count: int) -> tuple[str, ...]:
+    if isinstance(value, str):
+        value = OBJECT_SETS[value] if value in OBJECT_SETS else (value,)
+    try:
+        names = tuple(OBJECTS.canonical(n) for n in value)  # type: ignore[union-attr]
+    except TypeError:
+        raise InvalidEnvConfig(
+            f"objects={value!r} is not valid; give an object name, a list of names or a set "
+            f"({', '.join(OBJECT_SETS)})"
+        ) from None
+    if len(names) < min_count:
+        raise InvalidEnvConfig(
+            f"objects needs at least {min_count} name(s); received {len(names)}: {names}"
+        )
+    return names
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    """Validated keyword arguments shared by every handsim env.
+
+    Attributes:
+        objects: canonical object names the episode draws from.
+        hand_size_m: (low, high) hand length, metres; drawn uniformly per episode.
+        handedness: ``"right"``, ``"left"`` or ``"random"`` (per episode).
+        camera: camera preset (:data:`~handsim.camera.CAMERA_PRESETS`).
+        viewpoint: one of :data:`VIEWPOINTS`.
+        sensor: sensor model name (:data:`SENSORS`).
+        obs_mode: one of :data:`OBS_MODES`.
+        control_mode: one of :data:`CONTROL_MODES`.
+        reward_type: one of :data:`REWARD_TYPES`.
+        frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
+        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or ``"human"``.
+    """
+
+    objects: tuple[str, ...] = ()
+    hand_size_m: tuple[float, float] = (HAND_SIZES["medium"], HAND_SIZES["medium"])
+    handedness: str = "right"
+    camera: str = "icvl"
+    viewpoint: str = "third_person"
+    sensor: str = "none"
+    obs_mode: str = "depth"
+    control_mode: str = "pose"
+    reward_type: str = "dense"
+    frame_skip: int = 10
+    render_mode: str | None = None
+
+    @classmethod
+    def from_kwargs(
+        cls,
+        *,
+        objects: object = (),
+        min_objects: int = 0,
+        hand_size: object = "medium",
+        handedness: object = "right",
+        camera: object = "icvl",
+        viewpoint: object = "third_person",
+        sensor: object = "none",
+        obs_mode: object = "depth",
+        control_mode: object = "pose",
+        reward_type: object = "dense",
+        frame_skip: object = 10,
+        render_mode: object = None,
+    ) -> EnvConfig:
+        """Validate the keyword arguments of an env (each error lists the valid values)."""
+        if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
+            raise InvalidEnvConfig(
+                f"frame_skip must be a positive integer; received {frame_skip!r}"
+            )
+        if frame_skip < 1:
+            raise InvalidEnvConfig(f"frame_skip must be a positive integer; received {frame_skip}")
+        if render_mode is not None:
+            _choice(render_mode, "render_mode", tuple(HandSimEnv.metadata["render_modes"]))
+        return cls(
+            objects=_object_names(objects, min_objects) if min_objects or objects else (),
+            hand_size_m=_hand_size(hand_size),
+            handedness=_choice(handedness, "handedness", HANDEDNESS),
+            camera=_choice(camera, "camera", tuple(CAMERA_PRESETS)),
+            viewpoint=_choice(viewpoint, "viewpoint", VIEWPOINTS),
+            sensor=_choice(sensor, "sensor", SENSORS),
+            obs_mode=_choice(obs_mode, "obs_mode", OBS_MODES),
+            control_mode=_choice(control_mode, "control_mode", CONTROL_MODES),
+            reward_type=_choice(reward_type, "reward_type", REWARD_TYPES),
+            frame_skip=int(frame_skip),
+            render_mode=render_mode,  # type: ignore[arg-type]
+        )
+
+
+def _without_images(frame: Frame) -> Frame:
+    return dataclasses.replace(frame, depth=None, depth_clean=None, segmentation=None)
+
+
+class HandSimEnv(gym.Env):
+    """Base of handsim's envs (not registered itself); see the module docstring.
+
+    Observation keys by ``obs_mode``: ``depth`` (H, W) float32 metres, 0 = no measurement
+    (modes with ``depth``); ``segmentation`` (H, W) int16 labels
+    (:data:`~handsim.scene.SEGMENT_LABELS`, objects from 8) in ``"depth+segmentation"``;
+    ``proprio`` (54,) float64 = the hand's measured pose vector (27) and velocities (27: wrist
+    linear m/s and angular rad/s, then joint rad/s) in modes with ``state``; plus each task's
+    own keys (its goal or target).
+
+    Subclasses implement :meth:`_episode_objects`, :meth:`_reset_task`, :meth:`_task_reward`
+    and may add task observation keys with :meth:`_task_observation_space` and
+    :meth:`_task_observation`.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "depth_array", "human"], "render_fps": 50}
+    max_objects: int = 0
+    """Largest number of objects an episode can have (sets the segmentation bound)."""
+    use_table: bool = True
+
+    def __init__(self, config: EnvConfig) -> None:
+        self.config = config
+        self.render_mode = config.render_mode
+        if self.render_mode == "human" and not os.environ.get("DISPLAY"):
+            raise InvalidEnvConfig(
+                "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
+                "'depth_array' headless"
+            )
+        self.intrinsics = camera_preset(config.camera)
+        self.sensor = sensor_model(config.sensor)
+        self.control_dt = config.frame_skip * 0.002
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.control_dt))}
+        h, w = self.intrinsics.height, self.intrinsics.width
+        obs: dict[str, spaces.Space] = {}
+        if "depth" in config.obs_mode:
+            obs["depth"] = spaces.Box(0.0, DEPTH_MAX_M, (h, w), np.float32)
+        if config.obs_mode == "depth+segmentation":
+            top = OBJECT_LABEL_OFFSET + max(self.max_objects, 1) - 1
+            obs["segmentation"] = spaces.Box(0, top, (h, w), np.int16)
+        if "state" in config.obs_mode:
+            obs["proprio"] = spaces.Box(-np.inf, np.inf, (54,), np.float64)
+        obs.update(self._task_observation_space())
+        self.observation_space = spaces.Dict(obs)
+        if config.control_mode == "pose":
+            self.action_space = spaces.Box(
+                _POSE_LO.astype(np.float32), _POSE_HI.astype(np.float32), (27,), np.float32
+            )
+        else:
+            self.action_space = spaces.Box(-1.0, 1.0, (27,), np.float32)
+        self._delta_scale = self.control_dt * np.concatenate(
+            [[MAX_WRIST_SPEED] * 3, [DELTA_ANGULAR_SPEED] * 3, [DELTA_JOINT_SPEED] * 21]
+        )
+        self.scene: Scene | None = None
+        self._scene_key: tuple | None = None
+        self.frame_renderer: FrameRenderer | None = None
+        self._rgb_renderer: mujoco.Renderer | None = None
+        self._viewer: Any = None
+        self.target = HandPose.neutral()
+        self.frame: Frame | None = None
+        self._last_obs: dict[str, np.ndarray] | None = None
+        self.elapsed_steps = 0
+
+    # Hooks of the tasks --------------------------------------------------------------------
+
+    def _episode_objects(self, rng: np.random.Generator) -> tuple[ObjectPlacement, ...]:
+        """Objects of this episode with their placements."""
+        return ()
+
+    def _reset_task(self, rng: np.random.Generator) -> HandPose:
+        """Draw the task (goal, target) for the new scene; return the hand's start pose."""
+        raise NotImplementedError
+
+    def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
+        """``(reward terms, terminated, extra info)`` after a step."""
+        raise NotImplementedError
+
+    def _task_observation_space(self) -> dict[str, spaces.Space]:
+        return {}
+
+    def _task_observation(self) -> dict[str, np.ndarray]:
+        return {}
+
+    # Scene ---------------------------------------------------------------------------------
+
+    def _camera_spec(self, rng: np.random.Generator) -> CameraSpec:
+        if self.config.viewpoint == "third_person":
+            return third_person_camera(self.intrinsics, name="camera")
+        if self.config.viewpoint == "egocentric":
+            return egocentric_camera(self.intrinsics, name="camera")
+        return sample_viewpoint(rng, self.intrinsics, name="camera")
+
+    def _build_scene(self, rng: np.random.Generator) -> None:
+        lo, hi = self.config.hand_size_m
+        length = float(rng.uniform(lo, hi)) if hi > lo else lo
+        side = self.config.handedness
+        if side == "random":
+            side = "right" if rng.random() < 0.5 else "left"
+        placements = self._episode_objects(rng)
+        camera = self._camera_spec(rng)
+        key = (length, side, tuple(p.name for p in placements))
+        if key != self._scene_key:
+            if self.frame_renderer is not None:
+                self.frame_renderer.close()
+            self._close_rgb()
+            spec = SceneSpec(
+                hand=hand_params(length, side),
+                objects=placements,
+                cameras=(camera,),
+                table=self.use_table,
+            )
+            self.scene = Scene(spec)
+            self._scene_key = key
+            self.frame_renderer = FrameRenderer(self.scene, "camera", self.sensor)
+        scene = self.scene
+        mujoco.mj_resetData(scene.model, scene.data)
+        cam = scene.model.camera("camera").id
+        scene.model.cam_pos[cam] = camera.pos_m
+        scene.model.cam_quat[cam] = camera.quat_wxyz
+        for (body, _), placement in zip(scene.objects, placements, strict=True):
+            adr = scene.model.jnt_qposadr[scene.model.body(body).jntadr[0]]
+            scene.data.qpos[adr : adr + 3] = placement.pos_m
+            scene.data.qpos[adr + 3 : adr + 7] = placement.quat_wxyz
+
+    # Gymnasium API ------------------------------------------------------------------------
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start an episode: draw the scene and the task from the env's generator.
+
+        Returns:
+            ``(observation, info)``; ``info["frame"]`` holds the ground-truth labels.
+        """
+        super().reset(seed=seed)
+        rng = self.np_random
+        self._build_scene(rng)
+        start = self._reset_task(rng)
+        self.scene.binding.set_pose(self.scene.data, start)
+        self.target = start
+        self._target_quat_wxyz = start.quat_wxyz
+        for _ in range(int(round(SETTLE_S / self.scene.model.opt.timestep))):
+            self._track_target()
+            mujoco.mj_step(self.scene.model, self.scene.data)
+        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self.elapsed_steps = 0
+        self._warnings = self._divergence_count()
+        obs = self._observe()
+        return obs, self._info({})
+
+    def _check_action(self, action: object) -> np.ndarray:
+        try:
+            action = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"the action must be a numeric array of shape (27,); received {action!r}"
+            ) from None
+        if action.shape != (27,):
+            raise ValueError(
+                f"the action must have shape (27,) ([wrist_pos 3, wrist_rotvec 3, angles 21]); "
+                f"received shape {action.shape}"
+            )
+        if not np.all(np.isfinite(action)):
+            bad = np.nonzero(~np.isfinite(action))[0].tolist()
+            raise ValueError(f"the action has NaN or Inf values at indices {bad}")
+        return action
+
+    def _apply_action(self, action: np.ndarray) -> None:
+        if self.config.control_mode == "pose":
+            vector = np.clip(action, _POSE_LO, _POSE_HI)
+        else:
+            step = np.clip(action, -1.0, 1.0) * self._delta_scale
+            current = self.target.vector
+            rot = Rotation.from_rotvec(step[3:6]) * Rotation.from_rotvec(current[3:6])
+            vector = current + step
+            vector[3:6] = rot.as_rotvec()
+            vector = np.clip(vector, _POSE_LO, _POSE_HI)
+        self.target = HandPose.from_vector(vector)
+        binding = self.scene.binding
+        self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
+        self._target_quat_wxyz = self.target.quat_wxyz
+
+    def _track_target(self) -> None:
+        """Move the mocap body toward the wrist target at bounded speed (one physics step)."""
+        data, mocap = self.scene.data, self.scene.binding.mocap_id
+        dt = self.scene.model.opt.timestep
+        pos = data.mocap_pos[mocap]
+        offset = self.target.wrist_pos - pos
+        distance = np.linalg.norm(offset)
+        if distance > WRIST_TRACKING_SPEED * dt:
+            offset *= WRIST_TRACKING_SPEED * dt / distance
+        data.mocap_pos[mocap] = pos + offset
+        quat = data.mocap_quat[mocap]
+        # Rotation from the current to the target orientation (the short way), as axis * angle.
+        inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
+        mujoco.mju_negQuat(inverse, quat)
+        mujoco.mju_mulQuat(relative, self._target_quat_wxyz, inverse)
+        if relative[0] < 0:
+            relative = -relative
+        mujoco.mju_quat2Vel(rotvec, relative, 1.0)
+        angle = np.linalg.norm(rotvec)
+        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * dt)
+        if angle_step <= 0:
+            return
+        step, new = np.empty(4), np.empty(4)
+        mujoco.mju_axisAngle2Quat(step, rotvec / angle, angle_step)
+        mujoco.mju_mulQuat(new, step, quat)
+        mujoco.mju_normalize4(new)
+        data.mocap_quat[mocap] = new
+
+    def _divergence_count(self) -> int:
+        return int(sum(self.scene.data.warning[w].number for w in _DIVERGENCE_WARNINGS))
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Apply one action for ``frame_skip`` physics steps, render and label the result.
+
+        Raises:
+            ValueError: for an action of the wrong shape or with NaN/Inf values.
+        """
+        if self.scene is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        self._apply_action(self._check_action(action))
+        model, data = self.scene.model, self.scene.data
+        diverged = False
+        for _ in range(self.config.frame_skip):
+            self._track_target()
+            mujoco.mj_step(model, data)
+            if self._divergence_count() != self._warnings:
+                diverged = True
+                break
+        diverged = diverged or not (
+            np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
+        )
+        if not diverged:
+            # mj_step leaves positions, contacts and sites at the state before integration; the
+            # observation and labels describe the state after it (as get_state returns).
+            mujoco.mj_forward(model, data)
+        self.elapsed_steps += 1
+        if diverged:
+            self._warnings = self._divergence_count()
+            obs = {k: v.copy() for k, v in self._last_obs.items()}
+            info = {"physics_diverged": True, "frame": None, "is_success": False}
+            return obs, 0.0, False, True, info
+        obs = self._observe()
+        terms, terminated, extra = self._task_reward()
+        reward = float(sum(terms.values()))
+        return obs, reward, terminated, False, self._info({**terms, **extra})
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        self.frame = self.frame_renderer.render(self.np_random)
+        obs: dict[str, np.ndarray] = {}
+        if "depth" in self.config.obs_mode:
+            obs["depth"] = np.minimum(self.frame.depth, np.float32(DEPTH_MAX_M))
+        if self.config.obs_mode == "depth+segmentation":
+            obs["segmentation"] = self.frame.segmentation.copy()
+        if "state" in self.config.obs_mode:
+            obs["proprio"] = self._proprio()
+        obs.update(self._task_observation())
+        self._last_obs = obs
+        return {k: v.copy() for k, v in obs.items()}
+
+    def _proprio(self) -> np.ndarray:
+        binding, data = self.scene.binding, self.scene.data
+        root = binding.root_dof
+        velocities = np.concatenate([data.qvel[root : root + 6], data.qvel[binding.joint_dof]])
+        return np.concatenate([binding.pose(data).vector, velocities])
+
+    def _info(self, extra: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "frame": _without_images(self.frame),
+            "time_s": float(self.scene.data.time),
+            "target_pose": self.target.vector.copy(),
+            "physics_diverged": False,
+            **extra,
+        }
+
+    # State round trip ---------------------------------------------------------------------
+
+    def get_state(self) -> dict[str, np.ndarray]:
+        """The physics state and the current target (for :meth:`set_state`)."""
+        data = self.scene.data
+        return {
+            "time": np.array(data.time),
+            "qpos": data.qpos.copy(),
+            "qvel": data.qvel.copy(),
+            "act": data.act.copy(),
+            "ctrl": data.ctrl.copy(),
+            "mocap_pos": data.mocap_pos.copy(),
+            "mocap_quat": data.mocap_quat.copy(),
+            "qacc_warmstart": data.qacc_warmstart.copy(),
+            "target": self.target.vector.copy(),
+        }
+
+    def set_state(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Restore a state of the same scene; returns the observation of that state.
+
+        Raises:
+            InvalidEnvConfig: if the state does not fit this episode's scene.
+        """
+        data = self.scene.data
+        for key in ("qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart"):
+            if np.shape(state[key]) != getattr(data, key).shape:
+                raise InvalidEnvConfig(
+                    f"state[{key!r}] has shape {np.shape(state[key])}, this scene needs "
+                    f"{getattr(data, key).shape}; states only transfer within one scene"
+                )
+            getattr(data, key)[:] = state[key]
+        data.time = float(state["time"])
+        self.target = HandPose.from_vector(state["target"])
+        mujoco.mj_forward(self.scene.model, data)
+        return self._observe()
+
+    # Rendering -----------------------------------------------------------------------------
+
+    def render(self) -> np.ndarray | None:
+        """Render by ``render_mode``.
+
+        Returns:
+            ``rgb_array``: (H, W, 3) uint8 colour image of the env camera; ``depth_array``:
+            (H, W) float32 sensor depth of the last frame, metres; ``human``: ``None`` (updates
+            the viewer window).
+        """
+        if self.render_mode is None or self.scene is None:
+            return None
+        if self.render_mode == "depth_array":
+            return self.frame.depth.copy()
+        if self.render_mode == "rgb_array":
+            if self._rgb_renderer is None:
+                h, w = self.intrinsics.height, self.intrinsics.width
+                self._rgb_renderer = mujoco.Renderer(self.scene.model, h, w)
+            self._rgb_renderer.update_scene(self.scene.data, camera="camera")
+            return self._rgb_renderer.render()
+        if self._viewer is None:
+            from mujoco import viewer
+
+            self._viewer = viewer.launch_passive(self.scene.model, self.scene.data)
+        self._viewer.sync()
+        return None
+
+    def _close_rgb(self) -> None:
+        if self._rgb_renderer is not None:
+            self._rgb_renderer.close()
+            self._rgb_renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+
+    def close(self) -> None:
+        """Free the renderers (idempotent)."""
+        if self.frame_renderer is not None:
+            self.frame_renderer.close()
+            self.frame_renderer = None
+        self._close_rgb()
+        self.scene = None
+        self._scene_key = None
