@@ -33,3 +33,13 @@ register(
     entry_point="handsim.envs.hand_pose:HandPoseEnv",
     max_episode_steps=150,
 )
+register(
+    id="handsim/Grasp-v0",
+    entry_point="handsim.envs.grasp:GraspEnv",
+    max_episode_steps=400,
+)
+register(
+    id="handsim/GraspClutter-v0",
+    entry_point="handsim.envs.grasp:GraspClutterEnv",
+    max_episode_steps=400,
+)

@@ -61,6 +61,7 @@ from handsim.sensors import sensor_model
 
 __all__ = [
     "HandSimEnv",
+    "HandDriver",
     "EnvConfig",
     "InvalidEnvConfig",
     "OBS_MODES",
@@ -244,6 +245,85 @@ def _without_images(frame: Frame) -> Frame:
     return dataclasses.replace(frame, depth=None, depth_clean=None, segmentation=None)
 
 
+class HandDriver:
+    """Drives a scene's physical hand toward a target pose, one control step at a time.
+
+    The finger targets go to the position actuators at once; the mocap body (the hand's wrist
+    target, welded softly to the hand root) moves toward the wrist target at most
+    :data:`WRIST_TRACKING_SPEED` m/s and :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s, one
+    physics step at a time. Envs and scripted-episode loops share it, so both run the same
+    physics.
+
+    Args:
+        scene: a scene with a hand.
+    """
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.target = scene.binding.pose(scene.data)
+        self._target_quat_wxyz = self.target.quat_wxyz
+        self._warnings = self._divergence_count()
+
+    def set_target(self, target: HandPose) -> None:
+        """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
+        self.target = target.clip()
+        self._target_quat_wxyz = self.target.quat_wxyz
+        binding = self.scene.binding
+        self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
+
+    def _divergence_count(self) -> int:
+        data = self.scene.data
+        return int(sum(data.warning[w].number for w in _DIVERGENCE_WARNINGS))
+
+    def _track(self) -> None:
+        data, mocap = self.scene.data, self.scene.binding.mocap_id
+        dt = self.scene.model.opt.timestep
+        pos = data.mocap_pos[mocap]
+        offset = self.target.wrist_pos - pos
+        distance = np.linalg.norm(offset)
+        if distance > WRIST_TRACKING_SPEED * dt:
+            offset *= WRIST_TRACKING_SPEED * dt / distance
+        data.mocap_pos[mocap] = pos + offset
+        quat = data.mocap_quat[mocap]
+        # Rotation from the current to the target orientation (the short way), as axis * angle.
+        inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
+        mujoco.mju_negQuat(inverse, quat)
+        mujoco.mju_mulQuat(relative, self._target_quat_wxyz, inverse)
+        if relative[0] < 0:
+            relative = -relative
+        mujoco.mju_quat2Vel(rotvec, relative, 1.0)
+        angle = np.linalg.norm(rotvec)
+        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * dt)
+        if angle_step <= 0:
+            return
+        step, new = np.empty(4), np.empty(4)
+        mujoco.mju_axisAngle2Quat(step, rotvec / angle, angle_step)
+        mujoco.mju_mulQuat(new, step, quat)
+        mujoco.mju_normalize4(new)
+        data.mocap_quat[mocap] = new
+
+    def step(self, n: int) -> bool:
+        """Run ``n`` physics steps toward the target, then ``mj_forward``.
+
+        Returns:
+            ``True`` if the physics diverged (a MuJoCo instability warning or a non-finite
+            state); the data is then not forwarded.
+        """
+        model, data = self.scene.model, self.scene.data
+        for _ in range(n):
+            self._track()
+            mujoco.mj_step(model, data)
+            if self._divergence_count() != self._warnings:
+                self._warnings = self._divergence_count()
+                return True
+        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+            return True
+        # mj_step leaves positions, contacts and sites at the state before integration; the
+        # observation and labels describe the state after it.
+        mujoco.mj_forward(model, data)
+        return False
+
+
 class HandSimEnv(gym.Env):
     """Base of handsim's envs (not registered itself); see the module docstring.
 
@@ -366,6 +446,7 @@ class HandSimEnv(gym.Env):
             adr = scene.model.jnt_qposadr[scene.model.body(body).jntadr[0]]
             scene.data.qpos[adr : adr + 3] = placement.pos_m
             scene.data.qpos[adr + 3 : adr + 7] = placement.quat_wxyz
+        mujoco.mj_forward(scene.model, scene.data)
 
     # Gymnasium API ------------------------------------------------------------------------
 
@@ -382,14 +463,11 @@ class HandSimEnv(gym.Env):
         self._build_scene(rng)
         start = self._reset_task(rng)
         self.scene.binding.set_pose(self.scene.data, start)
-        self.target = start
-        self._target_quat_wxyz = start.quat_wxyz
-        for _ in range(int(round(SETTLE_S / self.scene.model.opt.timestep))):
-            self._track_target()
-            mujoco.mj_step(self.scene.model, self.scene.data)
-        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self.driver = HandDriver(self.scene)
+        self.driver.set_target(start)
+        self.target = self.driver.target
+        self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep)))
         self.elapsed_steps = 0
-        self._warnings = self._divergence_count()
         obs = self._observe()
         return obs, self._info({})
 
@@ -420,41 +498,8 @@ class HandSimEnv(gym.Env):
             vector = current + step
             vector[3:6] = rot.as_rotvec()
             vector = np.clip(vector, _POSE_LO, _POSE_HI)
-        self.target = HandPose.from_vector(vector)
-        binding = self.scene.binding
-        self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
-        self._target_quat_wxyz = self.target.quat_wxyz
-
-    def _track_target(self) -> None:
-        """Move the mocap body toward the wrist target at bounded speed (one physics step)."""
-        data, mocap = self.scene.data, self.scene.binding.mocap_id
-        dt = self.scene.model.opt.timestep
-        pos = data.mocap_pos[mocap]
-        offset = self.target.wrist_pos - pos
-        distance = np.linalg.norm(offset)
-        if distance > WRIST_TRACKING_SPEED * dt:
-            offset *= WRIST_TRACKING_SPEED * dt / distance
-        data.mocap_pos[mocap] = pos + offset
-        quat = data.mocap_quat[mocap]
-        # Rotation from the current to the target orientation (the short way), as axis * angle.
-        inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
-        mujoco.mju_negQuat(inverse, quat)
-        mujoco.mju_mulQuat(relative, self._target_quat_wxyz, inverse)
-        if relative[0] < 0:
-            relative = -relative
-        mujoco.mju_quat2Vel(rotvec, relative, 1.0)
-        angle = np.linalg.norm(rotvec)
-        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * dt)
-        if angle_step <= 0:
-            return
-        step, new = np.empty(4), np.empty(4)
-        mujoco.mju_axisAngle2Quat(step, rotvec / angle, angle_step)
-        mujoco.mju_mulQuat(new, step, quat)
-        mujoco.mju_normalize4(new)
-        data.mocap_quat[mocap] = new
-
-    def _divergence_count(self) -> int:
-        return int(sum(self.scene.data.warning[w].number for w in _DIVERGENCE_WARNINGS))
+        self.driver.set_target(HandPose.from_vector(vector))
+        self.target = self.driver.target
 
     def step(
         self, action: np.ndarray
@@ -467,24 +512,9 @@ class HandSimEnv(gym.Env):
         if self.scene is None:
             raise gym.error.ResetNeeded("call reset() before step()")
         self._apply_action(self._check_action(action))
-        model, data = self.scene.model, self.scene.data
-        diverged = False
-        for _ in range(self.config.frame_skip):
-            self._track_target()
-            mujoco.mj_step(model, data)
-            if self._divergence_count() != self._warnings:
-                diverged = True
-                break
-        diverged = diverged or not (
-            np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
-        )
-        if not diverged:
-            # mj_step leaves positions, contacts and sites at the state before integration; the
-            # observation and labels describe the state after it (as get_state returns).
-            mujoco.mj_forward(model, data)
+        diverged = self.driver.step(self.config.frame_skip)
         self.elapsed_steps += 1
         if diverged:
-            self._warnings = self._divergence_count()
             obs = {k: v.copy() for k, v in self._last_obs.items()}
             info = {"physics_diverged": True, "frame": None, "is_success": False}
             return obs, 0.0, False, True, info
@@ -553,7 +583,8 @@ class HandSimEnv(gym.Env):
                 )
             getattr(data, key)[:] = state[key]
         data.time = float(state["time"])
-        self.target = HandPose.from_vector(state["target"])
+        self.driver.set_target(HandPose.from_vector(state["target"]))
+        self.target = self.driver.target
         mujoco.mj_forward(self.scene.model, data)
         return self._observe()
 

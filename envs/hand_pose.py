@@ -142,8 +142,17 @@ class HandPoseEnv(HandSimEnv):
             ),
         )
 
-    def make_expert(self, rng: np.random.Generator | None = None) -> GestureExpert:
-        """A :class:`~handsim.envs.experts.GestureExpert` planned to this episode's goal."""
-        expert = GestureExpert(self.control_dt, rng=rng if rng is not None else self.np_random)
-        expert.reset(self.expert_state(), self.goal)
+    def make_expert(
+        self, rng: np.random.Generator | None = None, state: HandState | None = None
+    ) -> GestureExpert:
+        """A :class:`~handsim.envs.experts.GestureExpert` planned to this episode's goal.
+
+        Args:
+            rng: the expert's generator (default: drawn from the env's).
+            state: the state it plans from (default: the truth, :meth:`expert_state`).
+        """
+        if rng is None:
+            rng = np.random.default_rng(self.np_random.integers(2**63))
+        expert = GestureExpert(self.control_dt, rng=rng)
+        expert.reset(state if state is not None else self.expert_state(), self.goal)
         return expert

@@ -121,7 +121,7 @@ class Retargeter:
         thumb = keypoints[1] - keypoints[0]
         return float(np.dot(normal, thumb) / (np.linalg.norm(normal) * np.linalg.norm(thumb)))
 
-    def _validate(self, keypoints: object) -> np.ndarray:
+    def _validate(self, keypoints: object, check_side: bool = True) -> np.ndarray:
         kp = np.asarray(keypoints, dtype=np.float64)
         if kp.shape != (21, 3):
             raise InvalidKeypoints(
@@ -140,7 +140,7 @@ class Retargeter:
                 f"{[BONES[i] for i in np.nonzero(lengths < 1e-4)[0]]} have zero length"
             )
         # Only a clear opposite sign counts (noise of a few mm moves the value by ~0.2).
-        if self._palm_chirality(kp) * np.sign(self._chirality) < -_CHIRALITY_MARGIN:
+        if check_side and self._palm_chirality(kp) * np.sign(self._chirality) < -_CHIRALITY_MARGIN:
             other = "left" if self.params.side == "right" else "right"
             raise InvalidKeypoints(
                 f"the keypoints look like a {other} hand but the target hand is "
@@ -178,22 +178,35 @@ class Retargeter:
         )
         return result.x - offset
 
-    def __call__(self, keypoints: object, initial: HandPose | None = None) -> RetargetResult:
+    def __call__(
+        self,
+        keypoints: object,
+        initial: HandPose | None = None,
+        *,
+        check_side: bool = True,
+        report_clamped: bool = True,
+    ) -> RetargetResult:
         """Retarget one frame.
 
         Args:
             keypoints: (21, 3) keypoints of a hand of the same side, metres, any frame.
             initial: warm start (e.g. the previous frame's pose); default: flat hand with the
                 Kabsch wrist rotation.
+            check_side: reject keypoints that look like the other hand. Turn it off for noisy
+                estimates of a hand known to be this side (centimetre noise on a fist can flip
+                the palm's apparent orientation).
+            report_clamped: refit joints at their limits without bounds to report the
+                requested values (``clamped``); off, ``clamped`` is empty and the call is up to
+                twice as fast.
 
         Returns:
             The fitted pose in the keypoints' frame, with the clamped joints and fit errors.
 
         Raises:
             InvalidKeypoints: wrong shape, non-finite values, coincident keypoints, or keypoints
-                of the other hand side.
+                of the other hand side (with ``check_side``).
         """
-        kp = self._validate(keypoints)
+        kp = self._validate(keypoints, check_side)
         wrist = kp[0]
         # Bone lengths do not depend on the pose: their sum gives the source/target size ratio,
         # and the input scaled by it is what the target hand must reach.
@@ -215,7 +228,7 @@ class Retargeter:
         )
         clamped: tuple[LimitViolation, ...] = ()
         at_bound = (x[3:] <= lower + 1e-6) | (x[3:] >= upper - 1e-6)
-        if np.any(at_bound):
+        if report_clamped and np.any(at_bound):
             # Refit without bounds from the bounded fit (so it stays on the same solution
             # branch) to see how far past its limits the input asks each joint to go.
             wide = np.full(3 + NUM_ANGLES, np.inf)

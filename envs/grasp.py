@@ -1,0 +1,291 @@
+"""``handsim/Grasp-v0`` and ``handsim/GraspClutter-v0``: pick up an object and hold it lifted."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from handsim.envs.base import EnvConfig, HandSimEnv, InvalidEnvConfig
+from handsim.envs.grasping import (
+    LIFT_HEIGHT_M,
+    GraspExpert,
+    GraspState,
+    LiftTracker,
+    start_pose,
+)
+from handsim.estimator import hand_center
+from handsim.pose import HandPose
+from handsim.scene import OBJECT_LABEL_OFFSET, InvalidScene, ObjectPlacement, sample_placements
+
+__all__ = ["GraspEnv", "GraspClutterEnv"]
+
+FALL_HEIGHT_M = -0.05
+"""An object whose origin drops below this height (world z) has fallen off the table."""
+_SINGLE_REGION_M = ((-0.08, 0.08), (-0.04, 0.08))
+_CLUTTER_REGION_M = ((-0.22, 0.22), (-0.08, 0.22))
+
+
+class GraspEnv(HandSimEnv):
+    """Grasp one object on a table, lift it by 10 cm and hold it for 2 s.
+
+    ## Description
+    A physical right (or left) hand, its wrist softly welded to a mocap target and its 21
+    joints position-actuated, starts open above the table on the user's side (``-y``) of a
+    YCB-like object drawn from ``objects`` (all 21 YCB-Video objects by default), placed in a
+    stable resting pose with a random yaw near the table centre. Grasps are physical: contact
+    and friction only (see :mod:`handsim.envs.grasping`).
+
+    ## Action Space
+    ``Box(27)`` float32, as in :class:`~handsim.envs.hand_pose.HandPoseEnv`: wrist target
+    position (m) and rotation vector (rad), then the 21 ``<side>_<joint>_act`` targets (rad);
+    absolute (``"pose"``) or normalized deltas (``"delta"``), see :mod:`handsim.envs.base`.
+
+    ## Observation Space
+    ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` by ``obs_mode`` and ``target_label``:
+    (1,) int16 in [8, 13], the segmentation label of the object to lift (8 + its instance).
+    The object's pose and every other label are in ``info["frame"]`` only.
+
+    ## Rewards
+    Dense (``reward_type="dense"``), the sum of:
+
+    - ``reward_reach = -d``: ``d`` = distance from the hand centre (mean of the wrist and the
+      four finger MCP keypoints) to the target's origin, metres;
+    - ``reward_contact = 0.1 n``: ``n`` = number of hand parts (palm, five digits) touching
+      the target;
+    - ``reward_lift = min(h / 0.1, 1)`` for a rise ``h >= 0`` of the target above its rest
+      height, metres;
+    - ``reward_success = 10`` at the step the lift-and-hold succeeds.
+
+    Sparse: ``reward_success = 1`` at that step, else 0. ``info`` also has ``is_success``,
+    ``lift_m``, ``slip_m``, ``hold_s``, ``n_contact_parts`` and ``target_instance``.
+
+    ## Starting State
+    :func:`handsim.envs.grasping.start_pose`: open hand, palm down, 0.22 m from the object
+    toward the user, jittered by 2 cm and 5 deg; the physics then settles for 0.1 s.
+
+    ## Episode End
+    Terminated when the lift succeeds (risen >= 0.10 m, then held 2 s with < 1 cm slip in the
+    palm frame; :class:`~handsim.envs.grasping.LiftTracker`) or when the target falls off the
+    table (its origin below z = -0.05 m). Truncated after ``max_episode_steps`` (400 = 8 s) or
+    on physics divergence (``info["physics_diverged"]``).
+
+    ## Arguments
+    ``objects`` (a name, a list of names, or ``"ycbv"``) and the shared arguments of
+    :class:`~handsim.envs.base.EnvConfig`.
+
+    ## Version History
+    - v0: initial version.
+    """
+
+    max_objects = 1
+
+    def __init__(self, *, objects: object = "ycbv", **kwargs: Any) -> None:
+        super().__init__(EnvConfig.from_kwargs(objects=objects, min_objects=1, **kwargs))
+        self.target_instance = 0
+        self.tracker: LiftTracker | None = None
+
+    # Episode ---------------------------------------------------------------------------------
+
+    def _episode_names(self, rng: np.random.Generator) -> tuple[list[str], int]:
+        """Object names of this episode and the target's index among them."""
+        pool = self.config.objects
+        return [pool[rng.integers(len(pool))]], 0
+
+    def _placement_region(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return _SINGLE_REGION_M
+
+    def _episode_objects(self, rng: np.random.Generator) -> tuple[ObjectPlacement, ...]:
+        # Large objects may not all fit: draw another set (the draws stay seeded).
+        for _ in range(20):
+            names, self.target_instance = self._episode_names(rng)
+            try:
+                return sample_placements(rng, names, region_m=self._placement_region())
+            except InvalidScene:
+                continue
+        raise InvalidEnvConfig(
+            f"could not place {len(names)} of the objects {self.config.objects} on the table "
+            "in 20 draws; use fewer or smaller objects"
+        )
+
+    def _reset_task(self, rng: np.random.Generator) -> HandPose:
+        obj = self.scene.objects[self.target_instance][1]
+        T = self._object_pose(self.target_instance)
+        self.tracker = None  # made after the settling steps (the rest height is measured then)
+        return start_pose(rng, T, self.scene.hand.params, obj=obj)
+
+    def _object_pose(self, instance: int) -> np.ndarray:
+        body = self.scene.model.body(self.scene.objects[instance][0]).id
+        data = self.scene.data
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[body].reshape(3, 3)
+        T[:3, 3] = data.xpos[body]
+        return T
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode (see the class docstring)."""
+        obs, info = super().reset(seed=seed, options=options)
+        rest_height = self._object_pose(self.target_instance)[2, 3]
+        self.tracker = LiftTracker(rest_height)
+        self._episode_start_s = float(self.scene.data.time)
+        info.update(self._task_info())
+        return obs, info
+
+    # Observation, reward ---------------------------------------------------------------------
+
+    def _task_observation_space(self) -> dict[str, spaces.Space]:
+        top = OBJECT_LABEL_OFFSET + GraspClutterEnv.max_objects - 1
+        return {"target_label": spaces.Box(OBJECT_LABEL_OFFSET, top, (1,), np.int16)}
+
+    def _task_observation(self) -> dict[str, np.ndarray]:
+        return {"target_label": np.array([OBJECT_LABEL_OFFSET + self.target_instance], np.int16)}
+
+    def _contact_parts(self) -> int:
+        return len({c.hand_part for c in self.frame.contacts if c.instance == self.target_instance})
+
+    def _task_info(self) -> dict[str, Any]:
+        outcome = self.tracker.outcome()
+        return {
+            "is_success": bool(self.tracker.success),
+            "lift_m": float(
+                self._object_pose(self.target_instance)[2, 3] - self.tracker.rest_height_m
+            ),
+            "slip_m": outcome.slip_m,
+            "hold_s": outcome.hold_s,
+            "n_contact_parts": self._contact_parts(),
+            "target_instance": self.target_instance,
+        }
+
+    def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
+        scene, data = self.scene, self.scene.data
+        was_success = self.tracker.success
+        palm = scene.model.body(scene.hand.root_body).id
+        T_palm = np.eye(4)  # noqa: N806
+        T_palm[:3, :3] = data.xmat[palm].reshape(3, 3)
+        T_palm[:3, 3] = data.xpos[palm]
+        obj_pos = self._object_pose(self.target_instance)[:3, 3]
+        success = self.tracker.update(data.time - self._episode_start_s, obj_pos, T_palm)
+        just_succeeded = success and not was_success
+        info = self._task_info()
+        if self.config.reward_type == "dense":
+            center = hand_center(scene.binding.keypoints(data))
+            terms = {
+                "reward_reach": -float(np.linalg.norm(center - obj_pos)),
+                "reward_contact": 0.1 * info["n_contact_parts"],
+                "reward_lift": float(np.clip(info["lift_m"] / LIFT_HEIGHT_M, 0.0, 1.0)),
+                "reward_success": 10.0 * just_succeeded,
+            }
+        else:
+            terms = {"reward_success": float(just_succeeded)}
+        fallen = obj_pos[2] < FALL_HEIGHT_M
+        return terms, bool(success or fallen), info
+
+    # Experts ---------------------------------------------------------------------------------
+
+    def expert_state(
+        self,
+        hand_pose: HandPose | None = None,
+        keypoints_world: np.ndarray | None = None,
+        T_world_from_obj: np.ndarray | None = None,
+    ) -> GraspState:
+        """The grasp expert's state: the truth, or the given (estimated) values in its place."""
+        scene, data = self.scene, self.scene.data
+        return GraspState(
+            time_s=float(data.time - self._episode_start_s),
+            hand_pose=hand_pose if hand_pose is not None else scene.binding.pose(data),
+            keypoints_world=(
+                keypoints_world if keypoints_world is not None else scene.binding.keypoints(data)
+            ),
+            T_world_from_obj=(
+                T_world_from_obj
+                if T_world_from_obj is not None
+                else self._object_pose(self.target_instance)
+            ),
+            obj=scene.objects[self.target_instance][1],
+        )
+
+    def make_expert(
+        self, rng: np.random.Generator | None = None, state: GraspState | None = None
+    ) -> GraspExpert:
+        """A :class:`~handsim.envs.grasping.GraspExpert` planned for this episode's target.
+
+        Args:
+            rng: the expert's generator (``None``: no speed jitter).
+            state: the state it plans from (default: the truth, :meth:`expert_state`).
+        """
+        obj = self.scene.objects[self.target_instance][1]
+        expert = GraspExpert(obj, self.scene.hand.params, rng=rng)
+        expert.reset(state if state is not None else self.expert_state())
+        return expert
+
+
+class GraspClutterEnv(GraspEnv):
+    """Grasp a named target among 3-6 objects, lift it by 10 cm and hold it for 2 s.
+
+    ## Description
+    As :class:`GraspEnv`, with ``num_objects`` (default 3 to 6) distinct objects drawn from
+    ``objects`` and placed without overlap on a wider area of the table; one of them, drawn
+    uniformly, is the target. The others occlude the hand and the target from the camera and
+    may be in the way.
+
+    ## Action Space
+    As :class:`GraspEnv`.
+
+    ## Observation Space
+    As :class:`GraspEnv`; ``target_label`` names the target (8 + its instance), and the
+    segmentation bound covers six objects.
+
+    ## Rewards
+    As :class:`GraspEnv`, for the target.
+
+    ## Starting State
+    As :class:`GraspEnv`, relative to the target.
+
+    ## Episode End
+    As :class:`GraspEnv`.
+
+    ## Arguments
+    ``num_objects``: an int or an inclusive (low, high) range within [1, 6]; ``objects``
+    (default ``"ycbv"``) must hold at least ``high`` names; and the shared arguments of
+    :class:`~handsim.envs.base.EnvConfig`.
+
+    ## Version History
+    - v0: initial version.
+    """
+
+    max_objects = 6
+
+    def __init__(
+        self, *, objects: object = "ycbv", num_objects: object = (3, 6), **kwargs: Any
+    ) -> None:
+        if isinstance(num_objects, (int, np.integer)) and not isinstance(num_objects, bool):
+            num_objects = (int(num_objects), int(num_objects))
+        try:
+            lo, hi = (int(n) for n in num_objects)  # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            raise InvalidEnvConfig(
+                f"num_objects must be an int or a (low, high) pair in [1, 6]; received "
+                f"{num_objects!r}"
+            ) from None
+        if not 1 <= lo <= hi <= self.max_objects:
+            raise InvalidEnvConfig(
+                f"num_objects must satisfy 1 <= low <= high <= 6; received ({lo}, {hi})"
+            )
+        self.num_objects = (lo, hi)
+        super().__init__(objects=objects, **kwargs)
+        if len(self.config.objects) < hi:
+            raise InvalidEnvConfig(
+                f"num_objects up to {hi} needs at least {hi} object names; received "
+                f"{len(self.config.objects)}: {self.config.objects}"
+            )
+
+    def _episode_names(self, rng: np.random.Generator) -> tuple[list[str], int]:
+        lo, hi = self.num_objects
+        n = int(rng.integers(lo, hi + 1))
+        pool = self.config.objects
+        names = [pool[i] for i in rng.choice(len(pool), size=n, replace=False)]
+        return names, int(rng.integers(n))
+
+    def _placement_region(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        return _CLUTTER_REGION_M

@@ -1,0 +1,1435 @@
+"""Scripted grasping: a :class:`GraspExpert` that picks up and lifts YCB objects, and its score.
+
+The pieces an environment needs to run a pick-and-lift episode:
+
+- :class:`GraspState`: what the expert sees (the hand pose, keypoints and the target object's
+  pose and geometry). It may come from ground truth (:meth:`GraspState.from_sim`) or from a
+  pose estimate; the expert never reads ``MjData``.
+- :func:`start_pose`: the seeded initial hand pose of an episode (open hand, palm down, on the
+  user's side of the object).
+- :class:`GraspExpert`: plans a grasp at :meth:`~GraspExpert.reset` and returns an absolute
+  27-DoF target pose at every control step (:meth:`~GraspExpert.act`).
+- :class:`LiftTracker` / :func:`evaluate_lift`: the success definition (below).
+- :func:`run_episode`: the ground-truth loop used by the tests and ``benchmarks/bench_grasp.py``.
+
+Control: the env applies the expert's pose with ``HandBinding.set_target`` (the wrist follows a
+mocap target through a soft weld, the fingers have position actuators) and steps the physics
+:data:`FRAME_SKIP` times (0.002 s each, so the expert runs at 50 Hz).
+
+Grasps are physical: contact and friction only. No equality constraint, adhesion or change of
+the object's mass, gravity or friction is used.
+
+Success (:class:`LiftTracker`): the object origin rises at least :data:`LIFT_HEIGHT_M` = 0.10 m
+above its rest height, and then stays lifted for :data:`HOLD_DURATION_S` = 2 s while it moves
+less than :data:`MAX_SLIP_M` = 0.01 m in the palm frame (slip: displacement of the object origin
+expressed in the frame of the palm body, relative to where it was at the start of the hold
+window). The hold window opens at the first control step at which the object is lifted; if the
+object drops below the lift height or slips by ``MAX_SLIP_M`` or more, the window restarts at
+that step (a later 2 s window may still succeed).
+
+How the expert grasps (:data:`OBJECT_SHAPE_CLASSES`, :data:`GRASP_RECIPES`): the object's shape
+class selects a strategy and a grasp type of the GRASP taxonomy
+(:data:`handsim.pose_sources.GRASP_TYPES`):
+
+=============  ==========================================  ==================================
+shape class    objects                                     grasp
+=============  ==========================================  ==================================
+can            002 master chef can, 005 tomato soup can    side wrap, large diameter
+bottle         006 mustard, 021 bleach cleanser            side wrap, large diameter
+box            003, 004, 008, 009, 010, 036, 061           from the top, prismatic 4 finger
+disk           007 tuna fish can                           from the top, prismatic 4 finger
+vessel         019 pitcher base, 025 mug                   from the top, prismatic 4 finger
+bowl           024 bowl                                    pinch of the rim, palmar pinch
+tool           035 power drill                             from the top, prismatic 4 finger
+flat tool      037 scissors, 051 / 052 clamps              from the top, tripod
+elongated      011 banana, 040 large marker                from the top, tripod
+=============  ==========================================  ==================================
+
+Planning (at :meth:`GraspExpert.reset`, from the state's object pose and the object's model
+points): the grasp axis and centre come from the object's surface points (the narrowest
+cross-section through the centre of mass that the hand can span), the wrist pose from the
+hand's forward kinematics (the thumb and finger pads meet the object at the closure where their
+separation equals the object's width), and every candidate is checked for collisions with the
+table and the object in a private kinematic copy of the hand and the object (the env's
+``MjData`` is never read). Motions are minimum-jerk segments with a peak wrist speed of
+:data:`EXPERT_WRIST_SPEED_M_S` (below :data:`MAX_WRIST_SPEED_M_S`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from typing import Literal
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from handsim.errors import HandSimError
+from handsim.hand import HAND_PHYSICS_OPTIONS, Hand, HandParams
+from handsim.kinematics import ForwardKinematics
+from handsim.objects import YCBObject, add_object
+from handsim.pose import JOINT_LIMITS, NUM_ANGLES, HandPose, joint_index
+from handsim.pose_sources import GRASP_TYPES, minimum_jerk
+from handsim.scene import Scene
+
+__all__ = [
+    "FRAME_SKIP",
+    "CONTROL_DT_S",
+    "LIFT_HEIGHT_M",
+    "HOLD_DURATION_S",
+    "MAX_SLIP_M",
+    "MAX_WRIST_SPEED_M_S",
+    "EXPERT_WRIST_SPEED_M_S",
+    "InvalidGraspState",
+    "GraspPlanningError",
+    "GraspState",
+    "start_pose",
+    "ShapeClass",
+    "OBJECT_SHAPE_CLASSES",
+    "GraspRecipe",
+    "GRASP_RECIPES",
+    "shape_class",
+    "GraspPlan",
+    "plan_grasp",
+    "GraspExpert",
+    "FailureReason",
+    "GraspOutcome",
+    "LiftTracker",
+    "evaluate_lift",
+    "run_episode",
+]
+
+FRAME_SKIP = 10
+"""Physics steps per control step."""
+CONTROL_DT_S = FRAME_SKIP * float(HAND_PHYSICS_OPTIONS["timestep"])
+"""Control period, seconds (0.02 s: 50 Hz)."""
+LIFT_HEIGHT_M = 0.10
+"""Height the object origin must rise above its rest height, metres."""
+HOLD_DURATION_S = 2.0
+"""How long a lifted object must be held, seconds."""
+MAX_SLIP_M = 0.01
+"""Largest displacement of the object origin in the palm frame during the hold, metres."""
+MAX_WRIST_SPEED_M_S = 0.5
+"""Largest wrist target speed the expert may command, m/s (the wrist follows a stiff weld)."""
+EXPERT_WRIST_SPEED_M_S = 0.3
+"""Peak wrist speed of the expert's minimum-jerk segments, m/s."""
+_EXPERT_ANGULAR_SPEED_RAD_S = 2.5
+_SLOW_SPEED_M_S = 0.15  # final approach
+_LIFT_SPEED_M_S = 0.25
+_LIFT_TARGET_M = 0.15  # the expert lifts 5 cm more than the success height
+_PREGRASP_DIST_M = 0.08
+_CLOSE_S = 0.4
+_SQUEEZE_S = 0.3
+_SETTLE_S = 0.2
+
+# Table geometry of handsim.scene (top at z = 0); the planner checks collisions against it.
+_TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
+_PALM_BODY = "palm"
+
+ShapeClass = Literal[
+    "can", "bottle", "box", "disk", "vessel", "bowl", "tool", "flat_tool", "elongated"
+]
+
+
+class InvalidGraspState(HandSimError, ValueError):
+    """A grasp state, scene instance or episode argument is malformed."""
+
+
+class GraspPlanningError(HandSimError, RuntimeError):
+    """The expert found no collision-free grasp for the object in this pose."""
+
+
+# State ----------------------------------------------------------------------------------------
+
+
+def _check_transform(T: object, name: str) -> np.ndarray:
+    array = np.array(T, dtype=np.float64)
+    if array.shape != (4, 4) or not np.all(np.isfinite(array)):
+        raise InvalidGraspState(
+            f"{name} must be a finite (4, 4) rigid transform; received shape "
+            f"{np.shape(T)} {'with NaN/Inf' if array.shape == (4, 4) else ''}".rstrip()
+        )
+    rot = array[:3, :3]
+    if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-5) or np.linalg.det(rot) < 0:
+        raise InvalidGraspState(f"{name}[:3, :3] must be a rotation matrix; received {rot}")
+    return array
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GraspState:
+    """What the grasp expert sees at one control step (ground truth or an estimate).
+
+    Attributes:
+        time_s: time since the episode start, seconds.
+        hand_pose: the measured or estimated 27-DoF hand pose, world frame.
+        keypoints_world: (21, 3) hand keypoints, world frame, metres.
+        T_world_from_obj: (4, 4) pose of the target object (world: z up, table top at z = 0).
+        obj: the target's geometry (extents, model points, symmetries, name).
+    """
+
+    time_s: float
+    hand_pose: HandPose
+    keypoints_world: np.ndarray
+    T_world_from_obj: np.ndarray
+    obj: YCBObject
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.time_s, (int, float, np.floating)) and math.isfinite(self.time_s)):
+            raise InvalidGraspState(f"time_s must be a finite number; received {self.time_s!r}")
+        if not isinstance(self.hand_pose, HandPose) or self.hand_pose.batch_shape != ():
+            raise InvalidGraspState(
+                f"hand_pose must be a single HandPose; received {type(self.hand_pose).__name__}"
+            )
+        keypoints = np.array(self.keypoints_world, dtype=np.float64)
+        if keypoints.shape != (21, 3) or not np.all(np.isfinite(keypoints)):
+            raise InvalidGraspState(
+                "keypoints_world must be a finite (21, 3) array in metres; received shape "
+                f"{keypoints.shape}"
+            )
+        if not isinstance(self.obj, YCBObject):
+            raise InvalidGraspState(
+                f"obj must be a YCBObject (handsim.objects.get_object); received "
+                f"{type(self.obj).__name__}"
+            )
+        object.__setattr__(self, "time_s", float(self.time_s))
+        object.__setattr__(self, "keypoints_world", keypoints)
+        object.__setattr__(
+            self, "T_world_from_obj", _check_transform(self.T_world_from_obj, "T_world_from_obj")
+        )
+
+    @classmethod
+    def from_sim(cls, scene: Scene, instance: int, time_s: float) -> GraspState:
+        """The ground-truth state of a scene.
+
+        Args:
+            scene: a scene with a hand.
+            instance: index of the target object in ``scene.objects``.
+            time_s: time since the episode start, seconds.
+
+        Raises:
+            InvalidGraspState: if the scene has no hand or ``instance`` is out of range.
+        """
+        body_id = _object_body_id(scene, instance)
+        data = scene.data
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[body_id].reshape(3, 3)
+        T[:3, 3] = data.xpos[body_id]
+        return cls(
+            time_s=time_s,
+            hand_pose=scene.binding.pose(data),
+            keypoints_world=scene.binding.keypoints(data),
+            T_world_from_obj=T,
+            obj=scene.objects[instance][1],
+        )
+
+
+def _object_body_id(scene: Scene, instance: int) -> int:
+    if scene.binding is None:
+        raise InvalidGraspState("the scene has no hand; build it with SceneSpec(hand=...)")
+    n = len(scene.objects)
+    if isinstance(instance, bool) or not isinstance(instance, (int, np.integer)):
+        raise InvalidGraspState(f"instance must be an int in [0, {n}); received {instance!r}")
+    if not 0 <= instance < n:
+        raise InvalidGraspState(
+            f"instance must index scene.objects, [0, {n}); received {instance} "
+            f"(objects: {', '.join(body for body, _ in scene.objects) or 'none'})"
+        )
+    return int(scene.model.body(scene.objects[instance][0]).id)
+
+
+# Start pose -----------------------------------------------------------------------------------
+
+_START_DISTANCE_M = 0.22  # palm centre to object origin, horizontal, toward -y
+_START_HEIGHT_M = 0.18  # wrist above the table
+_START_JITTER_M = 0.02
+_START_JITTER_RAD = np.deg2rad(5.0)
+_PALM_DOWN = Rotation.from_matrix(np.diag([-1.0, 1.0, -1.0]))  # fingers +y, palm toward -z
+
+
+def start_pose(
+    rng: np.random.Generator,
+    T_world_from_obj: np.ndarray,
+    hand_params: HandParams,
+    *,
+    obj: YCBObject | None = None,
+) -> HandPose:
+    """The seeded initial hand pose of a grasping episode.
+
+    An open hand, palm down, fingers toward ``+y``, its palm centre 0.22 m from the object
+    origin toward the user (``-y``) and the wrist 0.18 m above the table (higher when ``obj``
+    is given and taller than 0.13 m: 0.05 m above its top), jittered by up to 2 cm per axis and
+    5 deg per rotation axis.
+
+    Args:
+        rng: random generator (the only source of randomness).
+        T_world_from_obj: (4, 4) pose of the target object, world frame.
+        hand_params: the hand (its length places the palm centre).
+        obj: the target object; its height raises the hand above tall objects.
+
+    Returns:
+        The start pose (world frame), all angles zero.
+
+    Raises:
+        InvalidGraspState: for a malformed transform or generator.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise InvalidGraspState(
+            f"rng must be a numpy.random.Generator; received {type(rng).__name__}"
+        )
+    T = _check_transform(T_world_from_obj, "T_world_from_obj")
+    height = _START_HEIGHT_M
+    if obj is not None:
+        top = float((_world_points(obj, T)[:, 2]).max())
+        height = max(height, top + 0.05)
+    jitter = rng.uniform(-_START_JITTER_M, _START_JITTER_M, 3)
+    rot_jitter = Rotation.from_rotvec(rng.uniform(-_START_JITTER_RAD, _START_JITTER_RAD, 3))
+    rotation = rot_jitter * _PALM_DOWN
+    palm_centre_in_hand = np.array([0.0, 0.25 * hand_params.hand_length, 0.0])
+    palm_centre = np.array([T[0, 3], T[1, 3] - _START_DISTANCE_M, height]) + jitter
+    wrist = palm_centre - rotation.apply(palm_centre_in_hand)
+    return HandPose(wrist, rotation.as_rotvec(), np.zeros(NUM_ANGLES))
+
+
+# Object geometry ------------------------------------------------------------------------------
+
+
+def _world_points(obj: YCBObject, T: np.ndarray) -> np.ndarray:
+    return np.asarray(obj.model_points_m) @ T[:3, :3].T + T[:3, 3]
+
+
+# Shape classes and recipes --------------------------------------------------------------------
+
+OBJECT_SHAPE_CLASSES: dict[str, ShapeClass] = {
+    "002_master_chef_can": "can",
+    "003_cracker_box": "box",
+    "004_sugar_box": "box",
+    "005_tomato_soup_can": "can",
+    "006_mustard_bottle": "bottle",
+    "007_tuna_fish_can": "disk",
+    "008_pudding_box": "box",
+    "009_gelatin_box": "box",
+    "010_potted_meat_can": "box",
+    "011_banana": "elongated",
+    "019_pitcher_base": "vessel",
+    "021_bleach_cleanser": "bottle",
+    "024_bowl": "bowl",
+    "025_mug": "vessel",
+    "035_power_drill": "tool",
+    "036_wood_block": "box",
+    "037_scissors": "flat_tool",
+    "040_large_marker": "elongated",
+    "051_large_clamp": "flat_tool",
+    "052_extra_large_clamp": "flat_tool",
+    "061_foam_brick": "box",
+}
+"""Shape class of each YCB-Video object (after the rpng/suo_slam labels, facts table 5.1)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class GraspRecipe:
+    """How the expert grasps one shape class.
+
+    Attributes:
+        strategy: ``"top"`` (palm down, thumb and fingers pinch across a horizontal axis),
+            ``"side"`` (palm against the side of an upright object, the digits wrap around it)
+            or ``"rim"`` (from the top, thumb outside and fingers inside a vessel's wall).
+        grasp_type: key of :data:`handsim.pose_sources.GRASP_TYPES`.
+        fingers: the fingers whose pads oppose the thumb (``"index"`` ... ``"little"``).
+        height_fraction: pad height as a fraction of the object's height (top, rim: from the
+            table; side: height of the palm centre line).
+        max_depth_m: top grasps: the pads go at most this far below the object's top, metres.
+        squeeze_rad: how far past first contact the fingers are driven (the joint that
+            closes most; the others in proportion), radians.
+        band_m: half width of the strip of object surface the pads close on, metres.
+        contact_fraction: where the digits touch, along the distal capsule (0.5 the pad,
+            1.0 the tip: for objects low on the table).
+        wide: open from the hand's widest span instead of the grasp type's preshape.
+        max_offset_m: also try grasp centres up to this far from the COM along the object's
+            long axis (a narrower section there costs its offset), metres.
+        finger_holes: the digits may enter holes wider than a fingertip (scissors loops)
+            and pinch the material between them.
+    """
+
+    strategy: Literal["top", "side", "rim"]
+    grasp_type: str
+    fingers: tuple[str, ...] = ("index", "middle")
+    height_fraction: float = 0.5
+    max_depth_m: float = 0.035
+    squeeze_rad: float = np.deg2rad(45.0)
+    band_m: float = 0.012
+    contact_fraction: float = 0.5
+    wide: bool = False
+    max_offset_m: float = 0.0
+    finger_holes: bool = False
+
+
+GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
+    "can": GraspRecipe("side", "large_diameter", height_fraction=0.45),
+    "bottle": GraspRecipe("side", "large_diameter", height_fraction=0.45),
+    "box": GraspRecipe(
+        "top", "prismatic_4_finger", fingers=("middle",), contact_fraction=0.75, wide=True
+    ),
+    "disk": GraspRecipe("top", "prismatic_4_finger"),
+    "vessel": GraspRecipe("rim", "palmar_pinch", fingers=("index",), max_depth_m=0.02),
+    "bowl": GraspRecipe("rim", "palmar_pinch", fingers=("index",), max_depth_m=0.02),
+    "tool": GraspRecipe("top", "prismatic_4_finger"),
+    "flat_tool": GraspRecipe(
+        "top",
+        "tripod",
+        fingers=("index",),
+        contact_fraction=1.0,
+        finger_holes=True,
+        max_offset_m=0.03,
+    ),
+    "elongated": GraspRecipe(
+        "top", "tripod", fingers=("index",), contact_fraction=1.0, band_m=0.008
+    ),
+}
+"""The grasp of each shape class."""
+
+
+def shape_class(obj: YCBObject) -> ShapeClass:
+    """The shape class of an object: from the table for YCB objects, else from its size.
+
+    Imported meshes are classed by their rested bounding box: taller than 0.12 m and narrower
+    than 0.11 m is a bottle, an open cavity a bowl or vessel, otherwise a box.
+    """
+    if obj.name in OBJECT_SHAPE_CLASSES:
+        return OBJECT_SHAPE_CLASSES[obj.name]
+    rest = Rotation.from_quat(np.roll(obj.rest_quat_wxyz, -1))
+    points = rest.apply(np.asarray(obj.model_points_m))
+    size = points.max(axis=0) - points.min(axis=0)
+    if obj.cavity_point_m is not None:
+        return "bowl" if size[2] < 0.6 * min(size[0], size[1]) else "vessel"
+    if size[2] > 0.12 and min(size[0], size[1]) < 0.11:
+        return "bottle"
+    return "box"
+
+
+# Hand model helpers ---------------------------------------------------------------------------
+
+_DIGIT_DISTAL_BODY = {
+    "thumb": "thumb_distal",
+    "index": "index_distal",
+    "middle": "middle_distal",
+    "ring": "ring_distal",
+    "little": "little_distal",
+}
+_CLOSURES = np.linspace(0.0, 1.0, 101)
+
+
+@dataclasses.dataclass(frozen=True)
+class _HandGeometry:
+    """Forward kinematics of one hand size and the distal capsules of its digits."""
+
+    fk: ForwardKinematics
+    distal_body: dict[str, int]
+    distal_start: dict[str, np.ndarray]
+    distal_end: dict[str, np.ndarray]
+    distal_radius: dict[str, float]
+
+    def contacts(self, angles: np.ndarray, digits: Sequence[str], fraction: float) -> np.ndarray:
+        """Contact sphere centres on the distal capsules' axes, hand frame.
+
+        Args:
+            angles: (..., 21) radians.
+            digits: digit names.
+            fraction: where along each distal capsule (0 its base, 1 the centre of its tip).
+
+        Returns:
+            (..., len(digits), 3) metres; each sphere has the capsule's radius.
+        """
+        batch = angles.shape[:-1]
+        pose = HandPose(np.zeros(batch + (3,)), np.zeros(batch + (3,)), angles)
+        rots, poss = self.fk.body_frames(pose)
+        out = []
+        for d in digits:
+            body = self.distal_body[d]
+            local = (1.0 - fraction) * self.distal_start[d] + fraction * self.distal_end[d]
+            out.append(
+                poss[..., body, :] + np.einsum("...ij,j->...i", rots[..., body, :, :], local)
+            )
+        return np.stack(out, axis=-2)
+
+
+@functools.lru_cache(maxsize=8)
+def _hand_geometry(params: HandParams) -> _HandGeometry:
+    fk = ForwardKinematics(params)
+    names = [b.name for b in fk.skeleton.bodies]
+    body, start, end, radius = {}, {}, {}, {}
+    for digit, body_name in _DIGIT_DISTAL_BODY.items():
+        index = names.index(body_name)
+        capsule = fk.skeleton.bodies[index].geoms[0]
+        body[digit] = index
+        start[digit], end[digit], radius[digit] = capsule.start, capsule.end, capsule.radius
+    return _HandGeometry(fk, body, start, end, radius)
+
+
+class _CollisionChecker:
+    """A private kinematic model of the table, the hand and the object (fixed) for planning.
+
+    Reports how far the hand's collision geoms come within ``margin`` of the table or the
+    object; it never touches the env's model or data.
+    """
+
+    def __init__(self, obj: YCBObject, params: HandParams, margin_m: float = 0.003) -> None:
+        spec = mujoco.MjSpec()
+        spec.worldbody.add_geom(
+            name="table",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=_TABLE_HALF_SIZE_M,
+            pos=[0.0, 0.0, -_TABLE_HALF_SIZE_M[2]],
+            margin=margin_m,
+        )
+        hand = Hand(params)
+        hand.attach_to(spec)
+        body = add_object(spec, obj, free_joint=False)
+        for geom in body.geoms:
+            geom.margin = margin_m
+        self.model = spec.compile()
+        self.data = mujoco.MjData(self.model)
+        self.binding = hand.bind(self.model)
+        self.obj_body = int(self.model.body(obj.body_name).id)
+        self.table_geom = int(self.model.geom("table").id)
+        hand_bodies = {int(self.model.body(hand.prefix + b.name).id) for b in hand.skeleton.bodies}
+        self.hand_geom = np.array(
+            [int(self.model.geom_bodyid[g]) in hand_bodies for g in range(self.model.ngeom)]
+        )
+        self.margin_m = margin_m
+
+    def clearance(self, pose: HandPose, T_world_from_obj: np.ndarray) -> tuple[float, float]:
+        """Smallest signed distance (m) of the hand to the object and to the table.
+
+        Distances above ``margin_m`` read as ``margin_m``; negative values are penetrations.
+        """
+        self.model.body_pos[self.obj_body] = T_world_from_obj[:3, 3]
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T_world_from_obj[:3, :3]).ravel())
+        self.model.body_quat[self.obj_body] = quat
+        b = self.binding
+        pose = pose.clip()
+        q = b.root_qpos
+        self.data.qpos[q : q + 3] = pose.wrist_pos
+        self.data.qpos[q + 3 : q + 7] = pose.quat_wxyz
+        self.data.qpos[b.joint_qpos] = pose.angles
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_collision(self.model, self.data)
+        to_obj, to_table = self.margin_m, self.margin_m
+        for k in range(self.data.ncon):
+            contact = self.data.contact[k]
+            g1, g2 = int(contact.geom1), int(contact.geom2)
+            if self.hand_geom[g1] == self.hand_geom[g2]:
+                continue
+            other = g2 if self.hand_geom[g1] else g1
+            if other == self.table_geom:
+                to_table = min(to_table, float(contact.dist))
+            elif int(self.model.geom_bodyid[other]) == self.obj_body:
+                to_obj = min(to_obj, float(contact.dist))
+        return to_obj, to_table
+
+
+@functools.lru_cache(maxsize=8)
+def _checker(obj: YCBObject, params: HandParams) -> _CollisionChecker:
+    return _CollisionChecker(obj, params)
+
+
+# Plans ----------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class GraspPlan:
+    """A planned grasp, world frame.
+
+    Attributes:
+        grasp_type: key of :data:`handsim.pose_sources.GRASP_TYPES`.
+        strategy: ``"top"``, ``"side"`` or ``"rim"`` (see :class:`GraspRecipe`).
+        wrist_pos: (3,) wrist position at the grasp, metres.
+        rotation: ``world_from_hand`` at the grasp.
+        approach_dir: (3,) unit direction of the final approach motion (toward the object).
+        preshape: (21,) open hand angles for the approach, radians.
+        contact: (21,) angles at which the digits reach the object, radians.
+        closed: (21,) finger targets of the squeeze (beyond first contact), radians.
+        hover_m: the approach ends this far above the grasp wrist; the wrist sinks to the
+            grasp while the digits close (an open hand reaches lower than a closed one).
+        width_m: object width between the opposing pads, metres.
+        contact_closure: closure of ``grasp_type`` at which the pads meet the object.
+    """
+
+    grasp_type: str
+    strategy: str
+    wrist_pos: np.ndarray
+    rotation: Rotation
+    approach_dir: np.ndarray
+    preshape: np.ndarray
+    contact: np.ndarray
+    closed: np.ndarray
+    hover_m: float
+    width_m: float
+    contact_closure: float
+
+    @property
+    def approach_end(self) -> np.ndarray:
+        """(3,) wrist position where the approach ends (hovering above the grasp), metres."""
+        return self.wrist_pos + np.array([0.0, 0.0, self.hover_m])
+
+    def pose(self, angles: np.ndarray, offset_m: np.ndarray | None = None) -> HandPose:
+        """The grasp wrist pose (optionally shifted by ``offset_m``, world) with ``angles``."""
+        pos = self.wrist_pos if offset_m is None else self.wrist_pos + offset_m
+        return HandPose(pos, self.rotation.as_rotvec(), angles)
+
+
+def _side_preshape() -> np.ndarray:
+    # Fingers straight (slightly hyperextended at the MCPs) and the thumb in full palmar
+    # abduction and extension, so the open "C" of the hand passes around a thick object.
+    angles = np.zeros(NUM_ANGLES)
+    angles[joint_index("thumb_cmc_flex")] = np.deg2rad(-20.0)
+    angles[joint_index("thumb_cmc_abd")] = np.deg2rad(60.0)
+    for finger in ("index", "middle", "ring", "little"):
+        angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(-10.0)
+    return angles
+
+
+_TABLE_CLEARANCE_M = 0.002
+_OPENING_M = 0.03  # the preshaped pads clear the object by this much in total
+
+
+def _raise_above_table(
+    checker: _CollisionChecker,
+    T: np.ndarray,
+    wrist: np.ndarray,
+    rotation: Rotation,
+    postures: Sequence[np.ndarray],
+    max_raise_m: float,
+) -> np.ndarray | None:
+    """Lift the wrist until every posture clears the table; None if it takes > max_raise_m."""
+    raised = wrist.copy()
+    for _ in range(4):
+        worst = min(
+            checker.clearance(HandPose(raised, rotation.as_rotvec(), a), T)[1] for a in postures
+        )
+        if worst >= _TABLE_CLEARANCE_M:
+            return raised
+        raised = raised + np.array([0.0, 0.0, _TABLE_CLEARANCE_M - worst + 5e-4])
+        if raised[2] - wrist[2] > max_raise_m:
+            return None
+    return None
+
+
+def _wide_open() -> np.ndarray:
+    # The hand's widest thumb-to-fingertip span that still reaches down the sides of a box:
+    # the thumb in full palmar abduction and extension, the fingers spread, straight at the
+    # MCPs and hooked at the PIPs and DIPs (about 0.19 m between the thumb and middle tips at
+    # 189 mm; found by a grid search over the finger flexions with the 0.16 m cracker box).
+    angles = np.zeros(NUM_ANGLES)
+    for name, deg in (
+        ("thumb_cmc_flex", -20.0),
+        ("thumb_cmc_abd", 60.0),
+        ("thumb_mcp_flex", -10.0),
+        ("thumb_mcp_abd", 10.0),
+        ("thumb_ip_flex", -15.0),
+        ("index_mcp_abd", 8.0),
+        ("ring_mcp_abd", -6.0),
+        ("little_mcp_abd", -12.0),
+    ):
+        angles[joint_index(name)] = np.deg2rad(deg)
+    for finger in ("index", "middle", "ring", "little"):
+        angles[joint_index(f"{finger}_pip_flex")] = np.deg2rad(20.0)
+        angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(30.0)
+    return angles
+
+
+def _closure_path(recipe: GraspRecipe) -> np.ndarray:
+    """(len(_CLOSURES), 21) postures from open to closed for a recipe."""
+    grasp = GRASP_TYPES[recipe.grasp_type]
+    if not recipe.wide:
+        return grasp.angles(_CLOSURES)
+    # Open wider than the type's preshape: wide span -> largest object -> smallest object.
+    anchors = np.stack([_wide_open(), grasp.large, grasp.small])
+    c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
+    lower = np.floor(np.minimum(c, 1.999)).astype(int)
+    frac = (c - lower)[:, None]
+    return anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+
+
+def _squeeze(path: np.ndarray, k: int, squeeze_rad: float) -> np.ndarray:
+    """Finger targets past first contact: along the closing direction of ``path`` at ``k``.
+
+    Position actuators press with ``kp * (target - angle)``: the joint that moves most on the
+    closing path is driven ``squeeze_rad`` beyond its contact angle, the others in proportion
+    (clipped to the joint limits).
+    """
+    end = len(path) - 1
+    lo = min(k, end - 10)
+    direction = path[lo + 10] - path[lo]
+    if np.abs(direction).max() < 1e-6:
+        direction = path[end] - path[0]
+    step = direction * (squeeze_rad / np.abs(direction).max())
+    return np.clip(path[k] + step, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+
+def _solid_run(s: np.ndarray, hole_m: float) -> np.ndarray | None:
+    """The surface samples of the solid run through ``s = 0``: ``s`` split at gaps > hole_m.
+
+    A gap wider than a fingertip (a scissors loop) lets the digits in, so the pads close on
+    the material around the centre only. None if the centre itself lies in such a gap.
+    """
+    order = np.sort(s)
+    breaks = np.nonzero(np.diff(order) > hole_m)[0]
+    bounds = np.concatenate([[0], breaks + 1, [len(order)]])
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        run = order[lo:hi]
+        if run[0] - 0.5 * hole_m <= 0.0 <= run[-1] + 0.5 * hole_m:
+            return run
+    return None
+
+
+def _top_candidates(
+    obj: YCBObject,
+    T: np.ndarray,
+    params: HandParams,
+    recipe: GraspRecipe,
+    preferred_dir: np.ndarray,
+) -> list[tuple[float, Callable[[], GraspPlan | None]]]:
+    """Top and rim grasps across horizontal axes: (cost, plan builder) per axis."""
+    geometry = _hand_geometry(params)
+    checker = _checker(obj, params)
+    digits = ("thumb", *recipe.fingers)
+    angles = _closure_path(recipe)
+    spheres = geometry.contacts(angles, digits, recipe.contact_fraction)
+    radii = np.array([geometry.distal_radius[d] for d in digits])
+    contact_vec = spheres[:, 1:].mean(axis=1) - spheres[:, 0]
+    # Surface gap between the thumb's sphere and the fingers' (mean) sphere.
+    gap = np.linalg.norm(contact_vec, axis=-1) - radii[0] - radii[1:].mean()
+
+    points = _world_points(obj, T)
+    com = T[:3, :3] @ obj.com_m + T[:3, 3]
+    top = float(points[:, 2].max())
+    deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
+    # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
+    heights = [h for h in deepest + np.array([0.0, 0.01, 0.02]) if h <= top - 0.008] or [deepest]
+    # Grasp through the COM if the object is there, else through the nearest surface point;
+    # with ``max_offset_m``, also at points along the object's long axis (narrower there).
+    centres = []
+    if recipe.strategy == "rim":
+        # The rim point nearest the user; the pads pinch its wall radially.
+        rim = points[points[:, 2] > top - 0.01]
+        centres.append((rim[np.argmin((rim[:, :2] - com[:2]) @ preferred_dir[:2])], 0.0))
+    else:
+        xy = points[:, :2] - com[:2]
+        long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+        offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
+        for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
+            target = com[:2] + offset * long_axis
+            xy_dist = np.linalg.norm(points[:, :2] - target, axis=1)
+            if xy_dist.min() < 0.005:
+                centres.append((np.array([*target, com[2]]), abs(offset)))
+            elif offset == 0.0:
+                centres.append((points[np.argmin(xy_dist)].copy(), 0.0))
+
+    def builder(k: int, u: np.ndarray, grasp_point: np.ndarray, width: float):
+        def build() -> GraspPlan | None:
+            v_hat = contact_vec[k] / np.linalg.norm(contact_vec[k])
+            palm_down, _ = Rotation.align_vectors(
+                [u, [0.0, 0.0, -1.0]], [v_hat, [0.0, 0.0, 1.0]], weights=[1e4, 1.0]
+            )
+            mid = 0.5 * (spheres[k, 0] + spheres[k, 1:].mean(axis=0))
+            contact = angles[min(k + 3, len(_CLOSURES) - 1)]
+            # Roll about the grasp axis (it stays horizontal) to keep the other digits off the
+            # table: the roll with the most table clearance, the smallest on ties.
+            best = None
+            for roll_deg in (0.0, 10.0, -10.0, 20.0, -20.0, 30.0, -30.0):
+                rotation = Rotation.from_rotvec(np.deg2rad(roll_deg) * u) * palm_down
+                pose = HandPose(grasp_point - rotation.apply(mid), rotation.as_rotvec(), contact)
+                clearance = min(checker.clearance(pose, T)[1], _TABLE_CLEARANCE_M)
+                if best is None or clearance > best[0] + 1e-4:
+                    best = (clearance, rotation)
+            rotation = best[1]
+            closed = _squeeze(angles, k, recipe.squeeze_rad)
+            wrist = _raise_above_table(
+                checker,
+                T,
+                grasp_point - rotation.apply(mid),
+                rotation,
+                [contact],
+                max_raise_m=max(0.0, top - 0.004 - grasp_point[2]),
+            )
+            if wrist is None:
+                return None
+            # Open by 3 cm more than the width, or by other amounts (into holes, or wider)
+            # until the way down is clear. An open hand reaches lower than a closing one: it
+            # hovers, and sinks to the grasp while closing.
+            openings = []
+            for extra in (_OPENING_M, 0.02, 0.045, 0.06, 0.008):
+                wide_enough = np.nonzero(gap >= width + extra)[0]
+                k_pre = int(wide_enough.max()) if wide_enough.size else 0
+                if k_pre not in openings:
+                    openings.append(k_pre)
+            if 0 not in openings:
+                openings.append(0)
+            for k_pre in openings:
+                hovering = _raise_above_table(checker, T, wrist, rotation, [angles[k_pre]], 0.06)
+                if hovering is None:
+                    continue
+                plan = GraspPlan(
+                    grasp_type=recipe.grasp_type,
+                    strategy=recipe.strategy,
+                    wrist_pos=wrist,
+                    rotation=rotation,
+                    approach_dir=np.array([0.0, 0.0, -1.0]),
+                    preshape=angles[k_pre],
+                    contact=contact,
+                    closed=closed,
+                    hover_m=float(hovering[2] - wrist[2]),
+                    width_m=width,
+                    contact_closure=float(_CLOSURES[k]),
+                )
+                if _approach_is_clear(plan, obj, T, params):
+                    return plan
+            return None
+
+        return build
+
+    candidates = []
+    for (centre, offset), height in itertools.product(centres, heights):
+        near = np.abs(points[:, 2] - height) < max(0.01, 0.5 * radii.min())
+        rel = points[near] - centre
+        for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
+            u = np.array([np.cos(angle), np.sin(angle), 0.0])
+            if recipe.strategy == "rim":
+                inward = com[:2] - centre[:2]
+                if u[:2] @ inward < np.cos(np.deg2rad(25.0)) * np.linalg.norm(inward):
+                    continue
+            n = np.array([-u[1], u[0], 0.0])
+            strip = np.abs(rel @ n) < recipe.band_m
+            if recipe.strategy == "rim":
+                strip &= np.abs(rel @ u) < 0.03
+            if strip.sum() < 3:
+                continue
+            s = rel[strip] @ u
+            if recipe.finger_holes:
+                s = _solid_run(s, 2.0 * radii.max())
+                if s is None:
+                    continue
+            width = float(s.max() - s.min())
+            if width + 0.004 > gap.max() - 0.005:
+                continue
+            k = int(np.argmin(np.abs(gap - (width + 0.004))))
+            grasp_point = centre + u * 0.5 * (s.max() + s.min())
+            grasp_point[2] = height
+            # A narrow grip near the COM, the fingers pointing away from the user (the hand's
+            # y axis is about u), the pads deep.
+            cost = (
+                width + offset + 0.05 * (1.0 - float(u @ preferred_dir)) + 2.0 * (height - deepest)
+            )
+            candidates.append((cost, builder(k, u, grasp_point, width)))
+    return candidates
+
+
+def _side_candidates(
+    obj: YCBObject,
+    T: np.ndarray,
+    params: HandParams,
+    recipe: GraspRecipe,
+    preferred_dir: np.ndarray,
+) -> list[tuple[float, Callable[[], GraspPlan | None]]]:
+    """Side wraps (palm against an upright object, thumb up): (cost, builder) per direction."""
+    checker = _checker(obj, params)
+    grasp = GRASP_TYPES[recipe.grasp_type]
+    preshape = _side_preshape()
+    closed = grasp.angles(1.0)
+    points = _world_points(obj, T)
+    top = float(points[:, 2].max())
+    height = min(recipe.height_fraction * top, 0.14)
+    band = points[np.abs(points[:, 2] - height) < 0.01]
+    centre = 0.5 * (band.max(axis=0) + band.min(axis=0))
+
+    def builder(d: np.ndarray, span: float):
+        def build() -> GraspPlan | None:
+            y_dir = np.cross(d, [0.0, 0.0, 1.0])
+            rotation = Rotation.from_matrix(np.stack([[0.0, 0.0, 1.0], y_dir, d], axis=1))
+            # The object's axis sits over the bases of the proximal phalanges; the palm
+            # advances along d until it is about to touch the object.
+            depth = float(-((band - centre) @ d).min())
+            far = np.array([centre[0], centre[1], height]) - rotation.apply(
+                [0.0, 0.075, depth + 0.06]
+            )
+            advance = _advance_to_contact(checker, T, far, rotation, preshape, d, 0.08)
+            if advance is None:
+                return None
+            wrist = _raise_above_table(checker, T, far + advance * d, rotation, [preshape], 0.03)
+            if wrist is None:
+                return None
+            plan = GraspPlan(
+                grasp_type=recipe.grasp_type,
+                strategy="side",
+                wrist_pos=wrist,
+                rotation=rotation,
+                approach_dir=d,
+                preshape=preshape,
+                contact=grasp.large,
+                closed=closed,
+                hover_m=0.0,
+                width_m=span,
+                contact_closure=0.5,
+            )
+            return plan if _approach_is_clear(plan, obj, T, params) else None
+
+        return build
+
+    candidates = []
+    for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
+        d = np.array([np.cos(angle), np.sin(angle), 0.0])
+        if d @ preferred_dir < np.cos(np.deg2rad(75.0)):
+            continue
+        span = float(np.ptp((band - centre) @ np.cross(d, [0.0, 0.0, 1.0])))
+        # The palm on the broad face: the digits wrap around the object's thin dimension.
+        depth = float(np.ptp((band - centre) @ d))
+        candidates.append((depth + 0.03 * (1.0 - float(d @ preferred_dir)), builder(d, span)))
+    return candidates
+
+
+def _advance_to_contact(
+    checker: _CollisionChecker,
+    T: np.ndarray,
+    wrist: np.ndarray,
+    rotation: Rotation,
+    angles: np.ndarray,
+    direction: np.ndarray,
+    max_m: float,
+    gap_m: float = 0.002,
+) -> float | None:
+    """How far the hand moves along ``direction`` until it is ``gap_m`` from the object."""
+    rotvec = rotation.as_rotvec()
+
+    def gap(s: float) -> float:
+        return checker.clearance(HandPose(wrist + s * direction, rotvec, angles), T)[0]
+
+    if gap(0.0) < gap_m:
+        return None
+    lo, hi = 0.0, max_m
+    if gap(hi) >= gap_m:
+        return None
+    # Clearance saturates at the checker's margin, so bisect on "closer than gap_m".
+    for _ in range(14):
+        mid = 0.5 * (lo + hi)
+        if gap(mid) >= gap_m:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def _approach_is_clear(plan: GraspPlan, obj: YCBObject, T: np.ndarray, params: HandParams) -> bool:
+    """The preshaped hand does not touch the object on the way in, nor the table at all."""
+    checker = _checker(obj, params)
+    hover = plan.approach_end - plan.wrist_pos
+    for s in np.linspace(0.0, 1.0, 6):
+        offset = hover - (1.0 - s) * _PREGRASP_DIST_M * plan.approach_dir
+        to_obj, to_table = checker.clearance(plan.pose(plan.preshape, offset), T)
+        if to_table < 0.0 or to_obj < (0.0 if s < 1.0 else -0.003):
+            return False
+    return True
+
+
+def plan_grasp(obj: YCBObject, T_world_from_obj: np.ndarray, params: HandParams) -> GraspPlan:
+    """Plan a grasp of ``obj`` at ``T_world_from_obj`` for a hand of ``params``.
+
+    Args:
+        obj: the object.
+        T_world_from_obj: (4, 4) its pose, world frame.
+        params: the hand.
+
+    Returns:
+        The best-scoring candidate whose approach is free of collisions.
+
+    Raises:
+        GraspPlanningError: if no candidate grasp is free of collisions.
+    """
+    T = _check_transform(T_world_from_obj, "T_world_from_obj")
+    recipe = GRASP_RECIPES[shape_class(obj)]
+    preferred = np.array([0.0, 1.0, 0.0])
+    make = _side_candidates if recipe.strategy == "side" else _top_candidates
+    scored = make(obj, T, params, recipe, preferred)
+    scored.sort(key=lambda c: c[0])
+    for _, build in scored:
+        plan = build()
+        if plan is not None:
+            return plan
+    raise GraspPlanningError(
+        f"no collision-free {recipe.strategy} grasp ({recipe.grasp_type}) found for "
+        f"{obj.name} at {np.round(T[:3, 3], 3).tolist()} m ({len(scored)} candidates)"
+    )
+
+
+# The expert -----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class _Segment:
+    name: str
+    duration_s: float
+    pos: np.ndarray
+    rotation: Rotation
+    angles: np.ndarray
+
+
+def _duration(
+    pos0: np.ndarray,
+    pos1: np.ndarray,
+    rot0: Rotation,
+    rot1: Rotation,
+    speed_m_s: float,
+    minimum_s: float,
+) -> float:
+    distance = float(np.linalg.norm(pos1 - pos0))
+    angle = float((rot1 * rot0.inv()).magnitude())
+    # Minimum jerk peaks at 1.875 times the mean speed.
+    return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
+
+
+class GraspExpert:
+    """A scripted pick-and-lift expert for one object.
+
+    Phases (:attr:`phase`): ``"reach"`` (to 8 cm before the grasp, shaping the hand),
+    ``"approach"`` (the final 8 cm, slowly), ``"close"`` (the digits close past contact over
+    0.5 s), ``"squeeze"`` (0.3 s), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up) and
+    ``"hold"``.
+
+    The plan is made once at :meth:`reset` from the state's object pose; :meth:`act` follows
+    minimum-jerk segments in time and waits (up to 1 s) at the end of the reach and the
+    approach until the measured wrist is within 2 cm of its target.
+
+    Args:
+        obj: the object to grasp.
+        hand_params: the hand that will grasp it.
+        rng: optional generator; it jitters the segment speeds by up to 10 % (None: none).
+    """
+
+    def __init__(
+        self, obj: YCBObject, hand_params: HandParams, *, rng: np.random.Generator | None = None
+    ) -> None:
+        if not isinstance(obj, YCBObject):
+            raise InvalidGraspState(
+                f"obj must be a YCBObject (handsim.objects.get_object); received "
+                f"{type(obj).__name__}"
+            )
+        if not isinstance(hand_params, HandParams):
+            raise InvalidGraspState(
+                f"hand_params must be a HandParams; received {type(hand_params).__name__}"
+            )
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise InvalidGraspState(
+                f"rng must be a numpy.random.Generator or None; received {type(rng).__name__}"
+            )
+        self.obj = obj
+        self.hand_params = hand_params
+        self.rng = rng
+        self.recipe = GRASP_RECIPES[shape_class(obj)]
+        self.plan: GraspPlan | None = None
+        self.phase = "idle"
+        self._segments: list[_Segment] = []
+        self._index = 0
+        self._segment_start_s = 0.0
+        self._from: _Segment | None = None
+        self._wait_s = 0.0
+
+    @property
+    def grasp_type(self) -> str:
+        """The grasp type (:data:`handsim.pose_sources.GRASP_TYPES` key) of the recipe."""
+        return self.plan.grasp_type if self.plan is not None else self.recipe.grasp_type
+
+    def reset(self, state: GraspState) -> None:
+        """Plan the grasp for the state's object pose and restart the phases.
+
+        Raises:
+            InvalidGraspState: if ``state`` is not a :class:`GraspState` of this object.
+            GraspPlanningError: if no collision-free grasp exists.
+        """
+        self._check_state(state)
+        plan = plan_grasp(self.obj, state.T_world_from_obj, self.hand_params)
+        self.plan = plan
+        scale = 1.0 if self.rng is None else float(self.rng.uniform(0.9, 1.1))
+        hand = state.hand_pose
+        start = _Segment(
+            "start",
+            0.0,
+            hand.wrist_pos.copy(),
+            Rotation.from_rotvec(hand.wrist_rotvec),
+            hand.angles.copy(),
+        )
+        pre_pos = plan.approach_end - _PREGRASP_DIST_M * plan.approach_dir
+        lift_pos = plan.wrist_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
+        segments = [
+            _Segment("reach", 0.0, pre_pos, plan.rotation, plan.preshape),
+            _Segment("approach", 0.0, plan.approach_end, plan.rotation, plan.preshape),
+            _Segment("close", _CLOSE_S, plan.wrist_pos, plan.rotation, plan.contact),
+            _Segment("squeeze", _SQUEEZE_S, plan.wrist_pos, plan.rotation, plan.closed),
+            _Segment("settle", _SETTLE_S, plan.wrist_pos, plan.rotation, plan.closed),
+            _Segment("lift", 0.0, lift_pos, plan.rotation, plan.closed),
+        ]
+        previous = start
+        for segment in segments:
+            if segment.duration_s == 0.0:
+                speed = {"reach": EXPERT_WRIST_SPEED_M_S, "lift": _LIFT_SPEED_M_S}.get(
+                    segment.name, _SLOW_SPEED_M_S
+                )
+                segment.duration_s = scale * _duration(
+                    previous.pos, segment.pos, previous.rotation, segment.rotation, speed, 0.4
+                )
+            previous = segment
+        self._segments = segments
+        self._from = start
+        self._index = 0
+        self._segment_start_s = state.time_s
+        self._wait_s = 0.0
+        self.phase = segments[0].name
+
+    def _check_state(self, state: GraspState) -> None:
+        if not isinstance(state, GraspState):
+            raise InvalidGraspState(f"state must be a GraspState; received {type(state).__name__}")
+        if state.obj.name != self.obj.name:
+            raise InvalidGraspState(
+                f"the state's object is {state.obj.name!r} but this expert grasps "
+                f"{self.obj.name!r}; make one GraspExpert per object"
+            )
+
+    def act(self, state: GraspState) -> HandPose:
+        """The absolute target pose for this control step.
+
+        Args:
+            state: the current state (same object as at :meth:`reset`).
+
+        Returns:
+            The 27-DoF target (world frame), for ``HandBinding.set_target``.
+
+        Raises:
+            InvalidGraspState: if called before :meth:`reset` or with a bad state.
+        """
+        if self.plan is None:
+            raise InvalidGraspState("call reset(state) before act(state)")
+        self._check_state(state)
+        t = state.time_s
+        while self._index < len(self._segments):
+            segment = self._segments[self._index]
+            elapsed = t - self._segment_start_s
+            if elapsed < segment.duration_s:
+                break
+            # Wait at the end of a motion until the wrist has (nearly) arrived.
+            if segment.name in ("reach", "approach"):
+                error = np.linalg.norm(state.hand_pose.wrist_pos - segment.pos)
+                if error > 0.02 and elapsed < segment.duration_s + 1.0:
+                    break
+            self._from = segment
+            self._index += 1
+            self._segment_start_s = t
+        if self._index >= len(self._segments):
+            self.phase = "hold"
+            last = self._segments[-1]
+            return HandPose(last.pos, last.rotation.as_rotvec(), last.angles)
+        segment = self._segments[self._index]
+        self.phase = segment.name
+        tau = (t - self._segment_start_s) / max(segment.duration_s, 1e-9)
+        s = float(np.clip(minimum_jerk(np.clip(tau, 0.0, 1.0)), 0.0, 1.0))
+        start = self._from
+        pos = start.pos + s * (segment.pos - start.pos)
+        slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, segment.rotation]))
+        rotation = slerp([s])[0]
+        angles = start.angles + s * (segment.angles - start.angles)
+        return HandPose(pos, rotation.as_rotvec(), angles)
+
+
+# Success --------------------------------------------------------------------------------------
+
+FailureReason = Literal["not_lifted", "dropped", "slipped", "hold_incomplete", "diverged"]
+
+
+@dataclasses.dataclass(frozen=True)
+class GraspOutcome:
+    """The result of a pick-and-lift episode.
+
+    Attributes:
+        success: lifted by :data:`LIFT_HEIGHT_M` and held :data:`HOLD_DURATION_S` with less
+            than :data:`MAX_SLIP_M` slip.
+        failure: why it failed (``None`` on success): ``"not_lifted"`` (never reached the lift
+            height), ``"dropped"`` (fell below it during a hold), ``"slipped"`` (moved
+            ``MAX_SLIP_M`` or more in the palm frame), ``"hold_incomplete"`` (still held when the
+            episode ended, but for less than the hold duration), ``"diverged"`` (physics).
+        max_lift_m: highest rise of the object origin above its rest height, metres.
+        slip_m: slip in the last hold window (the successful one on success), metres.
+        hold_s: duration of the last hold window, seconds.
+        success_time_s: episode time at which the hold completed (``None`` on failure).
+        steps: control steps run.
+    """
+
+    success: bool
+    failure: FailureReason | None
+    max_lift_m: float
+    slip_m: float
+    hold_s: float
+    success_time_s: float | None
+    steps: int
+
+    def to_dict(self) -> dict[str, object]:
+        """A JSON-serializable dict of the fields."""
+        return dataclasses.asdict(self)
+
+
+class LiftTracker:
+    """Per-step evaluation of the lift success definition (module docstring).
+
+    Feed every control step with :meth:`update`; :attr:`success` turns true once an object has
+    been held lifted for :data:`HOLD_DURATION_S` with slip below :data:`MAX_SLIP_M`, and stays
+    true. :meth:`outcome` summarizes the episode so far.
+
+    Args:
+        rest_height_m: height of the object origin at rest (episode start), metres.
+        lift_height_m: the lift threshold (default :data:`LIFT_HEIGHT_M`).
+        hold_s: the hold duration (default :data:`HOLD_DURATION_S`).
+        max_slip_m: the slip threshold (default :data:`MAX_SLIP_M`).
+    """
+
+    def __init__(
+        self,
+        rest_height_m: float,
+        *,
+        lift_height_m: float = LIFT_HEIGHT_M,
+        hold_s: float = HOLD_DURATION_S,
+        max_slip_m: float = MAX_SLIP_M,
+    ) -> None:
+        for name, value in (
+            ("rest_height_m", rest_height_m),
+            ("lift_height_m", lift_height_m),
+            ("hold_s", hold_s),
+            ("max_slip_m", max_slip_m),
+        ):
+            if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value)):
+                raise InvalidGraspState(f"{name} must be a finite number; received {value!r}")
+        if lift_height_m <= 0 or hold_s <= 0 or max_slip_m <= 0:
+            raise InvalidGraspState(
+                "lift_height_m, hold_s and max_slip_m must be > 0; received "
+                f"{lift_height_m}, {hold_s}, {max_slip_m}"
+            )
+        self.rest_height_m = float(rest_height_m)
+        self.lift_height_m = float(lift_height_m)
+        self.hold_s = float(hold_s)
+        self.max_slip_m = float(max_slip_m)
+        self.success = False
+        self.success_time_s: float | None = None
+        self.max_lift_m = -math.inf
+        self.steps = 0
+        self._window_start_s: float | None = None
+        self._window_pos_palm: np.ndarray | None = None
+        self._window_slip_m = 0.0
+        self._last_time_s = -math.inf
+        self._ever_lifted = False
+        self._broken: FailureReason | None = None
+        self._window_duration_s = 0.0
+
+    def update(
+        self, time_s: float, obj_pos_world: np.ndarray, T_world_from_palm: np.ndarray
+    ) -> bool:
+        """Add one step.
+
+        Args:
+            time_s: episode time, seconds (increasing).
+            obj_pos_world: (3,) object origin, world frame, metres.
+            T_world_from_palm: (4, 4) pose of the palm (hand root) body, world frame.
+
+        Returns:
+            :attr:`success` after this step.
+
+        Raises:
+            InvalidGraspState: for non-increasing time or malformed arrays.
+        """
+        if not time_s > self._last_time_s:
+            raise InvalidGraspState(
+                f"time_s must increase from step to step; received {time_s} after "
+                f"{self._last_time_s}"
+            )
+        pos = np.asarray(obj_pos_world, dtype=np.float64)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise InvalidGraspState(
+                f"obj_pos_world must be 3 finite numbers (m); received {obj_pos_world!r}"
+            )
+        T = _check_transform(T_world_from_palm, "T_world_from_palm")
+        self._last_time_s = float(time_s)
+        self.steps += 1
+        if self.success:
+            return True
+        lift = float(pos[2] - self.rest_height_m)
+        self.max_lift_m = max(self.max_lift_m, lift)
+        pos_palm = T[:3, :3].T @ (pos - T[:3, 3])
+        if lift < self.lift_height_m:
+            if self._window_start_s is not None:
+                self._broken = "dropped"
+            self._close_window()
+            return False
+        self._ever_lifted = True
+        if self._window_start_s is None:
+            self._open_window(time_s, pos_palm)
+            return False
+        slip = float(np.linalg.norm(pos_palm - self._window_pos_palm))
+        if slip >= self.max_slip_m:
+            self._broken = "slipped"
+            self._window_slip_m = slip
+            self._open_window(time_s, pos_palm)
+            return False
+        self._window_slip_m = max(self._window_slip_m, slip)
+        self._window_duration_s = time_s - self._window_start_s
+        # A small tolerance absorbs float round-off in time stamps (k * dt).
+        if self._window_duration_s >= self.hold_s - 1e-9:
+            self.success = True
+            self.success_time_s = float(time_s)
+        return self.success
+
+    def _open_window(self, time_s: float, pos_palm: np.ndarray) -> None:
+        self._window_start_s = float(time_s)
+        self._window_pos_palm = pos_palm
+        self._window_slip_m = 0.0
+        self._window_duration_s = 0.0
+
+    def _close_window(self) -> None:
+        self._window_start_s = None
+        self._window_pos_palm = None
+
+    def update_from_sim(self, scene: Scene, instance: int, time_s: float) -> bool:
+        """:meth:`update` with the ground truth of ``scene`` (object ``instance``)."""
+        body_id = _object_body_id(scene, instance)
+        palm_id = int(scene.model.body(scene.hand.root_body).id)
+        data = scene.data
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[palm_id].reshape(3, 3)
+        T[:3, 3] = data.xpos[palm_id]
+        return self.update(time_s, data.xpos[body_id], T)
+
+    def outcome(self, diverged: bool = False) -> GraspOutcome:
+        """The outcome of the episode so far (call at its end)."""
+        failure: FailureReason | None
+        if self.success:
+            failure = None
+        elif diverged:
+            failure = "diverged"
+        elif not self._ever_lifted:
+            failure = "not_lifted"
+        elif self._window_start_s is not None:
+            failure = "hold_incomplete" if self._broken is None else self._broken
+            if self._broken is not None and self._window_duration_s > 0.5:
+                failure = "hold_incomplete"
+        else:
+            failure = self._broken or "dropped"
+        return GraspOutcome(
+            success=self.success,
+            failure=failure,
+            max_lift_m=float(self.max_lift_m) if self.steps else 0.0,
+            slip_m=float(self._window_slip_m),
+            hold_s=float(self._window_duration_s),
+            success_time_s=self.success_time_s,
+            steps=self.steps,
+        )
+
+
+def evaluate_lift(
+    times_s: np.ndarray,
+    obj_pos_world: np.ndarray,
+    T_world_from_palm: np.ndarray,
+    rest_height_m: float,
+) -> GraspOutcome:
+    """Evaluate a recorded trajectory against the success definition.
+
+    Args:
+        times_s: (T,) increasing episode times, seconds.
+        obj_pos_world: (T, 3) object origin, world frame, metres.
+        T_world_from_palm: (T, 4, 4) palm poses, world frame.
+        rest_height_m: height of the object origin at rest, metres.
+
+    Returns:
+        The outcome, as :class:`LiftTracker` would give after the last step.
+
+    Raises:
+        InvalidGraspState: for mismatched shapes or non-increasing times.
+    """
+    times = np.asarray(times_s, dtype=np.float64)
+    pos = np.asarray(obj_pos_world, dtype=np.float64)
+    palm = np.asarray(T_world_from_palm, dtype=np.float64)
+    if times.ndim != 1 or pos.shape != (len(times), 3) or palm.shape != (len(times), 4, 4):
+        raise InvalidGraspState(
+            "expected times_s (T,), obj_pos_world (T, 3) and T_world_from_palm (T, 4, 4); "
+            f"received {times.shape}, {pos.shape}, {palm.shape}"
+        )
+    tracker = LiftTracker(rest_height_m)
+    for t, p, T in zip(times, pos, palm, strict=True):
+        tracker.update(float(t), p, T)
+    return tracker.outcome()
+
+
+# Episodes -------------------------------------------------------------------------------------
+
+
+def run_episode(
+    scene: Scene,
+    instance: int,
+    expert: GraspExpert,
+    rng: np.random.Generator,
+    max_steps: int = 400,
+    *,
+    stop_on_success: bool = True,
+) -> GraspOutcome:
+    """Run one ground-truth pick-and-lift episode.
+
+    Resets ``scene`` (objects at their placements, the hand at :func:`start_pose`), then per
+    control step: state -> ``expert.act`` -> ``set_target`` -> :data:`FRAME_SKIP` physics steps
+    -> success tracking.
+
+    Args:
+        scene: a scene with a hand and the target object.
+        instance: index of the target in ``scene.objects``.
+        expert: a :class:`GraspExpert` for that object.
+        rng: random generator of the start pose.
+        max_steps: control steps at most (400 = 8 s).
+        stop_on_success: end the episode as soon as the hold succeeds.
+
+    Returns:
+        The outcome.
+
+    Raises:
+        InvalidGraspState: for a bad instance, expert or ``max_steps``.
+        GraspPlanningError: if the expert finds no grasp.
+    """
+    body_id = _object_body_id(scene, instance)
+    if not isinstance(expert, GraspExpert):
+        raise InvalidGraspState(f"expert must be a GraspExpert; received {type(expert).__name__}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise InvalidGraspState(f"max_steps must be an int >= 1; received {max_steps!r}")
+    obj = scene.objects[instance][1]
+    if expert.obj.name != obj.name:
+        raise InvalidGraspState(
+            f"the expert grasps {expert.obj.name!r} but scene object {instance} is {obj.name!r}"
+        )
+    model, data = scene.model, scene.data
+    scene.reset()
+    T0 = GraspState.from_sim(scene, instance, 0.0).T_world_from_obj
+    scene.reset(start_pose(rng, T0, scene.hand.params, obj=obj))
+    tracker = LiftTracker(float(data.xpos[body_id][2]))
+    state = GraspState.from_sim(scene, instance, 0.0)
+    expert.reset(state)
+    diverged = False
+    for step in range(int(max_steps)):
+        target = expert.act(state)
+        scene.binding.set_target(data, target)
+        for _ in range(FRAME_SKIP):
+            mujoco.mj_step(model, data)
+        if (
+            not np.all(np.isfinite(data.qpos))
+            or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        ):
+            diverged = True
+            break
+        time_s = (step + 1) * CONTROL_DT_S
+        if tracker.update_from_sim(scene, instance, time_s) and stop_on_success:
+            break
+        state = GraspState.from_sim(scene, instance, time_s)
+    return tracker.outcome(diverged=diverged)
