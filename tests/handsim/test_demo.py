@@ -27,3 +27,18 @@ def test_demo_writes_contact_sheet_and_summary(tmp_path):
         # short) and the wrist on its mocap target.
         assert hand["max_joint_error_deg_after_hold"] < 10.0
         assert hand["max_wrist_error_mm_after_hold"] < 5.0
+
+
+def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
+    """`handsim demo` also runs the oracle in the loop of Grasp-v0 and writes its plots."""
+    from handsim.cli import main
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--size", "32", "--closed-loop-episodes", "1"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    loop = summary["closed_loop"]
+    assert set(loop) == {"feedback_off", "feedback_on", "paths"}
+    assert 8 < loop["feedback_off"]["kp_mean_mm"] < 25  # 10 mm per axis: ~16 mm in 3D
+    for kind in ("json", "f_tau", "success"):
+        assert cv2.haveImageReader(loop["paths"][kind]) or kind == "json"
+    assert "closed loop, handsim/Grasp-v0" in capsys.readouterr().out

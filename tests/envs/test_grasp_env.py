@@ -1,0 +1,86 @@
+"""Grasp-v0 and GraspClutter-v0: the task, its arguments and physical grasps in the env."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import handsim.envs  # noqa: F401 (registers the ids)
+from handsim.envs.base import InvalidEnvConfig
+from handsim.errors import UnknownName
+from handsim.scene import OBJECT_LABEL_OFFSET
+
+
+def test_grasp_expert_lifts_and_the_episode_terminates_with_success():
+    """The expert lifts a can; the episode ends with success and one success reward."""
+    env = gym.make("handsim/Grasp-v0", objects="tomato_soup_can")
+    env.reset(seed=0)
+    expert = env.unwrapped.make_expert()
+    success_rewards = 0.0
+    for _ in range(400):
+        _, _, terminated, truncated, info = env.step(
+            expert.act(env.unwrapped.expert_state()).vector
+        )
+        success_rewards += info["reward_success"]
+        if terminated or truncated:
+            break
+    assert terminated and info["is_success"] and success_rewards == 10.0
+    assert info["lift_m"] >= 0.10 and info["slip_m"] < 0.01 and info["hold_s"] >= 2.0 - 1e-9
+    assert info["n_contact_parts"] >= 3
+    env.close()
+
+
+def test_grasps_are_physical_in_the_env():
+    """No equality constraint of the env's model involves an object body."""
+    env = gym.make("handsim/GraspClutter-v0", num_objects=3)
+    env.reset(seed=0)
+    model = env.unwrapped.scene.model
+    object_bodies = {model.body(body).id for body, _ in env.unwrapped.scene.objects}
+    for i in range(model.neq):
+        assert model.eq_obj1id[i] not in object_bodies and model.eq_obj2id[i] not in object_bodies
+    env.close()
+
+
+def test_clutter_target_label_names_the_target():
+    """The target label is 8 + the target's instance; the scene has num_objects objects."""
+    env = gym.make("handsim/GraspClutter-v0", num_objects=(4, 4), obs_mode="depth+segmentation")
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        base = env.unwrapped
+        assert len(base.scene.objects) == 4
+        assert obs["target_label"][0] == OBJECT_LABEL_OFFSET + info["target_instance"]
+        assert info["target_instance"] == base.target_instance
+    env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"num_objects": 7}, InvalidEnvConfig, "1 <= low <= high <= 6; received \\(7, 7\\)"),
+        ({"num_objects": "many"}, InvalidEnvConfig, "an int or a \\(low, high\\) pair"),
+        (
+            {"num_objects": 3, "objects": ["mug", "bowl"]},
+            InvalidEnvConfig,
+            "needs at least 3 object names; received 2",
+        ),
+        ({"objects": "tomato_soup_cna"}, UnknownName, "Did you mean 'tomato_soup_can'"),
+    ],
+)
+def test_clutter_arguments(kwargs, error, message):
+    """Bad clutter arguments say what is valid."""
+    with pytest.raises(error, match=message):
+        gym.make("handsim/GraspClutter-v0", **kwargs)
+
+
+def test_hand_pose_env_refuses_objects():
+    """HandPose-v0 has no objects; passing some says so."""
+    with pytest.raises(TypeError, match="HandPose-v0 has no objects"):
+        gym.make("handsim/HandPose-v0", objects="mug")
+
+
+def test_sparse_reward_is_zero_until_success():
+    """Sparse rewards are 0 while the object rests on the table."""
+    env = gym.make("handsim/Grasp-v0", objects="mug", reward_type="sparse")
+    env.reset(seed=0)
+    rewards = [env.step(np.asarray(env.unwrapped.target.vector))[1] for _ in range(5)]
+    assert rewards == [0.0] * 5
+    env.close()
