@@ -12,9 +12,10 @@ The pieces an environment needs to run a pick-and-lift episode:
 - :class:`LiftTracker` / :func:`evaluate_lift`: the success definition (below).
 - :func:`run_episode`: the ground-truth loop used by the tests and ``benchmarks/bench_grasp.py``.
 
-Control: the env applies the expert's pose with ``HandBinding.set_target`` (the wrist follows a
-mocap target through a soft weld, the fingers have position actuators) and steps the physics
-:data:`FRAME_SKIP` times (0.002 s each, so the expert runs at 50 Hz).
+Control: the env applies the expert's pose with :class:`handsim.envs.base.HandDriver` (the
+wrist follows a mocap target through a soft weld, the fingers have position actuators) and steps
+the physics :data:`FRAME_SKIP` times (0.002 s each, so the expert runs at 50 Hz);
+:func:`run_episode` does the same.
 
 Grasps are physical: contact and friction only. No equality constraint, adhesion or change of
 the object's mass, gravity or friction is used.
@@ -31,28 +32,43 @@ How the expert grasps (:data:`OBJECT_SHAPE_CLASSES`, :data:`GRASP_RECIPES`): the
 class selects a strategy and a grasp type of the GRASP taxonomy
 (:data:`handsim.pose_sources.GRASP_TYPES`):
 
-=============  ==========================================  ==================================
-shape class    objects                                     grasp
-=============  ==========================================  ==================================
-can            002 master chef can, 005 tomato soup can    side wrap, large diameter
-bottle         006 mustard, 021 bleach cleanser            side wrap, large diameter
-box            003, 004, 008, 009, 010, 036, 061           from the top, prismatic 4 finger
-disk           007 tuna fish can                           from the top, prismatic 4 finger
-vessel         019 pitcher base, 025 mug                   from the top, prismatic 4 finger
-bowl           024 bowl                                    pinch of the rim, palmar pinch
-tool           035 power drill                             from the top, prismatic 4 finger
-flat tool      037 scissors, 051 / 052 clamps              from the top, tripod
-elongated      011 banana, 040 large marker                from the top, tripod
-=============  ==========================================  ==================================
+==========  ==================================  ============================================
+class       objects                             grasp (type; how)
+==========  ==================================  ============================================
+can         002 master chef can, 005 tomato     large diameter; side wrap, palm against the
+            soup can                            can, thumb up
+bottle      006 mustard, 021 bleach cleanser    large diameter; side wrap, palm on the broad
+                                                face
+box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; from the top, thumb and
+                                                finger pads across the narrowest side; boxes
+                                                wider than 0.13 m (003) with the widest span
+                                                and the fingertips hooked under the far top
+                                                edge
+disk        007 tuna fish can                   prismatic 4 finger; from the top
+tool        035 power drill                     prismatic 4 finger; from the top, across the
+                                                grip
+vessel      019 pitcher base, 025 mug           palmar pinch; thumb outside and index inside
+                                                the rim nearest the user
+bowl        024 bowl                            palmar pinch; as vessel
+flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
+                                                the material between them
+clamp       051, 052 clamps                     tripod; fingertips at the table, across the
+                                                arms at the pivot
+elongated   011 banana, 040 large marker        tripod; fingertips at the table, across the
+                                                body
+==========  ==================================  ============================================
 
 Planning (at :meth:`GraspExpert.reset`, from the state's object pose and the object's model
 points): the grasp axis and centre come from the object's surface points (the narrowest
 cross-section through the centre of mass that the hand can span), the wrist pose from the
-hand's forward kinematics (the thumb and finger pads meet the object at the closure where their
-separation equals the object's width), and every candidate is checked for collisions with the
-table and the object in a private kinematic copy of the hand and the object (the env's
-``MjData`` is never read). Motions are minimum-jerk segments with a peak wrist speed of
+hand's forward kinematics (the thumb and finger contact spheres meet the object at the closure
+where their gap equals the object's width), and every candidate is checked for collisions with
+the table and the object in a private kinematic copy of the hand and the object (the env's
+``MjData`` is never read). The squeeze past contact scales with the object's mass (people grip
+a light object more gently). Motions are minimum-jerk segments with a peak wrist speed of
 :data:`EXPERT_WRIST_SPEED_M_S` (below :data:`MAX_WRIST_SPEED_M_S`).
+
+Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
 
 from __future__ import annotations
@@ -68,6 +84,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from handsim.envs.base import HandDriver
 from handsim.errors import HandSimError
 from handsim.hand import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.kinematics import ForwardKinematics
@@ -126,12 +143,8 @@ _CLOSE_S = 0.4
 _SQUEEZE_S = 0.3
 _SETTLE_S = 0.2
 
-# Table geometry of handsim.scene (top at z = 0); the planner checks collisions against it.
-_TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
-_PALM_BODY = "palm"
-
 ShapeClass = Literal[
-    "can", "bottle", "box", "disk", "vessel", "bowl", "tool", "flat_tool", "elongated"
+    "can", "bottle", "box", "disk", "vessel", "bowl", "tool", "flat_tool", "clamp", "elongated"
 ]
 
 
@@ -322,8 +335,8 @@ OBJECT_SHAPE_CLASSES: dict[str, ShapeClass] = {
     "036_wood_block": "box",
     "037_scissors": "flat_tool",
     "040_large_marker": "elongated",
-    "051_large_clamp": "flat_tool",
-    "052_extra_large_clamp": "flat_tool",
+    "051_large_clamp": "clamp",
+    "052_extra_large_clamp": "clamp",
     "061_foam_brick": "box",
 }
 """Shape class of each YCB-Video object (after the rpng/suo_slam labels, facts table 5.1)."""
@@ -374,8 +387,20 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         "top", "prismatic_4_finger", fingers=("middle",), contact_fraction=0.75, wide=True
     ),
     "disk": GraspRecipe("top", "prismatic_4_finger"),
-    "vessel": GraspRecipe("rim", "palmar_pinch", fingers=("index",), max_depth_m=0.02),
-    "bowl": GraspRecipe("rim", "palmar_pinch", fingers=("index",), max_depth_m=0.02),
+    "vessel": GraspRecipe(
+        "rim",
+        "palmar_pinch",
+        fingers=("index",),
+        max_depth_m=0.02,
+        squeeze_rad=float(np.deg2rad(25.0)),
+    ),
+    "bowl": GraspRecipe(
+        "rim",
+        "palmar_pinch",
+        fingers=("index",),
+        max_depth_m=0.02,
+        squeeze_rad=float(np.deg2rad(25.0)),
+    ),
     "tool": GraspRecipe("top", "prismatic_4_finger"),
     "flat_tool": GraspRecipe(
         "top",
@@ -384,7 +409,9 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         contact_fraction=1.0,
         finger_holes=True,
         max_offset_m=0.03,
+        squeeze_rad=float(np.deg2rad(30.0)),
     ),
+    "clamp": GraspRecipe("top", "tripod", fingers=("index",), contact_fraction=1.0),
     "elongated": GraspRecipe(
         "top", "tripod", fingers=("index",), contact_fraction=1.0, band_m=0.008
     ),
@@ -470,19 +497,19 @@ def _hand_geometry(params: HandParams) -> _HandGeometry:
 
 
 class _CollisionChecker:
-    """A private kinematic model of the table, the hand and the object (fixed) for planning.
+    """A private kinematic model of the table top, the hand and the object for planning.
 
-    Reports how far the hand's collision geoms come within ``margin`` of the table or the
-    object; it never touches the env's model or data.
+    Reports how far the hand's collision geoms come within ``margin_m`` of the table top (the
+    plane z = 0, as in :mod:`handsim.scene`) or the object; it never touches the env's model or
+    data.
     """
 
     def __init__(self, obj: YCBObject, params: HandParams, margin_m: float = 0.003) -> None:
         spec = mujoco.MjSpec()
         spec.worldbody.add_geom(
             name="table",
-            type=mujoco.mjtGeom.mjGEOM_BOX,
-            size=_TABLE_HALF_SIZE_M,
-            pos=[0.0, 0.0, -_TABLE_HALF_SIZE_M[2]],
+            type=mujoco.mjtGeom.mjGEOM_PLANE,
+            size=(0.0, 0.0, 1.0),
             margin=margin_m,
         )
         hand = Hand(params)
@@ -620,10 +647,10 @@ def _raise_above_table(
 
 
 def _wide_open() -> np.ndarray:
-    # The hand's widest thumb-to-fingertip span that still reaches down the sides of a box:
-    # the thumb in full palmar abduction and extension, the fingers spread, straight at the
-    # MCPs and hooked at the PIPs and DIPs (about 0.19 m between the thumb and middle tips at
-    # 189 mm; found by a grid search over the finger flexions with the 0.16 m cracker box).
+    # A wide opening for boxes: the thumb in full palmar abduction and extension, the fingers
+    # spread, straight at the MCPs and hooked at the PIPs and DIPs (0.19 m between the thumb
+    # and middle tips at 189 mm). A grid search over the finger flexions chose it as the
+    # widest posture that can still descend over a 0.16 m wide box without touching it.
     angles = np.zeros(NUM_ANGLES)
     for name, deg in (
         ("thumb_cmc_flex", -20.0),
@@ -687,30 +714,92 @@ def _solid_run(s: np.ndarray, hole_m: float) -> np.ndarray | None:
     return None
 
 
+def _grip_scale(obj: YCBObject) -> float:
+    """Squeeze factor for the object's weight: 0.4 for the lightest, 1 from 180 g up.
+
+    People grip with a safety margin over the force that just holds a load (grip force grows
+    with it); a light object squeezed hard is pushed out of a pinch.
+    """
+    return float(np.clip(0.4 + obj.mass_kg / 0.3, 0.4, 1.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class _Closing:
+    """How the digits close in a top grasp: postures and contact spheres along the closure."""
+
+    angles: np.ndarray  # (C, 21) postures, open to closed
+    spheres: np.ndarray  # (C, 1 + F, 3) thumb and finger contact spheres, hand frame
+    contact_vec: np.ndarray  # (C, 3) thumb sphere -> mean finger sphere
+    gap: np.ndarray  # (C,) surface gap between them, metres
+    squeeze_rad: float
+
+
+def _closing(
+    params: HandParams, recipe: GraspRecipe, angles: np.ndarray, fraction: float, squeeze: float
+) -> _Closing:
+    geometry = _hand_geometry(params)
+    digits = ("thumb", *recipe.fingers)
+    spheres = geometry.contacts(angles, digits, fraction)
+    radii = np.array([geometry.distal_radius[d] for d in digits])
+    contact_vec = spheres[:, 1:].mean(axis=1) - spheres[:, 0]
+    gap = np.linalg.norm(contact_vec, axis=-1) - radii[0] - radii[1:].mean()
+    return _Closing(angles, spheres, contact_vec, gap, squeeze)
+
+
+def _hook_path() -> np.ndarray:
+    # Boxes wider than _HOOK_WIDTH_M: the widest span, with the fingers straight and their
+    # distal segments hooked 60 deg over the far top edge; closing flexes the MCPs (by 30 deg
+    # at closure 1) and the thumb (60 deg per joint) and keeps the hooks.
+    open_angles = _wide_open()
+    delta = np.zeros(NUM_ANGLES)
+    for finger in ("index", "middle", "ring", "little"):
+        open_angles[joint_index(f"{finger}_pip_flex")] = 0.0
+        open_angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(60.0)
+        delta[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(30.0)
+    for name in ("thumb_cmc_flex", "thumb_mcp_flex", "thumb_ip_flex"):
+        delta[joint_index(name)] = np.deg2rad(60.0)
+    path = open_angles + _CLOSURES[:, None] * delta
+    return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+
+_HOOK_WIDTH_M = 0.13
+"""Boxes wider than this are held with hooked fingertips just under the far top edge."""
+_HOOK_DEPTHS_M = (0.010, 0.005, 0.015)
+_HOOK_SQUEEZE_RAD = np.deg2rad(40.0)
+
+
 def _top_candidates(
     obj: YCBObject,
     T: np.ndarray,
     params: HandParams,
     recipe: GraspRecipe,
     preferred_dir: np.ndarray,
-) -> list[tuple[float, Callable[[], GraspPlan | None]]]:
+) -> list[tuple[float, Callable[[bool], GraspPlan | None]]]:
     """Top and rim grasps across horizontal axes: (cost, plan builder) per axis."""
-    geometry = _hand_geometry(params)
     checker = _checker(obj, params)
-    digits = ("thumb", *recipe.fingers)
-    angles = _closure_path(recipe)
-    spheres = geometry.contacts(angles, digits, recipe.contact_fraction)
-    radii = np.array([geometry.distal_radius[d] for d in digits])
-    contact_vec = spheres[:, 1:].mean(axis=1) - spheres[:, 0]
-    # Surface gap between the thumb's sphere and the fingers' (mean) sphere.
-    gap = np.linalg.norm(contact_vec, axis=-1) - radii[0] - radii[1:].mean()
-
     points = _world_points(obj, T)
     com = T[:3, :3] @ obj.com_m + T[:3, 3]
     top = float(points[:, 2].max())
     deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
     # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
     heights = [h for h in deepest + np.array([0.0, 0.01, 0.02]) if h <= top - 0.008] or [deepest]
+    closings = [
+        (
+            _closing(
+                params,
+                recipe,
+                _closure_path(recipe),
+                recipe.contact_fraction,
+                recipe.squeeze_rad * _grip_scale(obj),
+            ),
+            heights,
+            deepest,
+        )
+    ]
+    if recipe.wide:
+        # Too wide to reach down both sides: hook the fingertips under the far top edge.
+        hook = _closing(params, recipe, _hook_path(), 1.0, _HOOK_SQUEEZE_RAD * _grip_scale(obj))
+        closings.append((hook, [top - d for d in _HOOK_DEPTHS_M], top - _HOOK_DEPTHS_M[0]))
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
     centres = []
@@ -730,14 +819,14 @@ def _top_candidates(
             elif offset == 0.0:
                 centres.append((points[np.argmin(xy_dist)].copy(), 0.0))
 
-    def builder(k: int, u: np.ndarray, grasp_point: np.ndarray, width: float):
-        def build() -> GraspPlan | None:
-            v_hat = contact_vec[k] / np.linalg.norm(contact_vec[k])
+    def builder(c: _Closing, k: int, u: np.ndarray, grasp_point: np.ndarray, width: float):
+        def build(narrow: bool) -> GraspPlan | None:
+            v_hat = c.contact_vec[k] / np.linalg.norm(c.contact_vec[k])
             palm_down, _ = Rotation.align_vectors(
                 [u, [0.0, 0.0, -1.0]], [v_hat, [0.0, 0.0, 1.0]], weights=[1e4, 1.0]
             )
-            mid = 0.5 * (spheres[k, 0] + spheres[k, 1:].mean(axis=0))
-            contact = angles[min(k + 3, len(_CLOSURES) - 1)]
+            mid = 0.5 * (c.spheres[k, 0] + c.spheres[k, 1:].mean(axis=0))
+            contact = c.angles[min(k + 3, len(_CLOSURES) - 1)]
             # Roll about the grasp axis (it stays horizontal) to keep the other digits off the
             # table: the roll with the most table clearance, the smallest on ties.
             best = None
@@ -748,7 +837,7 @@ def _top_candidates(
                 if best is None or clearance > best[0] + 1e-4:
                     best = (clearance, rotation)
             rotation = best[1]
-            closed = _squeeze(angles, k, recipe.squeeze_rad)
+            closed = _squeeze(c.angles, k, c.squeeze_rad)
             wrist = _raise_above_table(
                 checker,
                 T,
@@ -763,15 +852,14 @@ def _top_candidates(
             # until the way down is clear. An open hand reaches lower than a closing one: it
             # hovers, and sinks to the grasp while closing.
             openings = []
-            for extra in (_OPENING_M, 0.02, 0.045, 0.06, 0.008):
-                wide_enough = np.nonzero(gap >= width + extra)[0]
-                k_pre = int(wide_enough.max()) if wide_enough.size else 0
-                if k_pre not in openings:
-                    openings.append(k_pre)
-            if 0 not in openings:
-                openings.append(0)
-            for k_pre in openings:
-                hovering = _raise_above_table(checker, T, wrist, rotation, [angles[k_pre]], 0.06)
+            for extra in (_OPENING_M, 0.02, 0.008):
+                wide_enough = np.nonzero(c.gap >= width + extra)[0]
+                openings.append(int(wide_enough.max()) if wide_enough.size else 0)
+            # 3 cm, then half way to fully open, fully open; on the second pass narrower (into
+            # holes).
+            openings = [openings[0], openings[0] // 2, 0] if not narrow else openings[1:]
+            for k_pre in dict.fromkeys(openings):
+                hovering = _raise_above_table(checker, T, wrist, rotation, [c.angles[k_pre]], 0.06)
                 if hovering is None:
                     continue
                 plan = GraspPlan(
@@ -780,7 +868,7 @@ def _top_candidates(
                     wrist_pos=wrist,
                     rotation=rotation,
                     approach_dir=np.array([0.0, 0.0, -1.0]),
-                    preshape=angles[k_pre],
+                    preshape=c.angles[k_pre],
                     contact=contact,
                     closed=closed,
                     hover_m=float(hovering[2] - wrist[2]),
@@ -794,38 +882,44 @@ def _top_candidates(
         return build
 
     candidates = []
-    for (centre, offset), height in itertools.product(centres, heights):
-        near = np.abs(points[:, 2] - height) < max(0.01, 0.5 * radii.min())
-        rel = points[near] - centre
-        for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
-            u = np.array([np.cos(angle), np.sin(angle), 0.0])
-            if recipe.strategy == "rim":
-                inward = com[:2] - centre[:2]
-                if u[:2] @ inward < np.cos(np.deg2rad(25.0)) * np.linalg.norm(inward):
+    for index, (closing, variant_heights, deepest_h) in enumerate(closings):
+        for (centre, offset), height in itertools.product(centres, variant_heights):
+            near = np.abs(points[:, 2] - height) < 0.01
+            rel = points[near] - centre
+            for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
+                u = np.array([np.cos(angle), np.sin(angle), 0.0])
+                if recipe.strategy == "rim":
+                    inward = com[:2] - centre[:2]
+                    if u[:2] @ inward < np.cos(np.deg2rad(25.0)) * np.linalg.norm(inward):
+                        continue
+                n = np.array([-u[1], u[0], 0.0])
+                strip = np.abs(rel @ n) < recipe.band_m
+                if recipe.strategy == "rim":
+                    strip &= np.abs(rel @ u) < 0.03
+                if strip.sum() < 3:
                     continue
-            n = np.array([-u[1], u[0], 0.0])
-            strip = np.abs(rel @ n) < recipe.band_m
-            if recipe.strategy == "rim":
-                strip &= np.abs(rel @ u) < 0.03
-            if strip.sum() < 3:
-                continue
-            s = rel[strip] @ u
-            if recipe.finger_holes:
-                s = _solid_run(s, 2.0 * radii.max())
-                if s is None:
+                s = rel[strip] @ u
+                if recipe.finger_holes:
+                    s = _solid_run(s, 2.0 * _hand_geometry(params).distal_radius["thumb"])
+                    if s is None:
+                        continue
+                width = float(s.max() - s.min())
+                # Wide recipes: the pinch up to _HOOK_WIDTH_M, the hook beyond.
+                if recipe.wide and (width > _HOOK_WIDTH_M) != (index == 1):
                     continue
-            width = float(s.max() - s.min())
-            if width + 0.004 > gap.max() - 0.005:
-                continue
-            k = int(np.argmin(np.abs(gap - (width + 0.004))))
-            grasp_point = centre + u * 0.5 * (s.max() + s.min())
-            grasp_point[2] = height
-            # A narrow grip near the COM, the fingers pointing away from the user (the hand's
-            # y axis is about u), the pads deep.
-            cost = (
-                width + offset + 0.05 * (1.0 - float(u @ preferred_dir)) + 2.0 * (height - deepest)
-            )
-            candidates.append((cost, builder(k, u, grasp_point, width)))
+                if width + 0.004 > closing.gap.max() - 0.005:
+                    continue
+                k = int(np.argmin(np.abs(closing.gap - (width + 0.004))))
+                if index == 1:
+                    # The hook is placed open (the thumb then sweeps down the near side).
+                    k = 0
+                grasp_point = centre + u * 0.5 * (s.max() + s.min())
+                grasp_point[2] = height
+                # A narrow grip (pads square to the surface) near the COM, the fingers pointing
+                # away from the user (the hand's y axis is about u), the pads deep.
+                yaw_cost = 1.0 - float(u @ preferred_dir)
+                cost = 3.0 * width + offset + 0.05 * yaw_cost + 2.0 * abs(height - deepest_h)
+                candidates.append((cost, builder(closing, k, u, grasp_point, width)))
     return candidates
 
 
@@ -835,7 +929,7 @@ def _side_candidates(
     params: HandParams,
     recipe: GraspRecipe,
     preferred_dir: np.ndarray,
-) -> list[tuple[float, Callable[[], GraspPlan | None]]]:
+) -> list[tuple[float, Callable[[bool], GraspPlan | None]]]:
     """Side wraps (palm against an upright object, thumb up): (cost, builder) per direction."""
     checker = _checker(obj, params)
     grasp = GRASP_TYPES[recipe.grasp_type]
@@ -848,14 +942,18 @@ def _side_candidates(
     centre = 0.5 * (band.max(axis=0) + band.min(axis=0))
 
     def builder(d: np.ndarray, span: float):
-        def build() -> GraspPlan | None:
-            y_dir = np.cross(d, [0.0, 0.0, 1.0])
-            rotation = Rotation.from_matrix(np.stack([[0.0, 0.0, 1.0], y_dir, d], axis=1))
+        def build(narrow: bool) -> GraspPlan | None:
+            if narrow:
+                return None
+            # Thumb up: the hand's x axis is radial for a right hand and ulnar for a left one.
+            x_dir = np.array([0.0, 0.0, 1.0 if params.side == "right" else -1.0])
+            y_dir = np.cross(d, x_dir)
+            rotation = Rotation.from_matrix(np.stack([x_dir, y_dir, d], axis=1))
             # The object's axis sits over the bases of the proximal phalanges; the palm
             # advances along d until it is about to touch the object.
             depth = float(-((band - centre) @ d).min())
             far = np.array([centre[0], centre[1], height]) - rotation.apply(
-                [0.0, 0.075, depth + 0.06]
+                [0.0, 0.4 * params.hand_length, depth + 0.06]
             )
             advance = _advance_to_contact(checker, T, far, rotation, preshape, d, 0.08)
             if advance is None:
@@ -955,8 +1053,9 @@ def plan_grasp(obj: YCBObject, T_world_from_obj: np.ndarray, params: HandParams)
     make = _side_candidates if recipe.strategy == "side" else _top_candidates
     scored = make(obj, T, params, recipe, preferred)
     scored.sort(key=lambda c: c[0])
-    for _, build in scored:
-        plan = build()
+    # First with the hand opened wide, then (a second pass) opened just enough.
+    for narrow, (_, build) in itertools.product((False, True), scored):
+        plan = build(narrow)
         if plan is not None:
             return plan
     raise GraspPlanningError(
@@ -994,14 +1093,20 @@ def _duration(
 class GraspExpert:
     """A scripted pick-and-lift expert for one object.
 
-    Phases (:attr:`phase`): ``"reach"`` (to 8 cm before the grasp, shaping the hand),
-    ``"approach"`` (the final 8 cm, slowly), ``"close"`` (the digits close past contact over
-    0.5 s), ``"squeeze"`` (0.3 s), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up) and
-    ``"hold"``.
+    Phases (:attr:`phase`): ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
+    speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
+    digits close to the planned contact posture while an open hand that hovered sinks to the
+    grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
+    actuators press), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
+    ``"hold"`` (until the episode ends). :attr:`grasp_type` is the grasp taxonomy type and
+    ``plan.strategy`` how it is applied (:class:`GraspRecipe`).
 
-    The plan is made once at :meth:`reset` from the state's object pose; :meth:`act` follows
-    minimum-jerk segments in time and waits (up to 1 s) at the end of the reach and the
-    approach until the measured wrist is within 2 cm of its target.
+    The plan is made once, at :meth:`reset`, from the state's object pose. :meth:`act` follows
+    minimum-jerk segments in time (the target never jumps: each segment starts where the last
+    one ended), and waits (up to 1 s) at the end of the reach and of the approach until the
+    state's wrist is within 2 cm of its target. It closes along a fixed schedule; contact needs
+    no sensing because the position actuators stop at the object and press with their
+    torque-limited stiffness.
 
     Args:
         obj: the object to grasp.
@@ -1035,7 +1140,6 @@ class GraspExpert:
         self._index = 0
         self._segment_start_s = 0.0
         self._from: _Segment | None = None
-        self._wait_s = 0.0
 
     @property
     def grasp_type(self) -> str:
@@ -1085,7 +1189,6 @@ class GraspExpert:
         self._from = start
         self._index = 0
         self._segment_start_s = state.time_s
-        self._wait_s = 0.0
         self.phase = segments[0].name
 
     def _check_state(self, state: GraspState) -> None:
@@ -1155,11 +1258,13 @@ class GraspOutcome:
         success: lifted by :data:`LIFT_HEIGHT_M` and held :data:`HOLD_DURATION_S` with less
             than :data:`MAX_SLIP_M` slip.
         failure: why it failed (``None`` on success): ``"not_lifted"`` (never reached the lift
-            height), ``"dropped"`` (fell below it during a hold), ``"slipped"`` (moved
-            ``MAX_SLIP_M`` or more in the palm frame), ``"hold_incomplete"`` (still held when the
-            episode ended, but for less than the hold duration), ``"diverged"`` (physics).
+            height), ``"dropped"`` (lifted, but below the lift height at the end),
+            ``"slipped"`` (still lifted at the end, but it slipped ``MAX_SLIP_M`` or more in
+            the palm frame and the hold restarted), ``"hold_incomplete"`` (still lifted and not
+            slipping, held for less than the hold duration), ``"diverged"`` (physics).
         max_lift_m: highest rise of the object origin above its rest height, metres.
-        slip_m: slip in the last hold window (the successful one on success), metres.
+        slip_m: on success the largest slip in the successful window; otherwise the largest
+            slip seen in any window, metres.
         hold_s: duration of the last hold window, seconds.
         success_time_s: episode time at which the hold completed (``None`` on failure).
         steps: control steps run.
@@ -1227,6 +1332,7 @@ class LiftTracker:
         self._last_time_s = -math.inf
         self._ever_lifted = False
         self._broken: FailureReason | None = None
+        self._break_slip_m = 0.0
         self._window_duration_s = 0.0
 
     def update(
@@ -1275,7 +1381,7 @@ class LiftTracker:
         slip = float(np.linalg.norm(pos_palm - self._window_pos_palm))
         if slip >= self.max_slip_m:
             self._broken = "slipped"
-            self._window_slip_m = slip
+            self._break_slip_m = max(self._break_slip_m, slip)
             self._open_window(time_s, pos_palm)
             return False
         self._window_slip_m = max(self._window_slip_m, slip)
@@ -1307,7 +1413,11 @@ class LiftTracker:
         return self.update(time_s, data.xpos[body_id], T)
 
     def outcome(self, diverged: bool = False) -> GraspOutcome:
-        """The outcome of the episode so far (call at its end)."""
+        """The outcome of the episode so far (call at its end).
+
+        Args:
+            diverged: the physics diverged (the episode was cut short).
+        """
         failure: FailureReason | None
         if self.success:
             failure = None
@@ -1315,17 +1425,20 @@ class LiftTracker:
             failure = "diverged"
         elif not self._ever_lifted:
             failure = "not_lifted"
-        elif self._window_start_s is not None:
-            failure = "hold_incomplete" if self._broken is None else self._broken
-            if self._broken is not None and self._window_duration_s > 0.5:
-                failure = "hold_incomplete"
+        elif self._window_start_s is None:
+            failure = "dropped"
         else:
-            failure = self._broken or "dropped"
+            # Still lifted at the end: the last window restarted after a slip, or ran short.
+            failure = "slipped" if self._broken == "slipped" else "hold_incomplete"
         return GraspOutcome(
             success=self.success,
             failure=failure,
             max_lift_m=float(self.max_lift_m) if self.steps else 0.0,
-            slip_m=float(self._window_slip_m),
+            slip_m=float(
+                self._window_slip_m
+                if self.success
+                else max(self._window_slip_m, self._break_slip_m)
+            ),
             hold_s=float(self._window_duration_s),
             success_time_s=self.success_time_s,
             steps=self.steps,
@@ -1409,7 +1522,7 @@ def run_episode(
         raise InvalidGraspState(
             f"the expert grasps {expert.obj.name!r} but scene object {instance} is {obj.name!r}"
         )
-    model, data = scene.model, scene.data
+    data = scene.data
     scene.reset()
     T0 = GraspState.from_sim(scene, instance, 0.0).T_world_from_obj
     scene.reset(start_pose(rng, T0, scene.hand.params, obj=obj))
@@ -1417,15 +1530,11 @@ def run_episode(
     state = GraspState.from_sim(scene, instance, 0.0)
     expert.reset(state)
     diverged = False
+    # The env's driver: same mocap tracking and stepping as handsim/Grasp-v0.
+    driver = HandDriver(scene)
     for step in range(int(max_steps)):
-        target = expert.act(state)
-        scene.binding.set_target(data, target)
-        for _ in range(FRAME_SKIP):
-            mujoco.mj_step(model, data)
-        if (
-            not np.all(np.isfinite(data.qpos))
-            or data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
-        ):
+        driver.set_target(expert.act(state))
+        if driver.step(FRAME_SKIP):
             diverged = True
             break
         time_s = (step + 1) * CONTROL_DT_S

@@ -133,20 +133,23 @@ _DENSITY_KG_M3 = 1060.0  # soft tissue
 
 ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
     # joint kind: (minimum kp in N m/rad, torque limit in N m)
-    "thumb_cmc_flex": (2.0, 3.0),
-    "thumb_cmc_abd": (2.0, 3.0),
-    "thumb_mcp_flex": (1.0, 1.5),
+    "thumb_cmc_flex": (3.0, 3.0),
+    "thumb_cmc_abd": (3.0, 3.0),
+    "thumb_mcp_flex": (2.0, 1.5),
     "thumb_mcp_abd": (0.5, 0.8),
-    "thumb_ip_flex": (0.5, 0.8),
-    "mcp_flex": (1.5, 2.5),
+    "thumb_ip_flex": (1.0, 0.8),
+    "mcp_flex": (3.0, 2.5),
     "mcp_abd": (0.5, 0.8),
-    "pip_flex": (1.0, 1.5),
-    "dip_flex": (0.4, 0.6),
+    "pip_flex": (2.0, 1.5),
+    "dip_flex": (0.8, 0.6),
 }
 """Position-actuator stiffness (raised where a joint's inertia needs more for the bandwidth) and
 torque limit per joint kind. The limits give fingertip
 forces of a few tens of newtons (e.g. 2.5 N m at the index MCP over ~90 mm is ~28 N) and a
-power grip of a few hundred newtons over all contacts."""
+power grip of a few hundred newtons over all contacts. The flexion stiffnesses are high enough
+that a grasp squeezing 45 deg past first contact (``handsim.envs.grasping``) presses with most
+of that torque (a 0.9 kg drill held in a pinch needs it); the armature grows with them, so
+the natural frequency and the 60 ms step response stay the same."""
 
 FINGER_OMEGA = 120.0
 """Natural frequency (rad/s) of every finger joint: critically damped, 95 % of a step takes

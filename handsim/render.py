@@ -12,6 +12,8 @@ no display).
 
 from __future__ import annotations
 
+import os
+
 import mujoco
 import numpy as np
 from mujoco import gl_context
@@ -27,6 +29,26 @@ RENDERED_GEOM_GROUPS: tuple[int, ...] = (0, 1, 2)
 
 class RenderError(HandSimError, RuntimeError):
     """The renderer cannot be created for this model and camera."""
+
+
+def _make_gl_context(width: int, height: int) -> object | None:
+    """An offscreen OpenGL context: MuJoCo's choice, or EGL when that needs a missing display.
+
+    MuJoCo picks its backend (``MUJOCO_GL``) when it is first imported; a program that imports
+    mujoco before handsim on a headless machine gets GLFW, which needs a display.
+    """
+    if gl_context.GLContext is None:
+        return None
+    glfw_without_display = (
+        gl_context.GLContext.__module__.startswith("mujoco.glfw")
+        and not os.environ.get("DISPLAY")
+        and not os.environ.get("WAYLAND_DISPLAY")
+    )
+    if glfw_without_display:
+        from mujoco.egl import GLContext as EGLContext
+
+        return EGLContext(width, height)
+    return gl_context.GLContext(width, height)
 
 
 class DepthRenderer:
@@ -60,7 +82,7 @@ class DepthRenderer:
         self.camera = camera
         self.camera_id = int(model.camera(camera).id)
         self.intrinsics = intrinsics
-        self._gl = gl_context.GLContext(w, h) if gl_context.GLContext is not None else None
+        self._gl = _make_gl_context(w, h)
         if self._gl is not None:
             self._gl.make_current()
         self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)

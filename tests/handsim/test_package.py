@@ -1,5 +1,6 @@
 """Package-level invariants: public names resolve, torch stays out, the CLI answers."""
 
+import os
 import subprocess
 import sys
 
@@ -28,7 +29,7 @@ def test_cli_help_lists_the_subcommands():
     out = subprocess.run(
         [sys.executable, "-m", "handsim.cli", "--help"], capture_output=True, text=True, check=True
     )
-    for command in ("demo", "info"):
+    for command in ("demo", "closed-loop", "info"):
         assert command in out.stdout
 
 
@@ -49,3 +50,21 @@ def test_cli_without_command_prints_help(capsys):
 
     assert main([]) == 2
     assert "usage: handsim" in capsys.readouterr().out
+
+
+def test_rendering_works_when_mujoco_is_imported_first():
+    """Headless, a program that imports mujoco before handsim (GLFW chosen) still renders."""
+    code = (
+        "import mujoco\n"
+        "from handsim.frame import FrameRenderer\n"
+        "from handsim.scene import Scene, SceneSpec\n"
+        "import numpy as np\n"
+        "scene = Scene(SceneSpec())\n"
+        "with FrameRenderer(scene, 'third_person') as r:\n"
+        "    print(r.render(np.random.default_rng(0)).depth.max() > 0)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    )
+    assert out.stdout.strip() == "True"

@@ -1,0 +1,320 @@
+"""Tests of the scripted grasp expert, its start pose and the lift success definition."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from handsim.envs.grasping import (
+    CONTROL_DT_S,
+    FRAME_SKIP,
+    GRASP_RECIPES,
+    HOLD_DURATION_S,
+    LIFT_HEIGHT_M,
+    MAX_SLIP_M,
+    MAX_WRIST_SPEED_M_S,
+    OBJECT_SHAPE_CLASSES,
+    GraspExpert,
+    GraspState,
+    InvalidGraspState,
+    LiftTracker,
+    evaluate_lift,
+    run_episode,
+    shape_class,
+    start_pose,
+)
+from handsim.hand import hand_params
+from handsim.objects import OBJECTS, get_object
+from handsim.pose_sources import GRASP_TYPES
+from handsim.scene import Scene, SceneSpec, sample_placements
+
+REST_HEIGHT_M = 0.05
+
+
+def _scene(name: str, seed: int = 0) -> tuple[Scene, np.random.Generator]:
+    rng = np.random.default_rng(seed)
+    placements = sample_placements(rng, [name])
+    return Scene(SceneSpec(hand=hand_params("medium"), objects=placements)), rng
+
+
+def _trajectory(lift_m: np.ndarray, slip_m: np.ndarray | None = None):
+    """Times, object positions and palm poses: the palm rises with the object (+ slip in x)."""
+    n = len(lift_m)
+    times = CONTROL_DT_S * np.arange(1, n + 1)
+    obj = np.zeros((n, 3))
+    obj[:, 2] = REST_HEIGHT_M + lift_m
+    palm = np.tile(np.eye(4), (n, 1, 1))
+    palm[:, 2, 3] = obj[:, 2] + 0.08
+    if slip_m is not None:
+        obj[:, 0] += slip_m
+    return times, obj, palm
+
+
+def _lift_then_hold(height_m: float, hold_s: float) -> np.ndarray:
+    """A rise in 5 steps, then ``hold_s`` seconds at ``height_m``.
+
+    The hold window opens at the last step of the rise when ``height_m`` >= 0.10 m.
+    """
+    rise = np.linspace(0.0, height_m, 6)[1:]
+    return np.concatenate([rise, np.full(int(round(hold_s / CONTROL_DT_S)), height_m)])
+
+
+def _hold_slip(lift: np.ndarray, slip_m: float) -> np.ndarray:
+    """Slip growing linearly from 0 to ``slip_m`` over the 2 s after the object is lifted."""
+    start = int(np.argmax(lift >= LIFT_HEIGHT_M))
+    n = int(round(HOLD_DURATION_S / CONTROL_DT_S))
+    slip = np.zeros(len(lift))
+    slip[start : start + n + 1] = np.linspace(0.0, slip_m, n + 1)
+    slip[start + n + 1 :] = slip_m
+    return slip
+
+
+# Success definition ---------------------------------------------------------------------------
+
+
+def test_lifted_and_held_succeeds():
+    """Lifted 15 cm and held still for 2 s: success, no slip."""
+    outcome = evaluate_lift(*_trajectory(_lift_then_hold(0.15, 2.5)), REST_HEIGHT_M)
+    assert outcome.success and outcome.failure is None
+    assert outcome.max_lift_m == pytest.approx(0.15)
+    assert outcome.slip_m == pytest.approx(0.0)
+    assert outcome.hold_s == pytest.approx(HOLD_DURATION_S)
+
+
+def test_hold_shorter_than_two_seconds_fails():
+    """A hold of 1.9 s is not enough."""
+    outcome = evaluate_lift(*_trajectory(_lift_then_hold(0.15, 1.88)), REST_HEIGHT_M)
+    assert not outcome.success
+    assert outcome.failure == "hold_incomplete"
+
+
+def test_lifted_nine_centimetres_fails():
+    """9 cm is below the 10 cm lift height: never lifted."""
+    outcome = evaluate_lift(*_trajectory(_lift_then_hold(0.09, 3.0)), REST_HEIGHT_M)
+    assert not outcome.success
+    assert outcome.failure == "not_lifted"
+    assert outcome.max_lift_m == pytest.approx(0.09)
+    assert LIFT_HEIGHT_M == 0.10
+
+
+def test_dropped_object_fails():
+    """Lifted, held 1 s, then dropped back to the table."""
+    lift = np.concatenate([_lift_then_hold(0.15, 1.0), np.linspace(0.15, 0.0, 10), np.zeros(150)])
+    outcome = evaluate_lift(*_trajectory(lift), REST_HEIGHT_M)
+    assert not outcome.success
+    assert outcome.failure == "dropped"
+
+
+def test_slip_of_two_centimetres_fails():
+    """The object slides 2 cm through the hand during the 2 s hold: failure."""
+    lift = _lift_then_hold(0.15, 3.0)
+    outcome = evaluate_lift(*_trajectory(lift, _hold_slip(lift, 0.02)), REST_HEIGHT_M)
+    assert not outcome.success
+    assert outcome.failure == "slipped"
+    assert outcome.slip_m >= MAX_SLIP_M
+
+
+def test_slip_below_one_centimetre_succeeds():
+    """8 mm of slip over the hold is within the 1 cm tolerance."""
+    lift = _lift_then_hold(0.15, 2.5)
+    outcome = evaluate_lift(*_trajectory(lift, _hold_slip(lift, 0.008)), REST_HEIGHT_M)
+    assert outcome.success
+    assert outcome.slip_m == pytest.approx(0.008)
+
+
+def test_slip_is_measured_in_the_palm_frame():
+    """Hand and object moving together sideways is not slip; the palm turning under it is."""
+    lift = _lift_then_hold(0.15, 2.5)
+    times, obj, palm = _trajectory(lift)
+    sideways = np.linspace(0.0, 0.2, len(lift))
+    obj[:, 0] += sideways
+    palm[:, 0, 3] += sideways
+    assert evaluate_lift(times, obj, palm, REST_HEIGHT_M).success
+    # The palm (8 cm above the object) turns by 15 deg about x while the object stays put:
+    # the object moves 2 cm in the palm frame.
+    angle = np.deg2rad(15.0) * _hold_slip(lift, 1.0)
+    palm[:, 1, 1], palm[:, 1, 2] = np.cos(angle), -np.sin(angle)
+    palm[:, 2, 1], palm[:, 2, 2] = np.sin(angle), np.cos(angle)
+    outcome = evaluate_lift(times, obj, palm, REST_HEIGHT_M)
+    assert not outcome.success and outcome.failure == "slipped"
+
+
+def test_tracker_success_is_sticky_and_rejects_bad_input():
+    """Success stays true; non-increasing time and malformed poses raise."""
+    tracker = LiftTracker(REST_HEIGHT_M)
+    times, obj, palm = _trajectory(_lift_then_hold(0.15, 2.5))
+    for t, p, T in zip(times, obj, palm, strict=True):
+        tracker.update(t, p, T)
+    assert tracker.success
+    assert tracker.update(times[-1] + 1.0, [0.0, 0.0, 0.0], np.eye(4))
+    with pytest.raises(InvalidGraspState, match="time_s must increase"):
+        tracker.update(times[-1], obj[-1], palm[-1])
+    with pytest.raises(InvalidGraspState, match="T_world_from_palm must be a finite"):
+        LiftTracker(0.0).update(0.02, [0.0, 0.0, 0.0], np.eye(3))
+    with pytest.raises(InvalidGraspState, match=r"expected times_s \(T,\)"):
+        evaluate_lift(times, obj[:-1], palm, REST_HEIGHT_M)
+
+
+# Start pose -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", ["005_tomato_soup_can", "019_pitcher_base", "003_cracker_box"])
+def test_start_pose_is_seeded_and_collision_free(name):
+    """Same seed, same pose; another seed, another pose; the hand touches nothing."""
+    scene, _ = _scene(name)
+    state = GraspState.from_sim(scene, 0, 0.0)
+    params, obj = scene.hand.params, scene.objects[0][1]
+    a = start_pose(np.random.default_rng(7), state.T_world_from_obj, params, obj=obj)
+    b = start_pose(np.random.default_rng(7), state.T_world_from_obj, params, obj=obj)
+    c = start_pose(np.random.default_rng(8), state.T_world_from_obj, params, obj=obj)
+    np.testing.assert_array_equal(a.vector, b.vector)
+    assert not np.allclose(a.vector, c.vector)
+    np.testing.assert_array_equal(a.angles, 0.0)
+    # Palm down: the hand's palmar axis (z) is within 10 deg of world -z.
+    palmar = Rotation.from_rotvec(a.wrist_rotvec).apply([0.0, 0.0, 1.0])
+    assert palmar[2] < -np.cos(np.deg2rad(10.0))
+    scene.reset(a)
+    keypoints = scene.binding.keypoints(scene.data)
+    assert keypoints[:, 2].min() > 0.05
+    assert keypoints[:, 1].mean() < state.T_world_from_obj[1, 3] - 0.1
+    hand_bodies = {
+        scene.model.body(scene.hand.prefix + b.name).id for b in scene.hand.skeleton.bodies
+    }
+    touching = [
+        (scene.model.geom(c.geom1).name, scene.model.geom(c.geom2).name)
+        for c in scene.data.contact[: scene.data.ncon]
+        if {scene.model.geom_bodyid[c.geom1], scene.model.geom_bodyid[c.geom2]} & hand_bodies
+    ]
+    assert touching == []
+
+
+def test_start_pose_rejects_bad_input():
+    """A non-generator rng and a non-rigid transform are refused with a clear message."""
+    params = hand_params("medium")
+    with pytest.raises(InvalidGraspState, match="rng must be a numpy.random.Generator"):
+        start_pose(0, np.eye(4), params)
+    with pytest.raises(InvalidGraspState, match="must be a finite"):
+        start_pose(np.random.default_rng(0), np.eye(3), params)
+    with pytest.raises(InvalidGraspState, match="must be a rotation matrix"):
+        start_pose(np.random.default_rng(0), 2.0 * np.eye(4), params)
+
+
+# State and expert -----------------------------------------------------------------------------
+
+
+def test_every_object_has_a_shape_class_and_a_known_grasp_type():
+    """Every YCB object maps to a recipe whose grasp type is in the GRASP taxonomy table."""
+    assert set(OBJECT_SHAPE_CLASSES) == set(OBJECTS)
+    for name in OBJECTS:
+        recipe = GRASP_RECIPES[shape_class(get_object(name))]
+        assert recipe.grasp_type in GRASP_TYPES
+
+
+def test_state_from_sim_and_errors():
+    """from_sim reads the truth; bad instances, objects and call orders raise."""
+    scene, _ = _scene("025_mug")
+    state = GraspState.from_sim(scene, 0, 0.0)
+    body = scene.model.body(scene.objects[0][0]).id
+    np.testing.assert_allclose(state.T_world_from_obj[:3, 3], scene.data.xpos[body])
+    assert state.keypoints_world.shape == (21, 3)
+    assert state.obj.name == "025_mug"
+    with pytest.raises(InvalidGraspState, match=r"instance must index scene.objects, \[0, 1\)"):
+        GraspState.from_sim(scene, 3, 0.0)
+    with pytest.raises(InvalidGraspState, match="keypoints_world must be a finite"):
+        GraspState(0.0, state.hand_pose, np.zeros((20, 3)), state.T_world_from_obj, state.obj)
+    expert = GraspExpert(get_object("025_mug"), scene.hand.params)
+    with pytest.raises(InvalidGraspState, match=r"call reset\(state\) before act\(state\)"):
+        expert.act(state)
+    other = GraspExpert(get_object("040_large_marker"), scene.hand.params)
+    with pytest.raises(InvalidGraspState, match="make one GraspExpert per object"):
+        other.reset(state)
+
+
+@pytest.mark.parametrize(
+    "name", ["005_tomato_soup_can", "025_mug", "040_large_marker"], ids=["can", "mug", "marker"]
+)
+def test_expert_lifts_representative_objects(name):
+    """A can (side wrap), the mug (rim pinch) and the marker (tripod) are lifted and held."""
+    scene, rng = _scene(name, seed=1)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    outcome = run_episode(scene, 0, expert, rng, max_steps=400)
+    assert outcome.success, outcome
+    assert outcome.slip_m < MAX_SLIP_M
+    assert expert.phase == "hold"
+    assert expert.grasp_type == GRASP_RECIPES[shape_class(scene.objects[0][1])].grasp_type
+
+
+def test_grasp_is_physical_only():
+    """No equality touches the object; its mass, friction and gravity are unchanged after."""
+    scene, rng = _scene("004_sugar_box")
+    model = scene.model
+    body = model.body(scene.objects[0][0]).id
+    geoms = np.nonzero(model.geom_bodyid == body)[0]
+    before = (
+        model.body_mass[body].copy(),
+        model.geom_friction[geoms].copy(),
+        model.opt.gravity.copy(),
+        model.neq,
+    )
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    assert run_episode(scene, 0, expert, rng, max_steps=400).success
+    for eq in range(model.neq):
+        bodies = {int(model.eq_obj1id[eq]), int(model.eq_obj2id[eq])}
+        if model.eq_objtype[eq] == mujoco.mjtObj.mjOBJ_BODY:
+            assert body not in bodies, model.eq(eq).name
+    # The hand's wrist weld (hand to its mocap target) is the only equality.
+    assert [model.eq(e).name for e in range(model.neq)] == [f"{scene.hand.prefix}root_weld"]
+    np.testing.assert_array_equal(model.body_mass[body], before[0])
+    np.testing.assert_array_equal(model.geom_friction[geoms], before[1])
+    np.testing.assert_array_equal(model.opt.gravity, before[2])
+    assert model.neq == before[3]
+
+
+def test_expert_moves_smoothly():
+    """The wrist target moves at most 0.5 m/s and the finger targets never jump."""
+    scene, rng = _scene("036_wood_block")
+    state = GraspState.from_sim(scene, 0, 0.0)
+    scene.reset(start_pose(rng, state.T_world_from_obj, scene.hand.params))
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params, rng=np.random.default_rng(0))
+    state = GraspState.from_sim(scene, 0, 0.0)
+    expert.reset(state)
+    targets, phases = [state.hand_pose], []
+    for step in range(350):
+        target = expert.act(state)
+        targets.append(target)
+        phases.append(expert.phase)
+        scene.binding.set_target(scene.data, target)
+        for _ in range(FRAME_SKIP):
+            mujoco.mj_step(scene.model, scene.data)
+        state = GraspState.from_sim(scene, 0, (step + 1) * CONTROL_DT_S)
+    pos = np.array([t.wrist_pos for t in targets])
+    speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / CONTROL_DT_S
+    assert speed.max() <= MAX_WRIST_SPEED_M_S
+    angles = np.array([t.angles for t in targets])
+    assert np.abs(np.diff(angles, axis=0)).max() < np.deg2rad(10.0)
+    order = ["reach", "approach", "close", "squeeze", "settle", "lift", "hold"]
+    assert list(dict.fromkeys(phases)) == order
+
+
+def test_run_episode_rejects_mismatched_expert():
+    """An expert for another object, or a bad step count, is refused."""
+    scene, rng = _scene("061_foam_brick")
+    params = scene.hand.params
+    with pytest.raises(InvalidGraspState, match="but scene object 0 is '061_foam_brick'"):
+        run_episode(scene, 0, GraspExpert(get_object("024_bowl"), params), rng)
+    with pytest.raises(InvalidGraspState, match="max_steps must be an int >= 1"):
+        run_episode(scene, 0, GraspExpert(get_object("061_foam_brick"), params), rng, 0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(OBJECTS))
+def test_expert_lifts_every_object(name):
+    """Every YCB object, three seeds (the full benchmark: benchmarks/bench_grasp.py)."""
+    successes = 0
+    for seed in range(3):
+        scene, rng = _scene(name, seed)
+        expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+        successes += run_episode(scene, 0, expert, rng).success
+    assert successes >= 2
