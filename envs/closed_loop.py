@@ -10,7 +10,9 @@ expert acts on the estimate), on the same seeds. It reports, per mode:
   occlusion bucket, where a frame's occlusion is the fraction of its 21 keypoints that are not
   visible (:attr:`handsim.frame.Frame.visible`), in buckets [0, 0.25), [0.25, 0.5),
   [0.5, 0.75), [0.75, 1];
-- task success: the fraction of episodes with ``info["is_success"]`` at their end;
+- task success: the fraction of episodes with ``info["is_success"]`` at their end (an episode
+  whose expert finds no plan for the perceived state, e.g. no collision-free grasp for a noisy
+  object pose, is a failure with ``"no_plan"`` and no frames);
 - the estimator's mean time per call.
 
 :func:`write_report` saves it as JSON with an F(tau) plot and a success bar plot (PNG).
@@ -30,6 +32,7 @@ import numpy as np
 
 from handsim import metrics
 from handsim.envs.wrappers import EstimatorLoop
+from handsim.errors import HandSimError
 from handsim.estimator import Estimator
 
 __all__ = ["evaluate_closed_loop", "write_report", "OCCLUSION_EDGES"]
@@ -52,7 +55,14 @@ def _run_mode(
     try:
         for episode in range(episodes):
             _, info = env.reset(seed=seed + episode)
-            expert = env.make_expert(np.random.default_rng(seed + episode))
+            try:
+                expert = env.make_expert(np.random.default_rng(seed + episode))
+            except HandSimError as err:
+                # E.g. no collision-free grasp for the perceived object pose: a failed episode.
+                outcomes.append(
+                    {"seed": seed + episode, "success": False, "steps": 0, "no_plan": str(err)}
+                )
+                continue
             steps, done = 0, False
             while True:
                 errors, frame = info.get("estimate_errors"), info["frame"]
