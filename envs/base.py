@@ -186,6 +186,9 @@ class EnvConfig:
         reward_type: one of :data:`REWARD_TYPES`.
         frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
         render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or ``"human"``.
+
+    The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
+    :mod:`handsim.envs`).
     """
 
     objects: tuple[str, ...] = ()

@@ -255,3 +255,12 @@ def test_gesture_expert_reaches_the_goal():
                 break
         assert info["is_success"], (seed, info["keypoint_distance_m"])
     env.close()
+
+
+def test_episode_length_is_set_with_max_episode_steps():
+    """gym.make(..., max_episode_steps=N) truncates after N steps."""
+    env = gym.make("handsim/HandPose-v0", max_episode_steps=3)
+    env.reset(seed=0)
+    truncated = [env.step(env.action_space.sample())[3] for _ in range(3)]
+    assert truncated == [False, False, True]
+    env.close()
