@@ -106,10 +106,8 @@ SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
 SETTLE_S = 0.1
 """Physics time run at reset so objects and the hand settle before the first observation."""
 
-_JOINT_LO = np.array([lo for lo, _ in JOINT_LIMITS])
-_JOINT_HI = np.array([hi for _, hi in JOINT_LIMITS])
-_POSE_LO = np.concatenate([[w[0] for w in WORKSPACE_M], [-np.pi] * 3, _JOINT_LO])
-_POSE_HI = np.concatenate([[w[1] for w in WORKSPACE_M], [np.pi] * 3, _JOINT_HI])
+_POSE_LO = np.concatenate([[w[0] for w in WORKSPACE_M], [-np.pi] * 3, JOINT_LIMITS[:, 0]])
+_POSE_HI = np.concatenate([[w[1] for w in WORKSPACE_M], [np.pi] * 3, JOINT_LIMITS[:, 1]])
 _DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -384,10 +382,15 @@ class HandSimEnv(gym.Env):
         self.frame_renderer: FrameRenderer | None = None
         self._rgb_renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
-        self.target = HandPose.neutral()
+        self.driver: HandDriver | None = None
         self.frame: Frame | None = None
         self._last_obs: dict[str, np.ndarray] | None = None
         self.elapsed_steps = 0
+
+    @property
+    def target(self) -> HandPose:
+        """The current 27-DoF target the hand is driven toward (world frame)."""
+        return self.driver.target
 
     # Hooks of the tasks --------------------------------------------------------------------
 
@@ -468,7 +471,6 @@ class HandSimEnv(gym.Env):
         self.scene.binding.set_pose(self.scene.data, start)
         self.driver = HandDriver(self.scene)
         self.driver.set_target(start)
-        self.target = self.driver.target
         self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep)))
         self.elapsed_steps = 0
         obs = self._observe()
@@ -502,7 +504,6 @@ class HandSimEnv(gym.Env):
             vector[3:6] = rot.as_rotvec()
             vector = np.clip(vector, _POSE_LO, _POSE_HI)
         self.driver.set_target(HandPose.from_vector(vector))
-        self.target = self.driver.target
 
     def step(
         self, action: np.ndarray
@@ -532,7 +533,7 @@ class HandSimEnv(gym.Env):
         if "depth" in self.config.obs_mode:
             obs["depth"] = np.minimum(self.frame.depth, np.float32(DEPTH_MAX_M))
         if self.config.obs_mode == "depth+segmentation":
-            obs["segmentation"] = self.frame.segmentation.copy()
+            obs["segmentation"] = self.frame.segmentation
         if "state" in self.config.obs_mode:
             obs["proprio"] = self._proprio()
         obs.update(self._task_observation())
@@ -587,7 +588,6 @@ class HandSimEnv(gym.Env):
             getattr(data, key)[:] = state[key]
         data.time = float(state["time"])
         self.driver.set_target(HandPose.from_vector(state["target"]))
-        self.target = self.driver.target
         mujoco.mj_forward(self.scene.model, data)
         return self._observe()
 

@@ -11,10 +11,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError
-from handsim.pose import JOINT_LIMITS, HandPose
+from handsim.pose import HandPose
 from handsim.pose_sources import (
     MAX_JOINT_SPEED,
     MAX_WRIST_ANGULAR_SPEED,
@@ -23,9 +22,6 @@ from handsim.pose_sources import (
 )
 
 __all__ = ["HandState", "GestureExpert", "ExpertError"]
-
-_JOINT_LO = np.array([lo for lo, _ in JOINT_LIMITS])
-_JOINT_HI = np.array([hi for _, hi in JOINT_LIMITS])
 
 
 class ExpertError(HandSimError, RuntimeError):
@@ -125,5 +121,4 @@ class GestureExpert:
         perceived = state.hand_pose
         wrist = ref.wrist_pos + self.gain * (ref.wrist_pos - perceived.wrist_pos)
         angles = ref.angles + self.gain * (ref.angles - perceived.angles)
-        rotvec = Rotation.from_rotvec(ref.wrist_rotvec).as_rotvec()
-        return HandPose(wrist, rotvec, np.clip(angles, _JOINT_LO, _JOINT_HI))
+        return HandPose(wrist, ref.wrist_rotvec, angles).clip()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -160,12 +161,9 @@ class GraspEnv(HandSimEnv):
     def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
         scene, data = self.scene, self.scene.data
         was_success = self.tracker.success
-        palm = scene.model.body(scene.hand.root_body).id
-        T_palm = np.eye(4)  # noqa: N806
-        T_palm[:3, :3] = data.xmat[palm].reshape(3, 3)
-        T_palm[:3, 3] = data.xpos[palm]
+        time_s = data.time - self._episode_start_s
+        success = self.tracker.update_from_sim(scene, self.target_instance, time_s)
         obj_pos = self._object_pose(self.target_instance)[:3, 3]
-        success = self.tracker.update(data.time - self._episode_start_s, obj_pos, T_palm)
         just_succeeded = success and not was_success
         info = self._task_info()
         if self.config.reward_type == "dense":
@@ -190,20 +188,14 @@ class GraspEnv(HandSimEnv):
         T_world_from_obj: np.ndarray | None = None,
     ) -> GraspState:
         """The grasp expert's state: the truth, or the given (estimated) values in its place."""
-        scene, data = self.scene, self.scene.data
-        return GraspState(
-            time_s=float(data.time - self._episode_start_s),
-            hand_pose=hand_pose if hand_pose is not None else scene.binding.pose(data),
-            keypoints_world=(
-                keypoints_world if keypoints_world is not None else scene.binding.keypoints(data)
-            ),
-            T_world_from_obj=(
-                T_world_from_obj
-                if T_world_from_obj is not None
-                else self._object_pose(self.target_instance)
-            ),
-            obj=scene.objects[self.target_instance][1],
-        )
+        time_s = float(self.scene.data.time - self._episode_start_s)
+        truth = GraspState.from_sim(self.scene, self.target_instance, time_s)
+        estimated = {
+            "hand_pose": hand_pose,
+            "keypoints_world": keypoints_world,
+            "T_world_from_obj": T_world_from_obj,
+        }
+        return dataclasses.replace(truth, **{k: v for k, v in estimated.items() if v is not None})
 
     def make_expert(
         self, rng: np.random.Generator | None = None, state: GraspState | None = None

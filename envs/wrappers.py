@@ -10,7 +10,13 @@ import gymnasium as gym
 import numpy as np
 
 from handsim.envs.base import HandSimEnv, InvalidEnvConfig
-from handsim.estimator import Estimate, Estimator, PrivilegedEstimator, estimate_errors
+from handsim.estimator import (
+    Estimate,
+    Estimator,
+    PrivilegedEstimator,
+    estimate_errors,
+    hand_center,
+)
 from handsim.frame import Frame
 from handsim.retarget import Retargeter
 
@@ -59,7 +65,7 @@ def perceived_state_inputs(
         out["hand_pose"] = fit.pose
     elif estimate.center_cam is not None:
         true_keypoints = frame.keypoints_cam @ R.T + t
-        true_center = true_keypoints[[0, 5, 9, 13, 17]].mean(axis=0)
+        true_center = hand_center(true_keypoints)
         shift = (estimate.center_cam @ R.T + t) - true_center
         out["keypoints_world"] = true_keypoints + shift
         out["hand_pose"] = frame.hand_pose.replace(wrist_pos=frame.hand_pose.wrist_pos + shift)
@@ -165,7 +171,9 @@ class EstimatorLoop(gym.Wrapper):
         """Reset the env and the estimator, then estimate the first observation."""
         obs, info = self.env.reset(**kwargs)
         self.estimator.reset()
-        self._retargeter = Retargeter(self.unwrapped.scene.hand.params)
+        # Only feedback turns estimates into poses (the hand may differ per episode).
+        if self.feedback:
+            self._retargeter = Retargeter(self.unwrapped.scene.hand.params)
         self._perceived = None
         self._stats = {
             "n_frames": 0,
