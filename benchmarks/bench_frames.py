@@ -31,11 +31,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from handsim.camera import camera_preset  # noqa: E402
 from handsim.frame import FrameRenderer  # noqa: E402
-from handsim.pose_sources import GESTURES, gesture  # noqa: E402
-from handsim.scene import Scene, SceneSpec, sample_placements, third_person_camera  # noqa: E402
-from handsim.sensors import StructuredLight  # noqa: E402
+from handsim.hand.pose_sources import GESTURES, gesture  # noqa: E402
+from handsim.world.camera import camera_preset  # noqa: E402
+from handsim.world.scene import Scene, SceneSpec, sample_placements, third_person_camera  # noqa: E402
+from handsim.world.sensors import StructuredLight  # noqa: E402
 
 OBJECTS = ("005_tomato_soup_can", "003_cracker_box", "025_mug")
 

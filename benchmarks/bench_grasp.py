@@ -1,6 +1,6 @@
 """Benchmark of the scripted grasp expert: pick up and lift each YCB-Video object.
 
-For each object and seed: the object is placed by ``handsim.scene.sample_placements`` (yaw and
+For each object and seed: the object is placed by ``handsim.world.scene.sample_placements`` (yaw and
 position from the seed), a scene with the table, a medium right hand and that object is built,
 and :func:`handsim.envs.grasping.run_episode` runs the expert from a seeded start pose. Success
 is the definition of :mod:`handsim.envs.grasping`: lifted 0.10 m, then held 2 s with less than
@@ -33,9 +33,9 @@ from handsim.envs.grasping import (
     run_episode,
     shape_class,
 )
-from handsim.hand import hand_params
-from handsim.objects import OBJECTS, get_object
-from handsim.scene import Scene, SceneSpec, sample_placements
+from handsim.hand.model import hand_params
+from handsim.world.registry import OBJECTS, get_object
+from handsim.world.scene import Scene, SceneSpec, sample_placements
 
 _MAX_STEPS = 400  # 8 s at 50 Hz
 

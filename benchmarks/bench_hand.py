@@ -15,10 +15,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from handsim.hand import Hand, HandParams
-from handsim.kinematics import ForwardKinematics
-from handsim.pose import JOINT_LIMITS, HandPose
-from handsim.retarget import Retargeter
+from handsim.hand.kinematics import ForwardKinematics
+from handsim.hand.model import Hand, HandParams
+from handsim.hand.pose import JOINT_LIMITS, HandPose
+from handsim.hand.retarget import Retargeter
 
 
 def _best_of(fn, repeats: int) -> float:

@@ -1,7 +1,7 @@
 """What every handsim env shares: configuration, the scene, control, observation, rendering.
 
 :class:`HandSimEnv` is the base of the registered envs. It validates its keyword arguments once
-(:class:`EnvConfig`), builds a :class:`~handsim.scene.Scene` per episode (rebuilt only when the
+(:class:`EnvConfig`), builds a :class:`~handsim.world.Scene` per episode (rebuilt only when the
 hand or the object list changes; object placements and camera poses are written into the
 compiled model), steps MuJoCo ``frame_skip`` times per action, renders one labelled
 :class:`~handsim.frame.Frame` per step and splits it: images into the observation, labels into
@@ -10,7 +10,7 @@ compiled model), steps MuJoCo ``frame_skip`` times per action, renders one label
 Control (``control_mode``):
 
 - ``"pose"``: the action is an absolute 27-DoF target ``[wrist_pos (3) m, wrist_rotvec (3) rad,
-  angles (21) rad]`` (:class:`~handsim.pose.HandPose` order, world frame). The wrist target
+  angles (21) rad]`` (:class:`~handsim.hand.pose.HandPose` order, world frame). The wrist target
   moves the mocap body the hand is softly welded to; the angles are the position actuators'
   targets. Bounds: the wrist inside :data:`WORKSPACE_M`, each rotation-vector component in
   [-pi, pi], each angle within its joint limits. Out-of-bound actions are clipped. The mocap
@@ -18,7 +18,7 @@ Control (``control_mode``):
   :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s (an arm cannot teleport the hand; a far target
   is reached over several steps).
 - ``"delta"``: the action is in [-1, 1]^27 and moves the current target by at most
-  :data:`~handsim.pose_sources.MAX_WRIST_SPEED` m/s, :data:`DELTA_ANGULAR_SPEED` rad/s (wrist
+  :data:`~handsim.hand.pose_sources.MAX_WRIST_SPEED` m/s, :data:`DELTA_ANGULAR_SPEED` rad/s (wrist
   rotation, world axes) and :data:`DELTA_JOINT_SPEED` rad/s (each joint) times the control
   period; the result is clipped to the ``"pose"`` bounds. Out-of-range actions are clipped.
 
@@ -40,14 +40,14 @@ import numpy as np
 from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
-from handsim.camera import CAMERA_PRESETS, camera_preset
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
-from handsim.hand import HAND_SIZES, hand_params
-from handsim.objects import OBJECTS
-from handsim.pose import JOINT_LIMITS, HandPose
-from handsim.pose_sources import MAX_WRIST_SPEED
-from handsim.scene import (
+from handsim.hand.model import HAND_SIZES, hand_params
+from handsim.hand.pose import JOINT_LIMITS, HandPose
+from handsim.hand.pose_sources import MAX_WRIST_SPEED
+from handsim.world.camera import CAMERA_PRESETS, camera_preset
+from handsim.world.registry import OBJECTS
+from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
     CameraSpec,
     ObjectPlacement,
@@ -57,7 +57,7 @@ from handsim.scene import (
     sample_viewpoint,
     third_person_camera,
 )
-from handsim.sensors import sensor_model
+from handsim.world.sensors import sensor_model
 
 __all__ = [
     "HandSimEnv",
@@ -102,7 +102,7 @@ WRIST_TRACKING_SPEED = 2.0
 WRIST_TRACKING_ANGULAR_SPEED = 4 * np.pi
 """Fastest rotation of the mocap body toward the wrist target, rad/s."""
 SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
-"""Sensor model names (:func:`handsim.sensors.sensor_model`)."""
+"""Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
 SETTLE_S = 0.1
 """Physics time run at reset so objects and the hand settle before the first observation."""
 
@@ -176,7 +176,7 @@ class EnvConfig:
         objects: canonical object names the episode draws from.
         hand_size_m: (low, high) hand length, metres; drawn uniformly per episode.
         handedness: ``"right"``, ``"left"`` or ``"random"`` (per episode).
-        camera: camera preset (:data:`~handsim.camera.CAMERA_PRESETS`).
+        camera: camera preset (:data:`~handsim.world.camera.CAMERA_PRESETS`).
         viewpoint: one of :data:`VIEWPOINTS`.
         sensor: sensor model name (:data:`SENSORS`).
         obs_mode: one of :data:`OBS_MODES`.
@@ -330,7 +330,7 @@ class HandSimEnv(gym.Env):
 
     Observation keys by ``obs_mode``: ``depth`` (H, W) float32 metres, 0 = no measurement
     (modes with ``depth``); ``segmentation`` (H, W) int16 labels
-    (:data:`~handsim.scene.SEGMENT_LABELS`, objects from 8) in ``"depth+segmentation"``;
+    (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 8) in ``"depth+segmentation"``;
     ``proprio`` (54,) float64 = the hand's measured pose vector (27) and velocities (27: wrist
     linear m/s and angular rad/s, then joint rad/s) in modes with ``state``; plus each task's
     own keys (its goal or target).

@@ -1,6 +1,6 @@
 """Scripted experts that are not grasps: smooth gesture motions for ``handsim/HandPose-v0``.
 
-An expert turns a *state* into an absolute 27-DoF target (:class:`~handsim.pose.HandPose`,
+An expert turns a *state* into an absolute 27-DoF target (:class:`~handsim.hand.pose.HandPose`,
 world frame) for the ``"pose"`` control mode. The state may be the truth or an estimate
 (closed-loop evaluation with feedback), so an expert never reads ``MjData``. The grasping expert
 lives in :mod:`handsim.envs.grasping`.
@@ -13,8 +13,8 @@ import dataclasses
 import numpy as np
 
 from handsim.errors import HandSimError
-from handsim.pose import HandPose
-from handsim.pose_sources import (
+from handsim.hand.pose import HandPose
+from handsim.hand.pose_sources import (
     MAX_JOINT_SPEED,
     MAX_WRIST_ANGULAR_SPEED,
     MAX_WRIST_SPEED,
@@ -46,7 +46,7 @@ class HandState:
 class GestureExpert:
     """Moves the hand to a goal pose along a minimum-jerk path, correcting with feedback.
 
-    At :meth:`reset` it plans :func:`~handsim.pose_sources.smooth_motion` from the perceived
+    At :meth:`reset` it plans :func:`~handsim.hand.pose_sources.smooth_motion` from the perceived
     pose to the goal (and optionally through ``via`` poses), at a speed fraction drawn from
     ``speed_range`` of the natural speed limits. Each :meth:`act` returns the path's next sample
     ``r`` plus ``gain * (r - perceived)`` on the wrist position and the angles (the perceived

@@ -17,8 +17,13 @@ from handsim.envs.grasping import (
     start_pose,
 )
 from handsim.estimator import hand_center
-from handsim.pose import HandPose
-from handsim.scene import OBJECT_LABEL_OFFSET, InvalidScene, ObjectPlacement, sample_placements
+from handsim.hand.pose import HandPose
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    InvalidScene,
+    ObjectPlacement,
+    sample_placements,
+)
 
 __all__ = ["GraspEnv", "GraspClutterEnv"]
 

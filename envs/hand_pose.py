@@ -10,9 +10,9 @@ from scipy.spatial.transform import Rotation
 
 from handsim.envs.base import _POSE_HI, _POSE_LO, EnvConfig, HandSimEnv
 from handsim.envs.experts import GestureExpert, HandState
-from handsim.kinematics import ForwardKinematics
-from handsim.pose import HandPose
-from handsim.pose_sources import GESTURES, gesture
+from handsim.hand.kinematics import ForwardKinematics
+from handsim.hand.pose import HandPose
+from handsim.hand.pose_sources import GESTURES, gesture
 
 __all__ = ["HandPoseEnv"]
 
@@ -28,7 +28,7 @@ class HandPoseEnv(HandSimEnv):
     ## Description
     A physical hand (27 DoF: a free wrist softly welded to a mocap target, 21 position-actuated
     joints) floats in front of a depth camera; there is no table and no object. Each episode
-    draws a goal: a gesture of :data:`~handsim.pose_sources.GESTURES` with 2 deg angle noise,
+    draws a goal: a gesture of :data:`~handsim.hand.pose_sources.GESTURES` with 2 deg angle noise,
     its wrist within 3 cm and 30 deg of the start. The hand must reach it.
 
     ## Action Space

@@ -18,7 +18,7 @@ from handsim.estimator import (
     hand_center,
 )
 from handsim.frame import Frame
-from handsim.retarget import Retargeter
+from handsim.hand.retarget import Retargeter
 
 __all__ = ["EstimatorLoop", "perceived_state_inputs"]
 
@@ -37,7 +37,7 @@ def perceived_state_inputs(
     """Turn an estimate into the world-frame values an expert state is built from.
 
     - keypoints: ``keypoints_cam`` mapped to the world; the 27-DoF hand pose is retargeted from
-      them (:class:`~handsim.retarget.Retargeter`, warm-started at ``previous_pose``);
+      them (:class:`~handsim.hand.retarget.Retargeter`, warm-started at ``previous_pose``);
     - a centre only (a hand localizer): the true pose and keypoints translated by the centre's
       error (position from the estimate, articulation from the truth);
     - the target object's pose, when the estimate has it.

@@ -12,7 +12,6 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 # ruff: noqa: E402 (the backend is chosen before MuJoCo is imported)
 
-from handsim.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.errors import (
     EstimatorStateError,
     HandSimError,
@@ -33,7 +32,9 @@ from handsim.estimator import (
     hand_center,
 )
 from handsim.frame import Frame, FrameRenderer, ObjectLabel
-from handsim.hand import (
+from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.hand.kinematics import ForwardKinematics
+from handsim.hand.model import (
     HAND_PHYSICS_OPTIONS,
     HAND_SIZES,
     Hand,
@@ -42,32 +43,14 @@ from handsim.hand import (
     build_skeleton,
     hand_params,
 )
-from handsim.keypoints import KEYPOINT_NAMES
-from handsim.kinematics import ForwardKinematics
-from handsim.metrics import (
-    evaluate_dexter_object,
-    evaluate_hand_poses,
-    evaluate_object_poses,
-    plot_f_tau,
-    plot_pck,
-)
-from handsim.objects import (
-    OBJECT_NAMES,
-    OBJECTS,
-    Symmetry,
-    YCBObject,
-    add_object,
-    get_object,
-    load_object,
-)
-from handsim.pose import (
+from handsim.hand.pose import (
     JOINT_LIMITS,
     JOINT_LIMITS_DEG,
     JOINT_NAMES,
     HandPose,
     LimitViolation,
 )
-from handsim.pose_sources import (
+from handsim.hand.pose_sources import (
     GESTURES,
     GRASP_TYPES,
     gesture,
@@ -79,9 +62,20 @@ from handsim.pose_sources import (
     smooth_motion,
     synergy_basis,
 )
-from handsim.render import DepthRenderer
-from handsim.retarget import Retargeter, RetargetResult
-from handsim.scene import (
+from handsim.hand.retarget import Retargeter, RetargetResult
+from handsim.metrics import (
+    evaluate_dexter_object,
+    evaluate_hand_poses,
+    evaluate_object_poses,
+    plot_f_tau,
+    plot_pck,
+)
+from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
+from handsim.world.mesh_import import load_object
+from handsim.world.objects import Symmetry, YCBObject, add_object
+from handsim.world.registry import OBJECT_NAMES, OBJECTS, get_object
+from handsim.world.render import DepthRenderer
+from handsim.world.scene import (
     SEGMENT_LABELS,
     CameraSpec,
     ObjectPlacement,
@@ -92,7 +86,7 @@ from handsim.scene import (
     sample_viewpoint,
     third_person_camera,
 )
-from handsim.sensors import StructuredLight, TimeOfFlight, sensor_model
+from handsim.world.sensors import StructuredLight, TimeOfFlight, sensor_model
 
 __version__ = "0.1.0"
 

@@ -15,7 +15,7 @@ imports the other. It imports neither torch nor the envs nor the estimators.
   for implementations.
 
 Hand centre: the mean of the wrist and the four finger MCPs (keypoints 0, 5, 9, 13, 17 of
-:data:`~handsim.keypoints.KEYPOINT_NAMES`). These five joints are rigid on the palm, so the
+:data:`~handsim.hand.keypoints.KEYPOINT_NAMES`). These five joints are rigid on the palm, so the
 centre does not move when the fingers or the thumb flex; it lies inside the palm, about 0.35
 hand lengths from the wrist towards the fingers.
 """
@@ -35,9 +35,10 @@ from handsim.errors import (
     InvalidKeypoints,
     UnknownName,
 )
-from handsim.keypoints import KEYPOINT_NAMES
+from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.metrics import MM_PER_M, add_error_mm, add_or_adi_error_mm, adi_error_mm
-from handsim.objects import YCBObject, get_object
+from handsim.world.objects import YCBObject
+from handsim.world.registry import get_object
 
 if TYPE_CHECKING:
     from handsim.frame import Frame
@@ -130,7 +131,7 @@ class Estimate:
 
     Attributes:
         keypoints_cam: (21, 3) hand keypoints, metres, camera frame, in the order of
-            :data:`~handsim.keypoints.KEYPOINT_NAMES`; ``None`` if the estimator gives none
+            :data:`~handsim.hand.keypoints.KEYPOINT_NAMES`; ``None`` if the estimator gives none
             (a hand localizer, an object-only estimator).
         center_cam: (3,) hand centre (:func:`hand_center`), metres, camera frame; ``None``
             if not estimated.

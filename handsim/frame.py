@@ -1,7 +1,7 @@
 """The Frame: one rendered view with all its labels, shared by envs, datasets and metrics.
 
-:class:`FrameRenderer` is bound to one :class:`~handsim.scene.Scene` and one of its cameras; it
-keeps one :class:`~handsim.render.DepthRenderer` and renders :class:`Frame` records.
+:class:`FrameRenderer` is bound to one :class:`~handsim.world.Scene` and one of its cameras; it
+keeps one :class:`~handsim.world.render.DepthRenderer` and renders :class:`Frame` records.
 
 Keypoint visibility rule (tolerance :data:`VISIBILITY_TOLERANCE_M`): a keypoint is a point
 *inside* the hand (a joint centre, or the end of a fingertip's skin), so the surface the camera
@@ -34,13 +34,13 @@ import cv2
 import mujoco
 import numpy as np
 
-from handsim.camera import T_cam_from_world
 from handsim.errors import UnknownName
-from handsim.keypoints import KEYPOINT_NAMES
-from handsim.pose import HandPose
-from handsim.render import DepthRenderer
-from handsim.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, Scene
-from handsim.sensors import NoNoise, SensorModel
+from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.hand.pose import HandPose
+from handsim.world.camera import T_cam_from_world
+from handsim.world.render import DepthRenderer
+from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, Scene
+from handsim.world.sensors import NoNoise, SensorModel
 
 __all__ = [
     "Frame",
@@ -121,7 +121,7 @@ class Frame:
         T_cam_from_world: (4, 4) world-to-camera transform (OpenCV frame).
         depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
         depth_clean: (H, W) float32 noise-free depth (``None`` unless requested).
-        segmentation: (H, W) int16 labels (:data:`~handsim.scene.SEGMENT_LABELS`, objects 8+).
+        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects 8+).
         keypoints_cam: (21, 3) keypoints in the camera frame, metres.
         keypoints_px: (21, 2) keypoint pixels ``(u, v)``.
         in_frame: (21,) bool, in front of the camera and inside the image.

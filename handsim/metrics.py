@@ -7,7 +7,7 @@ Every input is SI: keypoints and model points in metres, poses as (4, 4) homogen
 in millimetres (names end in ``_mm``) or pixels (``_px``); thresholds are given in the same
 units. Fractions (accuracies, F(tau), PCK, AUC) are in ``[0, 1]``, not percent.
 
-Hand keypoints (canonical order of :data:`handsim.keypoints.KEYPOINT_NAMES`; any ``J`` works)
+Hand keypoints (canonical order of :data:`handsim.hand.keypoints.KEYPOINT_NAMES`; any ``J`` works)
 ------------------------------------------------------------------------------------------------
 - Joint error: the 3D Euclidean distance between a predicted and a ground-truth keypoint.
 - ``visible`` (optional, ``(N, J)`` bool): joints marked ``False`` are not evaluated; they may
@@ -48,7 +48,7 @@ What :func:`dexter_object_errors_mm` implements, per frame:
   Dexter 1 benchmark defines its fingertip error ("the average Euclidean distance of all
   estimated 3D fingertip locations from the 5 ground truth 3D positions");
 - object error = mean 3D error over the ``K`` given box corners (``K = 3`` on D+O; a handsim
-  object has 8, :attr:`handsim.objects.YCBObject.corners_m`);
+  object has 8, :attr:`handsim.world.YCBObject.corners_m`);
 - combined error = mean over all ``5 + K`` per-point errors, every point weighted equally, i.e.
   ``(5 * hand + K * object) / (5 + K)``.
 
@@ -74,7 +74,7 @@ Object pose (poses are ``T_cam_from_obj``; model points in the object frame)
   symmetries discretized into ``n_continuous`` steps): ADD-sym = ``min_S mean_x |T_est x -
   T_gt S x|``; MSSD (BOP 2019, Hodan et al. 2020) = ``min_S max_x |T_est x - T_gt S x|``.
 - 2D reprojection error (Brachmann et al., CVPR 2016): the mean pixel distance between the
-  projections (:meth:`handsim.camera.CameraIntrinsics.project`) of all model points posed by
+  projections (:meth:`handsim.world.camera.CameraIntrinsics.project`) of all model points posed by
   ``T_est`` and by ``T_gt``. An estimate that puts a point at ``z <= 0`` has an infinite error
   (it does not project); a ground truth that does is invalid input.
 - Correct pose: ADD(-S) ``< 0.1 * diameter`` and reprojection ``< 5 px``, both STRICT. The
@@ -125,10 +125,10 @@ from typing import Any, Literal
 import numpy as np
 from scipy.spatial import cKDTree
 
-from handsim.camera import CameraIntrinsics
 from handsim.errors import HandSimError
-from handsim.keypoints import KEYPOINT_NAMES
-from handsim.objects import Symmetry
+from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.world.camera import CameraIntrinsics
+from handsim.world.objects import Symmetry
 
 __all__ = [
     "InvalidMetricInput",
@@ -573,7 +573,7 @@ def evaluate_hand_poses(
         gt_m: (N, J, 3) ground-truth keypoints, metres.
         visible: optional (N, J) bool mask of the evaluated joints.
         joint_names: J names for ``per_joint_mean_mm``; default
-            :data:`~handsim.keypoints.KEYPOINT_NAMES` when ``J == 21``, else ``joint_<k>``.
+            :data:`~handsim.hand.keypoints.KEYPOINT_NAMES` when ``J == 21``, else ``joint_<k>``.
         tau_max_mm: last threshold of the curves and the AUC, mm.
         step_mm: threshold spacing, mm.
 
@@ -871,7 +871,7 @@ def _is_symmetric(obj: Any, symmetric: bool | None) -> bool:
     sym = getattr(obj, "symmetry", None)
     if not isinstance(sym, Symmetry):
         raise InvalidMetricInput(
-            f"obj must have a `symmetry` (handsim.objects.Symmetry) or symmetric= must be given; "
+            f"obj must have a `symmetry` (handsim.world.Symmetry) or symmetric= must be given; "
             f"received {type(obj).__name__}"
         )
     return sym.kind != "none"
@@ -898,7 +898,7 @@ def add_or_adi_error_mm(
     Args:
         T_est: (4, 4) estimated ``T_cam_from_obj``, metres.
         T_gt: (4, 4) ground-truth ``T_cam_from_obj``, metres.
-        obj: a :class:`~handsim.objects.YCBObject` (or anything with ``model_points_m`` and
+        obj: a :class:`~handsim.world.YCBObject` (or anything with ``model_points_m`` and
             ``symmetry``).
         symmetric: override; default ``obj.symmetry.kind != "none"``.
 
@@ -923,7 +923,7 @@ def _symmetry_distances(
 ) -> np.ndarray:
     if not isinstance(symmetry, Symmetry):
         raise InvalidMetricInput(
-            f"symmetry must be a handsim.objects.Symmetry; received {type(symmetry).__name__}"
+            f"symmetry must be a handsim.world.Symmetry; received {type(symmetry).__name__}"
         )
     if not (isinstance(n_continuous, int | np.integer) and n_continuous >= 1):
         raise InvalidMetricInput(f"n_continuous must be an integer >= 1; received {n_continuous!r}")
@@ -949,7 +949,7 @@ def add_sym_error_mm(
         T_est: (4, 4) estimated ``T_cam_from_obj``, metres.
         T_gt: (4, 4) ground-truth ``T_cam_from_obj``, metres.
         model_points_m: (M, 3) model points, object frame, metres.
-        symmetry: the object's :class:`~handsim.objects.Symmetry`.
+        symmetry: the object's :class:`~handsim.world.Symmetry`.
         n_continuous: steps a continuous symmetry is discretized into.
 
     Returns:
@@ -976,7 +976,7 @@ def mssd_error_mm(
         T_est: (4, 4) estimated ``T_cam_from_obj``, metres.
         T_gt: (4, 4) ground-truth ``T_cam_from_obj``, metres.
         model_points_m: (M, 3) model points, object frame, metres.
-        symmetry: the object's :class:`~handsim.objects.Symmetry`.
+        symmetry: the object's :class:`~handsim.world.Symmetry`.
         n_continuous: steps a continuous symmetry is discretized into.
 
     Returns:
@@ -1001,7 +1001,7 @@ def reprojection_error_px(
         T_est: (4, 4) estimated ``T_cam_from_obj`` (OpenCV camera frame), metres.
         T_gt: (4, 4) ground-truth ``T_cam_from_obj``, metres.
         model_points_m: (M, 3) model points, object frame, metres.
-        intrinsics: the camera's :class:`~handsim.camera.CameraIntrinsics`.
+        intrinsics: the camera's :class:`~handsim.world.camera.CameraIntrinsics`.
 
     Returns:
         Mean over the model points of the pixel distance between their projections, px;
@@ -1013,7 +1013,7 @@ def reprojection_error_px(
     """
     if not isinstance(intrinsics, CameraIntrinsics):
         raise InvalidMetricInput(
-            f"intrinsics must be a handsim.camera.CameraIntrinsics; received "
+            f"intrinsics must be a handsim.world.camera.CameraIntrinsics; received "
             f"{type(intrinsics).__name__}"
         )
     _, _, p_est, p_gt = _posed_pair(T_est, T_gt, model_points_m)
@@ -1258,7 +1258,7 @@ def evaluate_object_poses(
         T_est: N estimated ``T_cam_from_obj`` (4, 4), metres; ``None`` or a matrix with a NaN
             entry marks a frame without an estimate (a miss).
         T_gt: N ground-truth ``T_cam_from_obj`` (4, 4), metres.
-        obj: a :class:`~handsim.objects.YCBObject` (or anything with ``name``,
+        obj: a :class:`~handsim.world.YCBObject` (or anything with ``name``,
             ``model_points_m``, ``diameter_m`` and ``symmetry``).
         intrinsics: camera intrinsics for the 2D reprojection error (skipped if ``None``).
         symmetric: override of ADD(-S)'s choice; default ``obj.symmetry.kind != "none"``.
@@ -1448,7 +1448,7 @@ def errors_by_joint(
 
     Args:
         joint_errors_mm: (N, J) errors, mm (:func:`keypoint_errors_mm`); NaN = not evaluated.
-        joint_names: J names; default :data:`~handsim.keypoints.KEYPOINT_NAMES` when
+        joint_names: J names; default :data:`~handsim.hand.keypoints.KEYPOINT_NAMES` when
             ``J == 21``, else ``joint_<k>``.
 
     Returns:

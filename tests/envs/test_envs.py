@@ -7,8 +7,8 @@ from gymnasium.utils.env_checker import check_env
 
 import handsim.envs
 from handsim.envs.base import OBS_MODES, WORKSPACE_M, InvalidEnvConfig
-from handsim.pose import JOINT_LIMITS
-from handsim.pose_sources import MAX_WRIST_SPEED
+from handsim.hand.pose import JOINT_LIMITS
+from handsim.hand.pose_sources import MAX_WRIST_SPEED
 
 ENV_IDS = handsim.envs.ENV_IDS
 # Small, quick defaults for every id (clutter needs several objects).

@@ -7,7 +7,7 @@ import pytest
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.base import InvalidEnvConfig
 from handsim.errors import UnknownName
-from handsim.scene import OBJECT_LABEL_OFFSET
+from handsim.world.scene import OBJECT_LABEL_OFFSET
 
 
 def test_grasp_expert_lifts_and_the_episode_terminates_with_success():

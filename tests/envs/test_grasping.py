@@ -25,10 +25,10 @@ from handsim.envs.grasping import (
     shape_class,
     start_pose,
 )
-from handsim.hand import hand_params
-from handsim.objects import OBJECTS, get_object
-from handsim.pose_sources import GRASP_TYPES
-from handsim.scene import Scene, SceneSpec, sample_placements
+from handsim.hand.model import hand_params
+from handsim.hand.pose_sources import GRASP_TYPES
+from handsim.world.registry import OBJECTS, get_object
+from handsim.world.scene import Scene, SceneSpec, sample_placements
 
 REST_HEIGHT_M = 0.05
 

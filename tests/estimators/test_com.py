@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handsim.camera import camera_preset
 from handsim.errors import InvalidEstimatorInput, InvalidEstimatorParams
 from handsim.estimator import Estimator, PrivilegedEstimator, hand_center
 from handsim.estimators import CenterOfMassLocalizer
+from handsim.world.camera import camera_preset
 
 ICVL = camera_preset("icvl")
 NYU = camera_preset("nyu_carmine")
@@ -157,9 +157,9 @@ _TURNED = Rotation.from_euler("z", 180, degrees=True) * _FINGERS_UP  # back of t
 def _render_hand(rotation: Rotation, forearm: bool):
     """A clean ICVL frame of an open right hand alone, 0.5 m in front of the camera."""
     from handsim.frame import FrameRenderer
-    from handsim.hand import HandParams
-    from handsim.pose_sources import gesture
-    from handsim.scene import CameraSpec, Scene, SceneSpec
+    from handsim.hand.model import HandParams
+    from handsim.hand.pose_sources import gesture
+    from handsim.world.scene import CameraSpec, Scene, SceneSpec
 
     cam = CameraSpec.look_at("front", ICVL, (0.0, -0.5, 0.2), (0.0, 0.0, 0.2))
     scene = Scene(SceneSpec(hand=HandParams(forearm=forearm), cameras=(cam,), table=False))
@@ -206,7 +206,7 @@ def test_hand_alone_is_segmented_exactly_from_depth():
     So the depth-only segmentation (nearest slab, then the cube) keeps exactly the hand's
     pixels when the hand is alone; the errors of the test above are the method's, not bugs.
     """
-    from handsim.scene import SEGMENT_LABELS
+    from handsim.world.scene import SEGMENT_LABELS
 
     frame, _ = _render_hand(_FINGERS_UP, forearm=False)
     hand = (frame.segmentation >= SEGMENT_LABELS.index("palm")) & (frame.depth > 0)

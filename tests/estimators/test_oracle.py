@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handsim.camera import camera_preset
 from handsim.errors import EstimatorStateError, InvalidEstimatorInput, InvalidEstimatorParams
 from handsim.estimator import Estimator, PrivilegedEstimator, estimate_errors, hand_center
 from handsim.estimators import OracleEstimator
 from handsim.frame import FrameRenderer, ObjectLabel
-from handsim.objects import Symmetry
+from handsim.world.camera import camera_preset
+from handsim.world.objects import Symmetry
 
 ICVL = camera_preset("icvl")
 DEPTH = np.zeros((ICVL.height, ICVL.width), np.float32)
@@ -195,7 +195,7 @@ def test_bad_truth_and_batches_are_rejected():
 
 def test_oracle_on_a_rendered_frame_has_the_configured_error():
     """On a rendered Frame, a 10 mm bias gives 10 mm errors and exact object poses ADD 0."""
-    from handsim.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+    from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
 
     cam = CameraSpec.look_at("front", ICVL, (0.0, -0.5, 0.3), (0.0, 0.0, 0.1))
     spec = SceneSpec(cameras=(cam,), objects=(ObjectPlacement("061_foam_brick", (0.1, 0, 0.03)),))

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from handsim.camera import camera_preset
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, FrameRenderer
-from handsim.keypoints import KEYPOINT_NAMES
-from handsim.objects import load_object
-from handsim.pose_sources import gesture
-from handsim.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.hand.pose_sources import gesture
+from handsim.world.camera import camera_preset
+from handsim.world.mesh_import import load_object
+from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
 
 ICVL = camera_preset("icvl")
 PANEL_HALF_M = np.array([0.05, 0.01, 0.12])  # an axis-aligned panel: 10 x 2 x 24 cm
@@ -152,7 +152,7 @@ def test_contacts_between_hand_and_object(panel):
 
 def test_frame_is_read_only_and_seeded():
     """Frame arrays cannot be written; the same seed gives the same noisy depth."""
-    from handsim.sensors import StructuredLight
+    from handsim.world.sensors import StructuredLight
 
     cam = CameraSpec.look_at("front", ICVL, (0.0, -0.2, 0.4), (0.0, 0.0, 0.1))
     scene = Scene(SceneSpec(cameras=(cam,)))
@@ -168,7 +168,7 @@ def test_frame_is_read_only_and_seeded():
 
 def test_silhouette_shortcut_matches_rendering_each_object_alone():
     """Skipping the silhouette render for unoccluded objects gives BOP's exact counts."""
-    from handsim.scene import sample_placements, sample_viewpoint
+    from handsim.world.scene import sample_placements, sample_viewpoint
 
     rng = np.random.default_rng(11)
     placements = sample_placements(rng, ("005_tomato_soup_can", "003_cracker_box", "025_mug"))
@@ -186,8 +186,8 @@ def test_silhouette_shortcut_matches_rendering_each_object_alone():
 
 def test_reused_silhouettes_equal_fresh_renders():
     """Silhouettes kept while objects rest give the counts a fresh renderer computes."""
-    from handsim.pose_sources import GESTURES
-    from handsim.scene import sample_placements, third_person_camera
+    from handsim.hand.pose_sources import GESTURES
+    from handsim.world.scene import sample_placements, third_person_camera
 
     rng = np.random.default_rng(5)
     placements = sample_placements(rng, ("005_tomato_soup_can", "003_cracker_box", "025_mug"))

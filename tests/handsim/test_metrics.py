@@ -12,9 +12,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handsim.camera import CameraIntrinsics
 from handsim.errors import HandSimError
-from handsim.keypoints import KEYPOINT_NAMES
+from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.metrics import (
     FINGERTIP_INDICES,
     BucketStats,
@@ -47,7 +46,9 @@ from handsim.metrics import (
     ycbv_accuracy_curve,
     ycbv_auc,
 )
-from handsim.objects import NO_SYMMETRY, Symmetry, get_object
+from handsim.world.camera import CameraIntrinsics
+from handsim.world.objects import NO_SYMMETRY, Symmetry
+from handsim.world.registry import get_object
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # 512 px focal length: offsets of k / 512 m at z = 1 m shift pixels by exactly k.
@@ -634,11 +635,11 @@ NAN_GT[1, 3, 0] = np.nan
             lambda: add_or_adi_error_mm(
                 np.eye(4), np.eye(4), types.SimpleNamespace(model_points_m=ring())
             ),
-            r"obj must have a `symmetry` \(handsim.objects.Symmetry\) or symmetric= must be given",
+            r"obj must have a `symmetry` \(handsim.world.Symmetry\) or symmetric= must be given",
         ),
         (
             lambda: add_sym_error_mm(np.eye(4), np.eye(4), ring(), "continuous"),
-            r"symmetry must be a handsim.objects.Symmetry; received str",
+            r"symmetry must be a handsim.world.Symmetry; received str",
         ),
         (
             lambda: mssd_error_mm(np.eye(4), np.eye(4), ring(), NO_SYMMETRY, n_continuous=0),
@@ -646,7 +647,7 @@ NAN_GT[1, 3, 0] = np.nan
         ),
         (
             lambda: reprojection_error_px(np.eye(4), np.eye(4), ring(), np.eye(3)),
-            r"intrinsics must be a handsim.camera.CameraIntrinsics; received ndarray",
+            r"intrinsics must be a handsim.world.camera.CameraIntrinsics; received ndarray",
         ),
         (
             lambda: reprojection_error_px(pose(t=(0, 0, 1)), pose(t=(0, 0, -1)), ring(), CAM),

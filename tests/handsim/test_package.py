@@ -1,12 +1,87 @@
-"""Package-level invariants: public names resolve, torch stays out, the CLI answers."""
+"""Package-level invariants: public names resolve, layers hold, torch stays out, the CLI answers."""
 
+import ast
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 import handsim
+
+PUBLIC_NAMES = {
+    # errors
+    "HandSimError", "InvalidHandParams", "InvalidKeypoints", "InvalidPose", "UnknownName",
+    "InvalidEstimate", "InvalidEstimatorInput", "InvalidEstimatorParams", "EstimatorStateError",
+    # the estimator protocol
+    "Estimate", "Estimator", "EstimatorBase", "PrivilegedEstimator", "estimate_errors",
+    "hand_center",
+    # the hand
+    "HAND_PHYSICS_OPTIONS", "HAND_SIZES", "KEYPOINT_NAMES", "Hand", "HandBinding", "HandParams",
+    "build_skeleton", "hand_params", "JOINT_LIMITS", "JOINT_LIMITS_DEG", "JOINT_NAMES",
+    "HandPose", "LimitViolation", "ForwardKinematics", "Retargeter", "RetargetResult",
+    "GESTURES", "GRASP_TYPES", "gesture", "grasp_pose", "random_motion", "sample_grasp",
+    "sample_synergy", "sample_uniform", "smooth_motion", "synergy_basis",
+    # metrics
+    "evaluate_dexter_object", "evaluate_hand_poses", "evaluate_object_poses", "plot_f_tau",
+    "plot_pck",
+    # the world
+    "OBJECTS", "OBJECT_NAMES", "Symmetry", "YCBObject", "add_object", "get_object",
+    "load_object", "CAMERA_PRESETS", "CameraIntrinsics", "camera_preset", "DepthRenderer",
+    "SEGMENT_LABELS", "CameraSpec", "ObjectPlacement", "Scene", "SceneSpec",
+    "egocentric_camera", "sample_placements", "sample_viewpoint", "third_person_camera",
+    "StructuredLight", "TimeOfFlight", "sensor_model",
+    # frames
+    "Frame", "FrameRenderer", "ObjectLabel",
+}  # fmt: skip
+"""Names importable from ``handsim``: moving a module must not remove one."""
+
+CORE = Path(handsim.__file__).parent
+
+
+def test_public_names_stay_importable_from_the_package():
+    """Every public name is exported by ``handsim`` (a layout change is not an API change)."""
+    missing = PUBLIC_NAMES - set(handsim.__all__)
+    assert not missing, f"no longer exported from handsim: {sorted(missing)}"
+    for name in PUBLIC_NAMES:
+        assert getattr(handsim, name) is not None, name
+
+
+def test_the_core_is_grouped_by_part_of_the_world():
+    """The core has one folder per part of the world (hand, world, data) and one for the CLI."""
+    for folder in ("hand", "world", "data", "cli"):
+        assert (CORE / folder / "__init__.py").is_file(), folder
+    flat = {p.stem for p in CORE.glob("*.py")}
+    assert flat <= {"__init__", "errors", "estimator", "frame", "metrics", "viz"}, flat
+
+
+def _imported_modules(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+    return names
+
+
+def test_layers_the_core_imports_neither_envs_nor_estimators():
+    """The core (except the CLI, which glues the layers) never imports envs or estimators."""
+    for path in CORE.rglob("*.py"):
+        if "cli" in path.relative_to(CORE).parts:
+            continue
+        for module in _imported_modules(path):
+            assert not module.startswith(("handsim.envs", "handsim.estimators")), (path, module)
+
+
+def test_layers_envs_never_import_estimators():
+    """Envs accept any object of the Estimator protocol; they import no estimator."""
+    import handsim.envs
+
+    for path in Path(handsim.envs.__file__).parent.rglob("*.py"):
+        for module in _imported_modules(path):
+            assert not module.startswith("handsim.estimators"), (path, module)
 
 
 def test_every_name_in_all_resolves():
@@ -36,7 +111,7 @@ def test_cli_help_lists_the_subcommands():
 def test_cli_info_prints_the_hand(capsys):
     """`handsim info` reports the 27 DoF and every joint."""
     from handsim.cli import main
-    from handsim.pose import JOINT_NAMES
+    from handsim.hand.pose import JOINT_NAMES
 
     assert main(["info"]) == 0
     out = capsys.readouterr().out
@@ -57,7 +132,7 @@ def test_rendering_works_when_mujoco_is_imported_first():
     code = (
         "import mujoco\n"
         "from handsim.frame import FrameRenderer\n"
-        "from handsim.scene import Scene, SceneSpec\n"
+        "from handsim.world.scene import Scene, SceneSpec\n"
         "import numpy as np\n"
         "scene = Scene(SceneSpec())\n"
         "with FrameRenderer(scene, 'third_person') as r:\n"

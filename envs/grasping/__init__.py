@@ -1,0 +1,128 @@
+"""Scripted grasping: a :class:`GraspExpert` that picks up and lifts YCB objects, and its score.
+
+The pieces an environment needs to run a pick-and-lift episode:
+
+- :class:`GraspState`: what the expert sees (the hand pose, keypoints and the target object's
+  pose and geometry). It may come from ground truth (:meth:`GraspState.from_sim`) or from a
+  pose estimate; the expert never reads ``MjData``.
+- :func:`start_pose`: the seeded initial hand pose of an episode (open hand, palm down, on the
+  user's side of the object).
+- :class:`GraspExpert`: plans a grasp at :meth:`~GraspExpert.reset` and returns an absolute
+  27-DoF target pose at every control step (:meth:`~GraspExpert.act`).
+- :class:`LiftTracker` / :func:`evaluate_lift`: the success definition (below).
+- :func:`run_episode`: the ground-truth loop used by the tests and ``benchmarks/bench_grasp.py``.
+
+Control: the env applies the expert's pose with :class:`handsim.envs.base.HandDriver` (the
+wrist follows a mocap target through a soft weld, the fingers have position actuators) and steps
+the physics :data:`FRAME_SKIP` times (0.002 s each, so the expert runs at 50 Hz);
+:func:`run_episode` does the same.
+
+Grasps are physical: contact and friction only. No equality constraint, adhesion or change of
+the object's mass, gravity or friction is used.
+
+Success (:class:`LiftTracker`): the object origin rises at least :data:`LIFT_HEIGHT_M` = 0.10 m
+above its rest height, and then stays lifted for :data:`HOLD_DURATION_S` = 2 s while it moves
+less than :data:`MAX_SLIP_M` = 0.01 m in the palm frame (slip: displacement of the object origin
+expressed in the frame of the palm body, relative to where it was at the start of the hold
+window). The hold window opens at the first control step at which the object is lifted; if the
+object drops below the lift height or slips by ``MAX_SLIP_M`` or more, the window restarts at
+that step (a later 2 s window may still succeed).
+
+How the expert grasps (:data:`OBJECT_SHAPE_CLASSES`, :data:`GRASP_RECIPES`): the object's shape
+class selects a strategy and a grasp type of the GRASP taxonomy
+(:data:`handsim.hand.pose_sources.GRASP_TYPES`):
+
+==========  ==================================  ============================================
+class       objects                             grasp (type; how)
+==========  ==================================  ============================================
+can         002 master chef can, 005 tomato     large diameter; side wrap, palm against the
+            soup can                            can, thumb up
+bottle      006 mustard, 021 bleach cleanser    large diameter; side wrap, palm on the broad
+                                                face
+box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; from the top, thumb and
+                                                finger pads across the narrowest side; boxes
+                                                wider than 0.13 m (003) with the widest span
+                                                and the fingertips hooked under the far top
+                                                edge
+disk        007 tuna fish can                   prismatic 4 finger; from the top
+tool        035 power drill                     prismatic 4 finger; from the top, across the
+                                                grip
+vessel      019 pitcher base, 025 mug           palmar pinch; thumb outside and index inside
+                                                the rim nearest the user
+bowl        024 bowl                            palmar pinch; as vessel
+flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
+                                                the material between them
+clamp       051, 052 clamps                     tripod; fingertips at the table, across the
+                                                arms at the pivot
+elongated   011 banana, 040 large marker        tripod; fingertips at the table, across the
+                                                body
+==========  ==================================  ============================================
+
+Planning (at :meth:`GraspExpert.reset`, from the state's object pose and the object's model
+points): the grasp axis and centre come from the object's surface points (the narrowest
+cross-section through the centre of mass that the hand can span), the wrist pose from the
+hand's forward kinematics (the thumb and finger contact spheres meet the object at the closure
+where their gap equals the object's width), and every candidate is checked for collisions with
+the table and the object in a private kinematic copy of the hand and the object (the env's
+``MjData`` is never read). The squeeze past contact scales with the object's mass (people grip
+a light object more gently). Motions are minimum-jerk segments with a peak wrist speed of
+:data:`EXPERT_WRIST_SPEED_M_S` (below :data:`MAX_WRIST_SPEED_M_S`).
+
+Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
+"""
+
+from handsim.envs.grasping.execution import (
+    FailureReason,
+    GraspExpert,
+    GraspOutcome,
+    LiftTracker,
+    evaluate_lift,
+    run_episode,
+)
+from handsim.envs.grasping.planning import (
+    CONTROL_DT_S,
+    EXPERT_WRIST_SPEED_M_S,
+    FRAME_SKIP,
+    GRASP_RECIPES,
+    HOLD_DURATION_S,
+    LIFT_HEIGHT_M,
+    MAX_SLIP_M,
+    MAX_WRIST_SPEED_M_S,
+    OBJECT_SHAPE_CLASSES,
+    GraspPlan,
+    GraspPlanningError,
+    GraspRecipe,
+    GraspState,
+    InvalidGraspState,
+    ShapeClass,
+    plan_grasp,
+    shape_class,
+    start_pose,
+)
+
+__all__ = [
+    "FRAME_SKIP",
+    "CONTROL_DT_S",
+    "LIFT_HEIGHT_M",
+    "HOLD_DURATION_S",
+    "MAX_SLIP_M",
+    "MAX_WRIST_SPEED_M_S",
+    "EXPERT_WRIST_SPEED_M_S",
+    "InvalidGraspState",
+    "GraspPlanningError",
+    "GraspState",
+    "start_pose",
+    "ShapeClass",
+    "OBJECT_SHAPE_CLASSES",
+    "GraspRecipe",
+    "GRASP_RECIPES",
+    "shape_class",
+    "GraspPlan",
+    "plan_grasp",
+    "GraspExpert",
+    "FailureReason",
+    "GraspOutcome",
+    "LiftTracker",
+    "evaluate_lift",
+    "run_episode",
+]

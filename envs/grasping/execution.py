@@ -1,0 +1,533 @@
+"""Grasp execution: the expert that follows a plan, the success definition, episodes.
+
+:class:`GraspExpert` follows a plan, :class:`LiftTracker` scores it and :func:`run_episode` is the
+ground-truth episode loop.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Literal
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from handsim.envs.base import HandDriver
+from handsim.envs.grasping.planning import (
+    _CLOSE_S,
+    _EXPERT_ANGULAR_SPEED_RAD_S,
+    _LIFT_SPEED_M_S,
+    _LIFT_TARGET_M,
+    _PREGRASP_DIST_M,
+    _SETTLE_S,
+    _SLOW_SPEED_M_S,
+    _SQUEEZE_S,
+    CONTROL_DT_S,
+    EXPERT_WRIST_SPEED_M_S,
+    FRAME_SKIP,
+    GRASP_RECIPES,
+    HOLD_DURATION_S,
+    LIFT_HEIGHT_M,
+    MAX_SLIP_M,
+    GraspPlan,
+    GraspState,
+    InvalidGraspState,
+    _check_transform,
+    _object_body_id,
+    plan_grasp,
+    shape_class,
+    start_pose,
+)
+from handsim.hand.model import HandParams
+from handsim.hand.pose import HandPose
+from handsim.hand.pose_sources import minimum_jerk
+from handsim.world.objects import YCBObject
+from handsim.world.scene import Scene
+
+__all__ = [
+    "GraspExpert",
+    "FailureReason",
+    "GraspOutcome",
+    "LiftTracker",
+    "evaluate_lift",
+    "run_episode",
+]
+
+# The expert -----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class _Segment:
+    name: str
+    duration_s: float
+    pos: np.ndarray
+    rotation: Rotation
+    angles: np.ndarray
+
+
+def _duration(
+    pos0: np.ndarray,
+    pos1: np.ndarray,
+    rot0: Rotation,
+    rot1: Rotation,
+    speed_m_s: float,
+    minimum_s: float,
+) -> float:
+    distance = float(np.linalg.norm(pos1 - pos0))
+    angle = float((rot1 * rot0.inv()).magnitude())
+    # Minimum jerk peaks at 1.875 times the mean speed.
+    return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
+
+
+class GraspExpert:
+    """A scripted pick-and-lift expert for one object.
+
+    Phases (:attr:`phase`): ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
+    speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
+    digits close to the planned contact posture while an open hand that hovered sinks to the
+    grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
+    actuators press), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
+    ``"hold"`` (until the episode ends). :attr:`grasp_type` is the grasp taxonomy type and
+    ``plan.strategy`` how it is applied (:class:`GraspRecipe`).
+
+    The plan is made once, at :meth:`reset`, from the state's object pose. :meth:`act` follows
+    minimum-jerk segments in time (the target never jumps: each segment starts where the last
+    one ended), and waits (up to 1 s) at the end of the reach and of the approach until the
+    state's wrist is within 2 cm of its target. It closes along a fixed schedule; contact needs
+    no sensing because the position actuators stop at the object and press with their
+    torque-limited stiffness.
+
+    Args:
+        obj: the object to grasp.
+        hand_params: the hand that will grasp it.
+        rng: optional generator; it jitters the segment speeds by up to 10 % (None: none).
+    """
+
+    def __init__(
+        self, obj: YCBObject, hand_params: HandParams, *, rng: np.random.Generator | None = None
+    ) -> None:
+        if not isinstance(obj, YCBObject):
+            raise InvalidGraspState(
+                f"obj must be a YCBObject (handsim.world.get_object); received {type(obj).__name__}"
+            )
+        if not isinstance(hand_params, HandParams):
+            raise InvalidGraspState(
+                f"hand_params must be a HandParams; received {type(hand_params).__name__}"
+            )
+        if rng is not None and not isinstance(rng, np.random.Generator):
+            raise InvalidGraspState(
+                f"rng must be a numpy.random.Generator or None; received {type(rng).__name__}"
+            )
+        self.obj = obj
+        self.hand_params = hand_params
+        self.rng = rng
+        self.recipe = GRASP_RECIPES[shape_class(obj)]
+        self.plan: GraspPlan | None = None
+        self.phase = "idle"
+        self._segments: list[_Segment] = []
+        self._index = 0
+        self._segment_start_s = 0.0
+        self._from: _Segment | None = None
+
+    @property
+    def grasp_type(self) -> str:
+        """The grasp type (:data:`handsim.hand.pose_sources.GRASP_TYPES` key) of the recipe."""
+        return self.plan.grasp_type if self.plan is not None else self.recipe.grasp_type
+
+    def reset(self, state: GraspState) -> None:
+        """Plan the grasp for the state's object pose and restart the phases.
+
+        Raises:
+            InvalidGraspState: if ``state`` is not a :class:`GraspState` of this object.
+            GraspPlanningError: if no collision-free grasp exists.
+        """
+        self._check_state(state)
+        plan = plan_grasp(self.obj, state.T_world_from_obj, self.hand_params)
+        self.plan = plan
+        scale = 1.0 if self.rng is None else float(self.rng.uniform(0.9, 1.1))
+        hand = state.hand_pose
+        start = _Segment(
+            "start",
+            0.0,
+            hand.wrist_pos.copy(),
+            Rotation.from_rotvec(hand.wrist_rotvec),
+            hand.angles.copy(),
+        )
+        pre_pos = plan.approach_end - _PREGRASP_DIST_M * plan.approach_dir
+        lift_pos = plan.wrist_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
+        segments = [
+            _Segment("reach", 0.0, pre_pos, plan.rotation, plan.preshape),
+            _Segment("approach", 0.0, plan.approach_end, plan.rotation, plan.preshape),
+            _Segment("close", _CLOSE_S, plan.wrist_pos, plan.rotation, plan.contact),
+            _Segment("squeeze", _SQUEEZE_S, plan.wrist_pos, plan.rotation, plan.closed),
+            _Segment("settle", _SETTLE_S, plan.wrist_pos, plan.rotation, plan.closed),
+            _Segment("lift", 0.0, lift_pos, plan.rotation, plan.closed),
+        ]
+        previous = start
+        for segment in segments:
+            if segment.duration_s == 0.0:
+                speed = {"reach": EXPERT_WRIST_SPEED_M_S, "lift": _LIFT_SPEED_M_S}.get(
+                    segment.name, _SLOW_SPEED_M_S
+                )
+                segment.duration_s = scale * _duration(
+                    previous.pos, segment.pos, previous.rotation, segment.rotation, speed, 0.4
+                )
+            previous = segment
+        self._segments = segments
+        self._from = start
+        self._index = 0
+        self._segment_start_s = state.time_s
+        self.phase = segments[0].name
+
+    def _check_state(self, state: GraspState) -> None:
+        if not isinstance(state, GraspState):
+            raise InvalidGraspState(f"state must be a GraspState; received {type(state).__name__}")
+        if state.obj.name != self.obj.name:
+            raise InvalidGraspState(
+                f"the state's object is {state.obj.name!r} but this expert grasps "
+                f"{self.obj.name!r}; make one GraspExpert per object"
+            )
+
+    def act(self, state: GraspState) -> HandPose:
+        """The absolute target pose for this control step.
+
+        Args:
+            state: the current state (same object as at :meth:`reset`).
+
+        Returns:
+            The 27-DoF target (world frame), for ``HandBinding.set_target``.
+
+        Raises:
+            InvalidGraspState: if called before :meth:`reset` or with a bad state.
+        """
+        if self.plan is None:
+            raise InvalidGraspState("call reset(state) before act(state)")
+        self._check_state(state)
+        t = state.time_s
+        while self._index < len(self._segments):
+            segment = self._segments[self._index]
+            elapsed = t - self._segment_start_s
+            if elapsed < segment.duration_s:
+                break
+            # Wait at the end of a motion until the wrist has (nearly) arrived.
+            if segment.name in ("reach", "approach"):
+                error = np.linalg.norm(state.hand_pose.wrist_pos - segment.pos)
+                if error > 0.02 and elapsed < segment.duration_s + 1.0:
+                    break
+            self._from = segment
+            self._index += 1
+            self._segment_start_s = t
+        if self._index >= len(self._segments):
+            self.phase = "hold"
+            last = self._segments[-1]
+            return HandPose(last.pos, last.rotation.as_rotvec(), last.angles)
+        segment = self._segments[self._index]
+        self.phase = segment.name
+        tau = (t - self._segment_start_s) / max(segment.duration_s, 1e-9)
+        s = float(np.clip(minimum_jerk(np.clip(tau, 0.0, 1.0)), 0.0, 1.0))
+        start = self._from
+        pos = start.pos + s * (segment.pos - start.pos)
+        slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, segment.rotation]))
+        rotation = slerp([s])[0]
+        angles = start.angles + s * (segment.angles - start.angles)
+        return HandPose(pos, rotation.as_rotvec(), angles)
+
+
+# Success --------------------------------------------------------------------------------------
+
+FailureReason = Literal["not_lifted", "dropped", "slipped", "hold_incomplete", "diverged"]
+
+
+@dataclasses.dataclass(frozen=True)
+class GraspOutcome:
+    """The result of a pick-and-lift episode.
+
+    Attributes:
+        success: lifted by :data:`LIFT_HEIGHT_M` and held :data:`HOLD_DURATION_S` with less
+            than :data:`MAX_SLIP_M` slip.
+        failure: why it failed (``None`` on success): ``"not_lifted"`` (never reached the lift
+            height), ``"dropped"`` (lifted, but below the lift height at the end),
+            ``"slipped"`` (still lifted at the end, but it slipped ``MAX_SLIP_M`` or more in
+            the palm frame and the hold restarted), ``"hold_incomplete"`` (still lifted and not
+            slipping, held for less than the hold duration), ``"diverged"`` (physics).
+        max_lift_m: highest rise of the object origin above its rest height, metres.
+        slip_m: on success the largest slip in the successful window; otherwise the largest
+            slip seen in any window, metres.
+        hold_s: duration of the last hold window, seconds.
+        success_time_s: episode time at which the hold completed (``None`` on failure).
+        steps: control steps run.
+    """
+
+    success: bool
+    failure: FailureReason | None
+    max_lift_m: float
+    slip_m: float
+    hold_s: float
+    success_time_s: float | None
+    steps: int
+
+    def to_dict(self) -> dict[str, object]:
+        """A JSON-serializable dict of the fields."""
+        return dataclasses.asdict(self)
+
+
+class LiftTracker:
+    """Per-step evaluation of the lift success definition (module docstring).
+
+    Feed every control step with :meth:`update`; :attr:`success` turns true once an object has
+    been held lifted for :data:`HOLD_DURATION_S` with slip below :data:`MAX_SLIP_M`, and stays
+    true. :meth:`outcome` summarizes the episode so far.
+
+    Args:
+        rest_height_m: height of the object origin at rest (episode start), metres.
+        lift_height_m: the lift threshold (default :data:`LIFT_HEIGHT_M`).
+        hold_s: the hold duration (default :data:`HOLD_DURATION_S`).
+        max_slip_m: the slip threshold (default :data:`MAX_SLIP_M`).
+    """
+
+    def __init__(
+        self,
+        rest_height_m: float,
+        *,
+        lift_height_m: float = LIFT_HEIGHT_M,
+        hold_s: float = HOLD_DURATION_S,
+        max_slip_m: float = MAX_SLIP_M,
+    ) -> None:
+        for name, value in (
+            ("rest_height_m", rest_height_m),
+            ("lift_height_m", lift_height_m),
+            ("hold_s", hold_s),
+            ("max_slip_m", max_slip_m),
+        ):
+            if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value)):
+                raise InvalidGraspState(f"{name} must be a finite number; received {value!r}")
+        if lift_height_m <= 0 or hold_s <= 0 or max_slip_m <= 0:
+            raise InvalidGraspState(
+                "lift_height_m, hold_s and max_slip_m must be > 0; received "
+                f"{lift_height_m}, {hold_s}, {max_slip_m}"
+            )
+        self.rest_height_m = float(rest_height_m)
+        self.lift_height_m = float(lift_height_m)
+        self.hold_s = float(hold_s)
+        self.max_slip_m = float(max_slip_m)
+        self.success = False
+        self.success_time_s: float | None = None
+        self.max_lift_m = -math.inf
+        self.steps = 0
+        self._window_start_s: float | None = None
+        self._window_pos_palm: np.ndarray | None = None
+        self._window_slip_m = 0.0
+        self._last_time_s = -math.inf
+        self._ever_lifted = False
+        self._broken: FailureReason | None = None
+        self._break_slip_m = 0.0
+        self._window_duration_s = 0.0
+
+    def update(
+        self, time_s: float, obj_pos_world: np.ndarray, T_world_from_palm: np.ndarray
+    ) -> bool:
+        """Add one step.
+
+        Args:
+            time_s: episode time, seconds (increasing).
+            obj_pos_world: (3,) object origin, world frame, metres.
+            T_world_from_palm: (4, 4) pose of the palm (hand root) body, world frame.
+
+        Returns:
+            :attr:`success` after this step.
+
+        Raises:
+            InvalidGraspState: for non-increasing time or malformed arrays.
+        """
+        if not time_s > self._last_time_s:
+            raise InvalidGraspState(
+                f"time_s must increase from step to step; received {time_s} after "
+                f"{self._last_time_s}"
+            )
+        pos = np.asarray(obj_pos_world, dtype=np.float64)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise InvalidGraspState(
+                f"obj_pos_world must be 3 finite numbers (m); received {obj_pos_world!r}"
+            )
+        T = _check_transform(T_world_from_palm, "T_world_from_palm")
+        self._last_time_s = float(time_s)
+        self.steps += 1
+        if self.success:
+            return True
+        lift = float(pos[2] - self.rest_height_m)
+        self.max_lift_m = max(self.max_lift_m, lift)
+        pos_palm = T[:3, :3].T @ (pos - T[:3, 3])
+        if lift < self.lift_height_m:
+            if self._window_start_s is not None:
+                self._broken = "dropped"
+            self._close_window()
+            return False
+        self._ever_lifted = True
+        if self._window_start_s is None:
+            self._open_window(time_s, pos_palm)
+            return False
+        slip = float(np.linalg.norm(pos_palm - self._window_pos_palm))
+        if slip >= self.max_slip_m:
+            self._broken = "slipped"
+            self._break_slip_m = max(self._break_slip_m, slip)
+            self._open_window(time_s, pos_palm)
+            return False
+        self._window_slip_m = max(self._window_slip_m, slip)
+        self._window_duration_s = time_s - self._window_start_s
+        # A small tolerance absorbs float round-off in time stamps (k * dt).
+        if self._window_duration_s >= self.hold_s - 1e-9:
+            self.success = True
+            self.success_time_s = float(time_s)
+        return self.success
+
+    def _open_window(self, time_s: float, pos_palm: np.ndarray) -> None:
+        self._window_start_s = float(time_s)
+        self._window_pos_palm = pos_palm
+        self._window_slip_m = 0.0
+        self._window_duration_s = 0.0
+
+    def _close_window(self) -> None:
+        self._window_start_s = None
+        self._window_pos_palm = None
+
+    def update_from_sim(self, scene: Scene, instance: int, time_s: float) -> bool:
+        """:meth:`update` with the ground truth of ``scene`` (object ``instance``)."""
+        body_id = _object_body_id(scene, instance)
+        palm_id = int(scene.model.body(scene.hand.root_body).id)
+        data = scene.data
+        T = np.eye(4)
+        T[:3, :3] = data.xmat[palm_id].reshape(3, 3)
+        T[:3, 3] = data.xpos[palm_id]
+        return self.update(time_s, data.xpos[body_id], T)
+
+    def outcome(self, diverged: bool = False) -> GraspOutcome:
+        """The outcome of the episode so far (call at its end).
+
+        Args:
+            diverged: the physics diverged (the episode was cut short).
+        """
+        failure: FailureReason | None
+        if self.success:
+            failure = None
+        elif diverged:
+            failure = "diverged"
+        elif not self._ever_lifted:
+            failure = "not_lifted"
+        elif self._window_start_s is None:
+            failure = "dropped"
+        else:
+            # Still lifted at the end: the last window restarted after a slip, or ran short.
+            failure = "slipped" if self._broken == "slipped" else "hold_incomplete"
+        return GraspOutcome(
+            success=self.success,
+            failure=failure,
+            max_lift_m=float(self.max_lift_m) if self.steps else 0.0,
+            slip_m=float(
+                self._window_slip_m
+                if self.success
+                else max(self._window_slip_m, self._break_slip_m)
+            ),
+            hold_s=float(self._window_duration_s),
+            success_time_s=self.success_time_s,
+            steps=self.steps,
+        )
+
+
+def evaluate_lift(
+    times_s: np.ndarray,
+    obj_pos_world: np.ndarray,
+    T_world_from_palm: np.ndarray,
+    rest_height_m: float,
+) -> GraspOutcome:
+    """Evaluate a recorded trajectory against the success definition.
+
+    Args:
+        times_s: (T,) increasing episode times, seconds.
+        obj_pos_world: (T, 3) object origin, world frame, metres.
+        T_world_from_palm: (T, 4, 4) palm poses, world frame.
+        rest_height_m: height of the object origin at rest, metres.
+
+    Returns:
+        The outcome, as :class:`LiftTracker` would give after the last step.
+
+    Raises:
+        InvalidGraspState: for mismatched shapes or non-increasing times.
+    """
+    times = np.asarray(times_s, dtype=np.float64)
+    pos = np.asarray(obj_pos_world, dtype=np.float64)
+    palm = np.asarray(T_world_from_palm, dtype=np.float64)
+    if times.ndim != 1 or pos.shape != (len(times), 3) or palm.shape != (len(times), 4, 4):
+        raise InvalidGraspState(
+            "expected times_s (T,), obj_pos_world (T, 3) and T_world_from_palm (T, 4, 4); "
+            f"received {times.shape}, {pos.shape}, {palm.shape}"
+        )
+    tracker = LiftTracker(rest_height_m)
+    for t, p, T in zip(times, pos, palm, strict=True):
+        tracker.update(float(t), p, T)
+    return tracker.outcome()
+
+
+# Episodes -------------------------------------------------------------------------------------
+
+
+def run_episode(
+    scene: Scene,
+    instance: int,
+    expert: GraspExpert,
+    rng: np.random.Generator,
+    max_steps: int = 400,
+    *,
+    stop_on_success: bool = True,
+) -> GraspOutcome:
+    """Run one ground-truth pick-and-lift episode.
+
+    Resets ``scene`` (objects at their placements, the hand at :func:`start_pose`), then per
+    control step: state -> ``expert.act`` -> ``set_target`` -> :data:`FRAME_SKIP` physics steps
+    -> success tracking.
+
+    Args:
+        scene: a scene with a hand and the target object.
+        instance: index of the target in ``scene.objects``.
+        expert: a :class:`GraspExpert` for that object.
+        rng: random generator of the start pose.
+        max_steps: control steps at most (400 = 8 s).
+        stop_on_success: end the episode as soon as the hold succeeds.
+
+    Returns:
+        The outcome.
+
+    Raises:
+        InvalidGraspState: for a bad instance, expert or ``max_steps``.
+        GraspPlanningError: if the expert finds no grasp.
+    """
+    body_id = _object_body_id(scene, instance)
+    if not isinstance(expert, GraspExpert):
+        raise InvalidGraspState(f"expert must be a GraspExpert; received {type(expert).__name__}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise InvalidGraspState(f"max_steps must be an int >= 1; received {max_steps!r}")
+    obj = scene.objects[instance][1]
+    if expert.obj.name != obj.name:
+        raise InvalidGraspState(
+            f"the expert grasps {expert.obj.name!r} but scene object {instance} is {obj.name!r}"
+        )
+    data = scene.data
+    scene.reset()
+    T0 = GraspState.from_sim(scene, instance, 0.0).T_world_from_obj
+    scene.reset(start_pose(rng, T0, scene.hand.params, obj=obj))
+    tracker = LiftTracker(float(data.xpos[body_id][2]))
+    state = GraspState.from_sim(scene, instance, 0.0)
+    expert.reset(state)
+    diverged = False
+    # The env's driver: same mocap tracking and stepping as handsim/Grasp-v0.
+    driver = HandDriver(scene)
+    for step in range(int(max_steps)):
+        driver.set_target(expert.act(state))
+        if driver.step(FRAME_SKIP):
+            diverged = True
+            break
+        time_s = (step + 1) * CONTROL_DT_S
+        if tracker.update_from_sim(scene, instance, time_s) and stop_on_success:
+            break
+        state = GraspState.from_sim(scene, instance, time_s)
+    return tracker.outcome(diverged=diverged)

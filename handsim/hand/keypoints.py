@@ -1,0 +1,418 @@
+"""Keypoint-order converters between handsim's canonical 21 keypoints and common hand formats.
+
+handsim's canonical order is the MediaPipe / OpenPose 21-point hand (:data:`KEYPOINT_NAMES`)::
+
+    0 wrist
+    1-4   thumb  CMC, MCP, IP, tip
+    5-8   index  MCP, PIP, DIP, tip
+    9-12  middle MCP, PIP, DIP, tip
+    13-16 ring   MCP, PIP, DIP, tip
+    17-20 little MCP, PIP, DIP, tip
+
+Keypoints are arrays of shape ``(..., N, D)``: any leading batch shape, ``N`` points in the
+order of the format, ``D`` coordinates (``D = 3`` for metres in any frame, ``D = 2`` for
+pixels; any ``D >= 1`` works). Conversions never change units or frames, and left and right
+hands use the same order (nothing is mirrored).
+
+Formats (``FORMATS[name]`` holds the names of a format's points in its own order):
+
+``mediapipe21``
+    Identity. Source: MediaPipe ``HandLandmark`` enum ("The 21 hand landmarks", WRIST = 0,
+    THUMB_CMC = 1 ... PINKY_TIP = 20); names and indices checked.
+``openpose21``
+    Same order as mediapipe21; OpenPose publishes indices only, so the canonical names are
+    used. Source: OpenPose ``doc/02_output.md`` (hand output figure) and the CMU Panoptic
+    HandDB keypoint list in mmpose ``configs/_base_/datasets/panoptic_hand2d.py`` (wrist,
+    thumb1-4, forefinger1-4, middle_finger1-4, ring_finger1-4, pinky_finger1-4).
+``msra21``
+    MSRA15 (Sun et al., CVPR 2015): wrist, then index, middle, ring, little, thumb, each
+    ``mcp, pip, dip, tip``. Source: the dataset readme
+    (``cvpr15_MSRAHandGestureDB_readme.txt``), which lists the 21 names verbatim;
+    cross-checked with V2V-PoseNet ``vis/msra/draw_2Dskeleton_MSRA.m``. The readme names the
+    thumb chain ``thumb_mcp, thumb_pip, thumb_dip, thumb_tip``; those are its four points from
+    base to tip and are mapped to canonical ``thumb_cmc, thumb_mcp, thumb_ip, thumb_tip``.
+``bighand21``
+    BigHand2.2M / HANDS 2017 / F-PHAB: ``Wrist, TMCP, IMCP, MMCP, RMCP, PMCP``, then ``PIP,
+    DIP, TIP`` of T, I, M, R, P. Source: the HANDS 2017 challenge convention as written in
+    xkunwu/depth-hand (``join_name``) and F-PHAB converters. The thumb's ``TMCP, TPIP,
+    TDIP`` are its chain from base to tip and are mapped to canonical ``thumb_cmc,
+    thumb_mcp, thumb_ip``, as for MSRA.
+``icvl16``
+    ICVL (Tang et al., CVPR 2014): palm, then thumb, index, middle, ring, pinky, each
+    ``root, mid, tip``. Order source: DeepPrior++ ``ICVLHandposeEvaluation`` (joint names
+    ``C, T1-T3, I1-I3, M1-M3, R1-R3, P1-P3``) and V2V-PoseNet
+    ``vis/icvl/draw_2Dskeleton_ICVL.m`` (V2V calls point 0 "wrist", DeepPrior++ "C"; it is
+    the crop centre, so it is treated as the palm). **Not confirmed:** the anatomical joints
+    behind "root" and "mid". They are taken as MCP and PIP for the fingers and as MCP and IP
+    for the thumb. No source found states this.
+``nyu14``
+    The 14 of NYU's 36 joints used by the Tompson et al. / DeepPrior / V2V / A2J evaluations:
+    NYU indices ``[0, 3, 6, 9, 12, 15, 18, 21, 24, 25, 27, 30, 31, 32]``
+    (DeepPrior++ ``NYUImporter.restrictedJointsEval``; the same list is in the
+    awesome-hand-pose-estimation evaluation README). Joint names are from mmpose
+    ``configs/_base_/datasets/nyu.py``. DeepPrior++ ``NYUHandposeEvaluation`` labels them
+    ``P1 P2 R1 R2 M1 M2 I1 I2 T1 T2 T3 W1 W2 C``, and V2V-PoseNet
+    ``vis/nyu/draw_2Dskeleton_NYU.m`` labels them pinky tip/mid, ring, middle, index, thumb
+    tip/mid/root, wrist back, wrist, palm. So F1..F4 are pinky, ring, middle and index.
+    Canonical mapping: ``Fk_KNU3_A`` is the tip, ``Fk_KNU2_B`` is the PIP, ``TH_KNU3_A``,
+    ``TH_KNU3_B`` and ``TH_KNU2_B`` are the thumb tip, IP and MCP, ``PALM_1`` and ``PALM_2``
+    are the two wrist points and ``PALM_3`` is the palm centre. The meaning of KNU/A/B
+    (KNU3/2/1 = distal/middle/proximal phalanx, B = base of that bone) is from community
+    notes (zanecodes/thesis ``docs/nyu_dataset.md``), not from the dataset authors.
+``openxr26``
+    ``XrHandJointEXT`` of XR_EXT_hand_tracking: PALM = 0, WRIST = 1, thumb METACARPAL,
+    PROXIMAL, DISTAL, TIP = 2-5, then index, middle, ring, little METACARPAL, PROXIMAL,
+    INTERMEDIATE, DISTAL, TIP = 6-25. Source: the Khronos registry page for
+    ``XrHandJointEXT`` (enum values). A joint is located at the proximal end of the bone it
+    is named after, so THUMB_METACARPAL = thumb CMC, INDEX_PROXIMAL = index MCP,
+    INDEX_INTERMEDIATE = index PIP, INDEX_DISTAL = index DIP. The palm is "at the center of
+    the middle finger's metacarpal bone". That phrase is the spec's as quoted in Godot's
+    OpenXRHand docs; the spec section itself was not read.
+
+Points missing from the canonical set are derived in :func:`to_format` as affine
+combinations of canonical points (weights sum to 1, so the rules hold in any frame):
+
+* palm centre (``icvl16`` palm, ``nyu14`` PALM_3) = mean of wrist and the index, middle, ring
+  and little MCPs;
+* finger metacarpal base (``openxr26`` INDEX/MIDDLE/RING/LITTLE_METACARPAL)
+  = wrist + :data:`METACARPAL_BASE_FRACTION` * (MCP - wrist);
+* ``openxr26`` PALM = midpoint of the middle metacarpal base and the middle MCP
+  = 0.375 * wrist + 0.625 * middle MCP;
+* ``nyu14`` PALM_1 and PALM_2 (two wrist points) = wrist, because handsim has a single wrist.
+
+For 2D (pixel) keypoints the same weights are applied in the image plane. Under a perspective
+camera this differs slightly from projecting the 3D derived point.
+
+:func:`from_format` returns NaN for canonical points a format lacks; :func:`present_mask`
+tells which points are present. The only non-copied canonical point is the ``nyu14`` wrist,
+which is the midpoint of PALM_1 and PALM_2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from handsim.errors import InvalidKeypoints, UnknownName
+from handsim.hand.pose import FINGERS
+
+__all__ = [
+    "FORMATS",
+    "KEYPOINT_NAMES",
+    "METACARPAL_BASE_FRACTION",
+    "from_format",
+    "present_mask",
+    "to_format",
+]
+
+
+KEYPOINT_NAMES: tuple[str, ...] = (
+    "wrist",
+    "thumb_cmc",
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "dip", "tip")),
+)
+"""Names of the 21 canonical keypoints, in canonical order."""
+
+METACARPAL_BASE_FRACTION: float = 0.25
+"""Where the finger metacarpal base (CMC) sits on the wrist -> MCP segment.
+
+An approximation: the carpal bones span roughly a quarter of the wrist-to-MCP distance.
+"""
+
+_INDEX = {name: i for i, name in enumerate(KEYPOINT_NAMES)}
+
+# A rule is a tuple of (source index, weight) pairs; None marks a point with no source.
+_Rule = tuple[tuple[int, float], ...]
+
+
+@dataclass(frozen=True)
+class _Format:
+    names: tuple[str, ...]
+    to_rules: tuple[_Rule, ...]  # one per format point, over canonical points
+    from_rules: tuple[_Rule | None, ...]  # one per canonical point, over format points
+
+
+def _combo(weights: Mapping[str, float]) -> _Rule:
+    return tuple((_INDEX[name], float(w)) for name, w in weights.items())
+
+
+_PALM_CENTRE = _combo({"wrist": 0.2, **{f"{finger}_mcp": 0.2 for finger in FINGERS}})
+
+
+def _metacarpal_base(finger: str) -> _Rule:
+    a = METACARPAL_BASE_FRACTION
+    return _combo({"wrist": 1.0 - a, f"{finger}_mcp": a})
+
+
+def _build(
+    names: tuple[str, ...],
+    sources: tuple[str | _Rule, ...],
+    recover: Mapping[str, Mapping[str, float]] | None = None,
+) -> _Format:
+    """Build a format from its point names and, per point, a canonical name or derived rule.
+
+    A canonical point is recovered by :func:`from_format` from the format point that copies
+    it, or by a ``recover`` rule (canonical name -> weights over format point names); all
+    other canonical points are absent.
+    """
+    to_rules: list[_Rule] = []
+    from_rules: list[_Rule | None] = [None] * len(KEYPOINT_NAMES)
+    for j, (_, source) in enumerate(zip(names, sources, strict=True)):
+        if isinstance(source, str):
+            to_rules.append(((_INDEX[source], 1.0),))
+            if from_rules[_INDEX[source]] is None:
+                from_rules[_INDEX[source]] = ((j, 1.0),)
+        else:
+            to_rules.append(source)
+    position = {name: j for j, name in enumerate(names)}
+    for canonical, weights in (recover or {}).items():
+        from_rules[_INDEX[canonical]] = tuple((position[n], float(w)) for n, w in weights.items())
+    return _Format(names, tuple(to_rules), tuple(from_rules))
+
+
+_MEDIAPIPE_NAMES = (
+    "WRIST",
+    "THUMB_CMC",
+    "THUMB_MCP",
+    "THUMB_IP",
+    "THUMB_TIP",
+    *(
+        f"{finger}_{joint}"
+        for finger in ("INDEX_FINGER", "MIDDLE_FINGER", "RING_FINGER", "PINKY")
+        for joint in ("MCP", "PIP", "DIP", "TIP")
+    ),
+)
+
+_MSRA_NAMES = (
+    "wrist",
+    *(
+        f"{finger}_{joint}"
+        for finger in ("index", "middle", "ring", "little", "thumb")
+        for joint in ("mcp", "pip", "dip", "tip")
+    ),
+)
+_MSRA_SOURCES = (
+    "wrist",
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "dip", "tip")),
+    "thumb_cmc",
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+)
+
+_BIGHAND_NAMES = (
+    "Wrist",
+    *(f"{f}MCP" for f in "TIMRP"),
+    *(f"{f}{joint}" for f in "TIMRP" for joint in ("PIP", "DIP", "TIP")),
+)
+_BIGHAND_SOURCES = (
+    "wrist",
+    "thumb_cmc",
+    *(f"{finger}_mcp" for finger in FINGERS),
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("pip", "dip", "tip")),
+)
+
+_ICVL_NAMES = (
+    "palm",
+    *(
+        f"{finger}_{joint}"
+        for finger in ("thumb", "index", "middle", "ring", "pinky")
+        for joint in ("root", "mid", "tip")
+    ),
+)
+_ICVL_SOURCES = (
+    _PALM_CENTRE,
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "tip")),
+)
+
+_NYU_NAMES = (
+    *(f"F{k}_{part}" for k in range(1, 5) for part in ("KNU3_A", "KNU2_B")),
+    "TH_KNU3_A",
+    "TH_KNU3_B",
+    "TH_KNU2_B",
+    "PALM_1",
+    "PALM_2",
+    "PALM_3",
+)
+_NYU_SOURCES = (
+    *(f"{finger}_{joint}" for finger in reversed(FINGERS) for joint in ("tip", "pip")),
+    "thumb_tip",
+    "thumb_ip",
+    "thumb_mcp",
+    "wrist",
+    "wrist",
+    _PALM_CENTRE,
+)
+
+_OPENXR_NAMES = tuple(
+    f"XR_HAND_JOINT_{joint}_EXT"
+    for joint in (
+        "PALM",
+        "WRIST",
+        *(f"THUMB_{b}" for b in ("METACARPAL", "PROXIMAL", "DISTAL", "TIP")),
+        *(
+            f"{finger.upper()}_{b}"
+            for finger in FINGERS
+            for b in ("METACARPAL", "PROXIMAL", "INTERMEDIATE", "DISTAL", "TIP")
+        ),
+    )
+)
+_OPENXR_SOURCES = (
+    # Centre of the middle metacarpal: halfway between its base and the middle MCP.
+    _combo(
+        {
+            "wrist": (1.0 - METACARPAL_BASE_FRACTION) / 2.0,
+            "middle_mcp": (1.0 + METACARPAL_BASE_FRACTION) / 2.0,
+        }
+    ),
+    "wrist",
+    "thumb_cmc",
+    "thumb_mcp",
+    "thumb_ip",
+    "thumb_tip",
+    *(
+        s
+        for finger in FINGERS
+        for s in (
+            _metacarpal_base(finger),
+            f"{finger}_mcp",
+            f"{finger}_pip",
+            f"{finger}_dip",
+            f"{finger}_tip",
+        )
+    ),
+)
+
+_SPECS: dict[str, _Format] = {
+    "bighand21": _build(_BIGHAND_NAMES, _BIGHAND_SOURCES),
+    "icvl16": _build(_ICVL_NAMES, _ICVL_SOURCES),
+    "mediapipe21": _build(_MEDIAPIPE_NAMES, KEYPOINT_NAMES),
+    "msra21": _build(_MSRA_NAMES, _MSRA_SOURCES),
+    # Both NYU wrist points are the canonical wrist, so their midpoint recovers it.
+    "nyu14": _build(_NYU_NAMES, _NYU_SOURCES, {"wrist": {"PALM_1": 0.5, "PALM_2": 0.5}}),
+    "openpose21": _build(KEYPOINT_NAMES, KEYPOINT_NAMES),
+    "openxr26": _build(_OPENXR_NAMES, _OPENXR_SOURCES),
+}
+
+FORMATS: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {name: spec.names for name, spec in sorted(_SPECS.items())}
+)
+"""Registered formats: format name -> names of its points, in the format's own order."""
+
+
+def _spec(fmt: object) -> _Format:
+    if isinstance(fmt, str) and fmt in _SPECS:
+        return _SPECS[fmt]
+    raise UnknownName(f"unknown keypoint format {fmt!r}; valid formats: {', '.join(FORMATS)}")
+
+
+def _as_points(keypoints: ArrayLike, n_points: int, what: str) -> NDArray[np.floating]:
+    arr = np.asarray(keypoints)
+    if arr.dtype.kind not in "iuf":
+        raise InvalidKeypoints(
+            f"expected real numeric {what} (int or float), got dtype {arr.dtype}"
+        )
+    if arr.ndim < 2 or arr.shape[-2] != n_points or arr.shape[-1] < 1:
+        raise InvalidKeypoints(
+            f"expected {what} of shape (..., {n_points}, D) with D >= 1, got shape {arr.shape}"
+        )
+    return arr if arr.dtype.kind == "f" else arr.astype(np.float64)
+
+
+def _apply(arr: NDArray[np.floating], rules: tuple[_Rule | None, ...]) -> NDArray[np.floating]:
+    out = np.empty(arr.shape[:-2] + (len(rules), arr.shape[-1]), dtype=arr.dtype)
+    for i, rule in enumerate(rules):
+        if rule is None:
+            out[..., i, :] = np.nan
+        elif len(rule) == 1 and rule[0][1] == 1.0:
+            out[..., i, :] = arr[..., rule[0][0], :]
+        else:
+            # Gather only the sources, so a NaN elsewhere cannot leak in through a 0 weight.
+            out[..., i, :] = sum(w * arr[..., j, :] for j, w in rule)
+    return out
+
+
+def to_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:
+    """Convert canonical keypoints to the order of another format.
+
+    Points that the canonical set lacks are derived by the rules in the module docstring:
+    palm centre = mean of wrist and the four finger MCPs (``icvl16``, ``nyu14``); finger
+    metacarpal base = wrist + ``METACARPAL_BASE_FRACTION`` * (MCP - wrist) and PALM =
+    0.375 * wrist + 0.625 * middle MCP (``openxr26``); both NYU wrist points = wrist.
+    NaN inputs propagate only into the points computed from them.
+
+    Args:
+        keypoints: Canonical keypoints, shape ``(..., 21, D)`` with ``D >= 1``, e.g. metres
+            (``D = 3``) or pixels (``D = 2``). Integers are converted to float64; float
+            dtypes are kept.
+        fmt: Target format, a key of :data:`FORMATS`.
+
+    Returns:
+        A new array of shape ``(..., N_fmt, D)`` in the target format's order, in the
+        same units and frame as the input.
+
+    Raises:
+        UnknownName: ``fmt`` is not a registered format.
+        InvalidKeypoints: ``keypoints`` is not a real numeric array of shape
+            ``(..., 21, D)``.
+    """
+    spec = _spec(fmt)
+    arr = _as_points(keypoints, len(KEYPOINT_NAMES), "canonical keypoints")
+    return _apply(arr, spec.to_rules)
+
+
+def from_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:
+    """Convert keypoints from another format to the canonical order.
+
+    Canonical points the format lacks are NaN; :func:`present_mask` lists which points are
+    present. Every present point is copied from one format point, except the ``nyu14``
+    wrist, which is the midpoint of PALM_1 and PALM_2.
+
+    Args:
+        keypoints: Keypoints in the order of ``fmt``, shape ``(..., N_fmt, D)`` with
+            ``D >= 1`` (``N_fmt = len(FORMATS[fmt])``). Integers are converted to float64;
+            float dtypes are kept.
+        fmt: Source format, a key of :data:`FORMATS`.
+
+    Returns:
+        A new array of shape ``(..., 21, D)`` in canonical order, in the same units and
+        frame as the input, with NaN rows for the absent points.
+
+    Raises:
+        UnknownName: ``fmt`` is not a registered format.
+        InvalidKeypoints: ``keypoints`` is not a real numeric array of shape
+            ``(..., N_fmt, D)``.
+    """
+    spec = _spec(fmt)
+    arr = _as_points(keypoints, len(spec.names), f"{fmt!r} keypoints")
+    return _apply(arr, spec.from_rules)
+
+
+def present_mask(fmt: str) -> NDArray[np.bool_]:
+    """Tell which canonical keypoints :func:`from_format` recovers for a format.
+
+    Args:
+        fmt: A key of :data:`FORMATS`.
+
+    Returns:
+        A new boolean array of shape ``(21,)``, True where the canonical point is present
+        and False where :func:`from_format` returns NaN.
+
+    Raises:
+        UnknownName: ``fmt`` is not a registered format.
+    """
+    spec = _spec(fmt)
+    return np.array([rule is not None for rule in spec.from_rules], dtype=bool)

@@ -1,0 +1,803 @@
+"""A parametric 27-DoF human hand, built with ``mujoco.MjSpec``.
+
+The hand is defined by :class:`HandParams` (size, handedness, palm breadth, thickness, forearm
+stub, DIP coupling). :func:`build_skeleton` turns the parameters into a kinematic skeleton
+(bodies, joint axes, collision primitives, keypoint sites) that both the MuJoCo model
+(:class:`Hand`) and the NumPy forward kinematics (:mod:`handsim.hand.kinematics`) are made from, so
+the two cannot drift apart.
+
+Geometry (right hand; hand frame ``+x`` radial, ``+y`` distal, ``+z`` palmar, origin at the wrist
+crease centre; see :mod:`handsim.hand.pose`):
+
+- Segment lengths are Buchholz, Armstrong & Goldstein (1992) ratios of ``hand_length``.
+  The middle MCP sits at ``y = (1 - 0.277 - 0.170 - 0.108) * hand_length`` so that the straight
+  middle fingertip lies exactly ``hand_length`` from the wrist.
+- The MCP row is an arc: the other MCPs are set proximal to the middle one by the factors in
+  ``_MCP_ARC`` (index 0.975, ring 0.945, little 0.875; chosen so that index and ring fingertips
+  land near 0.94 and the little fingertip near 0.80 of hand length [estimate]) and palmar by
+  the MANO mean hand's metacarpal arch (``_MCP_PALMAR``).
+- MCP lateral spacing follows the MANO mean hand (24 : 23 : 17 mm), spread so the outer skin
+  edges of the palm span ``palm_breadth``.
+- Flexion axes are tilted within the palm plane so that flexed fingers converge toward the
+  thumb base (``_FLEX_TILT_DEG``; MyoHand's MCP axes fan out the same way).
+- Phalanx radii are MyoHand's skin capsules, scaled with hand length and ``thickness_scale``.
+
+Naming scheme (``<side>`` is ``rh`` or ``lh``; ``<digit>`` is thumb, index, middle, ring, little):
+
+==================  ===========================================  ==========================
+element             name                                         example
+==================  ===========================================  ==========================
+root body           ``<side>_palm``                              ``rh_palm``
+free joint          ``<side>_root``                              ``rh_root``
+mocap body          ``<side>_mocap``                             ``rh_mocap``
+wrist weld          ``<side>_root_weld``                         ``rh_root_weld``
+digit bodies        ``<side>_<digit>_<segment>``                 ``rh_index_proximal``
+hinge joints        ``<side>_<joint>`` (:data:`JOINT_NAMES`)     ``rh_index_mcp_flex``
+actuators           ``<side>_<joint>_act``                       ``rh_index_mcp_flex_act``
+keypoint sites      ``<side>_kp_<keypoint>``                     ``rh_kp_index_tip``
+collision geoms     ``<side>_<part>_collision_<n>``              ``rh_index_distal_collision_0``
+visual geoms        ``<side>_<part>_visual_<n>``                 ``rh_palm_visual_0``
+default classes     ``<side>_hand``, ``<side>_collision``, ...   ``rh_visual``
+==================  ===========================================  ==========================
+
+Geom groups: visual geoms are group 2 (``contype = conaffinity = 0``; what cameras render);
+collision geoms are group 3 (hidden from cameras by default; they carry the mass). Fingertip
+(distal) collision geoms use ``condim = 4`` for torsional friction.
+
+Control: the free root follows the mocap body through a soft weld (a physics hand that cannot
+pass through objects); the 21 articulations have position actuators (``ctrl`` in radians).
+Gains are set per joint so that a step reaches 95 % within 60 ms without overshoot: each joint
+gets a stiffness ``kp`` (N m/rad, :data:`ACTUATOR_GAINS`), and an armature that brings its
+effective inertia to ``kp / omega**2`` with ``omega`` = :data:`FINGER_OMEGA` rad/s, and critical
+damping ``kv = 2 sqrt(kp I)``. Torques are limited to human ranges (``forcerange``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Literal
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from handsim.errors import InvalidHandParams, UnknownName
+from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
+
+__all__ = [
+    "HandParams",
+    "HAND_SIZES",
+    "Skeleton",
+    "SkeletonBody",
+    "Capsule",
+    "Box",
+    "build_skeleton",
+    "Hand",
+    "HandBinding",
+    "ACTUATOR_GAINS",
+    "FINGER_OMEGA",
+    "HAND_PHYSICS_OPTIONS",
+    "hand_params",
+]
+
+Side = Literal["right", "left"]
+
+HAND_LENGTH_RANGE_M = (0.140, 0.235)
+PALM_BREADTH_RATIO_RANGE = (0.35, 0.55)
+THICKNESS_SCALE_RANGE = (0.7, 1.4)
+
+HAND_SIZES: dict[str, float] = {"small": 0.165, "medium": 0.189, "large": 0.210}
+"""Preset hand lengths, metres: about the women's mean, the ANSUR II mixed mean, and a large
+man's hand (facts table 2.5)."""
+
+
+# Buchholz et al. 1992 segment lengths / hand length (metacarpal, proximal, middle, distal).
+_BUCHHOLZ = {
+    "thumb": (0.251, 0.196, None, 0.158),
+    "index": (0.374, 0.265, 0.143, 0.097),
+    "middle": (0.373, 0.277, 0.170, 0.108),
+    "ring": (0.336, 0.259, 0.165, 0.107),
+    "little": (0.295, 0.206, 0.117, 0.093),
+}
+_REF_HAND_LENGTH = 0.189
+_MCP_ARC = {"index": 0.975, "middle": 1.0, "ring": 0.945, "little": 0.875}
+# MANO mean hand, palmar offsets of the MCPs relative to the middle MCP / 189 mm.
+_MCP_PALMAR = {"index": 0.0196, "middle": 0.0, "ring": 0.0132, "little": 0.0444}
+# MANO mean hand MCP spacing index-middle-ring-little: 24.1, 23.3, 16.5 mm.
+_MCP_SPREAD_FRACTION = {"index": 0.0, "middle": 0.377, "ring": 0.742, "little": 1.0}
+# Flexion-axis tilt in the palm plane (deg) at MCP and at PIP/DIP.
+_FLEX_TILT_DEG = {
+    "index": (0.0, 0.0),
+    "middle": (3.0, 2.0),
+    "ring": (7.0, 4.0),
+    "little": (12.0, 6.0),
+}
+# Skin capsule radii at 189 mm (MyoHand; thumb from thumb breadth ~19-21 mm at the IP), metres.
+_RADII = {
+    "thumb": (0.0120, 0.0095, None, 0.0080),
+    "index": (None, 0.0090, 0.0080, 0.0070),
+    "middle": (None, 0.0090, 0.0080, 0.0070),
+    "ring": (None, 0.0085, 0.0075, 0.0068),
+    "little": (None, 0.0080, 0.0070, 0.0060),
+}
+_PALM_THICKNESS_RATIO = 0.143  # 27 mm at 189 mm (MANO palm box)
+# Thumb CMC in the hand frame at 189 mm (HandMorphometry; x as a fraction of palm breadth).
+_THUMB_CMC = (0.22, 0.010, 0.011)
+# Thumb rest orientation: radial deviation from the hand axis, palmar tilt, pronation (deg).
+_THUMB_REST_DEG = (30.0, 15.0, -70.0)
+
+_SKIN_RGBA = (0.87, 0.72, 0.63, 1.0)
+_DENSITY_KG_M3 = 1060.0  # soft tissue
+
+ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
+    # joint kind: (minimum kp in N m/rad, torque limit in N m)
+    "thumb_cmc_flex": (3.0, 3.0),
+    "thumb_cmc_abd": (3.0, 3.0),
+    "thumb_mcp_flex": (2.0, 1.5),
+    "thumb_mcp_abd": (0.5, 0.8),
+    "thumb_ip_flex": (1.0, 0.8),
+    "mcp_flex": (3.0, 2.5),
+    "mcp_abd": (0.5, 0.8),
+    "pip_flex": (2.0, 1.5),
+    "dip_flex": (0.8, 0.6),
+}
+"""Position-actuator stiffness (raised where a joint's inertia needs more for the bandwidth) and
+torque limit per joint kind. The limits give fingertip
+forces of a few tens of newtons (e.g. 2.5 N m at the index MCP over ~90 mm is ~28 N) and a
+power grip of a few hundred newtons over all contacts. The flexion stiffnesses are high enough
+that a grasp squeezing 45 deg past first contact (``handsim.envs.grasping``) presses with most
+of that torque (a 0.9 kg drill held in a pinch needs it); the armature grows with them, so
+the natural frequency and the 60 ms step response stay the same."""
+
+FINGER_OMEGA = 120.0
+"""Natural frequency (rad/s) of every finger joint: critically damped, 95 % of a step takes
+4.74 / omega = 40 ms."""
+
+HAND_PHYSICS_OPTIONS: dict[str, object] = {
+    "timestep": 0.002,
+    "cone": mujoco.mjtCone.mjCONE_ELLIPTIC,
+    "impratio": 100.0,
+    "integrator": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
+"""MuJoCo options a scene with a hand should use: elliptic cones and impratio 100 (the LEAP
+hand's value, facts section 3.2) keep grasped objects from slipping. Soft friction lets a held
+object creep at a speed proportional to the friction regularization, which impratio divides:
+a 0.41 kg can held in a power grasp creeps 3.3 mm/s at impratio 10 and 0.4 mm/s at 100."""
+
+_WELD_SOLREF = (0.01, 1.0)
+# Negative solref = (-stiffness, -damping) in rad/s^2 per rad and per rad/s: critically damped
+# at 500 rad/s.
+_LIMIT_SOLREF = (-2.5e5, -1000.0)
+_LIMIT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+
+
+def _scaled(value: float, hand_length: float) -> float:
+    return value * hand_length / _REF_HAND_LENGTH
+
+
+@dataclasses.dataclass(frozen=True)
+class HandParams:
+    """Parameters of a hand model.
+
+    Attributes:
+        hand_length: wrist crease to the middle fingertip with the hand flat, metres
+            (valid 0.140 to 0.235).
+        side: ``"right"`` or ``"left"``; the left hand is the exact mirror of the right.
+        palm_breadth: breadth at the metacarpal heads, metres; ``None`` gives 0.45 *
+            hand_length. Valid ratio to hand_length: 0.35 to 0.55.
+        thickness_scale: multiplies every radius and the palm thickness (valid 0.7 to 1.4).
+        forearm: add a forearm stub (it is part of what a depth camera sees).
+        couple_dip: tie each DIP to 2/3 of its PIP with an equality constraint (the DIP
+            actuators are then omitted).
+    """
+
+    hand_length: float = 0.189
+    side: Side = "right"
+    palm_breadth: float | None = None
+    thickness_scale: float = 1.0
+    forearm: bool = True
+    couple_dip: bool = False
+
+    def __post_init__(self) -> None:
+        lo, hi = HAND_LENGTH_RANGE_M
+        if not (np.isfinite(self.hand_length) and lo <= self.hand_length <= hi):
+            raise InvalidHandParams(
+                f"hand_length must be in [{lo}, {hi}] m (wrist crease to middle fingertip); "
+                f"received {self.hand_length!r}"
+            )
+        if self.side not in ("right", "left"):
+            raise InvalidHandParams(f"side must be 'right' or 'left'; received {self.side!r}")
+        if self.palm_breadth is not None:
+            ratio = self.palm_breadth / self.hand_length
+            rlo, rhi = PALM_BREADTH_RATIO_RANGE
+            if not (np.isfinite(ratio) and rlo <= ratio <= rhi):
+                raise InvalidHandParams(
+                    f"palm_breadth must be between {rlo} and {rhi} times hand_length "
+                    f"({rlo * self.hand_length:.4f} to {rhi * self.hand_length:.4f} m for this "
+                    f"hand); received {self.palm_breadth!r}"
+                )
+        tlo, thi = THICKNESS_SCALE_RANGE
+        if not (np.isfinite(self.thickness_scale) and tlo <= self.thickness_scale <= thi):
+            raise InvalidHandParams(
+                f"thickness_scale must be in [{tlo}, {thi}]; received {self.thickness_scale!r}"
+            )
+        for flag in ("forearm", "couple_dip"):
+            if not isinstance(getattr(self, flag), bool):
+                raise InvalidHandParams(
+                    f"{flag} must be True or False; received {getattr(self, flag)!r}"
+                )
+
+    @property
+    def breadth(self) -> float:
+        """Palm breadth in metres (the default applied)."""
+        return 0.45 * self.hand_length if self.palm_breadth is None else self.palm_breadth
+
+    @property
+    def prefix(self) -> str:
+        """Name prefix of every MJCF element of this hand: ``"rh_"`` or ``"lh_"``."""
+        return "rh_" if self.side == "right" else "lh_"
+
+
+def hand_params(size: str | float = "medium", side: Side = "right", **kwargs: object) -> HandParams:
+    """Hand parameters from a preset size name or a hand length in metres.
+
+    Args:
+        size: one of :data:`HAND_SIZES` or a hand length in metres.
+        side: ``"right"`` or ``"left"``.
+        **kwargs: other :class:`HandParams` fields.
+
+    Raises:
+        UnknownName: for an unknown preset name.
+        InvalidHandParams: for invalid values.
+    """
+    if isinstance(size, str):
+        if size not in HAND_SIZES:
+            raise UnknownName(
+                f"unknown hand size {size!r}; valid presets: {', '.join(HAND_SIZES)} "
+                "(or a hand length in metres)"
+            )
+        size = HAND_SIZES[size]
+    return HandParams(hand_length=float(size), side=side, **kwargs)
+
+
+# Skeleton ------------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class Capsule:
+    """A capsule from ``start`` to ``end`` (body frame, metres) with ``radius``."""
+
+    start: np.ndarray
+    end: np.ndarray
+    radius: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Box:
+    """A box centred at ``pos`` (body frame, metres) with half sizes ``half_size``."""
+
+    pos: np.ndarray
+    half_size: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class SkeletonBody:
+    """One rigid segment of the hand.
+
+    Attributes:
+        name: body name without side prefix, e.g. ``"index_proximal"``.
+        part: hand part it belongs to (``"palm"`` or a digit name), for segmentation.
+        parent: index of the parent body in :attr:`Skeleton.bodies` (-1 for the palm).
+        pos: (3,) origin in the parent frame, metres.
+        quat_wxyz: (4,) orientation in the parent frame.
+        joints: (angle index, (3,) unit axis in this body's frame) per hinge, outermost first;
+            every hinge is at the body origin.
+        geoms: collision primitives in this body's frame.
+    """
+
+    name: str
+    part: str
+    parent: int
+    pos: np.ndarray
+    quat_wxyz: np.ndarray
+    joints: tuple[tuple[int, np.ndarray], ...]
+    geoms: tuple[Capsule | Box, ...]
+
+
+@dataclasses.dataclass(frozen=True)
+class Skeleton:
+    """Kinematic skeleton of one hand (see :func:`build_skeleton`).
+
+    Attributes:
+        params: the parameters it was built from.
+        bodies: bodies in topological order; ``bodies[0]`` is the palm (the free root).
+        keypoints: 21 entries ``(body index, (3,) position in that body's frame)`` in
+            :data:`KEYPOINT_NAMES` order.
+    """
+
+    params: HandParams
+    bodies: tuple[SkeletonBody, ...]
+    keypoints: tuple[tuple[int, np.ndarray], ...]
+
+
+def _rotation_quat_wxyz(rotation: Rotation) -> np.ndarray:
+    return np.roll(rotation.as_quat(), 1)
+
+
+def _unit(v: Sequence[float]) -> np.ndarray:
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+def _right_skeleton(params: HandParams) -> Skeleton:
+    hl = params.hand_length
+    thick = params.thickness_scale
+    breadth = params.breadth
+    palm_t = _PALM_THICKNESS_RATIO * hl * thick
+    bodies: list[SkeletonBody] = []
+    keypoints: dict[str, tuple[int, np.ndarray]] = {}
+    zero = np.zeros(3)
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+
+    # MCP positions on the arc.
+    y_mcp_middle = (1.0 - sum(_BUCHHOLZ["middle"][1:])) * hl
+    span = breadth - palm_t
+    mcp = {
+        f: np.array(
+            [
+                span / 2 - _MCP_SPREAD_FRACTION[f] * span,
+                _MCP_ARC[f] * y_mcp_middle,
+                _scaled(_MCP_PALMAR[f], hl) * _REF_HAND_LENGTH,
+            ]
+        )
+        for f in FINGERS
+    }
+
+    # Palm: a box over the carpus and proximal palm plus one capsule per metacarpal; the
+    # capsules give the knuckle arc and the rounded palm edges.
+    palm_geoms: list[Capsule | Box] = []
+    box_top = 0.8 * mcp["little"][1]
+    palm_geoms.append(
+        Box(
+            pos=np.array([0.0, box_top / 2, 0.0]),
+            half_size=np.array([span / 2, box_top / 2, palm_t / 2]),
+        )
+    )
+    for f in FINGERS:
+        base = np.array([mcp[f][0] * 0.8, 0.25 * mcp[f][1], 0.0])
+        palm_geoms.append(Capsule(start=base, end=mcp[f].copy(), radius=palm_t / 2))
+    if params.forearm:
+        wrist_r = 0.1 * hl * thick
+        for dx in (-0.05 * hl, 0.05 * hl):
+            palm_geoms.append(
+                Capsule(
+                    start=np.array([dx, -0.55 * hl, 0.0]),
+                    end=np.array([dx, -0.4 * wrist_r, 0.0]),
+                    radius=wrist_r,
+                )
+            )
+    bodies.append(SkeletonBody("palm", "palm", -1, zero, identity, (), tuple(palm_geoms)))
+    keypoints["wrist"] = (0, zero.copy())
+
+    def add_chain(digit: str, base_pos, base_quat, joint_specs, lengths, radii, kp_names):
+        """Append a serial chain; joint_specs[k] = list of (joint name, axis) for segment k."""
+        parent = 0
+        pos, quat = base_pos, base_quat
+        segments = ("metacarpal", "proximal", "middle", "distal")
+        seg_names = (
+            segments[4 - len(lengths) :]
+            if digit != "thumb"
+            else (
+                "metacarpal",
+                "proximal",
+                "distal",
+            )
+        )
+        for k, (length, radius) in enumerate(zip(lengths, radii, strict=True)):
+            joints = tuple((JOINT_NAMES.index(f"{digit}_{j}"), _unit(a)) for j, a in joint_specs[k])
+            end = np.array([0.0, length, 0.0])
+            last = k == len(lengths) - 1
+            # The distal capsule stops one radius short so its skin ends at the tip keypoint.
+            cap_end = end - np.array([0.0, radius, 0.0]) if last else end
+            geom = Capsule(start=zero.copy(), end=cap_end, radius=radius)
+            bodies.append(
+                SkeletonBody(f"{digit}_{seg_names[k]}", digit, parent, pos, quat, joints, (geom,))
+            )
+            index = len(bodies) - 1
+            keypoints[f"{digit}_{kp_names[k]}"] = (index, zero.copy())
+            if last:
+                keypoints[f"{digit}_tip"] = (index, end)
+            parent, pos, quat = index, end, identity
+
+    # Thumb.
+    rad_dev, palmar_tilt, pronation = _THUMB_REST_DEG
+    thumb_rest = Rotation.from_euler("ZXY", [-rad_dev, palmar_tilt, pronation], degrees=True)
+    cmc = np.array(
+        [_THUMB_CMC[0] * breadth, _scaled(_THUMB_CMC[1], hl), _scaled(_THUMB_CMC[2], hl) * thick]
+    )
+    mc, pp, _, dp = _BUCHHOLZ["thumb"]
+    r_mc, r_pp, _, r_dp = _RADII["thumb"]
+    x_axis, palm_away = (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)
+    add_chain(
+        "thumb",
+        cmc,
+        _rotation_quat_wxyz(thumb_rest),
+        [
+            [("cmc_flex", x_axis), ("cmc_abd", palm_away)],
+            [("mcp_abd", palm_away), ("mcp_flex", x_axis)],
+            [("ip_flex", x_axis)],
+        ],
+        [mc * hl, pp * hl, dp * hl],
+        [_scaled(r, hl) * thick for r in (r_mc, r_pp, r_dp)],
+        ("cmc", "mcp", "ip"),
+    )
+
+    # Fingers: parallel at zero abduction; abduction (toward the thumb) outermost.
+    for f in FINGERS:
+        _, pp, mp, dp = _BUCHHOLZ[f]
+        _, r_pp, r_mp, r_dp = _RADII[f]
+        tilt_mcp, tilt_ip = np.deg2rad(_FLEX_TILT_DEG[f])
+        flex_mcp = (np.cos(tilt_mcp), np.sin(tilt_mcp), 0.0)
+        flex_ip = (np.cos(tilt_ip), np.sin(tilt_ip), 0.0)
+        add_chain(
+            f,
+            mcp[f],
+            identity,
+            [
+                [("mcp_abd", (0.0, 0.0, -1.0)), ("mcp_flex", flex_mcp)],
+                [("pip_flex", flex_ip)],
+                [("dip_flex", flex_ip)],
+            ],
+            [pp * hl, mp * hl, dp * hl],
+            [_scaled(r, hl) * thick for r in (r_pp, r_mp, r_dp)],
+            ("mcp", "pip", "dip"),
+        )
+
+    return Skeleton(params, tuple(bodies), tuple(keypoints[n] for n in KEYPOINT_NAMES))
+
+
+_MIRROR = np.array([-1.0, 1.0, 1.0])
+
+
+def _mirror_point(p: np.ndarray) -> np.ndarray:
+    return p * _MIRROR
+
+
+def _mirror_axis(a: np.ndarray) -> np.ndarray:
+    # Reflection M: M R(a, t) M = R(-M a, t); axes are pseudovectors.
+    return -a * _MIRROR
+
+
+def _mirror_quat(q: np.ndarray) -> np.ndarray:
+    return np.array([q[0], *_mirror_axis(q[1:])])
+
+
+def _mirror_geom(g: Capsule | Box) -> Capsule | Box:
+    if isinstance(g, Capsule):
+        return Capsule(_mirror_point(g.start), _mirror_point(g.end), g.radius)
+    return Box(_mirror_point(g.pos), g.half_size.copy())
+
+
+def build_skeleton(params: HandParams) -> Skeleton:
+    """Build the kinematic skeleton of a hand.
+
+    Args:
+        params: hand parameters.
+
+    Returns:
+        The skeleton; for a left hand every position, axis and orientation is mirrored through
+        the hand frame's ``x = 0`` plane, so equal angles give mirror-image postures.
+    """
+    right = _right_skeleton(dataclasses.replace(params, side="right"))
+    if params.side == "right":
+        return right
+    bodies = tuple(
+        dataclasses.replace(
+            b,
+            pos=_mirror_point(b.pos),
+            quat_wxyz=_mirror_quat(b.quat_wxyz),
+            joints=tuple((i, _mirror_axis(a)) for i, a in b.joints),
+            geoms=tuple(_mirror_geom(g) for g in b.geoms),
+        )
+        for b in right.bodies
+    )
+    keypoints = tuple((i, _mirror_point(p)) for i, p in right.keypoints)
+    return Skeleton(params, bodies, keypoints)
+
+
+# MuJoCo model --------------------------------------------------------------------------------
+
+
+def _joint_kind(joint: str) -> str:
+    return joint if joint.startswith("thumb") else joint.split("_", 1)[1]
+
+
+def _joint_class(joint: str) -> str:
+    """Default class of a joint: one per kind, unless the fingers' ranges differ (abduction)."""
+    kind = _joint_kind(joint)
+    ranges = {tuple(JOINT_LIMITS[i]) for i, n in enumerate(JOINT_NAMES) if _joint_kind(n) == kind}
+    return kind if len(ranges) == 1 else joint
+
+
+class Hand:
+    """A hand model: owns its ``MjSpec`` and knows the names of everything in it.
+
+    Build once, then compile it alone (:meth:`compile`) or attach it to a scene
+    (:meth:`attach_to`). Per compiled model, :meth:`bind` resolves names to indices once and
+    returns a :class:`HandBinding` that reads and writes poses in ``MjData``.
+
+    Args:
+        params: hand parameters (default: a medium right hand).
+    """
+
+    def __init__(self, params: HandParams | None = None) -> None:
+        self.params = params if params is not None else HandParams()
+        self.skeleton = build_skeleton(self.params)
+        p = self.params.prefix
+        self.prefix = p
+        self.joint_names: tuple[str, ...] = tuple(p + n for n in JOINT_NAMES)
+        """The 21 hinge names in pose-vector order."""
+        self.actuated: tuple[int, ...] = tuple(
+            i
+            for i, n in enumerate(JOINT_NAMES)
+            if not (self.params.couple_dip and n.endswith("dip_flex"))
+        )
+        """Angle indices that have an actuator (all 21 unless the DIPs are coupled)."""
+        self.actuator_names: tuple[str, ...] = tuple(
+            f"{p}{JOINT_NAMES[i]}_act" for i in self.actuated
+        )
+        self.keypoint_site_names: tuple[str, ...] = tuple(f"{p}kp_{k}" for k in KEYPOINT_NAMES)
+        self.root_body = f"{p}palm"
+        self.root_joint = f"{p}root"
+        self.mocap_body = f"{p}mocap"
+        self.weld = f"{p}root_weld"
+        self.spec = self._build_spec()
+        self._tune_actuators()
+
+    # Building -------------------------------------------------------------------------------
+
+    def _build_spec(self) -> mujoco.MjSpec:
+        # Names are unprefixed here; attach_to adds the side prefix to every element.
+        spec = mujoco.MjSpec()
+        spec.modelname = "hand"
+        spec.compiler.degree = False
+
+        hand_cls = spec.add_default("hand", spec.default)
+        hand_cls.joint.type = mujoco.mjtJoint.mjJNT_HINGE
+        # Joint limits use direct (mass-independent) stiffness: with MuJoCo's default
+        # time-constant form the limits of the light distal segments are too soft to hold
+        # against the inertial loads of a fast thumb or finger motion.
+        hand_cls.joint.solref_limit = _LIMIT_SOLREF
+        hand_cls.joint.solimp_limit = _LIMIT_SOLIMP
+        visual = spec.add_default("visual", hand_cls)
+        visual.geom.contype = 0
+        visual.geom.conaffinity = 0
+        visual.geom.group = 2
+        visual.geom.density = 0.0
+        visual.geom.rgba = _SKIN_RGBA
+        collision = spec.add_default("collision", hand_cls)
+        collision.geom.group = 3
+        collision.geom.density = _DENSITY_KG_M3
+        collision.geom.friction = (1.0, 0.005, 0.0001)
+        pad = spec.add_default("pad", collision)
+        pad.geom.condim = 4
+        pad.geom.friction = (1.0, 0.01, 0.0001)
+        joint_classes = {}
+        for kind in sorted({_joint_class(n) for n in JOINT_NAMES}):
+            cls = spec.add_default(f"{kind}", hand_cls)
+            joint_classes[kind] = cls
+
+        for i, name in enumerate(JOINT_NAMES):
+            cls = joint_classes[_joint_class(name)]
+            cls.joint.range = JOINT_LIMITS[i]
+            cls.joint.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+            kp, torque = ACTUATOR_GAINS[_joint_kind(name)]
+            cls.actuator.ctrlrange = JOINT_LIMITS[i]
+            cls.actuator.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            cls.actuator.forcerange = (-torque, torque)
+            cls.actuator.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+
+        mocap = spec.worldbody.add_body(name="mocap", mocap=True)
+        mocap.add_site(name="mocap_site", size=(0.005, 0, 0), group=5)
+
+        body_specs: list[mujoco.MjsBody] = []
+        for b in self.skeleton.bodies:
+            parent = spec.worldbody if b.parent < 0 else body_specs[b.parent]
+            body = parent.add_body(name=b.name, pos=b.pos, quat=b.quat_wxyz)
+            if b.parent < 0:
+                body.add_freejoint(name="root")
+            for angle_index, axis in b.joints:
+                name = JOINT_NAMES[angle_index]
+                body.add_joint(
+                    name=name,
+                    default=joint_classes[_joint_class(name)],
+                    axis=axis,
+                )
+            distal = b.name.endswith("distal") and b.part != "palm"
+            for n, g in enumerate(b.geoms):
+                for role, cls in (("collision", pad if distal else collision), ("visual", visual)):
+                    kw = dict(name=f"{b.name}_{role}_{n}", default=cls)
+                    if isinstance(g, Capsule):
+                        body.add_geom(
+                            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                            fromto=np.concatenate([g.start, g.end]),
+                            size=(g.radius, 0, 0),
+                            **kw,
+                        )
+                    else:
+                        body.add_geom(
+                            type=mujoco.mjtGeom.mjGEOM_BOX, pos=g.pos, size=g.half_size, **kw
+                        )
+            body_specs.append(body)
+
+        for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
+            body_specs[body_index].add_site(
+                name=f"kp_{KEYPOINT_NAMES[k]}", pos=pos, size=(0.003, 0, 0), group=4
+            )
+
+        spec.add_equality(
+            type=mujoco.mjtEq.mjEQ_WELD,
+            name="root_weld",
+            name1="mocap",
+            name2="palm",
+            objtype=mujoco.mjtObj.mjOBJ_BODY,
+            data=[0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0],
+            solref=_WELD_SOLREF,
+        )
+        if self.params.couple_dip:
+            for f in FINGERS:
+                spec.add_equality(
+                    type=mujoco.mjtEq.mjEQ_JOINT,
+                    name=f"{f}_dip_coupling",
+                    name1=f"{f}_dip_flex",
+                    name2=f"{f}_pip_flex",
+                    objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                    data=[0, 2.0 / 3.0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+                )
+        for i in self.actuated:
+            name = JOINT_NAMES[i]
+            spec.add_actuator(
+                name=f"{name}_act",
+                default=joint_classes[_joint_class(name)],
+                target=name,
+                trntype=mujoco.mjtTrn.mjTRN_JOINT,
+            )
+        # Neighbouring proximal phalanges touch when adducted against each other; skin slides
+        # there, so their contacts are excluded (as MyoHand does).
+        for a, b in zip(FINGERS[:-1], FINGERS[1:], strict=True):
+            spec.add_exclude(
+                name=f"{a}_{b}_exclude", bodyname1=f"{a}_proximal", bodyname2=f"{b}_proximal"
+            )
+        return spec
+
+    def _tune_actuators(self) -> None:
+        """Set armature, kp and kv of every hinge for the step response in the module doc.
+
+        A joint's inertia ``I`` varies with the pose (MCP abduction of a flexed finger turns
+        the finger about its own axis, with ~1 % of the flat-hand inertia), and ``kp`` is
+        integrated explicitly, so every joint gets an armature of at least ``kp (2 dt)^2``
+        (stable at ``omega dt <= 0.5`` even if the link inertia vanished). At the flat pose:
+        ``kp = max(kp_kind, I omega^2 / (1 - (2 dt omega)^2))``, armature
+        ``max(kp (2 dt)^2, kp / omega^2 - I)`` and critical damping ``kv = 2 sqrt(kp (I + arm))``.
+        """
+        model = self.compile()
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        inertia = np.empty((model.nv, model.nv))
+        mujoco.mj_fullM(model, data, inertia)
+        stable = (2.0 * HAND_PHYSICS_OPTIONS["timestep"]) ** 2
+        joints = {self.prefix + j.name: j for j in self.spec.joints}
+        actuators = {self.prefix + a.name: a for a in self.spec.actuators}
+        for i, name in enumerate(JOINT_NAMES):
+            full_name = self.prefix + name
+            dof = model.jnt_dofadr[model.joint(full_name).id]
+            link_inertia = inertia[dof, dof]
+            kp = max(
+                ACTUATOR_GAINS[_joint_kind(name)][0],
+                link_inertia * FINGER_OMEGA**2 / (1.0 - stable * FINGER_OMEGA**2),
+            )
+            armature = max(kp * stable, kp / FINGER_OMEGA**2 - link_inertia)
+            joints[full_name].armature = armature
+            if i in self.actuated:
+                kv = 2.0 * np.sqrt(kp * (link_inertia + armature))
+                actuators[f"{full_name}_act"].set_to_position(kp=kp, kv=kv)
+
+    # Using ----------------------------------------------------------------------------------
+
+    def compile(self) -> mujoco.MjModel:
+        """Compile the hand alone in an empty world (gravity on, no floor)."""
+        scene = mujoco.MjSpec()
+        scene.modelname = f"{self.prefix}hand"
+        self.attach_to(scene)
+        return scene.compile()
+
+    def attach_to(self, scene: mujoco.MjSpec) -> None:
+        """Attach a copy of this hand to ``scene``'s world body.
+
+        Every element name gets the side prefix (``rh_``/``lh_``), so a right and a left hand
+        can share a scene. Sets the scene's options to :data:`HAND_PHYSICS_OPTIONS`.
+        """
+        for key, value in HAND_PHYSICS_OPTIONS.items():
+            setattr(scene.option, key, value)
+        scene.attach(self.spec.copy(), prefix=self.prefix, frame=scene.worldbody.add_frame())
+
+    def bind(self, model: mujoco.MjModel) -> HandBinding:
+        """Resolve this hand's names in a compiled model.
+
+        Raises:
+            UnknownName: if the model does not contain this hand.
+        """
+        return HandBinding(self, model)
+
+
+class HandBinding:
+    """Index look-ups of one :class:`Hand` inside one compiled model.
+
+    Reads and writes :class:`~handsim.hand.pose.HandPose` in ``MjData``: kinematically
+    (:meth:`set_pose`) or as physics targets (:meth:`set_target`).
+    """
+
+    def __init__(self, hand: Hand, model: mujoco.MjModel) -> None:
+        self.hand = hand
+        self.model = model
+        try:
+            root = model.joint(hand.root_joint)
+            self.root_qpos = int(root.qposadr[0])
+            self.root_dof = int(root.dofadr[0])
+            self.joint_qpos = np.array(
+                [model.joint(n).qposadr[0] for n in hand.joint_names], dtype=np.intp
+            )
+            self.joint_dof = np.array(
+                [model.joint(n).dofadr[0] for n in hand.joint_names], dtype=np.intp
+            )
+            self.actuator_ids = np.array(
+                [model.actuator(n).id for n in hand.actuator_names], dtype=np.intp
+            )
+            self.site_ids = np.array(
+                [model.site(n).id for n in hand.keypoint_site_names], dtype=np.intp
+            )
+            self.mocap_id = int(model.body(hand.mocap_body).mocapid[0])
+        except KeyError as err:
+            raise UnknownName(
+                f"the model does not contain the {hand.params.side} hand "
+                f"(prefix {hand.prefix!r}): {err}. Attach it with Hand.attach_to(scene_spec)."
+            ) from None
+        self.actuated = np.array(hand.actuated, dtype=np.intp)
+
+    def set_pose(self, data: mujoco.MjData, pose: HandPose) -> None:
+        """Kinematic mode: write the pose into qpos (and mocap, ctrl), zero velocities, forward.
+
+        Angles are clamped to the joint limits.
+        """
+        pose = pose.clip()
+        q = self.root_qpos
+        data.qpos[q : q + 3] = pose.wrist_pos
+        data.qpos[q + 3 : q + 7] = pose.quat_wxyz
+        data.qpos[self.joint_qpos] = pose.angles
+        data.qvel[self.root_dof : self.root_dof + 6] = 0.0
+        data.qvel[self.joint_dof] = 0.0
+        self.set_target(data, pose)
+        mujoco.mj_forward(self.model, data)
+
+    def set_target(self, data: mujoco.MjData, pose: HandPose) -> None:
+        """Physics mode: move the mocap target to the wrist pose and set the finger targets.
+
+        Angles are clamped to the joint limits (the actuators' ctrlrange).
+        """
+        pose = pose.clip()
+        data.mocap_pos[self.mocap_id] = pose.wrist_pos
+        data.mocap_quat[self.mocap_id] = pose.quat_wxyz
+        data.ctrl[self.actuator_ids] = pose.angles[self.actuated]
+
+    def pose(self, data: mujoco.MjData) -> HandPose:
+        """The current pose read from qpos."""
+        q = self.root_qpos
+        quat_wxyz = data.qpos[q + 3 : q + 7]
+        rotvec = Rotation.from_quat(np.roll(quat_wxyz, -1)).as_rotvec()
+        return HandPose(data.qpos[q : q + 3].copy(), rotvec, data.qpos[self.joint_qpos].copy())
+
+    def keypoints(self, data: mujoco.MjData) -> np.ndarray:
+        """(21, 3) keypoint positions in the world frame from the sites, metres."""
+        return data.site_xpos[self.site_ids].copy()

@@ -1,0 +1,62 @@
+"""The world around the hand: objects, scenes, cameras, rendering and depth-sensor models.
+
+=======================  ==========================================================================
+module                   holds
+=======================  ==========================================================================
+:mod:`.objects`          the object type (:class:`YCBObject`, :class:`Symmetry`), :func:`add_object`
+:mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts and shapes)
+:mod:`.meshing`          lofts, revolutions, signed distances, marching tetrahedra, decimation
+:mod:`.registry`         :data:`OBJECTS` and :func:`get_object`
+:mod:`.mesh_import`      :func:`load_object`: user meshes (OBJ/PLY/STL/GLB)
+:mod:`.scene`            :class:`SceneSpec` (table, lights, hand, objects, cameras), :class:`Scene`
+:mod:`.camera`           exact intrinsics of real sensors (OpenCV convention), camera placement
+:mod:`.render`           the one-pass depth + segmentation renderer
+:mod:`.sensors`          seeded depth noise: structured light, time of flight
+=======================  ==========================================================================
+"""
+
+from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
+from handsim.world.mesh_import import load_object
+from handsim.world.objects import NO_SYMMETRY, ObjectSpec, Symmetry, YCBObject, add_object
+from handsim.world.registry import OBJECT_NAMES, OBJECTS, get_object
+from handsim.world.render import DepthRenderer
+from handsim.world.scene import (
+    SEGMENT_LABELS,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+    egocentric_camera,
+    sample_placements,
+    sample_viewpoint,
+    third_person_camera,
+)
+from handsim.world.sensors import StructuredLight, TimeOfFlight, sensor_model
+
+__all__ = [
+    "CAMERA_PRESETS",
+    "CameraIntrinsics",
+    "camera_preset",
+    "load_object",
+    "NO_SYMMETRY",
+    "ObjectSpec",
+    "Symmetry",
+    "YCBObject",
+    "add_object",
+    "OBJECT_NAMES",
+    "OBJECTS",
+    "get_object",
+    "DepthRenderer",
+    "SEGMENT_LABELS",
+    "CameraSpec",
+    "ObjectPlacement",
+    "Scene",
+    "SceneSpec",
+    "egocentric_camera",
+    "sample_placements",
+    "sample_viewpoint",
+    "third_person_camera",
+    "StructuredLight",
+    "TimeOfFlight",
+    "sensor_model",
+]

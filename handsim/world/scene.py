@@ -1,0 +1,413 @@
+"""Scenes: a table, lights, a hand, YCB-like objects and depth cameras, compiled with MjSpec.
+
+World frame: ``z`` up, origin at the centre of the table top; the user sits on the ``-y`` side.
+
+A :class:`SceneSpec` (frozen dataclasses) describes the scene; :class:`Scene` compiles it and
+keeps the model, its data, the hand binding and the segmentation labels. Placements come from
+:func:`sample_placements` (stable resting poses, random yaw, non-overlapping footprints);
+cameras from :func:`third_person_camera`, :func:`egocentric_camera` or the seeded
+:func:`sample_viewpoint`.
+
+Segmentation labels (:data:`SEGMENT_LABELS`): 0 background, 1 table, 2 palm (with the forearm
+stub), 3 thumb, 4 index, 5 middle, 6 ring, 7 little, and ``8 + k`` for object instance ``k`` in
+the order of :attr:`SceneSpec.objects`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import mujoco
+import numpy as np
+
+from handsim.errors import HandSimError
+from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
+from handsim.hand.pose import DIGITS, HandPose
+from handsim.world.camera import CameraIntrinsics, add_camera, camera_preset, look_at_quat_wxyz
+from handsim.world.objects import YCBObject, add_object
+from handsim.world.registry import get_object
+
+__all__ = [
+    "SEGMENT_LABELS",
+    "OBJECT_LABEL_OFFSET",
+    "ObjectPlacement",
+    "CameraSpec",
+    "SceneSpec",
+    "Scene",
+    "InvalidScene",
+    "third_person_camera",
+    "egocentric_camera",
+    "sample_viewpoint",
+    "sample_placements",
+]
+
+SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "palm", *DIGITS)
+"""Names of the fixed segmentation labels; objects follow from :data:`OBJECT_LABEL_OFFSET`."""
+OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
+
+_TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
+_DEFAULT_HAND_TARGET = (0.0, 0.0, 0.12)
+
+
+class InvalidScene(HandSimError, ValueError):
+    """A scene description is inconsistent (names, placements, cameras)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectPlacement:
+    """One object instance on the table.
+
+    Attributes:
+        name: object name or alias (see :data:`handsim.world.OBJECTS`); for an imported
+            mesh, its name.
+        pos_m: (3,) object-frame origin in the world, metres.
+        quat_wxyz: (4,) orientation ``world_from_obj``.
+        mesh: an object from :func:`handsim.world.load_object`, used instead of the
+            registry entry.
+    """
+
+    name: str
+    pos_m: tuple[float, float, float]
+    quat_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    mesh: YCBObject | None = None
+
+    @property
+    def object(self) -> YCBObject:
+        """The object (imported mesh, or the registry entry by name)."""
+        return self.mesh if self.mesh is not None else get_object(self.name)
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraSpec:
+    """A depth camera.
+
+    Attributes:
+        name: camera name in the model.
+        intrinsics: pinhole intrinsics (image size included).
+        pos_m: (3,) camera centre in the world, metres.
+        quat_wxyz: (4,) orientation ``world_from_mjcam`` (MuJoCo camera frame).
+    """
+
+    name: str
+    intrinsics: CameraIntrinsics
+    pos_m: tuple[float, float, float]
+    quat_wxyz: tuple[float, float, float, float]
+
+    @classmethod
+    def look_at(
+        cls,
+        name: str,
+        intrinsics: CameraIntrinsics,
+        eye_m: tuple[float, float, float],
+        target_m: tuple[float, float, float],
+        up: tuple[float, float, float] = (0.0, 0.0, 1.0),
+    ) -> CameraSpec:
+        """A camera at ``eye_m`` looking at ``target_m`` (world frame, metres)."""
+        quat = look_at_quat_wxyz(np.asarray(eye_m), np.asarray(target_m), up)
+        return cls(name, intrinsics, tuple(map(float, eye_m)), tuple(map(float, quat)))
+
+
+def _spherical_eye(target, distance_m, azimuth_deg, elevation_deg) -> np.ndarray:
+    az, el = np.deg2rad(azimuth_deg), np.deg2rad(elevation_deg)
+    offset = distance_m * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    return np.asarray(target, dtype=np.float64) + offset
+
+
+def third_person_camera(
+    intrinsics: CameraIntrinsics | None = None,
+    *,
+    name: str = "third_person",
+    target_m: tuple[float, float, float] = _DEFAULT_HAND_TARGET,
+    distance_m: float = 0.6,
+    azimuth_deg: float = 90.0,
+    elevation_deg: float = 30.0,
+) -> CameraSpec:
+    """A sensor facing the user across the table (azimuth 90 deg = on the ``+y`` side).
+
+    Args:
+        intrinsics: default: the NYU Carmine preset.
+        name: camera name.
+        target_m: point looked at, world, metres.
+        distance_m: distance from the target, metres.
+        azimuth_deg: direction of the camera from the target in the table plane, from ``+x``.
+        elevation_deg: angle above the table plane.
+    """
+    intrinsics = intrinsics or camera_preset("nyu_carmine")
+    eye = _spherical_eye(target_m, distance_m, azimuth_deg, elevation_deg)
+    return CameraSpec.look_at(name, intrinsics, tuple(eye), target_m)
+
+
+def egocentric_camera(
+    intrinsics: CameraIntrinsics | None = None,
+    *,
+    name: str = "egocentric",
+    target_m: tuple[float, float, float] = _DEFAULT_HAND_TARGET,
+    head_offset_m: tuple[float, float, float] = (0.0, -0.35, 0.45),
+) -> CameraSpec:
+    """A head-mounted sensor: above and behind the hands (user side), looking down at them.
+
+    Args:
+        intrinsics: default: the SR300 preset (as in egocentric datasets like FPHA).
+        name: camera name.
+        target_m: point looked at (the hands), world, metres.
+        head_offset_m: head position relative to the target, metres.
+    """
+    intrinsics = intrinsics or camera_preset("sr300")
+    eye = np.asarray(target_m) + np.asarray(head_offset_m)
+    return CameraSpec.look_at(name, intrinsics, tuple(eye), target_m, up=(0.0, 1.0, 0.0))
+
+
+def sample_viewpoint(
+    rng: np.random.Generator,
+    intrinsics: CameraIntrinsics | None = None,
+    *,
+    name: str = "random_view",
+    target_m: tuple[float, float, float] = _DEFAULT_HAND_TARGET,
+    distance_range_m: tuple[float, float] = (0.4, 0.8),
+    azimuth_range_deg: tuple[float, float] = (0.0, 360.0),
+    elevation_range_deg: tuple[float, float] = (15.0, 75.0),
+    target_jitter_m: float = 0.02,
+) -> CameraSpec:
+    """A seeded random viewpoint on a spherical shell around the hand.
+
+    Args:
+        rng: random generator.
+        intrinsics: default: the NYU Carmine preset.
+        name: camera name.
+        target_m: centre of the shell, world, metres.
+        distance_range_m: camera distance range, metres.
+        azimuth_range_deg: azimuth range, degrees from ``+x``.
+        elevation_range_deg: elevation range above the table plane, degrees (< 90).
+        target_jitter_m: the look-at point is jittered uniformly by up to this, metres.
+
+    Raises:
+        InvalidScene: for empty or out-of-range intervals.
+    """
+    for label, (lo, hi) in (
+        ("distance_range_m", distance_range_m),
+        ("azimuth_range_deg", azimuth_range_deg),
+        ("elevation_range_deg", elevation_range_deg),
+    ):
+        if not lo <= hi:
+            raise InvalidScene(f"{label} must be (low, high) with low <= high; received {(lo, hi)}")
+    if distance_range_m[0] <= 0 or not -90 < elevation_range_deg[0] <= elevation_range_deg[1] < 90:
+        raise InvalidScene(
+            "distances must be > 0 m and elevations inside (-90, 90) deg; received "
+            f"{distance_range_m}, {elevation_range_deg}"
+        )
+    intrinsics = intrinsics or camera_preset("nyu_carmine")
+    target = np.asarray(target_m) + rng.uniform(-target_jitter_m, target_jitter_m, 3)
+    eye = _spherical_eye(
+        target,
+        rng.uniform(*distance_range_m),
+        rng.uniform(*azimuth_range_deg),
+        rng.uniform(*elevation_range_deg),
+    )
+    return CameraSpec.look_at(name, intrinsics, tuple(eye), tuple(target))
+
+
+def _footprint_radius(obj: YCBObject) -> float:
+    rot = np.empty(9)
+    mujoco.mju_quat2Mat(rot, np.asarray(obj.rest_quat_wxyz, dtype=np.float64))
+    rested = obj.visual_mesh.vertices @ rot.reshape(3, 3).T
+    return float(np.linalg.norm(rested[:, :2], axis=1).max())
+
+
+def sample_placements(
+    rng: np.random.Generator,
+    names: list[str] | tuple[str, ...],
+    *,
+    region_m: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, 0.25), (-0.1, 0.25)),
+    gap_m: float = 0.01,
+    max_tries: int = 2000,
+) -> tuple[ObjectPlacement, ...]:
+    """Stable, non-overlapping placements of objects on the table top.
+
+    Each object rests in its stable orientation (``YCBObject.rest_quat_wxyz``), turned by a
+    uniform yaw, at a uniform position in ``region_m``; footprints (circles around the object
+    origin that enclose its rested outline) keep ``gap_m`` apart.
+
+    Args:
+        rng: random generator.
+        names: object names (repeats make several instances).
+        region_m: ((x_min, x_max), (y_min, y_max)) area for object origins, metres.
+        gap_m: minimum clearance between footprints, metres.
+        max_tries: attempts per object before giving up.
+
+    Returns:
+        One placement per name, in order.
+
+    Raises:
+        UnknownName: for an unknown object name.
+        InvalidScene: if the objects do not fit in the region.
+    """
+    placed: list[tuple[np.ndarray, float]] = []
+    placements = []
+    (x0, x1), (y0, y1) = region_m
+    for name in names:
+        obj = get_object(name)
+        radius = _footprint_radius(obj)
+        for _ in range(max_tries):
+            xy = np.array([rng.uniform(x0, x1), rng.uniform(y0, y1)])
+            if all(np.linalg.norm(xy - c) >= radius + r + gap_m for c, r in placed):
+                break
+        else:
+            raise InvalidScene(
+                f"could not place {name!r} (footprint radius {radius:.3f} m) without overlap in "
+                f"region x {region_m[0]}, y {region_m[1]} m after {max_tries} tries; use fewer "
+                "objects or a larger region"
+            )
+        placed.append((xy, radius))
+        yaw = rng.uniform(-np.pi, np.pi)
+        yaw_quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+        quat = np.empty(4)
+        mujoco.mju_mulQuat(quat, yaw_quat, np.asarray(obj.rest_quat_wxyz, dtype=np.float64))
+        # Lift by 0.5 mm so the first contact is not a penetration.
+        pos = (float(xy[0]), float(xy[1]), float(obj.rest_height_m + 5e-4))
+        placements.append(ObjectPlacement(obj.name, pos, tuple(map(float, quat))))
+    return tuple(placements)
+
+
+@dataclasses.dataclass(frozen=True)
+class SceneSpec:
+    """Everything a scene contains.
+
+    Attributes:
+        hand: the hand (``None`` for an object-only scene).
+        objects: object instances on the table.
+        cameras: depth cameras (at least one); names must be unique.
+        table: add the table (top at ``z = 0``).
+    """
+
+    hand: HandParams | None = dataclasses.field(default_factory=HandParams)
+    objects: tuple[ObjectPlacement, ...] = ()
+    cameras: tuple[CameraSpec, ...] = dataclasses.field(
+        default_factory=lambda: (third_person_camera(),)
+    )
+    table: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.cameras:
+            raise InvalidScene("a scene needs at least one camera; received none")
+        names = [c.name for c in self.cameras]
+        if len(set(names)) != len(names):
+            raise InvalidScene(f"camera names must be unique; received {names}")
+        for placement in self.objects:
+            placement.object  # noqa: B018 (raises UnknownName listing the valid names)
+
+
+class Scene:
+    """A compiled scene with its data.
+
+    Args:
+        spec: the scene description.
+
+    Attributes:
+        spec: the description.
+        model: compiled MuJoCo model.
+        data: its data (reset to the spec's placements and a flat hand at the default target).
+        hand: the hand entity (``None`` without a hand).
+        binding: the hand's look-ups in ``model`` (``None`` without a hand).
+        objects: one ``(body name, YCBObject)`` per instance, in spec order.
+        geom_labels: (ngeom,) int16 segmentation label of each geom (see module docstring).
+    """
+
+    def __init__(self, spec: SceneSpec) -> None:
+        self.spec = spec
+        mj = mujoco.MjSpec()
+        mj.modelname = "handsim_scene"
+        mj.visual.global_.offwidth = max(c.intrinsics.width for c in spec.cameras)
+        mj.visual.global_.offheight = max(c.intrinsics.height for c in spec.cameras)
+        # Depth sensors do not antialias, and resolving a multisampled buffer costs a blit.
+        mj.visual.quality.offsamples = 0
+        mj.worldbody.add_light(name="key", pos=[0.3, -0.5, 1.2], dir=[-0.2, 0.4, -1.0])
+        mj.worldbody.add_light(name="fill", pos=[-0.4, 0.3, 1.0], dir=[0.3, -0.2, -1.0])
+        if spec.table:
+            mj.worldbody.add_geom(
+                name="table",
+                type=mujoco.mjtGeom.mjGEOM_BOX,
+                size=_TABLE_HALF_SIZE_M,
+                pos=[0.0, 0.0, -_TABLE_HALF_SIZE_M[2]],
+                rgba=[0.55, 0.45, 0.35, 1.0],
+                group=0,
+            )
+        self.hand = Hand(spec.hand) if spec.hand is not None else None
+        if self.hand is not None:
+            self.hand.attach_to(mj)
+        else:
+            for key, value in HAND_PHYSICS_OPTIONS.items():
+                setattr(mj.option, key, value)
+        self.objects: list[tuple[str, YCBObject]] = []
+        counts: dict[str, int] = {}
+        for placement in spec.objects:
+            obj = placement.object
+            k = counts.get(obj.name, 0)
+            counts[obj.name] = k + 1
+            body = obj.body_name if k == 0 else f"{obj.body_name}_{k}"
+            add_object(mj, obj, pos=placement.pos_m, quat_wxyz=placement.quat_wxyz, body_name=body)
+            self.objects.append((body, obj))
+        for cam in spec.cameras:
+            add_camera(mj.worldbody, cam.name, cam.intrinsics, cam.pos_m, cam.quat_wxyz)
+        self.model = mj.compile()
+        self.data = mujoco.MjData(self.model)
+        self.binding = self.hand.bind(self.model) if self.hand is not None else None
+        self.geom_labels = self._label_geoms()
+        self.reset()
+
+    def _label_geoms(self) -> np.ndarray:
+        labels = np.zeros(self.model.ngeom, dtype=np.int16)
+        body_label = {}
+        if self.hand is not None:
+            for b in self.hand.skeleton.bodies:
+                body_id = self.model.body(self.hand.prefix + b.name).id
+                body_label[body_id] = SEGMENT_LABELS.index(b.part)
+        for k, (body, _) in enumerate(self.objects):
+            body_label[self.model.body(body).id] = OBJECT_LABEL_OFFSET + k
+        for g in range(self.model.ngeom):
+            if self.model.geom(g).name == "table":
+                labels[g] = SEGMENT_LABELS.index("table")
+            else:
+                labels[g] = body_label.get(int(self.model.geom_bodyid[g]), 0)
+        return labels
+
+    def reset(self, hand_pose: HandPose | None = None) -> None:
+        """Reset the data: objects at their placements, hand at ``hand_pose``.
+
+        Args:
+            hand_pose: default: a flat hand, palm down, above the table centre.
+        """
+        mujoco.mj_resetData(self.model, self.data)
+        if self.binding is not None:
+            if hand_pose is None:
+                # Palm down (hand z = palmar -> world -z), fingers toward +y.
+                hand_pose = HandPose.neutral(
+                    wrist_pos=(0.0, -0.1, 0.12), wrist_rotvec=(0.0, np.pi, 0.0)
+                )
+            self.binding.set_pose(self.data, hand_pose)
+        mujoco.mj_forward(self.model, self.data)
+
+    def segment(self, geom_id: np.ndarray) -> np.ndarray:
+        """Map a geom-id image (from :class:`~handsim.world.render.DepthRenderer`) to labels.
+
+        Args:
+            geom_id: (H, W) int geom ids, -1 = background.
+
+        Returns:
+            (H, W) int16 segmentation labels (module docstring).
+        """
+        lut = np.concatenate([[0], self.geom_labels]).astype(np.int16)
+        return lut[np.asarray(geom_id) + 1]
+
+    def camera(self, name: str) -> CameraSpec:
+        """The spec of a camera by name.
+
+        Raises:
+            InvalidScene: listing the scene's cameras.
+        """
+        for cam in self.spec.cameras:
+            if cam.name == name:
+                return cam
+        raise InvalidScene(
+            f"no camera {name!r} in this scene; cameras: "
+            f"{', '.join(c.name for c in self.spec.cameras)}"
+        )

@@ -1,0 +1,125 @@
+"""Retargeting 21 keypoints to the 27-DoF pose."""
+
+import numpy as np
+import pytest
+
+from handsim.errors import InvalidKeypoints
+from handsim.hand.kinematics import ForwardKinematics
+from handsim.hand.model import HandParams
+from handsim.hand.pose import JOINT_LIMITS, HandPose, joint_index
+from handsim.hand.retarget import Retargeter
+
+
+def _random_poses(rng, n):
+    margin = np.deg2rad(2.0)  # keep away from the limits, where clamping is tested separately
+    return [
+        HandPose(
+            rng.uniform(-0.3, 0.3, 3),
+            rng.uniform(-np.pi, np.pi, 3),
+            rng.uniform(JOINT_LIMITS[:, 0] + margin, JOINT_LIMITS[:, 1] - margin),
+        )
+        for _ in range(n)
+    ]
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+@pytest.mark.parametrize("hand_length", [0.15, 0.189, 0.23])
+def test_round_trip_at_the_same_size(side, hand_length):
+    """FK -> retarget -> FK is exact to < 1 mm within limits, both sides, three sizes."""
+    params = HandParams(hand_length=hand_length, side=side)
+    fk, retarget = ForwardKinematics(params), Retargeter(params)
+    errors = []
+    for pose in _random_poses(np.random.default_rng(0), 8):
+        result = retarget(fk.keypoints(pose))
+        errors.append(np.linalg.norm(fk.keypoints(result.pose) - fk.keypoints(pose), axis=-1))
+        assert result.clamped == ()
+        assert result.scale == pytest.approx(1.0, abs=1e-9)
+        np.testing.assert_allclose(result.pose.wrist_pos, pose.wrist_pos)
+    assert np.mean(errors) < 1e-3
+    assert np.max(errors) < 1e-3
+
+
+def test_angles_are_preserved_across_hand_sizes():
+    """Keypoints of a larger hand retarget to the same angles on a smaller one."""
+    source, target = HandParams(hand_length=0.225), HandParams(hand_length=0.15)
+    fk, retarget = ForwardKinematics(source), Retargeter(target)
+    for pose in _random_poses(np.random.default_rng(1), 8):
+        result = retarget(fk.keypoints(pose))
+        assert result.scale == pytest.approx(0.225 / 0.15, rel=1e-6)
+        np.testing.assert_allclose(result.pose.angles, pose.angles, atol=np.deg2rad(0.1))
+
+
+def test_noisy_keypoints_give_a_bounded_fit():
+    """5 mm isotropic noise gives a fit closer to the truth than the noisy input (~8 mm).
+
+    The benchmark reports the figures.
+    """
+    params = HandParams()
+    fk, retarget = ForwardKinematics(params), Retargeter(params)
+    rng = np.random.default_rng(2)
+    errors = []
+    for pose in _random_poses(rng, 10):
+        truth = fk.keypoints(pose)
+        noisy = truth + rng.normal(scale=0.005, size=truth.shape)
+        result = retarget(noisy)
+        assert result.pose.within_limits()
+        errors.append(np.linalg.norm(fk.keypoints(result.pose) - truth, axis=-1).mean())
+    # The noisy input itself is ~8 mm (1.6 sigma) from the truth on average.
+    assert np.mean(errors) < 0.008
+
+
+def test_out_of_limit_input_is_clamped_and_reported():
+    """Joints asked past a limit are clamped, and reported with the requested value."""
+    params = HandParams()
+    fk, retarget = ForwardKinematics(params), Retargeter(params)
+    angles = np.deg2rad(np.full(21, 20.0))
+    angles[joint_index("index_pip_flex")] = np.deg2rad(130.0)
+    angles[joint_index("middle_mcp_flex")] = np.deg2rad(-35.0)
+    wanted = HandPose(np.zeros(3), np.zeros(3), angles)
+    result = retarget(fk.keypoints(wanted))
+    assert result.pose.within_limits()
+    reported = {v.joint: np.rad2deg(v.value_rad) for v in result.clamped}
+    assert reported["index_pip_flex"] == pytest.approx(130.0, abs=0.1)
+    assert reported["middle_mcp_flex"] == pytest.approx(-35.0, abs=0.1)
+    assert result.pose.angle("index_pip_flex") == pytest.approx(JOINT_LIMITS[7, 1])
+
+
+def test_sequence_warm_starts():
+    """A sequence retargets frame by frame, each warm-started from the last."""
+    params = HandParams()
+    fk, retarget = ForwardKinematics(params), Retargeter(params)
+    start, end = _random_poses(np.random.default_rng(3), 2)
+    t = np.linspace(0, 1, 5)[:, None]
+    poses = HandPose(
+        start.wrist_pos + t * (end.wrist_pos - start.wrist_pos),
+        np.broadcast_to(start.wrist_rotvec, (5, 3)),
+        start.angles + t * (end.angles - start.angles),
+    )
+    results = retarget.sequence(fk.keypoints(poses))
+    assert len(results) == 5
+    fitted = np.stack([r.pose.angles for r in results])
+    np.testing.assert_allclose(fitted, poses.angles, atol=1e-4)
+
+
+def test_errors():
+    """Bad keypoints are refused with messages that say what is wrong."""
+    params = HandParams()
+    retarget = Retargeter(params)
+    good = ForwardKinematics(params).keypoints(HandPose.neutral())
+    with pytest.raises(InvalidKeypoints, match=r"shape \(21, 3\).*received shape \(20, 3\)"):
+        retarget(good[:20])
+    bad = good.copy()
+    bad[4, 1] = np.nan
+    with pytest.raises(InvalidKeypoints, match=r"NaN or Inf at indices \[4\]"):
+        retarget(bad)
+    same = good.copy()
+    same[8] = same[7]
+    with pytest.raises(InvalidKeypoints, match=r"bones \[\(7, 8\)\] have zero length"):
+        retarget(same)
+    left = ForwardKinematics(HandParams(side="left")).keypoints(HandPose.neutral())
+    with pytest.raises(
+        InvalidKeypoints, match=r"look like a left hand but the target hand is right"
+    ):
+        retarget(left)
+    with pytest.raises(InvalidKeypoints, match=r"shape \(T, 21, 3\)"):
+        retarget.sequence(good)

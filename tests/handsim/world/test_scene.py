@@ -1,0 +1,154 @@
+"""Scenes: compilation, placements, cameras and segmentation labels."""
+
+import mujoco
+import numpy as np
+import pytest
+
+from handsim.errors import UnknownName
+from handsim.world.camera import T_cam_from_world, camera_preset
+from handsim.world.render import DepthRenderer
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    InvalidScene,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+    egocentric_camera,
+    sample_placements,
+    sample_viewpoint,
+    third_person_camera,
+)
+
+OBJECTS = ("005_tomato_soup_can", "003_cracker_box", "024_bowl")
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """A hand above three sampled objects, seen by a third-person and an egocentric camera."""
+    placements = sample_placements(np.random.default_rng(0), OBJECTS)
+    return Scene(
+        SceneSpec(
+            objects=placements,
+            cameras=(third_person_camera(camera_preset("icvl")), egocentric_camera()),
+        )
+    )
+
+
+def test_placements_rest_without_overlap(scene):
+    """Sampled objects start without touching each other and stay put under gravity."""
+    model, data = scene.model, scene.data
+    object_bodies = {model.body(body).id for body, _ in scene.objects}
+    for c in data.contact[: data.ncon]:
+        pair = {model.geom_bodyid[c.geom1], model.geom_bodyid[c.geom2]}
+        assert not pair <= object_bodies, "objects overlap at the start"
+    start = {body: data.body(body).xpos.copy() for body, _ in scene.objects}
+    # Hold the hand still above the table while the objects settle.
+    for _ in range(int(0.5 / model.opt.timestep)):
+        mujoco.mj_step(model, data)
+    for body, _ in scene.objects:
+        assert np.linalg.norm(data.body(body).xpos - start[body]) < 0.003
+    assert sum(w.number for w in data.warning) == 0
+    scene.reset()
+
+
+def test_segmentation_labels_every_part_seen(scene):
+    """The third-person view labels the table, the palm, fingers and every object instance."""
+    cam = scene.camera("third_person")
+    with DepthRenderer(scene.model, cam.name, cam.intrinsics) as renderer:
+        depth, geom_id = renderer.render(scene.data)
+    labels = scene.segment(geom_id)
+    seen = set(np.unique(labels).tolist())
+    for name in ("background", "table", "palm", "index", "middle"):
+        assert SEGMENT_LABELS.index(name) in seen, name
+    for k in range(len(scene.objects)):
+        assert OBJECT_LABEL_OFFSET + k in seen
+    assert np.all(depth[labels == 0] == 0) and np.all(depth[labels > 0] > 0)
+
+
+def test_geom_labels_follow_bodies(scene):
+    """Hand geoms carry their digit's label, object geoms their instance label."""
+    model = scene.model
+    assert scene.geom_labels[model.geom("rh_index_distal_visual_0").id] == SEGMENT_LABELS.index(
+        "index"
+    )
+    assert scene.geom_labels[model.geom("rh_palm_collision_0").id] == SEGMENT_LABELS.index("palm")
+    assert scene.geom_labels[model.geom("table").id] == SEGMENT_LABELS.index("table")
+    body, _ = scene.objects[2]
+    assert scene.geom_labels[model.geom(f"{body}_visual").id] == OBJECT_LABEL_OFFSET + 2
+
+
+def _target_pixel(scene_or_spec, cam_name, target):
+    scene = scene_or_spec
+    cam_id = scene.model.camera(cam_name).id
+    T = T_cam_from_world(scene.data, cam_id)
+    p = T[:3, :3] @ np.asarray(target) + T[:3, 3]
+    return p, scene.camera(cam_name).intrinsics.project(p)
+
+
+def test_cameras_look_at_their_target(scene):
+    """Third-person and egocentric cameras put the hand target at the image centre."""
+    for name in ("third_person", "egocentric"):
+        p, uv = _target_pixel(scene, name, (0.0, 0.0, 0.12))
+        intr = scene.camera(name).intrinsics
+        assert p[2] > 0
+        assert abs(uv[0] - intr.cx) < 1.0 and abs(uv[1] - intr.cy) < 1.0
+    # The egocentric camera is above the hands and on the user's side.
+    ego = scene.camera("egocentric")
+    assert ego.pos_m[2] > 0.4 and ego.pos_m[1] < 0.0
+
+
+def test_viewpoints_are_seeded_and_inside_their_shell():
+    """Same seed, same viewpoint; distances and elevations stay in range."""
+    a = sample_viewpoint(np.random.default_rng(3))
+    b = sample_viewpoint(np.random.default_rng(3))
+    assert a == b
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        cam = sample_viewpoint(rng, distance_range_m=(0.5, 0.6), target_jitter_m=0.0)
+        offset = np.asarray(cam.pos_m) - np.array([0.0, 0.0, 0.12])
+        assert 0.5 - 1e-9 <= np.linalg.norm(offset) <= 0.6 + 1e-9
+        elevation = np.degrees(np.arcsin(offset[2] / np.linalg.norm(offset)))
+        assert 15 - 1e-6 <= elevation <= 75 + 1e-6
+
+
+def test_placements_are_seeded():
+    """Same seed, same placements; objects rest at their stable height."""
+    a = sample_placements(np.random.default_rng(5), OBJECTS)
+    b = sample_placements(np.random.default_rng(5), OBJECTS)
+    assert a == b
+    assert all(p.pos_m[2] > 0 for p in a)
+
+
+def test_repeated_objects_get_instance_names():
+    """Two instances of one object get distinct bodies and labels."""
+    placements = sample_placements(np.random.default_rng(6), ["tomato_soup_can"] * 2)
+    scene = Scene(SceneSpec(hand=None, objects=placements))
+    assert [body for body, _ in scene.objects] == [
+        "obj_005_tomato_soup_can",
+        "obj_005_tomato_soup_can_1",
+    ]
+
+
+def test_errors():
+    """Inconsistent scenes are refused with messages that say how to fix them."""
+    cam = third_person_camera()
+    with pytest.raises(InvalidScene, match=r"camera names must be unique"):
+        SceneSpec(cameras=(cam, cam))
+    with pytest.raises(InvalidScene, match=r"at least one camera"):
+        SceneSpec(cameras=())
+    with pytest.raises(UnknownName, match=r"teapot"):
+        SceneSpec(objects=(ObjectPlacement("teapot", (0.0, 0.0, 0.1)),))
+    with pytest.raises(InvalidScene, match=r"could not place .* use fewer objects or a larger"):
+        sample_placements(
+            np.random.default_rng(0), ["003_cracker_box"] * 3, region_m=((0, 0.01), (0, 0.01))
+        )
+    with pytest.raises(InvalidScene, match=r"distance_range_m must be \(low, high\)"):
+        sample_viewpoint(np.random.default_rng(0), distance_range_m=(0.8, 0.4))
+    scene = Scene(SceneSpec(hand=None, table=False))
+    with pytest.raises(InvalidScene, match=r"no camera 'top' in this scene; cameras: third_person"):
+        scene.camera("top")
+    assert isinstance(
+        CameraSpec.look_at("c", camera_preset("icvl"), (0, -1, 0), (0, 0, 0)), CameraSpec
+    )
