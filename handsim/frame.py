@@ -160,6 +160,23 @@ class Frame:
         """Names of the 21 keypoints, in order."""
         return KEYPOINT_NAMES
 
+    def to_arrays(self, *, images: bool = False) -> dict[str, np.ndarray]:
+        """The flat array form of the labels (:data:`handsim.data.arrays.LABEL_SCHEMA`).
+
+        Args:
+            images: also include ``depth``, ``segmentation`` and ``depth_clean`` (if present).
+        """
+        from handsim.data.arrays import frame_to_arrays
+
+        return frame_to_arrays(self, images=images)
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray], *, camera: str = "camera") -> Frame:
+        """The Frame of an array form (inverse of :meth:`to_arrays`; camera name given)."""
+        from handsim.data.arrays import arrays_to_frame
+
+        return arrays_to_frame(arrays, camera=camera)
+
 
 def _keypoint_radii(scene: Scene) -> np.ndarray:
     """Largest collision radius of the segments that meet at each keypoint, metres."""
