@@ -1,6 +1,32 @@
-"""Data out of handsim: generation, shards and manifest, the torch ``Dataset``, exports.
+"""Data out of handsim: labels as arrays, generation, crash-safe shards and their manifest.
 
-This package holds what turns rendered Frames into datasets (HDF5 shards with a manifest, a
-lazily imported torch ``Dataset``) and into the formats other tools read (Minari, BOP, hand
-labels). It imports neither the envs nor torch at import time.
+=======================  ==========================================================================
+module                   holds
+=======================  ==========================================================================
+:mod:`.arrays`           :func:`frame_to_arrays`: a Frame's labels as fixed-shape arrays and back
+:mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
+:mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
+:mod:`.generate`         :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
+=======================  ==========================================================================
+
+Nothing here imports the envs or torch.
 """
+
+from handsim.data.arrays import LABEL_SCHEMA, arrays_to_frame, frame_to_arrays
+from handsim.data.generate import PRESETS, GenerationConfig, generate
+from handsim.data.manifest import Manifest, check_dataset
+from handsim.data.shards import ShardReader, ShardWriter, check_shard
+
+__all__ = [
+    "LABEL_SCHEMA",
+    "arrays_to_frame",
+    "frame_to_arrays",
+    "PRESETS",
+    "GenerationConfig",
+    "generate",
+    "Manifest",
+    "check_dataset",
+    "ShardReader",
+    "ShardWriter",
+    "check_shard",
+]

@@ -1,0 +1,387 @@
+"""Dataset shards: HDF5 files of labelled frames, written crash-safe, read with random access.
+
+A shard is written under a temporary name (``<name>.h5.partial``) and renamed to
+``<name>.h5`` only when it is complete (:meth:`ShardWriter.close`), so a run killed at any
+moment leaves complete shards and at most one partial file per worker, which a resumed run
+deletes and writes again. HDF5 via h5py, chunked and compressed (gzip with byte shuffle):
+
+=================  ==================  ========  ============================================
+dataset            shape               dtype     content
+=================  ==================  ========  ============================================
+``depth``          (N, H, W)           uint16    depth in units of ``depth_scale_mm`` (0 = none)
+``depth_clean``    (N, H, W)           uint16    noise-free depth, when paired depth is kept
+``segmentation``   (N, H, W)           uint8     segmentation labels (background 0, hand 2-7,
+                                                 objects 8+)
+``episode``        (N,)                int64     episode index of the frame
+``step``           (N,)                int64     step index within the episode
+``labels/<key>``   (N, ...)            schema    each label of the array form (``LABEL_SCHEMA``)
+=================  ==================  ========  ============================================
+
+Depth is stored as ``round(depth_m * 1000 / depth_scale_mm)`` (BOP's convention; the default
+0.1 mm gives a 6.5535 m range at 0.05 mm worst-case rounding error); depth beyond the range is
+stored as 0 (no measurement). File attributes: ``format`` (:data:`SHARD_FORMAT`),
+``depth_scale_mm``, ``image_shape`` and ``frames``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from handsim.data.arrays import LABEL_SCHEMA, check_label_arrays
+from handsim.errors import HandSimError
+
+__all__ = [
+    "SHARD_FORMAT",
+    "SHARD_SUFFIX",
+    "PARTIAL_SUFFIX",
+    "DEFAULT_DEPTH_SCALE_MM",
+    "InvalidShard",
+    "ShardInfo",
+    "ShardWriter",
+    "ShardReader",
+    "check_shard",
+    "file_sha256",
+]
+
+SHARD_FORMAT = "handsim-shard-1"
+"""Format tag written into every shard (bumped when the layout changes)."""
+SHARD_SUFFIX = ".h5"
+"""Suffix of a complete shard."""
+PARTIAL_SUFFIX = ".h5.partial"
+"""Suffix of a shard being written (never read; deleted on resume)."""
+DEFAULT_DEPTH_SCALE_MM = 0.1
+"""Stored depth unit, millimetres (BOP ``depth_scale``)."""
+
+_COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+_LABEL_CHUNK = 64  # frames per label chunk
+
+
+class InvalidShard(HandSimError, ValueError):
+    """A shard is missing, truncated, corrupt or not a handsim shard; the message names it."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ShardInfo:
+    """A complete shard as the manifest records it.
+
+    Attributes:
+        name: file name, e.g. ``"shard-00003.h5"``.
+        frames: number of frames.
+        sha256: hex SHA-256 of the file.
+        bytes: file size, bytes.
+    """
+
+    name: str
+    frames: int
+    sha256: str
+    bytes: int
+
+
+def file_sha256(path: str | os.PathLike[str]) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _check_depth_scale(depth_scale_mm: object) -> float:
+    if (
+        isinstance(depth_scale_mm, bool)
+        or not isinstance(depth_scale_mm, (int, float, np.floating, np.integer))
+        or not np.isfinite(depth_scale_mm)
+        or not 0.001 <= depth_scale_mm <= 10.0
+    ):
+        raise InvalidShard(
+            f"depth_scale_mm must be a number in [0.001, 10] mm; received {depth_scale_mm!r}"
+        )
+    return float(depth_scale_mm)
+
+
+class ShardWriter:
+    """Writes labelled frames to one shard, under a temporary name until :meth:`close`.
+
+    Use it as a context manager: leaving the block normally completes the shard; an exception
+    deletes the partial file (nothing half-written is ever named ``*.h5``).
+
+    Args:
+        path: the complete shard's path (must end in ``.h5``).
+        image_shape: ``(H, W)`` of every frame.
+        depth_scale_mm: stored depth unit, millimetres.
+        paired_clean: also store the noise-free depth (``depth_clean`` in each frame's arrays).
+
+    Raises:
+        InvalidShard: for a bad path, shape or scale.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        image_shape: tuple[int, int],
+        depth_scale_mm: float = DEFAULT_DEPTH_SCALE_MM,
+        paired_clean: bool = False,
+    ) -> None:
+        import h5py
+
+        self.path = Path(path)
+        if self.path.suffix != SHARD_SUFFIX:
+            raise InvalidShard(f"a shard path must end in {SHARD_SUFFIX!r}; received {self.path}")
+        shape = tuple(image_shape) if isinstance(image_shape, (tuple, list)) else ()
+        if len(shape) != 2 or not all(
+            isinstance(s, (int, np.integer)) and not isinstance(s, bool) and 1 <= s <= 8192
+            for s in shape
+        ):
+            raise InvalidShard(
+                f"image_shape must be (H, W) with 1 <= H, W <= 8192; received {image_shape!r}"
+            )
+        self.image_shape = (int(shape[0]), int(shape[1]))
+        self.depth_scale_mm = _check_depth_scale(depth_scale_mm)
+        self.paired_clean = bool(paired_clean)
+        self.partial_path = self.path.with_name(self.path.stem + PARTIAL_SUFFIX)
+        self.frames = 0
+        self._file = h5py.File(self.partial_path, "w")
+        f, (h, w) = self._file, self.image_shape
+        f.attrs.update(
+            format=SHARD_FORMAT, depth_scale_mm=self.depth_scale_mm, image_shape=(h, w), frames=0
+        )
+        images = ["depth", "segmentation"] + (["depth_clean"] if self.paired_clean else [])
+        for key in images:
+            dtype = np.uint8 if key == "segmentation" else np.uint16
+            f.create_dataset(
+                key, (0, h, w), dtype, maxshape=(None, h, w), chunks=(1, h, w), **_COMPRESSION
+            )
+        for key in ("episode", "step"):
+            f.create_dataset(key, (0,), np.int64, maxshape=(None,), chunks=(_LABEL_CHUNK,))
+        labels = f.create_group("labels")
+        for key, (shape_k, dtype, unit) in LABEL_SCHEMA.items():
+            ds = labels.create_dataset(
+                key,
+                (0, *shape_k),
+                dtype,
+                maxshape=(None, *shape_k),
+                chunks=(_LABEL_CHUNK, *shape_k),
+                **_COMPRESSION,
+            )
+            ds.attrs["unit"] = unit
+
+    def _depth_units(self, depth_m: np.ndarray, key: str) -> np.ndarray:
+        depth = np.asarray(depth_m)
+        if depth.shape != self.image_shape or depth.dtype.kind != "f":
+            raise InvalidShard(
+                f"{key} must be a float array of shape {self.image_shape}; received "
+                f"{depth.dtype} of shape {depth.shape}"
+            )
+        units = np.rint(depth * (1000.0 / self.depth_scale_mm))
+        units[~np.isfinite(units) | (units > np.iinfo(np.uint16).max) | (units < 0)] = 0
+        return units.astype(np.uint16)
+
+    def append(self, arrays: Mapping[str, np.ndarray], *, episode: int, step: int) -> None:
+        """Add one frame.
+
+        Args:
+            arrays: :meth:`Frame.to_arrays(images=True) <handsim.frame.Frame.to_arrays>` of the
+                frame (every label, ``depth`` and ``segmentation``; ``depth_clean`` when the
+                writer keeps paired depth).
+            episode: the frame's episode index.
+            step: the frame's step index in its episode.
+
+        Raises:
+            InvalidShard: if an image is missing or of the wrong shape.
+            InvalidLabelArrays: if a label does not follow the schema.
+        """
+        if self._file is None:
+            raise InvalidShard(f"shard {self.path.name} is closed; open a new ShardWriter")
+        check_label_arrays(arrays)
+        needed = ["depth", "segmentation"] + (["depth_clean"] if self.paired_clean else [])
+        missing = [k for k in needed if k not in arrays]
+        if missing:
+            raise InvalidShard(
+                f"frame arrays lack {', '.join(missing)}: use frame.to_arrays(images=True)"
+                + (" with a renderer that keeps clean depth" if "depth_clean" in missing else "")
+            )
+        seg = np.asarray(arrays["segmentation"])
+        if seg.shape != self.image_shape or seg.min(initial=0) < 0 or seg.max(initial=0) > 255:
+            raise InvalidShard(
+                f"segmentation must be labels 0..255 of shape {self.image_shape}; received "
+                f"shape {seg.shape}"
+            )
+        f, n = self._file, self.frames
+        rows = {
+            "depth": self._depth_units(arrays["depth"], "depth"),
+            "segmentation": seg.astype(np.uint8),
+            "episode": np.int64(episode),
+            "step": np.int64(step),
+        }
+        if self.paired_clean:
+            rows["depth_clean"] = self._depth_units(arrays["depth_clean"], "depth_clean")
+        for key, row in rows.items():
+            f[key].resize(n + 1, axis=0)
+            f[key][n] = row
+        labels = f["labels"]
+        for key in LABEL_SCHEMA:
+            labels[key].resize(n + 1, axis=0)
+            labels[key][n] = arrays[key]
+        self.frames = n + 1
+
+    def close(self) -> ShardInfo:
+        """Complete the shard: flush, rename to its final name and return its record."""
+        if self._file is None:
+            raise InvalidShard(f"shard {self.path.name} is already closed")
+        self._file.attrs["frames"] = self.frames
+        self._file.close()
+        self._file = None
+        os.replace(self.partial_path, self.path)
+        return ShardInfo(
+            name=self.path.name,
+            frames=self.frames,
+            sha256=file_sha256(self.path),
+            bytes=self.path.stat().st_size,
+        )
+
+    def abort(self) -> None:
+        """Drop the shard: close and delete the partial file (the final name is never made)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+        self.partial_path.unlink(missing_ok=True)
+
+    def __enter__(self) -> ShardWriter:
+        return self
+
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        if exc_type is None:
+            self.info = self.close()
+        else:
+            self.abort()
+
+
+class ShardReader:
+    """Random access to the frames of one complete shard.
+
+    The file is opened on first access in the process that reads (and re-opened after a
+    fork), so one reader can be handed to ``DataLoader`` workers.
+
+    Args:
+        path: a complete shard (``*.h5``).
+
+    Raises:
+        InvalidShard: if the file is not a readable handsim shard.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self._file = None
+        self._pid = None
+        f = self._open()
+        self.frames = int(f.attrs["frames"])
+        self.depth_scale_mm = float(f.attrs["depth_scale_mm"])
+        self.image_shape = tuple(int(s) for s in f.attrs["image_shape"])
+        self.has_clean = "depth_clean" in f
+
+    def _open(self):
+        import h5py
+
+        if self._file is None or self._pid != os.getpid():
+            try:
+                self._file = h5py.File(self.path, "r")
+            except (OSError, ValueError) as err:
+                raise InvalidShard(f"{self.path} is not a readable HDF5 file ({err})") from err
+            self._pid = os.getpid()
+            if self._file.attrs.get("format") != SHARD_FORMAT:
+                raise InvalidShard(
+                    f"{self.path} is not a handsim shard (format "
+                    f"{self._file.attrs.get('format')!r}, expected {SHARD_FORMAT!r})"
+                )
+        return self._file
+
+    def __len__(self) -> int:
+        return self.frames
+
+    def __getitem__(self, index: int) -> dict[str, np.ndarray]:
+        """Frame ``index``: every label, ``depth`` (float32 metres), ``segmentation``, indices."""
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+            raise InvalidShard(f"a frame index must be an int; received {type(index).__name__}")
+        if not -self.frames <= index < self.frames:
+            raise InvalidShard(
+                f"frame {index} is out of range: {self.path.name} has {self.frames} frames"
+            )
+        index = int(index) % self.frames
+        f = self._open()
+        scale = np.float32(self.depth_scale_mm / 1000.0)
+        out = {key: ds[index] for key, ds in f["labels"].items()}
+        out["depth"] = f["depth"][index].astype(np.float32) * scale
+        out["segmentation"] = f["segmentation"][index].astype(np.int16)
+        if self.has_clean:
+            out["depth_clean"] = f["depth_clean"][index].astype(np.float32) * scale
+        out["episode"] = f["episode"][index]
+        out["step"] = f["step"][index]
+        return out
+
+    def labels(self, key: str) -> np.ndarray:
+        """One label over every frame, ``(N, *shape)`` (e.g. for filtering)."""
+        if key not in LABEL_SCHEMA and key not in ("episode", "step"):
+            raise InvalidShard(
+                f"unknown label {key!r}; valid: episode, step, {', '.join(LABEL_SCHEMA)}"
+            )
+        f = self._open()
+        return f[key][:] if key in ("episode", "step") else f["labels"][key][:]
+
+    def close(self) -> None:
+        """Close the file (it re-opens on the next access)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def check_shard(path: str | os.PathLike[str], expected: ShardInfo | None = None) -> list[str]:
+    """What is wrong with a shard, as sentences naming it; empty when it is sound.
+
+    Reads every chunk, so truncation and corruption are found; never raises for a bad file.
+
+    Args:
+        path: the shard's path.
+        expected: the manifest's record (frames and checksum are compared when given).
+    """
+    path = Path(path)
+    if not path.is_file():
+        return [f"{path.name}: missing"]
+    problems = []
+    if expected is not None:
+        size = path.stat().st_size
+        if size != expected.bytes:
+            problems.append(f"{path.name}: {size} bytes, the manifest says {expected.bytes}")
+        elif file_sha256(path) != expected.sha256:
+            problems.append(f"{path.name}: checksum differs from the manifest (corrupt)")
+    try:
+        reader = ShardReader(path)
+        f = reader._open()
+        n = reader.frames
+        for key in ("depth", "segmentation", "episode", "step"):
+            if key not in f or f[key].shape[0] != n:
+                problems.append(f"{path.name}: dataset {key!r} missing or not {n} frames long")
+        for key in LABEL_SCHEMA:
+            if key not in f["labels"] or f["labels"][key].shape[0] != n:
+                problems.append(f"{path.name}: label {key!r} missing or not {n} frames long")
+        if not problems:
+            for key in ("depth", "segmentation", "depth_clean"):
+                if key in f:
+                    for i in range(n):  # one chunk per frame
+                        f[key][i]
+            for ds in f["labels"].values():
+                ds[:]
+        if expected is not None and n != expected.frames:
+            problems.append(f"{path.name}: {n} frames, the manifest says {expected.frames}")
+        reader.close()
+    except InvalidShard as err:
+        problems.append(f"{path.name}: {err}")
+    except Exception as err:  # noqa: BLE001 - any decoding failure means a corrupt shard
+        problems.append(f"{path.name}: unreadable ({type(err).__name__}: {err})")
+    return problems

@@ -1,0 +1,202 @@
+"""Tests of handsim.data.generate: configs, presets, determinism, resume after a kill, checks."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from handsim.data.generate import (
+    PRESETS,
+    GenerationConfig,
+    GenerationError,
+    InvalidGenerationConfig,
+    generate,
+    generate_shard,
+)
+from handsim.data.manifest import Manifest, check_dataset
+from handsim.data.shards import PARTIAL_SUFFIX, ShardReader, file_sha256
+
+# Tiny and fast: 2 frames per shard and per episode, hand sizes fixed, noise-free depth.
+TINY = {
+    "frames": 4,
+    "frames_per_shard": 2,
+    "frames_per_episode": 2,
+    "sensor": "none",
+    "num_objects_range": (1, 1),
+    "objects": ("005_tomato_soup_can",),
+}
+
+
+def test_every_preset_is_a_valid_config():
+    """The presets build configs, and their JSON form round-trips."""
+    for name, values in PRESETS.items():
+        config = GenerationConfig.from_mapping(values)
+        assert GenerationConfig.from_mapping(config.to_json()) == config, name
+
+
+@pytest.mark.parametrize(
+    ("values", "match"),
+    [
+        ({"frames": 0}, r"frames must be an integer in \[1, 1000000000\]; received 0"),
+        ({"frames": 2.5}, r"frames must be an integer"),
+        ({"camera": "kinect"}, r"camera must be one of .*icvl.*; received 'kinect'"),
+        ({"viewpoints": ("top",)}, r"viewpoints must be one of third_person, egocentric"),
+        ({"viewpoints": "random"}, r"viewpoints must be a non-empty list"),
+        ({"sensor": "lidar"}, r"sensor must be one of none, structured_light, tof"),
+        ({"hand_length_range_m": (0.1, 0.2)}, r"hand_length_range_m must be a pair of numbers"),
+        ({"num_objects_range": (1.5, 2.5)}, r"num_objects_range must be a pair of integers"),
+        ({"objects": ("spoon",)}, r"objects: unknown object 'spoon'; valid: 002_master_chef"),
+        ({"occlusion_range": (0.5, 0.2)}, r"occlusion_range must be a pair of numbers"),
+        ({"occlusion_buckets": ((0, 0.5), (0.5, 0.5))}, r"one more edge than fractions"),
+        ({"occlusion_buckets": ((0, 0.5, 1), (0.5, 0.6))}, r"fractions must be >= 0 and sum"),
+        ({"paired_clean": "yes"}, r"paired_clean must be true or false"),
+        (
+            {"viewpoints": ("through_object",), "num_objects_range": (0, 0)},
+            r"'through_object' needs objects",
+        ),
+        ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: camera"),
+    ],
+)
+def test_config_errors_name_the_field_and_what_is_valid(values, match):
+    """Every bad field raises InvalidGenerationConfig naming it."""
+    with pytest.raises(InvalidGenerationConfig, match=match):
+        GenerationConfig.from_mapping(values)
+
+
+def test_config_files_json_and_bad_files(tmp_path):
+    """JSON files load with overrides; missing and malformed files are named."""
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps({"frames": 7, "sensor": "tof"}))
+    config = GenerationConfig.from_file(path, frames=9)
+    assert config.frames == 9 and config.sensor == "tof"
+    with pytest.raises(InvalidGenerationConfig, match="does not exist"):
+        GenerationConfig.from_file(tmp_path / "none.json")
+    path.write_text("{frames: 3")
+    with pytest.raises(InvalidGenerationConfig, match="is not valid JSON"):
+        GenerationConfig.from_file(path)
+
+
+def test_a_shard_is_the_same_whoever_makes_it(tmp_path):
+    """Shard i depends on (seed, i) only: made twice, the files are byte-identical."""
+    config = GenerationConfig.from_mapping(TINY)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    a = generate_shard(config, 1, tmp_path / "a")
+    b = generate_shard(config, 1, tmp_path / "b")
+    assert a == b
+    other = generate_shard(GenerationConfig.from_mapping(TINY, seed=1), 1, tmp_path / "a")
+    assert other.sha256 != a.sha256
+
+
+def test_generate_resumes_after_a_crash_and_check_finds_damage(tmp_path):
+    """Missing, partial and damaged shards are (re)made identically; the manifest lists all."""
+    config = GenerationConfig.from_mapping(TINY)
+    full = generate(config, tmp_path / "full")
+    assert full.frames == 4 and len(full.shards) == 2
+    assert check_dataset(tmp_path / "full")["ok"]
+    reader = ShardReader(tmp_path / "full" / "shard-00000.h5")
+    assert len(reader) == 2 and reader[0]["valid"]
+    assert reader[0]["object_valid"].sum() == 1
+
+    # A crashed run: shard 1 never completed (a partial file), shard 0 damaged afterwards.
+    run = tmp_path / "run"
+    generate(GenerationConfig.from_mapping(TINY, frames=2), run)  # only shard 0
+    manifest = json.loads((run / "manifest.json").read_text())
+    manifest["config"]["frames"] = 4
+    (run / "manifest.json").write_text(json.dumps(manifest))
+    (run / f"shard-00001{PARTIAL_SUFFIX}").write_bytes(b"half a shard")
+    data = bytearray((run / "shard-00000.h5").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    (run / "shard-00000.h5").write_bytes(bytes(data))
+    report = check_dataset(run)
+    assert not report["ok"] and report["problems"][0].startswith("shard-00000.h5: ")
+    assert report["partial"] == [f"shard-00001{PARTIAL_SUFFIX}"]
+
+    resumed = generate(config, run)
+    assert resumed.shards == full.shards  # names, counts, sizes and checksums
+    assert check_dataset(run) == check_dataset(tmp_path / "full")
+    assert not list(run.glob(f"*{PARTIAL_SUFFIX}"))
+
+
+def test_another_config_is_refused_in_an_existing_dataset(tmp_path):
+    """Resuming with a different config would mix datasets: refused, naming the fields."""
+    generate(GenerationConfig.from_mapping(TINY, frames=2), tmp_path)
+    with pytest.raises(InvalidGenerationConfig, match=r"another config \(fields differ: seed\)"):
+        generate(GenerationConfig.from_mapping(TINY, frames=2, seed=3), tmp_path)
+
+
+def test_occlusion_control_keeps_the_range_and_fills_buckets(tmp_path):
+    """Kept frames lie in the range; stratified shards fill each bucket to its quota."""
+    ranged = GenerationConfig.from_mapping(
+        PRESETS["occlusion-heavy"],
+        frames=4,
+        frames_per_shard=4,
+        frames_per_episode=4,
+        sensor="none",
+        occlusion_buckets=None,
+        occlusion_range=(0.2, 0.8),
+    )
+    manifest = generate(ranged, tmp_path / "ranged")
+    ratios = ShardReader(tmp_path / "ranged" / "shard-00000.h5").labels("hand_occlusion_ratio")
+    assert ((ratios >= 0.2) & (ratios <= 0.8)).all()
+    assert sum(manifest.occlusion_histogram["counts"]) == 4
+
+    buckets = GenerationConfig.from_mapping(
+        PRESETS["occlusion-heavy"],
+        frames=4,
+        frames_per_shard=4,
+        frames_per_episode=4,
+        sensor="none",
+        occlusion_buckets=((0.0, 0.3, 1.0), (0.5, 0.5)),
+    )
+    manifest = generate(buckets, tmp_path / "buckets")
+    assert manifest.occlusion_histogram == {"edges": [0.0, 0.3, 1.0], "counts": [2, 2]}
+
+
+def test_an_unreachable_occlusion_range_fails_clearly(tmp_path, monkeypatch):
+    """A marker cannot hide 97 % of a hand: the error says what to change, nothing is left."""
+    from handsim.data import generate as generate_module
+
+    monkeypatch.setattr(generate_module, "MAX_TRIES_PER_FRAME", 3)
+    config = GenerationConfig.from_mapping(
+        TINY, frames=1, objects=("040_large_marker",), occlusion_range=(0.97, 1.0)
+    )
+    with pytest.raises(GenerationError, match="5 episodes in a row gave no accepted frame"):
+        generate(config, tmp_path)
+    assert not list(tmp_path.glob("*.h5*"))  # the failed shard left nothing behind
+    with pytest.raises(InvalidGenerationConfig, match="frames without objects have a hand"):
+        GenerationConfig.from_mapping(PRESETS["hand-only"], occlusion_range=(0.5, 1.0))
+
+
+def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
+    """A run killed with SIGKILL mid-way resumes to the same dataset as an uninterrupted run."""
+    values = dict(TINY, frames=8)
+    code = (
+        "import sys; from handsim.data.generate import GenerationConfig, generate\n"
+        f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
+    )
+    run = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-c", code, str(run)])
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (run / "manifest.json").exists() and Manifest.read(run).shards:
+            break
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    before = Manifest.read(run)
+    assert 1 <= len(before.shards) < 4 or proc.returncode != -signal.SIGKILL
+    resumed = generate(GenerationConfig.from_mapping(values), run)
+    clean = generate(GenerationConfig.from_mapping(values), tmp_path / "clean")
+    assert resumed.shards == clean.shards
+    for record in clean.shards.values():
+        assert file_sha256(run / record.name) == record.sha256
+    assert np.array_equal(
+        ShardReader(run / "shard-00003.h5").labels("keypoints_cam"),
+        ShardReader(tmp_path / "clean" / "shard-00003.h5").labels("keypoints_cam"),
+    )
