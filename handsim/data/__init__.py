@@ -7,6 +7,7 @@ module                   holds
 :mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
 :mod:`.generate`         :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
+:mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 =======================  ==========================================================================
 
 Nothing here imports the envs or torch.
@@ -16,6 +17,7 @@ from handsim.data.arrays import LABEL_SCHEMA, arrays_to_frame, frame_to_arrays
 from handsim.data.generate import PRESETS, GenerationConfig, generate
 from handsim.data.manifest import Manifest, check_dataset
 from handsim.data.shards import ShardReader, ShardWriter, check_shard
+from handsim.data.torch_dataset import HandSimDataset
 
 __all__ = [
     "LABEL_SCHEMA",
@@ -29,4 +31,5 @@ __all__ = [
     "ShardReader",
     "ShardWriter",
     "check_shard",
+    "HandSimDataset",
 ]

@@ -1,0 +1,159 @@
+"""A map-style torch dataset over handsim dataset folders (torch is imported per sample).
+
+:class:`HandSimDataset` gives random access to every frame of one or more dataset folders
+(``manifest.json`` + shards), filtered by split, occlusion, object and sensor, with an optional
+transform. Shards are opened lazily in the process that reads, so the dataset is safe with
+``DataLoader(num_workers > 0)`` (each worker opens its own files). It is a map-style dataset
+(``__len__`` and ``__getitem__``), which is all ``DataLoader`` needs; torch is imported when a
+sample is made, never by importing handsim.
+
+A sample is a dict of tensors: ``depth`` (1, H, W) float32 metres (0 = no measurement),
+``segmentation`` (H, W) int64, every label of :data:`~handsim.data.arrays.LABEL_SCHEMA` as a
+tensor, ``episode`` and ``step``; the transform (if any) receives and returns that dict.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from handsim.data.manifest import Manifest
+from handsim.data.shards import ShardReader
+from handsim.errors import HandSimError
+from handsim.world.registry import OBJECTS
+
+__all__ = ["SPLITS", "InvalidDatasetQuery", "HandSimDataset", "split_of_episode"]
+
+SPLITS = ("train", "val", "test", "all")
+"""Splits: episodes are assigned by a hash of (folder seed, episode) with fractions 80/10/10."""
+_SPLIT_FRACTIONS = (0.8, 0.1, 0.1)
+
+
+class InvalidDatasetQuery(HandSimError, ValueError):
+    """A dataset folder, split or filter is invalid; the message says what is valid."""
+
+
+def split_of_episode(seed: int, episode: int) -> str:
+    """The split of an episode: a stable hash of (seed, episode), 80/10/10 train/val/test."""
+    digest = hashlib.blake2b(f"{seed}:{episode}".encode(), digest_size=8).digest()
+    u = int.from_bytes(digest, "little") / 2**64
+    if u < _SPLIT_FRACTIONS[0]:
+        return "train"
+    return "val" if u < _SPLIT_FRACTIONS[0] + _SPLIT_FRACTIONS[1] else "test"
+
+
+class HandSimDataset:
+    """Frames of handsim dataset folders for PyTorch.
+
+    Args:
+        folders: one dataset folder or several.
+        split: ``"train"``, ``"val"``, ``"test"`` (by episode) or ``"all"``.
+        occlusion_range: keep frames whose hand occlusion ratio lies in ``[low, high]``.
+        objects: keep frames that show at least one of these objects (names).
+        sensors: keep folders generated with one of these sensor models.
+        transform: called on every sample dict.
+
+    Raises:
+        InvalidDatasetQuery: for a folder that is not a dataset, or a bad split or filter.
+    """
+
+    def __init__(
+        self,
+        folders: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
+        *,
+        split: str = "all",
+        occlusion_range: tuple[float, float] = (0.0, 1.0),
+        objects: Sequence[str] | None = None,
+        sensors: Sequence[str] | None = None,
+        transform: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+    ) -> None:
+        if isinstance(folders, (str, os.PathLike)):
+            folders = [folders]
+        if split not in SPLITS:
+            raise InvalidDatasetQuery(
+                f"split must be one of {', '.join(SPLITS)}; received {split!r}"
+            )
+        lo, hi = self._range(occlusion_range)
+        ycbv_ids = None
+        if objects is not None:
+            if isinstance(objects, str):
+                raise InvalidDatasetQuery(
+                    f"objects must be a list of object names; received {objects!r}"
+                )
+            ycbv_ids = []
+            for name in objects:
+                if name not in OBJECTS:
+                    raise InvalidDatasetQuery(
+                        f"unknown object {name!r}; valid: {', '.join(OBJECTS)}"
+                    )
+                ycbv_ids.append(OBJECTS[name].ycbv_id)
+        if transform is not None and not callable(transform):
+            raise InvalidDatasetQuery(f"transform must be callable; received {transform!r}")
+        self.transform = transform
+        self._readers: list[ShardReader] = []
+        index = []
+        for folder in folders:
+            try:
+                manifest = Manifest.read(folder)
+            except HandSimError as err:
+                raise InvalidDatasetQuery(str(err)) from err
+            if sensors is not None and manifest.config.get("sensor") not in sensors:
+                continue
+            seed = int(manifest.config.get("seed", 0))
+            for record in sorted(manifest.shards.values(), key=lambda s: s.name):
+                reader = ShardReader(Path(folder) / record.name)
+                keep = np.ones(len(reader), dtype=bool)
+                if split != "all":
+                    episodes = reader.labels("episode")
+                    keep &= np.array([split_of_episode(seed, int(e)) == split for e in episodes])
+                ratio = np.nan_to_num(reader.labels("hand_occlusion_ratio"))
+                keep &= (ratio >= lo) & (ratio <= hi)
+                if ycbv_ids is not None:
+                    shown = reader.labels("object_ycbv_id")
+                    valid = reader.labels("object_valid")
+                    keep &= (np.isin(shown, ycbv_ids) & valid).any(axis=1)
+                reader.close()
+                k = len(self._readers)
+                self._readers.append(reader)
+                index.extend((k, int(i)) for i in np.flatnonzero(keep))
+        self._index = np.asarray(index, dtype=np.int64).reshape(-1, 2)
+
+    @staticmethod
+    def _range(value: object) -> tuple[float, float]:
+        ok = (
+            isinstance(value, (tuple, list))
+            and len(value) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            and 0.0 <= value[0] <= value[1] <= 1.0
+        )
+        if not ok:
+            raise InvalidDatasetQuery(
+                f"occlusion_range must be (low, high) with 0 <= low <= high <= 1; received "
+                f"{value!r}"
+            )
+        return float(value[0]), float(value[1])
+
+    def __len__(self) -> int:
+        return len(self._index)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        import torch
+
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < len(self):
+            raise IndexError(f"sample {i!r} is out of range: the dataset has {len(self)}")
+        shard, frame = self._index[i]
+        arrays = self._readers[shard][int(frame)]
+        sample = {}
+        for key, value in arrays.items():
+            array = np.asarray(value)
+            if key == "depth":
+                array = array[None]
+            elif key == "segmentation":
+                array = array.astype(np.int64)
+            sample[key] = torch.from_numpy(np.ascontiguousarray(array))
+        return self.transform(sample) if self.transform is not None else sample

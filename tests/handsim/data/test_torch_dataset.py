@@ -1,0 +1,78 @@
+"""Tests of handsim.data.torch_dataset: random access, filters, splits, DataLoader workers."""
+
+import numpy as np
+import pytest
+
+from handsim.data.generate import GenerationConfig, generate
+from handsim.data.shards import ShardReader
+from handsim.data.torch_dataset import HandSimDataset, InvalidDatasetQuery, split_of_episode
+
+torch = pytest.importorskip("torch")
+
+
+@pytest.fixture(scope="module")
+def dataset_folder(tmp_path_factory):
+    """Six frames in three shards: a tomato soup can or a mug, one per episode."""
+    folder = tmp_path_factory.mktemp("ds")
+    config = GenerationConfig.from_mapping(
+        {
+            "frames": 6,
+            "frames_per_shard": 2,
+            "frames_per_episode": 1,
+            "sensor": "none",
+            "num_objects_range": (1, 1),
+            "objects": ("005_tomato_soup_can", "025_mug"),
+        }
+    )
+    generate(config, folder)
+    return folder
+
+
+def test_samples_are_the_shards_frames_as_tensors(dataset_folder):
+    """Sample i is frame i in shard order, depth with a channel axis."""
+    data = HandSimDataset(dataset_folder)
+    assert len(data) == 6
+    sample = data[3]
+    frame = ShardReader(dataset_folder / "shard-00001.h5")[1]
+    assert sample["depth"].shape == (1, 240, 320) and sample["depth"].dtype == torch.float32
+    np.testing.assert_array_equal(sample["depth"][0].numpy(), frame["depth"])
+    np.testing.assert_array_equal(sample["keypoints_cam"].numpy(), frame["keypoints_cam"])
+    assert sample["segmentation"].dtype == torch.int64
+    with pytest.raises(IndexError, match="out of range: the dataset has 6"):
+        data[6]
+
+
+def test_filters_and_splits_partition_the_frames(dataset_folder):
+    """Splits partition the frames by episode; object and occlusion filters keep what they say."""
+    sizes = [len(HandSimDataset(dataset_folder, split=s)) for s in ("train", "val", "test")]
+    assert sum(sizes) == 6
+    mugs = HandSimDataset(dataset_folder, objects=["mug"])
+    cans = HandSimDataset(dataset_folder, objects=["tomato_soup_can"])
+    assert len(mugs) + len(cans) == 6
+    assert all(14 in mugs[i]["object_ycbv_id"].tolist() for i in range(len(mugs)))
+    assert len(HandSimDataset(dataset_folder, sensors=["tof"])) == 0
+    assert len(HandSimDataset(dataset_folder, occlusion_range=(0.0, 1.0))) == 6
+    assert split_of_episode(0, 5) == split_of_episode(0, 5)
+
+
+def test_dataloader_with_two_workers_sees_every_sample_once(dataset_folder):
+    """Each worker opens its own files; the batches hold every frame exactly once."""
+    data = HandSimDataset(
+        dataset_folder, transform=lambda s: {"step": s["step"], "ep": s["episode"]}
+    )
+    loader = torch.utils.data.DataLoader(data, batch_size=2, num_workers=2)
+    seen = sorted(int(e) for batch in loader for e in batch["ep"])
+    expected = sorted(int(data[i]["ep"]) for i in range(len(data)))
+    assert seen == expected
+
+
+def test_bad_queries_say_what_is_valid(dataset_folder, tmp_path):
+    """Unknown splits, objects, ranges and non-dataset folders are named."""
+    with pytest.raises(InvalidDatasetQuery, match="split must be one of train, val, test, all"):
+        HandSimDataset(dataset_folder, split="dev")
+    with pytest.raises(InvalidDatasetQuery, match="unknown object 'spoon'"):
+        HandSimDataset(dataset_folder, objects=["spoon"])
+    with pytest.raises(InvalidDatasetQuery, match=r"occlusion_range must be \(low, high\)"):
+        HandSimDataset(dataset_folder, occlusion_range=(0.5, 0.1))
+    with pytest.raises(InvalidDatasetQuery, match="has no manifest.json"):
+        HandSimDataset(tmp_path)
