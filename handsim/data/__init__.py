@@ -8,12 +8,14 @@ module                   holds
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
 :mod:`.generate`         :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
+:mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================
 
 Nothing here imports the envs or torch.
 """
 
 from handsim.data.arrays import LABEL_SCHEMA, arrays_to_frame, frame_to_arrays
+from handsim.data.export import export_bop, export_hand_labels
 from handsim.data.generate import PRESETS, GenerationConfig, generate
 from handsim.data.manifest import Manifest, check_dataset
 from handsim.data.shards import ShardReader, ShardWriter, check_shard
@@ -32,4 +34,6 @@ __all__ = [
     "ShardWriter",
     "check_shard",
     "HandSimDataset",
+    "export_bop",
+    "export_hand_labels",
 ]

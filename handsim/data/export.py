@@ -1,0 +1,327 @@
+"""Exports of handsim datasets to formats other tools read without handsim.
+
+- :func:`export_hand_labels`: per split, ``labels.jsonl`` (one JSON object per frame: K, hand
+  side, the 21 keypoints and every supported keypoint format in camera frame and pixels,
+  visibility, occluder) and ``depth/NNNNNN.png`` (uint16, ``depth_scale_mm`` per unit).
+- :func:`export_bop`: the BOP format (Hodan et al., "BOP: Benchmark for 6D Object Pose
+  Estimation", ECCV 2018; the format of the BOP toolkit): ``models/obj_NNNNNN.ply`` in
+  millimetres with ``models_info.json`` (diameter, extents, symmetries), and per scene (one
+  shard) ``scene_camera.json``, ``scene_gt.json``, ``scene_gt_info.json``, ``depth/``, ``mask/``
+  (the object's full silhouette, rendered with the object alone as the Frame's ``visib_fract``
+  is) and ``mask_visib/`` (its visible pixels).
+
+Both read a dataset folder (``manifest.json`` + shards) and write into a new folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import cv2
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from handsim.data.manifest import Manifest
+from handsim.data.shards import ShardReader
+from handsim.data.torch_dataset import split_of_episode
+from handsim.errors import HandSimError
+from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, to_format
+from handsim.world.camera import CameraIntrinsics, camera_preset
+from handsim.world.registry import OBJECTS, get_object
+from handsim.world.render import DepthRenderer
+from handsim.world.scene import OBJECT_LABEL_OFFSET, CameraSpec, ObjectPlacement, Scene, SceneSpec
+
+__all__ = ["InvalidExport", "export_hand_labels", "export_bop", "OCCLUDER_NAMES"]
+
+OCCLUDER_NAMES = {-1: "none", -2: "self", -3: "scene"}
+"""Occluder codes of the hand labels; an integer k >= 0 is object instance k."""
+
+
+class InvalidExport(HandSimError, ValueError):
+    """An export cannot be made (the source is not a dataset, the target is not empty)."""
+
+
+def _prepare(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> tuple[Manifest, Path]:
+    manifest = Manifest.read(dataset)
+    out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise InvalidExport(f"{out} is not empty: export into a new or empty folder")
+    out.mkdir(parents=True, exist_ok=True)
+    return manifest, out
+
+
+def _depth_png(depth_m: np.ndarray, depth_scale_mm: float) -> np.ndarray:
+    units = np.rint(depth_m * (1000.0 / depth_scale_mm))
+    units[(units > 65535) | ~np.isfinite(units)] = 0
+    return units.astype(np.uint16)
+
+
+def _project(K: np.ndarray, points_cam: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uvw = points_cam @ K.T
+        uv = uvw[..., :2] / uvw[..., 2:3]
+    uv[points_cam[..., 2] <= 0] = np.nan
+    return uv
+
+
+def _json_points(points: np.ndarray, digits: int) -> list:
+    return [[None if not np.isfinite(v) else round(float(v), digits) for v in p] for p in points]
+
+
+def export_hand_labels(
+    dataset: str | os.PathLike[str], out: str | os.PathLike[str]
+) -> dict[str, int]:
+    """Write a dataset's hand labels as JSON lines with depth PNGs, per split.
+
+    Per frame (one line of ``<split>/labels.jsonl``): ``depth`` (the PNG's path, relative to
+    the split folder), ``depth_scale_mm``, ``K`` (3 x 3), ``hand_side``, ``hand_length_m``,
+    ``keypoint_names``, ``keypoints_cam_m`` (21 x 3, OpenCV camera frame), ``keypoints_px``
+    (21 x 2, ``null`` behind the camera), ``in_frame``, ``visible``, ``occluder`` (``"none"``,
+    ``"self"``, ``"scene"`` or an object instance), ``hand_occlusion_ratio``, ``objects``
+    (instance, YCB-Video id, name, visible fraction), ``formats`` (every supported keypoint
+    format: names, camera-frame points and pixels), ``episode``, ``step`` and ``source``
+    (shard and frame).
+
+    Returns:
+        Frames written per split.
+
+    Raises:
+        InvalidManifest: if ``dataset`` is not a dataset folder.
+        InvalidExport: if ``out`` is not empty.
+    """
+    manifest, out = _prepare(dataset, out)
+    seed = int(manifest.config.get("seed", 0))
+    names = {spec.ycbv_id: name for name, spec in OBJECTS.items()}
+    counts: dict[str, int] = {}
+    files: dict[str, Any] = {}
+    try:
+        for record in sorted(manifest.shards.values(), key=lambda s: s.name):
+            reader = ShardReader(Path(dataset) / record.name)
+            for i in range(len(reader)):
+                a = reader[i]
+                split = split_of_episode(seed, int(a["episode"]))
+                folder = out / split
+                if split not in files:
+                    (folder / "depth").mkdir(parents=True)
+                    files[split] = open(folder / "labels.jsonl", "w")  # noqa: SIM115
+                k = counts.get(split, 0)
+                counts[split] = k + 1
+                png = f"depth/{k:06d}.png"
+                cv2.imwrite(str(folder / png), _depth_png(a["depth"], manifest.depth_scale_mm))
+                K = a["K"]
+                kp = a["keypoints_cam"]
+                formats = {}
+                for fmt, point_names in FORMATS.items():
+                    pts = to_format(kp, fmt)
+                    formats[fmt] = {
+                        "names": list(point_names),
+                        "keypoints_cam_m": _json_points(pts, 6),
+                        "keypoints_px": _json_points(_project(K, pts), 3),
+                    }
+                objects = [
+                    {
+                        "instance": int(j),
+                        "ycbv_id": int(a["object_ycbv_id"][j]),
+                        "name": names.get(int(a["object_ycbv_id"][j])),
+                        "visib_fract": round(float(a["object_visib_fract"][j]), 6),
+                    }
+                    for j in np.flatnonzero(a["object_valid"])
+                ]
+                ratio = float(a["hand_occlusion_ratio"])
+                line = {
+                    "depth": png,
+                    "depth_scale_mm": manifest.depth_scale_mm,
+                    "K": K.tolist(),
+                    "hand_side": "left" if bool(a["is_left"]) else "right",
+                    "hand_length_m": float(a["hand_length_m"]),
+                    "keypoint_names": list(KEYPOINT_NAMES),
+                    "keypoints_cam_m": _json_points(kp, 6),
+                    "keypoints_px": _json_points(a["keypoints_px"], 3),
+                    "in_frame": [bool(v) for v in a["in_frame"]],
+                    "visible": [bool(v) for v in a["visible"]],
+                    "occluder": [OCCLUDER_NAMES.get(int(o), int(o)) for o in a["occluder"]],
+                    "hand_occlusion_ratio": None if np.isnan(ratio) else round(ratio, 6),
+                    "objects": objects,
+                    "formats": formats,
+                    "episode": int(a["episode"]),
+                    "step": int(a["step"]),
+                    "source": {"shard": record.name, "frame": i},
+                }
+                files[split].write(json.dumps(line, allow_nan=False) + "\n")
+            reader.close()
+    finally:
+        for f in files.values():
+            f.close()
+    return counts
+
+
+def _ply_mm(path: Path, vertices_m: np.ndarray, faces: np.ndarray) -> None:
+    """A binary little-endian PLY mesh with vertices in millimetres."""
+    v = (np.asarray(vertices_m, dtype=np.float64) * 1000.0).astype("<f4")
+    f = np.asarray(faces, dtype="<i4")
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+        f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    rows = np.empty(len(f), dtype=[("n", "u1"), ("i", "<i4", (3,))])
+    rows["n"], rows["i"] = 3, f
+    path.write_bytes(header.encode() + v.tobytes() + rows.tobytes())
+
+
+def _models_info(ycbv_id: int) -> dict[str, Any]:
+    """BOP ``models_info`` of one object (millimetres), symmetries in BOP's encoding."""
+    obj = get_object(next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id))
+    lo = obj.visual_mesh.vertices.min(axis=0) * 1000.0
+    size = obj.visual_mesh.vertices.max(axis=0) * 1000.0 - lo
+    info: dict[str, Any] = {
+        "diameter": round(obj.diameter_m * 1000.0, 6),
+        "min_x": round(float(lo[0]), 6),
+        "min_y": round(float(lo[1]), 6),
+        "min_z": round(float(lo[2]), 6),
+        "size_x": round(float(size[0]), 6),
+        "size_y": round(float(size[1]), 6),
+        "size_z": round(float(size[2]), 6),
+    }
+    info.update(obj.symmetry.to_bop())
+    return info
+
+
+def _bbox(mask: np.ndarray) -> list[int]:
+    ys, xs = np.nonzero(mask)
+    if not len(xs):
+        return [-1, -1, -1, -1]
+    return [
+        int(xs.min()),
+        int(ys.min()),
+        int(xs.max() - xs.min() + 1),
+        int(ys.max() - ys.min() + 1),
+    ]
+
+
+class _Silhouettes:
+    """Full silhouettes of objects rendered alone by MuJoCo (as the Frame's ``visib_fract``)."""
+
+    def __init__(self, intrinsics: CameraIntrinsics) -> None:
+        # A camera at the world origin whose OpenCV frame is the world frame, so an object's
+        # world pose is its camera-frame pose.
+        self.camera = CameraSpec.look_at("cam", intrinsics, (0, 0, 0), (0, 0, 1), up=(0, -1, 0))
+        self._scenes: dict[str, tuple[Scene, DepthRenderer]] = {}
+
+    def __call__(self, name: str, T_cam_from_obj: np.ndarray) -> np.ndarray:
+        if name not in self._scenes:
+            spec = SceneSpec(
+                hand=None,
+                objects=(ObjectPlacement(name, (0.0, 0.0, 1.0)),),
+                cameras=(self.camera,),
+                table=False,
+            )
+            scene = Scene(spec)
+            self._scenes[name] = (scene, DepthRenderer(scene.model, "cam", self.camera.intrinsics))
+        scene, renderer = self._scenes[name]
+        R = T_cam_from_obj[:3, :3]
+        qpos = np.concatenate(
+            [T_cam_from_obj[:3, 3], np.roll(Rotation.from_matrix(R).as_quat(), 1)]
+        )
+        scene.data.qpos[:7] = qpos
+        mujoco.mj_forward(scene.model, scene.data)
+        return renderer.render_segmentation(scene.data) >= 0
+
+    def close(self) -> None:
+        for _, renderer in self._scenes.values():
+            renderer.close()
+
+
+def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> dict[str, int]:
+    """Write a dataset in the BOP format (one BOP scene per shard, split by shard).
+
+    Units and conventions are BOP's: millimetres, ``cam_R_*`` row-major 3 x 3, ``cam_K``
+    row-major 3 x 3, depth PNG in units of ``depth_scale`` mm, masks named
+    ``{im_id:06d}_{gt_id:06d}.png`` with ``gt_id`` the object's index in ``scene_gt``.
+
+    Returns:
+        ``{"scenes": n, "images": n, "objects": n}``.
+
+    Raises:
+        InvalidManifest: if ``dataset`` is not a dataset folder.
+        InvalidExport: if ``out`` is not empty.
+    """
+    manifest, out = _prepare(dataset, out)
+    silhouettes = _Silhouettes(camera_preset(manifest.config.get("camera", "icvl")))
+    used: set[int] = set()
+    images = 0
+    for scene_id, record in enumerate(sorted(manifest.shards.values(), key=lambda s: s.name)):
+        folder = out / "train_pbr" / f"{scene_id:06d}"
+        for sub in ("depth", "mask", "mask_visib"):
+            (folder / sub).mkdir(parents=True)
+        reader = ShardReader(Path(dataset) / record.name)
+        cams, gts, infos = {}, {}, {}
+        for im_id in range(len(reader)):
+            a = reader[im_id]
+            K, T = a["K"], a["T_cam_from_world"]
+            cv2.imwrite(
+                str(folder / "depth" / f"{im_id:06d}.png"),
+                _depth_png(a["depth"], manifest.depth_scale_mm),
+            )
+            cams[str(im_id)] = {
+                "cam_K": [float(x) for x in K.ravel()],
+                "depth_scale": manifest.depth_scale_mm,
+                "cam_R_w2c": [float(x) for x in T[:3, :3].ravel()],
+                "cam_t_w2c": [float(x) * 1000.0 for x in T[:3, 3]],
+            }
+            gt, info = [], []
+            depth_valid = a["depth"] > 0
+            for gt_id, k in enumerate(np.flatnonzero(a["object_valid"])):
+                ycbv_id = int(a["object_ycbv_id"][k])
+                if ycbv_id < 0:
+                    continue  # imported meshes have no BOP model
+                used.add(ycbv_id)
+                T_obj = a["object_T_cam_from_obj"][k]
+                gt.append(
+                    {
+                        "cam_R_m2c": [float(x) for x in T_obj[:3, :3].ravel()],
+                        "cam_t_m2c": [float(x) * 1000.0 for x in T_obj[:3, 3]],
+                        "obj_id": ycbv_id,
+                    }
+                )
+                name = next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id)
+                full = silhouettes(name, T_obj)
+                visib = a["segmentation"] == OBJECT_LABEL_OFFSET + k
+                n_all = int(full.sum())
+                n_visib = int(visib.sum())
+                info.append(
+                    {
+                        "bbox_obj": _bbox(full),
+                        "bbox_visib": _bbox(visib),
+                        "px_count_all": n_all,
+                        "px_count_valid": int((full & depth_valid).sum()),
+                        "px_count_visib": n_visib,
+                        "visib_fract": n_visib / n_all if n_all else 0.0,
+                    }
+                )
+                png = f"{im_id:06d}_{gt_id:06d}.png"
+                cv2.imwrite(str(folder / "mask" / png), full.astype(np.uint8) * 255)
+                cv2.imwrite(str(folder / "mask_visib" / png), visib.astype(np.uint8) * 255)
+            gts[str(im_id)], infos[str(im_id)] = gt, info
+            images += 1
+        reader.close()
+        for name, doc in (
+            ("scene_camera.json", cams),
+            ("scene_gt.json", gts),
+            ("scene_gt_info.json", infos),
+        ):
+            (folder / name).write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    silhouettes.close()
+    models = out / "models"
+    models.mkdir()
+    info_all = {}
+    for ycbv_id in sorted(used):
+        obj = get_object(next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id))
+        _ply_mm(models / f"obj_{ycbv_id:06d}.ply", obj.visual_mesh.vertices, obj.visual_mesh.faces)
+        info_all[str(ycbv_id)] = _models_info(ycbv_id)
+    (models / "models_info.json").write_text(json.dumps(info_all, indent=1) + "\n")
+    return {"scenes": len(manifest.shards), "images": images, "objects": len(used)}

@@ -1,0 +1,129 @@
+"""Tests of handsim.data.export: hand labels (JSON lines + PNG) and BOP, against their specs."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+
+from handsim.data.export import InvalidExport, export_bop, export_hand_labels
+from handsim.data.generate import GenerationConfig, generate
+from handsim.data.shards import ShardReader
+from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES
+from handsim.world.registry import get_object
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """Four frames with a continuous-symmetric can and a discrete-symmetric wood block."""
+    folder = tmp_path_factory.mktemp("ds")
+    config = GenerationConfig.from_mapping(
+        {
+            "frames": 4,
+            "frames_per_shard": 2,
+            "frames_per_episode": 2,
+            "sensor": "structured_light",
+            "num_objects_range": (2, 2),
+            "objects": ("002_master_chef_can", "036_wood_block"),
+            "viewpoints": ("third_person",),
+        }
+    )
+    generate(config, folder)
+    return folder
+
+
+def _strict(text):
+    return json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
+
+
+def test_hand_labels_hold_every_frame_and_format(dataset, tmp_path):
+    """One strict JSON line per frame, its depth PNG in depth_scale units, all formats."""
+    counts = export_hand_labels(dataset, tmp_path / "out")
+    assert sum(counts.values()) == 4
+    lines = [
+        _strict(line)
+        for split in counts
+        for line in (tmp_path / "out" / split / "labels.jsonl").read_text().splitlines()
+    ]
+    assert len(lines) == 4
+    frames = {(r["source"]["shard"], r["source"]["frame"]): r for r in lines}
+    frame = ShardReader(dataset / "shard-00001.h5")[0]
+    line = frames[("shard-00001.h5", 0)]
+    split = next(s for s in counts if (tmp_path / "out" / s / line["depth"]).exists())
+    png = cv2.imread(str(tmp_path / "out" / split / line["depth"]), cv2.IMREAD_UNCHANGED)
+    assert png.dtype == np.uint16
+    np.testing.assert_allclose(png * line["depth_scale_mm"] / 1000.0, frame["depth"], atol=1e-6)
+    np.testing.assert_allclose(line["keypoints_cam_m"], frame["keypoints_cam"], atol=1e-6)
+    assert line["keypoint_names"] == list(KEYPOINT_NAMES)
+    assert line["visible"] == frame["visible"].tolist()
+    assert set(line["formats"]) == set(FORMATS)
+    for fmt, names in FORMATS.items():
+        assert len(line["formats"][fmt]["keypoints_cam_m"]) == len(names)
+    assert {o["name"] for o in line["objects"]} == {"002_master_chef_can", "036_wood_block"}
+
+
+def test_bop_files_follow_the_format(dataset, tmp_path):
+    """Field names, millimetres, row-major rotations, masks, PLY models and symmetries."""
+    summary = export_bop(dataset, tmp_path / "bop")
+    assert summary == {"scenes": 2, "images": 4, "objects": 2}
+    scene = tmp_path / "bop" / "train_pbr" / "000001"
+    cams = _strict((scene / "scene_camera.json").read_text())
+    gts = _strict((scene / "scene_gt.json").read_text())
+    infos = _strict((scene / "scene_gt_info.json").read_text())
+    frame = ShardReader(dataset / "shard-00001.h5")[1]
+    cam, gt, info = cams["1"], gts["1"], infos["1"]
+    assert set(cam) == {"cam_K", "depth_scale", "cam_R_w2c", "cam_t_w2c"}
+    np.testing.assert_allclose(np.reshape(cam["cam_K"], (3, 3)), frame["K"])
+    np.testing.assert_allclose(cam["cam_t_w2c"], frame["T_cam_from_world"][:3, 3] * 1000.0)
+    depth = cv2.imread(str(scene / "depth" / "000001.png"), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_allclose(depth * cam["depth_scale"], frame["depth"] * 1000.0, atol=1e-3)
+    assert len(gt) == len(info) == 2
+    for gt_id, (g, inf) in enumerate(zip(gt, info, strict=True)):
+        assert set(g) == {"cam_R_m2c", "cam_t_m2c", "obj_id"}
+        assert set(inf) == {
+            "bbox_obj", "bbox_visib", "px_count_all", "px_count_valid", "px_count_visib",
+            "visib_fract",
+        }  # fmt: skip
+        R = np.reshape(g["cam_R_m2c"], (3, 3))
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-9)
+        np.testing.assert_allclose(R, frame["object_T_cam_from_obj"][gt_id][:3, :3])
+        np.testing.assert_allclose(
+            g["cam_t_m2c"], frame["object_T_cam_from_obj"][gt_id][:3, 3] * 1e3
+        )
+        full = cv2.imread(str(scene / "mask" / f"000001_{gt_id:06d}.png"), 0) > 0
+        visib = cv2.imread(str(scene / "mask_visib" / f"000001_{gt_id:06d}.png"), 0) > 0
+        assert full.sum() == inf["px_count_all"] and visib.sum() == inf["px_count_visib"]
+        # The silhouette is rendered as the Frame renders it: the same pixel count.
+        rendered = frame["object_px_count_all"][gt_id]
+        assert inf["px_count_all"] == rendered
+        assert not (visib & ~full).any()
+        x, y, w, h = inf["bbox_visib"]
+        if visib.any():
+            assert visib[y : y + h, x : x + w].sum() == visib.sum()
+    models = tmp_path / "bop" / "models"
+    info = _strict((models / "models_info.json").read_text())
+    can = info["1"]
+    assert can["diameter"] == pytest.approx(get_object("002_master_chef_can").diameter_m * 1e3)
+    assert can["symmetries_continuous"] == [{"axis": [0.0, 1.0, 0.0], "offset": [0.0, 0.0, 0.0]}]
+    block = info["16"]
+    assert len(block["symmetries_discrete"]) == 7  # 8 group elements without the identity
+    for flat in block["symmetries_discrete"]:
+        T = np.reshape(flat, (4, 4))
+        np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-9)
+        np.testing.assert_allclose(T[3], [0, 0, 0, 1])
+    mesh = trimesh.load(models / "obj_000016.ply")
+    np.testing.assert_allclose(
+        mesh.extents, get_object("036_wood_block").visual_mesh.extents * 1000.0, rtol=1e-5
+    )
+    assert block["size_y"] == pytest.approx(mesh.extents[1], rel=1e-5)
+
+
+def test_exports_refuse_a_non_empty_target_and_a_non_dataset(dataset, tmp_path):
+    """Nothing is overwritten; a folder without a manifest is named."""
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("")
+    with pytest.raises(InvalidExport, match="is not empty"):
+        export_bop(dataset, tmp_path / "full")
+    with pytest.raises(Exception, match="has no manifest.json"):
+        export_hand_labels(tmp_path / "full", tmp_path / "out")
