@@ -165,7 +165,7 @@ class GenerationConfig:
 
     frames: int = 1000
     frames_per_shard: int = 250
-    frames_per_episode: int = 10
+    frames_per_episode: int = 25
     seed: int = 0
     camera: str = "icvl"
     viewpoints: tuple[str, ...] = ("third_person", "egocentric", "random")

@@ -1,0 +1,143 @@
+"""Dataset generation and reading: frames/s, worker scaling, bytes per frame, read rate, memory.
+
+Measured in one run, on this machine:
+
+- kinematic generation (preset ``hand-only``, 320 x 240, all labels) with 1 and 2 workers, and
+  their ratio;
+- the same scene's plain MuJoCo depth render rate (``mujoco.Renderer`` with depth on), and the
+  ratio of generation with one worker to it;
+- bytes per stored frame against raw float32 depth + labels;
+- read rate of :class:`~handsim.data.torch_dataset.HandSimDataset` through a ``DataLoader``
+  with 2 workers;
+- peak RSS of generation runs of N and 10 N frames (``--memory``).
+
+Usage: ``python benchmarks/bench_data.py [--frames 400] [--memory]``; writes
+``benchmarks/results/bench_data.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def _generate(frames: int, workers: int, out: Path, preset: str = "hand-only") -> float:
+    from handsim.data.generate import PRESETS, GenerationConfig, generate
+
+    config = GenerationConfig.from_mapping(
+        PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8)
+    )
+    start = time.perf_counter()
+    generate(config, out, workers=workers)
+    return frames / (time.perf_counter() - start)
+
+
+def _plain_render_fps(frames: int) -> float:
+    """MuJoCo's own depth render of a hand scene of the same size (no labels, no noise)."""
+    import mujoco
+
+    from handsim.hand.pose_sources import gesture
+    from handsim.world.camera import camera_preset
+    from handsim.world.scene import CameraSpec, Scene, SceneSpec
+
+    intr = camera_preset("icvl")
+    cam = CameraSpec.look_at("camera", intr, (0.0, -0.5, 0.45), (0.0, 0.0, 0.3))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(gesture("open").replace(wrist_pos=np.array([0.0, 0.0, 0.3])))
+    renderer = mujoco.Renderer(scene.model, intr.height, intr.width)
+    renderer.enable_depth_rendering()
+    start = time.perf_counter()
+    for _ in range(frames):
+        renderer.update_scene(scene.data, camera="camera")
+        renderer.render()
+    fps = frames / (time.perf_counter() - start)
+    renderer.close()
+    return fps
+
+
+def _read_fps(folder: Path, seconds: float = 10.0) -> float:
+    import torch
+
+    from handsim.data.torch_dataset import HandSimDataset
+
+    data = HandSimDataset(folder)
+    loader = torch.utils.data.DataLoader(data, batch_size=32, shuffle=True, num_workers=2)
+    n, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for batch in loader:
+            n += len(batch["depth"])
+            if time.perf_counter() - start > seconds:
+                break
+    return n / (time.perf_counter() - start)
+
+
+def _peak_rss_mib(frames: int, out: Path) -> float:
+    code = (
+        "import resource, sys\n"
+        "from handsim.data.generate import PRESETS, GenerationConfig, generate\n"
+        f"c = GenerationConfig.from_mapping(PRESETS['hand-only'], frames={frames}, "
+        "frames_per_shard=250)\n"
+        "generate(c, sys.argv[1])\n"
+        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
+    )
+    out_text = subprocess.run(
+        [sys.executable, "-c", code, str(out)], capture_output=True, text=True, check=True
+    ).stdout
+    return float(out_text.strip().splitlines()[-1])
+
+
+def main() -> None:
+    """Run the benchmark and write its JSON."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=400, help="frames per generation run")
+    parser.add_argument("--memory", action="store_true", help="also compare peak RSS (slow)")
+    args = parser.parse_args()
+    from handsim.data.manifest import Manifest
+
+    results: dict[str, float] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+        results["generate_2_workers_fps"] = _generate(args.frames, 2, tmp / "w2")
+        results["workers_2_over_1"] = (
+            results["generate_2_workers_fps"] / results["generate_1_worker_fps"]
+        )
+        results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
+        results["generate_over_plain_render"] = (
+            results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
+        )
+        manifest = Manifest.read(tmp / "w1")
+        stored = sum(s.bytes for s in manifest.shards.values()) / manifest.frames
+        h, w = manifest.image_shape
+        from handsim.data.arrays import empty_label_arrays
+
+        raw = 4 * h * w + sum(a.nbytes for a in empty_label_arrays().values())
+        results["bytes_per_frame"] = stored
+        results["bytes_per_frame_over_raw"] = stored / raw
+        results["read_fps_2_workers"] = _read_fps(tmp / "w1")
+        if args.memory:
+            results["peak_rss_mib_n"] = _peak_rss_mib(args.frames, tmp / "m1")
+            results["peak_rss_mib_10n"] = _peak_rss_mib(10 * args.frames, tmp / "m10")
+            results["peak_rss_10n_over_n"] = results["peak_rss_mib_10n"] / results["peak_rss_mib_n"]
+    results["parent_peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    for key, value in results.items():
+        print(f"{key:<32} {value:12.3f}")
+    out = Path(__file__).parent / "results" / "bench_data.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps({"frames": args.frames, **results}, indent=2) + "\n")
+    print(f"written {out}")
+
+
+if __name__ == "__main__":
+    main()
