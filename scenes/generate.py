@@ -30,7 +30,7 @@ import numpy as np
 from handsim.hand.model import Hand, HandParams
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import GESTURES, gesture
-from handsim.mjcf import save_spec, spec_to_xml
+from handsim.world.mjcf import save_spec, spec_to_xml
 from handsim.world.objects import add_object
 from handsim.world.registry import OBJECT_NAMES, get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, third_person_camera
@@ -297,7 +297,7 @@ python -m mujoco.viewer --mjcf scenes/hand/scene_right.xml
 ## How these files are made
 
 1. Every file here is written by `{_REGENERATE}` (`scenes/generate.py`) from the models in
-   `handsim` (`Hand.to_xml()`, `handsim.mjcf.save_spec`, `Scene`); do not edit them by hand.
+   `handsim` (`Hand.to_xml()`, `handsim.world.mjcf.save_spec`, `Scene`); do not edit them by hand.
 2. Numbers are printed at full precision, so each XML compiles to the same model as the
    in-memory one (`tests/handsim/world/test_mjcf.py`).
 3. Meshes are Wavefront OBJ with the shortest float32 decimals (exactly MuJoCo's float32
@@ -357,7 +357,7 @@ Derivation:
 1. `handsim.world.registry.get_object(name)` builds the object (visual mesh, convex collision
    pieces, mass properties).
 2. `handsim.world.objects.add_object` adds it to an empty `MjSpec` at its rest pose.
-3. `handsim.mjcf.save_spec` writes the XML and its meshes as OBJ under `assets/`.
+3. `handsim.world.mjcf.save_spec` writes the XML and its meshes as OBJ under `assets/`.
 4. Regenerate with `{_REGENERATE} --parts objects`.
 """
 
@@ -374,7 +374,7 @@ Derivation:
    cameras=(third_person_camera(),)))`.
 2. A copy of `Scene.mjspec` with the hand's root and mocap bodies moved to the reset pose, and
    a floor 0.75 m below the table top.
-3. `handsim.mjcf.save_spec` writes the XML and its meshes as OBJ under `assets/`.
+3. `handsim.world.mjcf.save_spec` writes the XML and its meshes as OBJ under `assets/`.
 4. Regenerate with `{_REGENERATE} --parts grasp`.
 """
 

@@ -67,7 +67,6 @@ from scipy.spatial.transform import Rotation
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.mjcf import spec_to_xml
 
 __all__ = [
     "HandParams",
@@ -731,8 +730,11 @@ class Hand:
 
         The hand has no mesh assets, so the text is complete: ``mujoco.MjModel.from_xml_string``
         compiles it to a model equal to :meth:`compile`'s (numbers at full precision, see
-        :func:`handsim.mjcf.spec_to_xml`). A comment at the top lists the naming scheme.
+        :func:`handsim.world.mjcf.spec_to_xml`). A comment at the top lists the naming scheme.
         """
+        # handsim.world imports this module; import its writer here to avoid a cycle.
+        from handsim.world.mjcf import spec_to_xml
+
         scene = mujoco.MjSpec()
         scene.modelname = f"{self.prefix}hand"
         scene.comment = _xml_naming_comment(self)

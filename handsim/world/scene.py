@@ -25,8 +25,8 @@ import numpy as np
 from handsim.errors import HandSimError
 from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.hand.pose import DIGITS, HandPose
-from handsim.mjcf import save_spec, spec_to_xml
 from handsim.world.camera import CameraIntrinsics, add_camera, camera_preset, look_at_quat_wxyz
+from handsim.world.mjcf import save_spec, spec_to_xml
 from handsim.world.objects import YCBObject, add_object
 from handsim.world.registry import get_object
 
@@ -363,7 +363,7 @@ class Scene:
         """The MJCF text of the scene's model; object meshes are inline (vertex/face data).
 
         ``mujoco.MjModel.from_xml_string`` compiles it to a model equal to :attr:`model`
-        (numbers at full precision, see :func:`handsim.mjcf.spec_to_xml`). The state is not
+        (numbers at full precision, see :func:`handsim.world.mjcf.spec_to_xml`). The state is not
         part of it: the hand and objects start at the model's ``qpos0`` (hand at the world
         origin), not at the pose :meth:`reset` sets.
         """

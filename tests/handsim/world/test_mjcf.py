@@ -10,7 +10,7 @@ from handsim.errors import HandSimError
 from handsim.hand.model import Hand, HandParams
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import GESTURES, gesture
-from handsim.mjcf import MjcfError, save_spec, spec_to_xml, write_obj
+from handsim.world.mjcf import MjcfError, save_spec, spec_to_xml, write_obj
 from handsim.world.registry import get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec
 
