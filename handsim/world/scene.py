@@ -364,8 +364,8 @@ class Scene:
 
         ``mujoco.MjModel.from_xml_string`` compiles it to a model equal to :attr:`model`
         (numbers at full precision, see :func:`handsim.world.mjcf.spec_to_xml`). The state is not
-        part of it: the hand and objects start at the model's ``qpos0`` (hand at the world
-        origin), not at the pose :meth:`reset` sets.
+        part of it: objects start at their placements, the hand at the world origin (its
+        ``qpos0``), not where :meth:`reset` puts it.
         """
         return spec_to_xml(self.mjspec)
 
