@@ -55,6 +55,8 @@ damping ``kv = 2 sqrt(kp I)``. Torques are limited to human ranges (``forcerange
 from __future__ import annotations
 
 import dataclasses
+import os
+import pathlib
 from collections.abc import Sequence
 from typing import Literal
 
@@ -723,6 +725,33 @@ class Hand:
             setattr(scene.option, key, value)
         scene.attach(self.spec.copy(), prefix=self.prefix, frame=scene.worldbody.add_frame())
 
+    def to_xml(self) -> str:
+        """The MJCF text of the hand alone, as :meth:`compile` builds it.
+
+        The hand has no mesh assets, so the text is complete: ``mujoco.MjModel.from_xml_string``
+        compiles it to a model equal to :meth:`compile`'s (numbers at full precision, see
+        :func:`handsim.world.mjcf.spec_to_xml`). A comment at the top lists the naming scheme.
+        """
+        # handsim.world imports this module; import its writer here to avoid a cycle.
+        from handsim.world.mjcf import spec_to_xml
+
+        scene = mujoco.MjSpec()
+        scene.modelname = f"{self.prefix}hand"
+        scene.comment = _xml_naming_comment(self)
+        self.attach_to(scene)
+        return spec_to_xml(scene)
+
+    def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
+        """Write :meth:`to_xml` to ``path`` (parent folders are created); return the path.
+
+        Open it with ``python -m mujoco.viewer --mjcf <path>`` (no floor: include it from a
+        scene, as ``scenes/hand/scene_right.xml`` does).
+        """
+        path = pathlib.Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(self.to_xml(), encoding="utf-8")
+        return path
+
     def bind(self, model: mujoco.MjModel) -> HandBinding:
         """Resolve this hand's names in a compiled model.
 
@@ -730,6 +759,45 @@ class Hand:
             UnknownName: if the model does not contain this hand.
         """
         return HandBinding(self, model)
+
+
+def _xml_naming_comment(hand: Hand) -> str:
+    """The comment at the top of :meth:`Hand.to_xml`: what the file is and its naming scheme."""
+    p = hand.prefix
+    rows = [
+        ("root body", f"{p}palm", f"{p}palm"),
+        ("free joint", f"{p}root", f"{p}root"),
+        ("mocap body (target)", f"{p}mocap", f"{p}mocap"),
+        ("wrist weld", f"{p}root_weld", f"{p}root_weld"),
+        ("digit bodies", f"{p}<digit>_<segment>", f"{p}index_proximal"),
+        ("hinge joints", f"{p}<digit>_<joint>", f"{p}index_mcp_flex"),
+        ("actuators", f"{p}<digit>_<joint>_act", f"{p}index_mcp_flex_act"),
+        ("keypoint sites", f"{p}kp_<keypoint>", f"{p}kp_index_tip"),
+        ("collision geoms", f"{p}<body>_collision_<n>", f"{p}index_distal_collision_0"),
+        ("visual geoms", f"{p}<body>_visual_<n>", f"{p}palm_visual_0"),
+        ("default classes", f"{p}hand, {p}visual, {p}collision, {p}pad, {p}<joint kind>", ""),
+    ]
+    table = "\n".join(f"  {a:<20} {b:<40} {c}".rstrip() for a, b, c in rows)
+    params = ", ".join(
+        f"{f.name}={getattr(hand.params, f.name)!r}" for f in dataclasses.fields(hand.params)
+    )
+    return f"""
+  {hand.params.side.capitalize()} hand of handsim, written by Hand.to_xml() from
+  HandParams({params}).
+  Generated; do not edit by hand (regenerate: python -m handsim.scenes).
+  Units: metres, radians, kilograms. Hand frame: +x {"radial" if p == "rh_" else "ulnar"},
+  +y distal, +z palmar, origin at the wrist crease centre.
+
+  Names (<digit>: thumb, index, middle, ring, little; <joint>: cmc_flex, cmc_abd, mcp_flex,
+  mcp_abd, ip_flex for the thumb, mcp_flex, mcp_abd, pip_flex, dip_flex for the fingers):
+  element              name                                     example
+{table}
+
+  Geom groups: 2 visual (contype=conaffinity=0, what cameras see), 3 collision (capsules and
+  boxes; they carry the mass). Site groups: 4 keypoints, 5 mocap target.
+  Control: the free root follows the mocap body through the soft weld; the finger actuators
+  are position servos with ctrl in radians (ctrlrange = joint range).
+"""
 
 
 class HandBinding:

@@ -12,6 +12,7 @@ module                   holds
 :mod:`.camera`           exact intrinsics of real sensors (OpenCV convention), camera placement
 :mod:`.render`           the one-pass depth + segmentation renderer
 :mod:`.sensors`          seeded depth noise: structured light, time of flight
+:mod:`.mjcf`             MJCF out: full-precision XML of any ``MjSpec``, meshes as OBJ files
 =======================  ==========================================================================
 """
 

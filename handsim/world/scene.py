@@ -16,6 +16,8 @@ the order of :attr:`SceneSpec.objects`.
 from __future__ import annotations
 
 import dataclasses
+import os
+import pathlib
 
 import mujoco
 import numpy as np
@@ -24,6 +26,7 @@ from handsim.errors import HandSimError
 from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import CameraIntrinsics, add_camera, camera_preset, look_at_quat_wxyz
+from handsim.world.mjcf import save_spec, spec_to_xml
 from handsim.world.objects import YCBObject, add_object
 from handsim.world.registry import get_object
 
@@ -306,6 +309,7 @@ class Scene:
         spec: the description.
         model: compiled MuJoCo model.
         data: its data (reset to the spec's placements and a flat hand at the default target).
+        mjspec: the ``mujoco.MjSpec`` the model was compiled from (see :meth:`to_xml`).
         hand: the hand entity (``None`` without a hand).
         binding: the hand's look-ups in ``model`` (``None`` without a hand).
         objects: one ``(body name, YCBObject)`` per instance, in spec order.
@@ -349,10 +353,36 @@ class Scene:
         for cam in spec.cameras:
             add_camera(mj.worldbody, cam.name, cam.intrinsics, cam.pos_m, cam.quat_wxyz)
         self.model = mj.compile()
+        self.mjspec = mj
         self.data = mujoco.MjData(self.model)
         self.binding = self.hand.bind(self.model) if self.hand is not None else None
         self.geom_labels = self._label_geoms()
         self.reset()
+
+    def to_xml(self) -> str:
+        """The MJCF text of the scene's model; object meshes are inline (vertex/face data).
+
+        ``mujoco.MjModel.from_xml_string`` compiles it to a model equal to :attr:`model`
+        (numbers at full precision, see :func:`handsim.world.mjcf.spec_to_xml`). The state is not
+        part of it: objects start at their placements, the hand at the world origin (its
+        ``qpos0``), not where :meth:`reset` puts it.
+        """
+        return spec_to_xml(self.mjspec)
+
+    def save(self, path: str | os.PathLike[str], *, assets_dir: str = "assets") -> pathlib.Path:
+        """Write the scene as ``path`` plus its meshes as OBJ files in ``<assets_dir>/`` beside it.
+
+        The XML compiles with ``mujoco.MjModel.from_xml_path(path)`` to a model equal to
+        :attr:`model` and opens in ``python -m mujoco.viewer --mjcf <path>``.
+
+        Args:
+            path: the XML file to write (parent folders are created).
+            assets_dir: mesh folder, relative to the XML file's folder.
+
+        Returns:
+            The path of the XML file.
+        """
+        return save_spec(self.mjspec, path, assets_dir=assets_dir)
 
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)
