@@ -37,8 +37,8 @@ def estimator_arg(text: str) -> str | EstimatorSpec:
         )
     try:
         return parse_estimator_spec(text)
-    except HandSimError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    except HandSimError as err:  # argparse names the option itself
+        raise argparse.ArgumentTypeError(str(err).removeprefix("--estimator: ")) from None
 
 
 def _factory(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
