@@ -20,7 +20,8 @@ expert acts on the estimate), on the same seeds. It reports, per mode:
 
 With a ``media_dir`` it also draws (:mod:`handsim.viz`) the frame of largest keypoint error of
 each mode (``worst_frame_<mode>.png``) and, with ``video=True``, one MP4 per mode and episode
-(``video/<mode>_ep<seed>.mp4``) of the depth with the estimated and the true skeleton.
+(``video/<mode>_ep<seed>.mp4``) of the depth with the estimated and the true skeleton
+(:func:`handsim.viz.draw_estimate`; sensors up to 400 pixels wide at twice their resolution).
 
 :func:`write_report` saves it as strict JSON (non-finite numbers as ``null``) with plots (PNG)
 of F(tau), success per mode, error over time, error by occlusion bucket and success per object;
@@ -56,6 +57,8 @@ __all__ = [
 
 OCCLUSION_EDGES: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Bucket edges of the per-frame keypoint occlusion fraction."""
+
+_SMALL_WIDTH = 400  # sensors up to this wide (320x240) are drawn at twice their resolution
 
 
 def to_strict_json(value: Any) -> Any:
@@ -120,16 +123,22 @@ class _Media:
         error = errors["kp_max_mm"] if errors is not None else math.nan
         image = None
         if self.writer is not None:
-            image = viz.draw_estimate(obs["depth"], frame, info.get("estimate"))
+            image = self._draw(obs, info, frame)
             self.writer.append(image)
             self.videos[-1]["n_frames"] += 1
         if math.isfinite(error) and error > self.worst_mm:
             if image is None:
-                image = viz.draw_estimate(obs["depth"], frame, info.get("estimate"))
+                image = self._draw(obs, info, frame)
             self.worst_mm = error
             path = self.dir / f"worst_frame_{self.mode}.png"
             cv2.imwrite(str(path), image)
             self.worst = {"seed": seed, "step": step, "kp_max_mm": error, "path": str(path)}
+
+    @staticmethod
+    def _draw(obs: dict[str, Any], info: dict[str, Any], frame: Any) -> np.ndarray:
+        depth = obs["depth"]
+        upscale = 2 if depth.shape[-1] <= _SMALL_WIDTH else 1
+        return viz.draw_estimate(depth, frame, info.get("estimate"), upscale=upscale)
 
     def end_episode(self) -> None:
         if self.writer is not None:
@@ -429,7 +438,8 @@ def write_report(report: dict[str, Any], out_dir: str | Path) -> dict[str, Path]
     ax.set_xlabel("Hidden keypoints in the frame")
     ax.set_ylabel("Mean keypoint error / mm")
     ax.grid(True, axis="y", alpha=0.3)
-    ax.legend()
+    ax.set_ylim(0, 1.3 * max(ax.get_ylim()[1], 1.0))
+    ax.legend(loc="upper center", ncol=max(len(names), 1))
     _title(ax, report, "Keypoint error by occlusion")
     save(fig, "error_by_occlusion")
 
@@ -440,11 +450,17 @@ def write_report(report: dict[str, Any], out_dir: str | Path) -> dict[str, Path]
         x = np.arange(len(objects)) + (j - (len(names) - 1) / 2) * width
         rates = [100 * by_object[o]["success_rate"] if o in by_object else 0.0 for o in objects]
         ax.bar(x, rates, width, color=colours.get(name), label=_mode_label(name))
+        for xi, o in zip(x, objects, strict=True):
+            if o in by_object:
+                n = by_object[o]["episodes"]
+                ax.text(xi, 100 * by_object[o]["success_rate"], f"n={n}", ha="center",
+                        va="bottom", fontsize=7)  # fmt: skip
     ax.set_xticks(np.arange(len(objects)))
     ax.set_xticklabels(objects, rotation=20, ha="right", fontsize=8)
-    ax.set_ylim(0, 110)
+    ax.set_ylim(0, 130)
+    ax.set_yticks(range(0, 101, 20))
     ax.set_ylabel("Task success / %")
-    ax.legend()
+    ax.legend(loc="upper center", ncol=max(len(names), 1))
     _title(ax, report, "Task success per object")
     save(fig, "success_by_object")
     return paths

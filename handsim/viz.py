@@ -131,6 +131,7 @@ def depth_colormap(
     far_m: float | None = None,
     colormap: int = cv2.COLORMAP_TURBO,
     scale_bar: bool = True,
+    upscale: int = 1,
 ) -> np.ndarray:
     """Depth as a colour map (near blue, far red); pixels without a measurement are black.
 
@@ -142,14 +143,21 @@ def depth_colormap(
         colormap: an OpenCV colour map (``cv2.COLORMAP_*``).
         scale_bar: append a :data:`SCALE_BAR_WIDTH`-pixel bar on the right with ticks in metres;
             image columns keep their pixel coordinates.
+        upscale: integer magnification (nearest neighbour), e.g. 2 for videos of 320x240
+            sensors; pixel ``(u, v)`` lands at ``(upscale * (u + 0.5) - 0.5, ...)``.
 
     Returns:
-        (H, W, 3) uint8 BGR image, or (H, W + :data:`SCALE_BAR_WIDTH`, 3) with the scale bar.
+        (H * upscale, W * upscale, 3) uint8 BGR image, plus :data:`SCALE_BAR_WIDTH` columns
+        with the scale bar.
 
     Raises:
-        InvalidImageInput: for an array that is not a depth image.
+        InvalidImageInput: for an array that is not a depth image or a bad ``upscale``.
     """
     depth = _depth_array(depth_m)
+    if not isinstance(upscale, (int, np.integer)) or isinstance(upscale, bool) or upscale < 1:
+        raise InvalidImageInput(f"upscale must be an integer >= 1; received {upscale!r}")
+    if upscale > 1:
+        depth = np.repeat(np.repeat(depth, upscale, axis=0), upscale, axis=1)
     near, far = _depth_range(depth, near_m, far_m)
     valid = depth > 0
     level = np.clip((depth - near) / (far - near), 0.0, 1.0)
@@ -307,6 +315,7 @@ def draw_estimate(
     far_m: float | None = None,
     scale_bar: bool = True,
     title: str | None = None,
+    upscale: int = 1,
 ) -> np.ndarray:
     """An estimate against the truth: both skeletons on the colour-mapped depth image.
 
@@ -324,12 +333,20 @@ def draw_estimate(
         far_m: far end of the colour map, metres.
         scale_bar: append the depth scale bar.
         title: first caption line (e.g. the estimator and its settings).
+        upscale: integer magnification of the image (see :func:`depth_colormap`).
 
     Returns:
-        (H, W, 3) uint8 BGR image, or (H, W + :data:`SCALE_BAR_WIDTH`, 3) with the scale bar.
+        (H * upscale, W * upscale, 3) uint8 BGR image, plus :data:`SCALE_BAR_WIDTH` columns
+        with the scale bar.
     """
-    image = depth_colormap(depth_m, near_m=near_m, far_m=far_m, scale_bar=scale_bar)
-    truth_px = np.where(frame.in_frame[:, None], frame.keypoints_px, np.nan)
+    image = depth_colormap(
+        depth_m, near_m=near_m, far_m=far_m, scale_bar=scale_bar, upscale=upscale
+    )
+
+    def to_image(px: np.ndarray) -> np.ndarray:
+        return upscale * (px + 0.5) - 0.5
+
+    truth_px = to_image(np.where(frame.in_frame[:, None], frame.keypoints_px, np.nan))
     image = draw_skeleton(
         image, truth_px, visible=frame.visible, occluder=frame.occluder, colour=TRUTH_BGR
     )
@@ -338,13 +355,13 @@ def draw_estimate(
         lines.append("estimate: none")
         colours.append(ESTIMATE_BGR)
     elif estimate.keypoints_cam is not None:
-        estimate_px = project_points(frame.K, estimate.keypoints_cam)
+        estimate_px = to_image(project_points(frame.K, estimate.keypoints_cam))
         image = draw_skeleton(image, estimate_px, colour=ESTIMATE_BGR)
         error_mm = 1000 * np.linalg.norm(estimate.keypoints_cam - frame.keypoints_cam, axis=1)
         lines.append(f"estimate: mean {error_mm.mean():.1f} mm, max {error_mm.max():.1f} mm")
         colours.append(ESTIMATE_BGR)
     elif estimate.center_cam is not None:
-        (centre,) = project_points(frame.K, estimate.center_cam[None])
+        (centre,) = to_image(project_points(frame.K, estimate.center_cam[None]))
         if np.all(np.isfinite(centre)):
             cv2.circle(image, _pixel(centre), 8, ESTIMATE_BGR, 2, cv2.LINE_AA)
         lines.append("estimate: hand centre")

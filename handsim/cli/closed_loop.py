@@ -112,6 +112,8 @@ def _run(args: argparse.Namespace) -> int:
     print(strict_json(summary))
     written = [str(p) for p in paths.values()]
     for mode in report["modes"].values():
+        if mode["media"]["worst_frame"] is not None:
+            written.append(mode["media"]["worst_frame"]["path"])
         written += [v["path"] for v in mode["media"]["videos"]]
     print("written: " + ", ".join(written))
     return 0

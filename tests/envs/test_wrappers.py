@@ -112,7 +112,7 @@ def test_closed_loop_report_and_plots(tmp_path):
         assert np.mean(episode["kp_mean_mm"]) == pytest.approx(mode["kp_mean_mm"])
         worst = mode["media"]["worst_frame"]
         assert worst["kp_max_mm"] >= max(episode["kp_mean_mm"])  # a frame's max >= its mean
-        assert cv2.imread(worst["path"]).shape == (240, 320 + SCALE_BAR_WIDTH, 3)
+        assert cv2.imread(worst["path"]).shape == (480, 640 + SCALE_BAR_WIDTH, 3)  # at 2x
         assert mode["media"]["videos"] == []
     # Progress adds up to modes x episodes x max_episode_steps (150).
     assert sum(steps) == 2 * 150

@@ -124,6 +124,14 @@ def test_draw_estimate_two_skeletons(frame):
     assert visible.any()
     hits = [green[int(round(v)), int(round(u))] for u, v in frame.keypoints_px[visible]]
     assert np.mean(hits) > 0.5  # some are covered by the estimate's dots
+    # At 2x the skeletons land on the magnified pixels.
+    big = viz.draw_estimate(frame.depth, frame, estimate, upscale=2)
+    assert big.shape == (2 * h, 2 * w + viz.SCALE_BAR_WIDTH, 3)
+    magenta = np.all(big == viz.ESTIMATE_BGR, axis=-1)
+    hits = [magenta[int(round(2 * v + 0.5)), int(round(2 * u + 0.5))] for u, v in estimate_px]
+    assert np.mean(hits) > 0.8
+    with pytest.raises(viz.InvalidImageInput, match="upscale must be an integer >= 1"):
+        viz.depth_colormap(frame.depth, upscale=0)
     # A localizer: a ring at its centre; no estimate: a caption only.
     ring = viz.draw_estimate(frame.depth, frame, Estimate(center_cam=truth[9]))
     assert np.all(ring == viz.ESTIMATE_BGR, axis=-1).any()

@@ -46,7 +46,8 @@ def test_closed_loop_video_plots_and_strict_json(tmp_path, capsys):
         reader = imageio.get_reader(str(path))
         frames = [f for f in reader]
         assert len(frames) == episode["steps"] + 1 == 151
-        assert frames[0].shape[:2] == (240, 384)  # 320 + scale bar 56 = 376, padded to 384
+        # 320x240 drawn at 2x: 640 + scale bar 56 = 696 columns, padded to 704.
+        assert frames[0].shape[:2] == (480, 704)
         assert frames[0].std() > 10
         assert str(path) in captured.out
     assert mode["media"]["worst_frame"] is None  # no keypoints, no keypoint error
