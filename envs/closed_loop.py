@@ -107,8 +107,10 @@ class _Media:
         self.worst: dict[str, Any] | None = None
         self.writer: viz.VideoWriter | None = None
         self.videos: list[dict[str, Any]] = []
+        self.range_m: tuple[float, float] | None = None
 
     def start_episode(self, seed: int) -> None:
+        self.range_m: tuple[float, float] | None = None
         if self.dir is not None and self.video:
             path = self.dir / "video" / f"{self.mode}_ep{seed:03d}.mp4"
             self.writer = viz.VideoWriter(path, fps=self.fps)
@@ -134,11 +136,14 @@ class _Media:
             cv2.imwrite(str(path), image)
             self.worst = {"seed": seed, "step": step, "kp_max_mm": error, "path": str(path)}
 
-    @staticmethod
-    def _draw(obs: dict[str, Any], info: dict[str, Any], frame: Any) -> np.ndarray:
+    def _draw(self, obs: dict[str, Any], info: dict[str, Any], frame: Any) -> np.ndarray:
         depth = obs["depth"]
+        if self.range_m is None:  # one colour range per episode: steady colours in a video
+            self.range_m = viz.depth_range_m(depth)
         upscale = 2 if depth.shape[-1] <= _SMALL_WIDTH else 1
-        return viz.draw_estimate(depth, frame, info.get("estimate"), upscale=upscale)
+        near, far = self.range_m
+        estimate = info.get("estimate")
+        return viz.draw_estimate(depth, frame, estimate, near_m=near, far_m=far, upscale=upscale)
 
     def end_episode(self) -> None:
         if self.writer is not None:

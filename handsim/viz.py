@@ -37,6 +37,7 @@ __all__ = [
     "ESTIMATE_BGR",
     "InvalidImageInput",
     "depth_colormap",
+    "depth_range_m",
     "draw_segmentation",
     "project_points",
     "draw_skeleton",
@@ -111,10 +112,23 @@ def _depth_array(depth_m: Any) -> np.ndarray:
     return np.where(np.isfinite(depth), depth, np.float32(0.0))
 
 
+def depth_range_m(depth_m: Any) -> tuple[float, float]:
+    """The default colour-map range of a depth image: 1st and 99th percentile of valid pixels.
+
+    Args:
+        depth_m: depth as :func:`depth_colormap` takes it.
+
+    Returns:
+        ``(near_m, far_m)``, metres (``(0, 1)`` without valid pixels); pass them to
+        :func:`depth_colormap` or :func:`draw_estimate` to keep the colours of a video steady.
+    """
+    return _depth_range(_depth_array(depth_m), None, None)
+
+
 def _depth_range(depth: np.ndarray, near_m: float | None, far_m: float | None) -> tuple[float, ...]:
-    valid = depth > 0
     if near_m is None or far_m is None:
-        lo, hi = np.percentile(depth[valid], [1, 99]) if valid.any() else (0.0, 1.0)
+        valid = depth[depth > 0]
+        lo, hi = np.percentile(valid, [1, 99]) if valid.size else (0.0, 1.0)
         near_m = float(lo) if near_m is None else near_m
         far_m = float(hi) if far_m is None else far_m
     if not (np.isfinite(near_m) and np.isfinite(far_m)):
@@ -156,13 +170,14 @@ def depth_colormap(
     depth = _depth_array(depth_m)
     if not isinstance(upscale, (int, np.integer)) or isinstance(upscale, bool) or upscale < 1:
         raise InvalidImageInput(f"upscale must be an integer >= 1; received {upscale!r}")
-    if upscale > 1:
-        depth = np.repeat(np.repeat(depth, upscale, axis=0), upscale, axis=1)
     near, far = _depth_range(depth, near_m, far_m)
-    valid = depth > 0
-    level = np.clip((depth - near) / (far - near), 0.0, 1.0)
-    image = cv2.applyColorMap((255 * level).astype(np.uint8), colormap)
-    image[~valid] = 0
+    level = np.clip((depth - near) * np.float32(255 / (far - near)), 0.0, 255.0)
+    image = cv2.applyColorMap(level.astype(np.uint8), colormap)
+    image[depth <= 0] = 0
+    if upscale > 1:
+        height, width = depth.shape
+        size = (width * upscale, height * upscale)
+        image = cv2.resize(image, size, interpolation=cv2.INTER_NEAREST)
     if not scale_bar:
         return image
     height = image.shape[0]

@@ -51,6 +51,9 @@ def test_depth_colormap_shape_scale_bar_and_units():
     from_mm = viz.depth_colormap(mm[None], near_m=0.5, far_m=1.5, scale_bar=False)
     metres = viz.depth_colormap(mm.astype(np.float32) / np.float32(1000), near_m=0.5, far_m=1.5)
     np.testing.assert_array_equal(from_mm, metres[:, :80])
+    near, far = viz.depth_range_m(depth)
+    np.testing.assert_allclose((near, far), np.percentile(depth[depth > 0], [1, 99]))
+    assert viz.depth_range_m(np.zeros((4, 4), np.float32)) == (0.0, 1.0)
     with pytest.raises(viz.InvalidImageInput, match=r"depth must be an \(H, W\).*received shape"):
         viz.depth_colormap(np.zeros((2, 3, 4, 5)))
 
