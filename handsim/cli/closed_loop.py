@@ -3,20 +3,49 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-__all__ = ["ESTIMATORS", "add_parser"]
+from handsim.cli._args import (
+    choice_help,
+    non_negative_float,
+    non_negative_int,
+    object_name,
+    positive_int,
+    probability,
+    progress_bar,
+    strict_json,
+)
+from handsim.cli.estimators import BUILTIN_ESTIMATORS, EstimatorSpec, parse_estimator_spec
+from handsim.errors import HandSimError
+
+__all__ = ["ESTIMATORS", "add_parser", "estimator_arg"]
 
 
-ESTIMATORS = ("oracle", "com")
-"""Estimators of ``handsim closed-loop``: the noisy oracle and the centre-of-mass localizer."""
+ESTIMATORS = tuple(BUILTIN_ESTIMATORS)
+"""Built-in estimators of ``handsim closed-loop``: the noisy oracle and the centre-of-mass
+localizer; ``--estimator`` also takes ``module:Class[:kwargs-json]``."""
 
 
-def _run(args: argparse.Namespace) -> int:
-    import json
+def estimator_arg(text: str) -> str | EstimatorSpec:
+    """``--estimator``: a built-in name, or a user estimator loaded and checked now."""
+    if text in BUILTIN_ESTIMATORS:
+        return text
+    if ":" not in text:
+        raise argparse.ArgumentTypeError(
+            f"unknown estimator {text!r}; give one of {', '.join(BUILTIN_ESTIMATORS)} or "
+            "module:Class[:kwargs-json]"
+        )
+    try:
+        return parse_estimator_spec(text)
+    except HandSimError as err:  # argparse names the option itself
+        raise argparse.ArgumentTypeError(str(err).removeprefix("--estimator: ")) from None
 
-    import handsim.envs  # noqa: F401 (registers the ids)
-    from handsim.envs.closed_loop import evaluate_closed_loop, write_report
 
+def _factory(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
+    """A function that builds a fresh estimator, and how the report names it."""
+    if isinstance(args.estimator, EstimatorSpec):
+        spec = args.estimator
+        return spec.make, {"name": spec.name, "spec": spec.text, "kwargs": spec.kwargs}
     if args.estimator == "oracle":
         from handsim.estimators import OracleEstimator
 
@@ -31,19 +60,45 @@ def _run(args: argparse.Namespace) -> int:
                 object_noise_deg=args.object_noise_deg,
                 rng=args.seed,
             )
-    else:
-        from handsim.estimators import CenterOfMassLocalizer
 
-        def make_estimator():
-            return CenterOfMassLocalizer()
+        return make_estimator, {"name": "oracle"}
+    from handsim.estimators import CenterOfMassLocalizer
 
+    return CenterOfMassLocalizer, {"name": "com"}
+
+
+def _run(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401 (registers the ids)
+    from handsim.envs.closed_loop import evaluate_closed_loop, write_report
+
+    if args.video:
+        import importlib.util
+
+        if not all(importlib.util.find_spec(m) for m in ("imageio", "imageio_ffmpeg")):
+            raise HandSimError(
+                "--video needs imageio and imageio-ffmpeg; install them with "
+                "pip install 'handsim[video]'"
+            )
+    make_estimator, naming = _factory(args)
     env_kwargs = {"obs_mode": "depth", "sensor": args.sensor, "camera": args.camera}
     if args.objects:
         env_kwargs["objects"] = args.objects
-    report = evaluate_closed_loop(
-        args.env, make_estimator, episodes=args.episodes, seed=args.seed, env_kwargs=env_kwargs
-    )
-    report["estimator"] = {"name": args.estimator, "repr": repr(make_estimator())}
+    max_steps = gym.spec(args.env).max_episode_steps or 0
+    total = 2 * args.episodes * max_steps
+    with progress_bar(total, "closed loop", "step", enabled=not args.quiet) as bar:
+        report = evaluate_closed_loop(
+            args.env,
+            make_estimator,
+            episodes=args.episodes,
+            seed=args.seed,
+            env_kwargs=env_kwargs,
+            progress=bar.update,
+            media_dir=args.out,
+            video=args.video,
+        )
+    report["estimator"] = {**naming, **report["estimator"]}
     paths = write_report(report, args.out)
     summary = {
         name: {
@@ -54,38 +109,116 @@ def _run(args: argparse.Namespace) -> int:
         }
         for name, mode in report["modes"].items()
     }
-    print(json.dumps(summary, indent=2))
-    print("written: " + ", ".join(str(p) for p in paths.values()))
+    print(strict_json(summary))
+    written = [str(p) for p in paths.values()]
+    for mode in report["modes"].values():
+        if mode["media"]["worst_frame"] is not None:
+            written.append(mode["media"]["worst_frame"]["path"])
+        written += [v["path"] for v in mode["media"]["videos"]]
+    print("written: " + ", ".join(written))
     return 0
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim closed-loop`` to the program's subcommands."""
+    from handsim.envs import ENV_IDS
+    from handsim.envs.base import SENSORS
+    from handsim.world.camera import CAMERA_PRESETS
+    from handsim.world.registry import OBJECT_NAMES
+
     loop = sub.add_parser(
         "closed-loop",
         help="run an expert with an estimator in the loop, feedback off and on; write a report",
         description="Run N episodes of an env with its scripted expert and a pose estimator in "
-        "every step, once acting on the truth and once on the estimate; write closed_loop.json, "
-        "f_tau.png and success.png.",
+        "every step, once acting on the truth and once on the estimate; write closed_loop.json "
+        "(strict JSON), plots (f_tau, success, error_over_time, error_by_occlusion, "
+        "success_by_object), the worst frame of each mode and, with --video, MP4s of the depth "
+        "with the estimated and the true skeleton.",
     )
-    loop.add_argument("--env", default="handsim/Grasp-v0", help="env id (default: %(default)s)")
-    loop.add_argument("--estimator", choices=ESTIMATORS, default="oracle")
-    loop.add_argument("--noise-mm", type=float, default=10.0, help="oracle noise per axis, mm")
+    loop.add_argument(
+        "--env",
+        default="handsim/Grasp-v0",
+        choices=ENV_IDS,
+        metavar="ID",
+        help=choice_help("env id", ENV_IDS, "%(default)s"),
+    )
+    loop.add_argument(
+        "--estimator",
+        type=estimator_arg,
+        default="oracle",
+        metavar="NAME|MODULE:CLASS[:KWARGS]",
+        help=choice_help("estimator", ESTIMATORS, "%(default)s")
+        + ", or a user estimator module:Class[:kwargs-json] (a module path or a .py file; the "
+        "kwargs a JSON object), checked against handsim.estimator.Estimator",
+    )
+    loop.add_argument(
+        "--noise-mm",
+        type=non_negative_float,
+        default=10.0,
+        help="oracle noise per axis, mm (default: %(default)s)",
+    )
     loop.add_argument(
         "--object-noise-mm",
-        type=float,
+        type=non_negative_float,
         default=None,
         help="oracle object translation noise per axis, mm (default: --noise-mm)",
     )
     loop.add_argument(
-        "--object-noise-deg", type=float, default=0.0, help="oracle object rotation noise, deg"
+        "--object-noise-deg",
+        type=non_negative_float,
+        default=0.0,
+        help="oracle object rotation noise, deg (default: %(default)s)",
     )
-    loop.add_argument("--dropout", type=float, default=0.0, help="oracle dropout probability")
-    loop.add_argument("--latency-steps", type=int, default=0, help="oracle latency, steps")
-    loop.add_argument("--episodes", type=int, default=5, help="episodes per mode")
-    loop.add_argument("--seed", type=int, default=0)
-    loop.add_argument("--objects", nargs="*", help="object names (default: the env's)")
-    loop.add_argument("--sensor", default="structured_light", help="depth sensor model")
-    loop.add_argument("--camera", default="icvl", help="camera preset")
-    loop.add_argument("--out", default="handsim-closed-loop", help="output folder")
+    loop.add_argument(
+        "--dropout",
+        type=probability,
+        default=0.0,
+        help="oracle dropout probability in [0, 1] (default: %(default)s)",
+    )
+    loop.add_argument(
+        "--latency-steps",
+        type=non_negative_int,
+        default=0,
+        help="oracle latency, steps (default: %(default)s)",
+    )
+    loop.add_argument(
+        "--episodes", type=positive_int, default=5, help="episodes per mode (default: %(default)s)"
+    )
+    loop.add_argument("--seed", type=int, default=0, help="first seed (default: %(default)s)")
+    loop.add_argument(
+        "--objects",
+        nargs="+",
+        type=object_name,
+        metavar="NAME",
+        help=choice_help(
+            "objects the episodes draw from (default: the env's); names also without their "
+            "number, e.g. mustard_bottle",
+            OBJECT_NAMES,
+        ),
+    )
+    loop.add_argument(
+        "--sensor",
+        default="structured_light",
+        choices=SENSORS,
+        metavar="NAME",
+        help=choice_help("depth sensor model", SENSORS, "%(default)s"),
+    )
+    loop.add_argument(
+        "--camera",
+        default="icvl",
+        choices=tuple(CAMERA_PRESETS),
+        metavar="PRESET",
+        help=choice_help("camera preset", tuple(CAMERA_PRESETS), "%(default)s"),
+    )
+    loop.add_argument(
+        "--video",
+        action="store_true",
+        help="also write one MP4 per mode and episode under OUT/video/ (needs handsim[video])",
+    )
+    loop.add_argument(
+        "--out", default="handsim-closed-loop", help="output folder (default: %(default)s)"
+    )
+    loop.add_argument(
+        "-q", "--quiet", action="store_true", help="no progress bar (it goes to stderr)"
+    )
     loop.set_defaults(func=_run)

@@ -9,7 +9,11 @@ Writes to the output folder:
   and the simulation speed;
 - ``frames.png``: noisy structured-light depth frames of a hand among YCB-like objects from
   random viewpoints, coloured by segmentation (shade = depth), keypoints drawn as filled dots
-  when visible and as crosses when occluded (red: by an object, yellow: by the hand itself).
+  when visible and as crosses when occluded (red: by an object, yellow: by the hand itself);
+- ``frame_panels.png``: the first of those frames as depth (colour map with a scale bar in
+  metres) beside its segmentation with the skeleton (:func:`handsim.viz.draw_frame_panels`).
+
+Progress bars (rate, ETA) go to stderr; ``summary.json`` is strict JSON (``null``, never ``NaN``).
 
 Runs headless (``MUJOCO_GL=egl``) with nothing downloaded.
 """
@@ -18,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -28,10 +31,11 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handsim.cli._args import non_negative_int, positive_int, progress_bar, strict_json
 from handsim.frame import FrameRenderer
 from handsim.hand.model import HAND_SIZES, Hand, HandParams
 from handsim.hand.pose_sources import gesture, smooth_motion
-from handsim.viz import contact_sheet, draw_frame
+from handsim.viz import contact_sheet, draw_frame, draw_frame_panels
 from handsim.world.camera import camera_preset
 from handsim.world.scene import Scene, SceneSpec, sample_placements, sample_viewpoint
 from handsim.world.sensors import StructuredLight
@@ -133,12 +137,12 @@ _FRAME_OBJECTS = ("005_tomato_soup_can", "003_cracker_box", "025_mug", "011_bana
 _FRAME_GESTURES = ("open", "pinch", "point", "fist", "ok", "relaxed", "victory", "spread")
 
 
-def _labelled_frames(seed: int = 0) -> tuple[np.ndarray, dict]:
-    """Noisy labelled frames of a hand among objects, and their visibility statistics."""
+def _labelled_frames(seed: int = 0, bar=None) -> tuple[np.ndarray, dict, np.ndarray]:
+    """Noisy labelled frames of a hand among objects, their statistics, the first one's panels."""
     rng = np.random.default_rng(seed)
     intrinsics = camera_preset("icvl")
     placements = sample_placements(rng, _FRAME_OBJECTS)
-    tiles, visible, total = [], 0, 0
+    tiles, visible, total, panels = [], 0, 0, None
     for i, name in enumerate(_FRAME_GESTURES):
         camera = sample_viewpoint(rng, intrinsics, name="view", distance_range_m=(0.45, 0.7))
         scene = Scene(SceneSpec(objects=placements, cameras=(camera,)))
@@ -150,31 +154,45 @@ def _labelled_frames(seed: int = 0) -> tuple[np.ndarray, dict]:
         with FrameRenderer(scene, "view", StructuredLight()) as renderer:
             frame = renderer.render(rng)
         tiles.append(draw_frame(frame))
+        if panels is None:
+            panels = draw_frame_panels(frame)
         visible += int(frame.visible.sum())
         total += int(frame.in_frame.sum())
+        if bar is not None:
+            bar.update(1)
     rows = [np.hstack(tiles[:4]), np.hstack(tiles[4:])]
     stats = {"frames": len(tiles), "keypoints_in_frame": total, "keypoints_visible": visible}
-    return np.vstack(rows), stats
+    return np.vstack(rows), stats, panels
 
 
-def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: int = 200) -> dict:
+def run_demo(
+    out_dir: str | Path = "handsim-demo",
+    *,
+    width: int = 200,
+    height: int = 200,
+    progress: bool = False,
+) -> dict:
     """Run the demo and write its outputs.
 
     Args:
         out_dir: output folder (created if missing).
         width: width of each rendered frame, pixels.
         height: height of each rendered frame, pixels.
+        progress: show progress bars (rate, ETA) on stderr.
 
     Returns:
         The summary that is also written to ``summary.json``.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    runs = [
-        _play(HandParams(hand_length=length, side=side), DEMO_GESTURES, width, height)
-        for length in HAND_SIZES.values()
-        for side in ("right", "left")
-    ]
+    hands = [(length, side) for length in HAND_SIZES.values() for side in ("right", "left")]
+    runs = []
+    with progress_bar(len(hands), "demo: hands", "hand", enabled=progress) as bar:
+        for length, side in hands:
+            runs.append(
+                _play(HandParams(hand_length=length, side=side), DEMO_GESTURES, width, height)
+            )
+            bar.update(1)
     sheet = contact_sheet([r.frames for r in runs], [r.label for r in runs], DEMO_GESTURES)
     cv2.imwrite(str(out / "gestures.png"), sheet)
 
@@ -196,10 +214,13 @@ def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: 
             for r in runs
         ],
     }
-    frames, frame_stats = _labelled_frames()
+    n_frames = len(_FRAME_GESTURES)
+    with progress_bar(n_frames, "demo: labelled frames", "frame", enabled=progress) as bar:
+        frames, frame_stats, panels = _labelled_frames(bar=bar)
     cv2.imwrite(str(out / "frames.png"), frames)
+    cv2.imwrite(str(out / "frame_panels.png"), panels)
     summary["labelled_frames"] = frame_stats
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.json").write_text(strict_json(summary))
     lines = [
         "handsim demo: gesture sequence under physics (soft wrist weld, position-actuated fingers)",
         f"gestures: {', '.join(DEMO_GESTURES)} (hold {_HOLD_S} s each)",
@@ -220,7 +241,7 @@ def run_demo(out_dir: str | Path = "handsim-demo", *, width: int = 200, height: 
         "in view are visible",
         "",
         f"contact sheet: {out / 'gestures.png'}",
-        f"depth frames: {out / 'frames.png'}",
+        f"depth frames: {out / 'frames.png'}, {out / 'frame_panels.png'}",
     ]
     (out / "summary.txt").write_text("\n".join(lines) + "\n")
     return summary
@@ -230,30 +251,37 @@ DEMO_GRASP_OBJECTS = ("005_tomato_soup_can", "006_mustard_bottle", "025_mug")
 """Objects of the demo's closed-loop evaluation on ``handsim/Grasp-v0``."""
 
 
-def _demo_closed_loop(out: Path, episodes: int) -> dict:
+def _demo_closed_loop(out: Path, episodes: int, progress: bool = False) -> dict:
     """The oracle (10 mm noise on keypoints and object position) in the loop of Grasp-v0."""
+    import gymnasium as gym
+
     import handsim.envs  # noqa: F401 (registers the ids)
     from handsim.envs.closed_loop import evaluate_closed_loop, write_report
     from handsim.estimators import OracleEstimator
 
-    report = evaluate_closed_loop(
-        "handsim/Grasp-v0",
-        lambda: OracleEstimator(noise_mm=10.0, object_noise_mm=10.0, rng=0),
-        episodes=episodes,
-        env_kwargs={"objects": list(DEMO_GRASP_OBJECTS), "sensor": "structured_light"},
-    )
-    report["estimator"] = "OracleEstimator(noise_mm=10, object_noise_mm=10)"
+    env_id = "handsim/Grasp-v0"
+    total = 2 * episodes * (gym.spec(env_id).max_episode_steps or 0)
+    with progress_bar(total, "demo: closed loop", "step", enabled=progress) as bar:
+        report = evaluate_closed_loop(
+            env_id,
+            lambda: OracleEstimator(noise_mm=10.0, object_noise_mm=10.0, rng=0),
+            episodes=episodes,
+            env_kwargs={"objects": list(DEMO_GRASP_OBJECTS), "sensor": "structured_light"},
+            progress=bar.update,
+            media_dir=out / "closed_loop",
+        )
+    report["estimator"] = {"name": "oracle", **report["estimator"]}
     paths = write_report(report, out / "closed_loop")
     return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
 
 
 def _run(args: argparse.Namespace) -> int:
     # The core demo (hands, frames) cannot import the envs (layers); the CLI adds the loop.
-    summary = run_demo(args.out, width=args.size, height=args.size)
+    summary = run_demo(args.out, width=args.size, height=args.size, progress=not args.quiet)
     out = Path(args.out)
     lines = [(out / "summary.txt").read_text().rstrip("\n"), ""]
     if args.closed_loop_episodes > 0:
-        loop = _demo_closed_loop(out, args.closed_loop_episodes)
+        loop = _demo_closed_loop(out, args.closed_loop_episodes, progress=not args.quiet)
         summary["closed_loop"] = {
             name: {
                 "success_rate": mode["success_rate"],
@@ -274,7 +302,7 @@ def _run(args: argparse.Namespace) -> int:
                 f"{mode['f_tau_auc']:.3f}"
             )
         lines.append(f"closed-loop plots: {loop['paths']['f_tau']}, {loop['paths']['success']}")
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+        (out / "summary.json").write_text(strict_json(summary))
         (out / "summary.txt").write_text("\n".join(lines) + "\n")
     print((out / "summary.txt").read_text(), end="")
     return 0 if summary["hands"] else 1
@@ -291,11 +319,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "contact sheets, plots and a summary to the output folder.",
     )
     demo.add_argument("--out", default="handsim-demo", help="output folder (default: %(default)s)")
-    demo.add_argument("--size", type=int, default=200, help="tile size in pixels (default: 200)")
+    demo.add_argument(
+        "--size", type=positive_int, default=200, help="tile size in pixels (default: 200)"
+    )
     demo.add_argument(
         "--closed-loop-episodes",
-        type=int,
+        type=non_negative_int,
         default=3,
         help="episodes per feedback mode of the Grasp-v0 closed loop; 0 skips it (default: 3)",
+    )
+    demo.add_argument(
+        "-q", "--quiet", action="store_true", help="no progress bars (they go to stderr)"
     )
     demo.set_defaults(func=_run)

@@ -2,6 +2,7 @@
 
 import json
 
+import cv2
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from handsim.envs.base import InvalidEnvConfig
 from handsim.envs.closed_loop import evaluate_closed_loop, write_report
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.estimators import CenterOfMassLocalizer, OracleEstimator
+from handsim.viz import SCALE_BAR_WIDTH
 
 
 def _loop(estimator, feedback=False, **kwargs):
@@ -91,22 +93,38 @@ def test_feedback_changes_the_rollout():
 
 def test_closed_loop_report_and_plots(tmp_path):
     """evaluate_closed_loop reports both modes; write_report writes JSON and two PNGs."""
+    steps = []
     report = evaluate_closed_loop(
         "handsim/HandPose-v0",
         lambda: OracleEstimator(noise_mm=5.0, rng=0),
         episodes=1,
         env_kwargs={"obs_mode": "depth"},
+        progress=steps.append,
+        media_dir=tmp_path / "media",
     )
     off, on = report["modes"]["feedback_off"], report["modes"]["feedback_on"]
     for mode in (off, on):
         assert mode["n_frames"] == 151 and 0 <= mode["success_rate"] <= 1
         assert 3 < mode["kp_mean_mm"] < 12  # 5 mm per axis: about 8 mm in 3D
         assert sum(b["n_frames"] for b in mode["by_occlusion"]) == mode["n_frames"]
+        (episode,) = mode["episodes"]
+        assert len(episode["kp_mean_mm"]) == 151 and episode["object"] is None
+        assert np.mean(episode["kp_mean_mm"]) == pytest.approx(mode["kp_mean_mm"])
+        worst = mode["media"]["worst_frame"]
+        assert worst["kp_max_mm"] >= max(episode["kp_mean_mm"])  # a frame's max >= its mean
+        assert cv2.imread(worst["path"]).shape == (480, 640 + SCALE_BAR_WIDTH, 3)  # at 2x
+        assert mode["media"]["videos"] == []
+    # Progress adds up to modes x episodes x max_episode_steps (150).
+    assert sum(steps) == 2 * 150
+    assert report["estimator"]["repr"].startswith("OracleEstimator(noise_mm=5.0")
     paths = write_report(report, tmp_path)
     assert json.loads(paths["json"].read_text())["env_id"] == "handsim/HandPose-v0"
     assert paths["f_tau"].stat().st_size > 0 and paths["success"].stat().st_size > 0
+    assert paths["error_over_time"].stat().st_size > 0
     with pytest.raises(ValueError, match="episodes must be an int >= 1; received 0"):
         evaluate_closed_loop("handsim/HandPose-v0", OracleEstimator, episodes=0)
+    with pytest.raises(ValueError, match="video=True needs a media_dir"):
+        evaluate_closed_loop("handsim/HandPose-v0", OracleEstimator, video=True)
 
 
 def test_closed_loop_cli(tmp_path, capsys):

@@ -6,6 +6,7 @@ import cv2
 
 from handsim.cli.demo import DEMO_GESTURES, run_demo
 from handsim.hand.model import HAND_SIZES
+from handsim.viz import SCALE_BAR_WIDTH
 
 
 def test_demo_writes_contact_sheet_and_summary(tmp_path):
@@ -19,6 +20,8 @@ def test_demo_writes_contact_sheet_and_summary(tmp_path):
     assert "contact sheet" in (tmp_path / "summary.txt").read_text()
     frames = cv2.imread(str(tmp_path / "frames.png"))
     assert frames.shape == (2 * 240, 4 * 320, 3) and frames.std() > 10
+    panels = cv2.imread(str(tmp_path / "frame_panels.png"))
+    assert panels.shape == (240, 2 * 320 + SCALE_BAR_WIDTH, 3) and panels.std() > 10
     stats = summary["labelled_frames"]
     assert stats["frames"] == 8 and 0 < stats["keypoints_visible"] <= stats["keypoints_in_frame"]
     assert len(summary["hands"]) == rows
@@ -35,10 +38,17 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
 
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--size", "32", "--closed-loop-episodes", "1"]) == 0
-    summary = json.loads((out / "summary.json").read_text())
+    text = (out / "summary.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    summary = json.loads(text)
     loop = summary["closed_loop"]
     assert set(loop) == {"feedback_off", "feedback_on", "paths"}
     assert 8 < loop["feedback_off"]["kp_mean_mm"] < 25  # 10 mm per axis: ~16 mm in 3D
     for kind in ("json", "f_tau", "success"):
         assert cv2.haveImageReader(loop["paths"][kind]) or kind == "json"
-    assert "closed loop, handsim/Grasp-v0" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "closed loop, handsim/Grasp-v0" in captured.out
+    for bar in ("demo: hands", "demo: labelled frames", "demo: closed loop"):
+        assert bar in captured.err  # tqdm progress bars with rate and ETA
+    assert "<" in captured.err and "/s" in captured.err
+    assert (out / "closed_loop" / "worst_frame_feedback_off.png").exists()

@@ -1,0 +1,168 @@
+"""The program's conventions: --version, valid values in --help, one-line errors, exit codes."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+import handsim
+from handsim.cli import main
+from handsim.envs import ENV_IDS
+from handsim.envs.base import SENSORS
+from handsim.world.camera import CAMERA_PRESETS
+from handsim.world.registry import OBJECT_NAMES
+
+
+def _handsim(*args, **env):
+    return subprocess.run(
+        [sys.executable, "-m", "handsim.cli", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "egl", **env},
+        timeout=120,
+    )
+
+
+def test_version_subprocess():
+    """`handsim --version` prints the package version and exits 0."""
+    result = _handsim("--version")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == f"handsim {handsim.__version__}"
+
+
+def test_bad_choice_is_a_usage_error_without_traceback():
+    """A bad --sensor ends in argparse's usage error: exit 2, one error line, the valid values."""
+    result = _handsim("closed-loop", "--sensor", "kinect")
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr and result.stdout == ""
+    errors = [line for line in result.stderr.splitlines() if "error:" in line]
+    assert errors == [
+        "handsim closed-loop: error: argument --sensor: invalid choice: 'kinect' (choose from "
+        + ", ".join(repr(s) for s in SENSORS)
+        + ")"
+    ]
+    assert result.stderr.startswith("usage: handsim closed-loop")
+
+
+def test_help_lists_valid_values(capsys):
+    """--help names every env, sensor, camera, object and built-in estimator."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["closed-loop", "--help"])
+    assert exit_info.value.code == 0
+    # argparse wraps lines: compare without the wrapping.
+    text = " ".join(capsys.readouterr().out.split())
+    for value in (*ENV_IDS, *SENSORS, *CAMERA_PRESETS, *OBJECT_NAMES, "oracle", "com"):
+        assert value in text, value
+    assert "module:Class[:kwargs-json]" in text
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "--version" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["closed-loop", "--env", "handsim/Nope-v0"], "invalid choice: 'handsim/Nope-v0'"),
+        (["closed-loop", "--camera", "kinect"], "argument --camera: invalid choice: 'kinect'"),
+        (["closed-loop", "--objects", "mug", "spoon"], "unknown object 'spoon'.*Valid names:"),
+        (["closed-loop", "--episodes", "0"], "--episodes: expected an integer >= 1; received '0'"),
+        (["closed-loop", "--episodes", "two"], "expected an integer >= 1; received 'two'"),
+        (["closed-loop", "--dropout", "1.5"], r"--dropout: expected a number in \[0, 1\]"),
+        (["closed-loop", "--noise-mm", "nan"], "--noise-mm: expected a finite number >= 0"),
+        (["closed-loop", "--noise-mm", "-1"], "--noise-mm: expected a finite number >= 0"),
+        (["closed-loop", "--estimator", "deepprior"], "unknown estimator 'deepprior'; give one"),
+        (["demo", "--size", "0"], "--size: expected an integer >= 1"),
+        (["demo", "--closed-loop-episodes", "-1"], "expected an integer >= 0"),
+        (["teleport"], "invalid choice: 'teleport'"),
+    ],
+)
+def test_bad_values_are_usage_errors(argv, message, capsys):
+    """Every checked option fails at parse time with exit status 2 and the valid range."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    import re
+
+    assert re.search(message, err), err
+
+
+def test_object_aliases_are_canonicalized():
+    """--objects takes short aliases and MJCF names and stores canonical names."""
+    from handsim.cli.main import build_parser
+
+    args = build_parser().parse_args(
+        ["closed-loop", "--objects", "mug", "obj_011_banana", "005_tomato_soup_can"]
+    )
+    assert args.objects == ["025_mug", "011_banana", "005_tomato_soup_can"]
+
+
+def test_no_command_prints_help(capsys):
+    """`handsim` alone prints the help and returns 2."""
+    assert main([]) == 2
+    assert "COMMAND" in capsys.readouterr().out
+
+
+RAISING_ESTIMATOR = """
+from handsim.errors import InvalidEstimatorInput
+
+
+class Broken:
+    def predict(self, depth, K):
+        raise InvalidEstimatorInput("this depth is not what Broken wants")
+
+    def predict_batch(self, depths, Ks):
+        return [self.predict(d, k) for d, k in zip(depths, Ks)]
+
+    def reset(self):
+        pass
+"""
+
+
+def test_handsim_error_at_run_time_is_one_line(tmp_path, monkeypatch, capsys):
+    """A HandSimError raised while running: `handsim: error: ...`, exit 2; --debug re-raises."""
+    (tmp_path / "broken_est.py").write_text(RAISING_ESTIMATOR)
+    monkeypatch.chdir(tmp_path)
+    argv = [
+        "closed-loop",
+        "--env",
+        "handsim/HandPose-v0",
+        "--episodes",
+        "1",
+        "--sensor",
+        "none",
+        "--estimator",
+        "broken_est:Broken",
+        "--out",
+        str(tmp_path / "out"),
+        "-q",
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err == "handsim: error: this depth is not what Broken wants\n"
+    from handsim.errors import InvalidEstimatorInput
+
+    with pytest.raises(InvalidEstimatorInput, match="not what Broken wants"):
+        main(["--debug", *argv])
+    monkeypatch.setenv("HANDSIM_DEBUG", "1")
+    with pytest.raises(InvalidEstimatorInput):
+        main(argv)
+
+
+def test_run_time_error_subprocess(tmp_path):
+    """The same through the real program: exit 2, one stderr line, no traceback."""
+    (tmp_path / "broken_est.py").write_text(RAISING_ESTIMATOR)
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "closed-loop", "--env", "handsim/HandPose-v0"]
+        + ["--episodes", "1", "--sensor", "none", "-q", "--estimator", "broken_est:Broken"]
+        + ["--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env={**os.environ, "MUJOCO_GL": "egl"},
+        timeout=300,
+    )
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == ["handsim: error: this depth is not what Broken wants"]
