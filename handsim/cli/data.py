@@ -1,0 +1,194 @@
+"""``handsim generate``, ``handsim dataset check|info`` and ``handsim export``: datasets.
+
+- ``handsim generate --preset NAME | --config FILE [--frames N] [--workers N] [--seed S] --out
+  DIR``: make (or resume) a dataset; the same command again resumes a killed run.
+- ``handsim dataset check DIR``: name every truncated, corrupt or missing shard (exit 1 if any).
+- ``handsim dataset info DIR [--plot]``: frames, shards, sizes, occlusion histogram; with
+  ``--plot`` a contact sheet of random frames and histogram PNGs.
+- ``handsim export hand-labels|bop DIR OUT``: the formats other tools read.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from handsim.cli._args import choice_help, non_negative_int, positive_int, progress_bar, strict_json
+
+__all__ = ["add_parser", "EXPORTS"]
+
+EXPORTS = ("hand-labels", "bop")
+"""Export formats of ``handsim export``."""
+
+
+def _config(args: argparse.Namespace):
+    from handsim.data.generate import PRESETS, GenerationConfig
+
+    overrides = {"frames": args.frames, "seed": args.seed}
+    if args.config is not None:
+        return GenerationConfig.from_file(args.config, **overrides)
+    return GenerationConfig.from_mapping(PRESETS[args.preset], **overrides)
+
+
+def _generate(args: argparse.Namespace) -> int:
+    from handsim.data.generate import generate
+
+    config = _config(args)
+    bar = progress_bar(config.frames, f"generate {Path(args.out).name}", "frame")
+    last = [0]
+
+    def progress(done: int, total: int) -> None:
+        bar.update(done - last[0])
+        last[0] = done
+
+    try:
+        manifest = generate(config, args.out, workers=args.workers, progress=progress)
+    finally:
+        bar.close()
+    hist = manifest.occlusion_histogram or {}
+    print(
+        strict_json(
+            {
+                "out": str(args.out),
+                "frames": manifest.frames,
+                "shards": len(manifest.shards),
+                "occlusion_histogram": hist,
+            }
+        )
+    )
+    return 0
+
+
+def _check(args: argparse.Namespace) -> int:
+    from handsim.data.manifest import check_dataset
+
+    report = check_dataset(args.dir)
+    print(strict_json(report))
+    return 0 if report["ok"] else 1
+
+
+def _info(args: argparse.Namespace) -> int:
+    from handsim.data.manifest import Manifest
+
+    manifest = Manifest.read(args.dir)
+    folder = Path(args.dir)
+    size = sum(s.bytes for s in manifest.shards.values())
+    info = {
+        "frames": manifest.frames,
+        "shards": len(manifest.shards),
+        "bytes": size,
+        "bytes_per_frame": size / manifest.frames if manifest.frames else None,
+        "image_shape": list(manifest.image_shape),
+        "depth_scale_mm": manifest.depth_scale_mm,
+        "config": manifest.config,
+        "versions": manifest.versions,
+        "git_commit": manifest.git_commit,
+        "occlusion_histogram": manifest.occlusion_histogram,
+    }
+    if args.plot:
+        info["plots"] = [str(p) for p in _plots(folder, manifest, args.seed)]
+    print(strict_json(info))
+    return 0
+
+
+def _plots(folder: Path, manifest, seed: int) -> list[Path]:
+    import cv2
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from handsim.data.arrays import arrays_to_frame
+    from handsim.data.shards import ShardReader
+    from handsim.viz import draw_frame
+
+    rng = np.random.default_rng(seed)
+    records = sorted(manifest.shards.values(), key=lambda s: s.name)
+    readers = [ShardReader(folder / r.name) for r in records]
+    picks = [(int(rng.integers(len(readers))), None) for _ in range(12)]
+    tiles = []
+    for k, _ in picks:
+        reader = readers[k]
+        frame = arrays_to_frame(reader[int(rng.integers(len(reader)))])
+        tiles.append(draw_frame(frame))
+    rows = [np.hstack(tiles[i : i + 4]) for i in range(0, len(tiles), 4)]
+    sheet = folder / "contact_sheet.png"
+    cv2.imwrite(str(sheet), np.vstack(rows))
+    ratio = np.concatenate([np.nan_to_num(r.labels("hand_occlusion_ratio")) for r in readers])
+    visible = np.concatenate([r.labels("visible").sum(axis=1) for r in readers])
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.2))
+    axes[0].hist(ratio, bins=np.linspace(0, 1, 21), color="tab:red")
+    axes[0].set(xlabel="hand occlusion ratio", ylabel="frames", title="occlusion")
+    axes[1].hist(visible, bins=np.arange(23) - 0.5, color="tab:blue")
+    axes[1].set(xlabel="visible keypoints (of 21)", ylabel="frames", title="visibility")
+    fig.tight_layout()
+    hist = folder / "histograms.png"
+    fig.savefig(hist, dpi=100)
+    plt.close(fig)
+    for r in readers:
+        r.close()
+    return [sheet, hist]
+
+
+def _export(args: argparse.Namespace) -> int:
+    from handsim.data.export import export_bop, export_hand_labels
+
+    run = export_hand_labels if args.format == "hand-labels" else export_bop
+    print(strict_json({"format": args.format, "out": str(args.out), **run(args.dir, args.out)}))
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``handsim generate``, ``handsim dataset`` and ``handsim export``."""
+    from handsim.data.generate import PRESETS
+
+    presets = tuple(PRESETS)
+    gen = sub.add_parser(
+        "generate",
+        help="generate (or resume) a dataset of labelled depth frames",
+        description="Generate labelled depth frames into a dataset folder (HDF5 shards and "
+        "manifest.json) with spawned worker processes. Rerunning the same command resumes a "
+        "killed run: complete shards are kept and the missing ones are made identically.",
+    )
+    source = gen.add_mutually_exclusive_group(required=True)
+    source.add_argument(
+        "--preset", choices=presets, metavar="NAME", help=choice_help("a preset", presets)
+    )
+    source.add_argument("--config", type=Path, metavar="FILE", help="a JSON or YAML config file")
+    gen.add_argument("--frames", type=positive_int, help="frames (overrides the config)")
+    gen.add_argument("--seed", type=non_negative_int, help="base seed (overrides the config)")
+    gen.add_argument(
+        "--workers", type=positive_int, default=1, help="worker processes (default: 1)"
+    )
+    gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    gen.set_defaults(func=_generate)
+
+    data = sub.add_parser("dataset", help="check or summarize a dataset folder")
+    data_sub = data.add_subparsers(dest="dataset_command", metavar="ACTION", required=True)
+    check = data_sub.add_parser(
+        "check", help="name truncated, corrupt or missing shards (exit 1 if any)"
+    )
+    check.add_argument("dir", type=Path, help="dataset folder")
+    check.set_defaults(func=_check)
+    info = data_sub.add_parser("info", help="frames, shards, sizes and occlusion histogram")
+    info.add_argument("dir", type=Path, help="dataset folder")
+    info.add_argument(
+        "--plot",
+        action="store_true",
+        help="write contact_sheet.png (12 random frames) and histograms.png into the folder",
+    )
+    info.add_argument("--seed", type=non_negative_int, default=0, help="seed of the frame picks")
+    info.set_defaults(func=_info)
+
+    export = sub.add_parser(
+        "export",
+        help="export a dataset to hand labels (JSON lines + PNG) or BOP",
+        description="Export a dataset folder into a new folder in a format other tools read.",
+    )
+    export.add_argument(
+        "format", choices=EXPORTS, metavar="FORMAT", help=choice_help("format", EXPORTS)
+    )
+    export.add_argument("dir", type=Path, help="dataset folder")
+    export.add_argument("out", type=Path, help="output folder (new or empty)")
+    export.set_defaults(func=_export)

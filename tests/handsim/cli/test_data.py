@@ -1,0 +1,82 @@
+"""Tests of `handsim generate`, `handsim dataset check|info` and `handsim export`."""
+
+import json
+
+import pytest
+
+from handsim.cli import main
+
+CONFIG = {
+    "frames": 2,
+    "frames_per_shard": 1,
+    "frames_per_episode": 1,
+    "sensor": "none",
+    "num_objects_range": [1, 1],
+    "objects": ["005_tomato_soup_can"],
+}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    """A two-shard dataset made from a JSON config through the CLI."""
+    root = tmp_path_factory.mktemp("cli")
+    (root / "config.json").write_text(json.dumps(CONFIG))
+    assert main(["generate", "--config", str(root / "config.json"), "--out", str(root / "d")]) == 0
+    return root / "d"
+
+
+def test_generate_prints_strict_json_and_resumes(dataset, capsys, tmp_path):
+    """The same command again finds everything done; --frames overrides the config."""
+    (tmp_path / "config.json").write_text(json.dumps(CONFIG))
+    args = ["generate", "--config", str(tmp_path / "config.json"), "--out", str(dataset)]
+    assert main(args) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["frames"] == 2 and report["shards"] == 2
+
+
+def test_check_exit_status_names_a_corrupt_shard(dataset, capsys, tmp_path):
+    """Exit 0 for a sound dataset, 1 with the shard named for a damaged one."""
+    assert main(["dataset", "check", str(dataset)]) == 0
+    assert json.loads(capsys.readouterr().out)["ok"] is True
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    for path in dataset.iterdir():
+        (broken / path.name).write_bytes(path.read_bytes())
+    shard = broken / "shard-00001.h5"
+    shard.write_bytes(shard.read_bytes()[:1000])
+    assert main(["dataset", "check", str(broken)]) == 1
+    report = json.loads(capsys.readouterr().out)
+    assert report["problems"][0].startswith("shard-00001.h5: ")
+
+
+def test_info_plot_writes_pictures(dataset, capsys):
+    """`dataset info --plot` summarizes and writes the contact sheet and the histograms."""
+    assert main(["dataset", "info", str(dataset), "--plot"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames"] == 2 and info["image_shape"] == [240, 320]
+    assert sorted(p.split("/")[-1] for p in info["plots"]) == [
+        "contact_sheet.png",
+        "histograms.png",
+    ]
+    assert (dataset / "contact_sheet.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize("fmt", ["hand-labels", "bop"])
+def test_export_writes_the_format(dataset, capsys, tmp_path, fmt):
+    """Both exports run from the CLI into a new folder."""
+    assert main(["export", fmt, str(dataset), str(tmp_path / fmt)]) == 0
+    assert json.loads(capsys.readouterr().out)["format"] == fmt
+    assert any((tmp_path / fmt).iterdir())
+
+
+def test_errors_are_one_line(capsys, tmp_path):
+    """A folder that is no dataset, a bad preset and a bad config field: one line, exit 2."""
+    assert main(["dataset", "info", str(tmp_path)]) == 2
+    assert capsys.readouterr().err.strip().startswith("handsim: error: ")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["generate", "--preset", "nope", "--out", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert "choose from 'hand-only', 'hand-object', 'occlusion-heavy'" in capsys.readouterr().err
+    (tmp_path / "bad.json").write_text(json.dumps({"frame": 3}))
+    assert main(["generate", "--config", str(tmp_path / "bad.json"), "--out", str(tmp_path)]) == 2
+    assert "unknown config field(s) frame" in capsys.readouterr().err
