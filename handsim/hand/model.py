@@ -65,6 +65,7 @@ from scipy.spatial.transform import Rotation
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
+from handsim.hand.skin import SURFACES, build_skin
 
 __all__ = [
     "HandParams",
@@ -83,6 +84,7 @@ __all__ = [
 ]
 
 Side = Literal["right", "left"]
+Surface = Literal["skin", "capsules"]
 
 HAND_LENGTH_RANGE_M = (0.140, 0.235)
 PALM_BREADTH_RATIO_RANGE = (0.35, 0.55)
@@ -191,6 +193,10 @@ class HandParams:
         forearm: add a forearm stub (it is part of what a depth camera sees).
         couple_dip: tie each DIP to 2/3 of its PIP with an equality constraint (the DIP
             actuators are then omitted).
+        surface: what cameras see: ``"skin"`` (default), a smooth closed mesh per segment with
+            palm eminences, web spaces and elliptic finger sections (:mod:`handsim.hand.skin`),
+            or ``"capsules"``, copies of the collision primitives (the earlier look). Physics
+            is the same for both.
     """
 
     hand_length: float = 0.189
@@ -199,6 +205,7 @@ class HandParams:
     thickness_scale: float = 1.0
     forearm: bool = True
     couple_dip: bool = False
+    surface: Surface = "skin"
 
     def __post_init__(self) -> None:
         lo, hi = HAND_LENGTH_RANGE_M
@@ -222,6 +229,11 @@ class HandParams:
         if not (np.isfinite(self.thickness_scale) and tlo <= self.thickness_scale <= thi):
             raise InvalidHandParams(
                 f"thickness_scale must be in [{tlo}, {thi}]; received {self.thickness_scale!r}"
+            )
+        if self.surface not in SURFACES:
+            raise InvalidHandParams(
+                f"surface must be one of {', '.join(map(repr, SURFACES))}; "
+                f"received {self.surface!r}"
             )
         for flag in ("forearm", "couple_dip"):
             if not isinstance(getattr(self, flag), bool):
@@ -616,8 +628,11 @@ class Hand:
                     axis=axis,
                 )
             distal = b.name.endswith("distal") and b.part != "palm"
+            roles = [("collision", pad if distal else collision)]
+            if self.params.surface == "capsules":
+                roles.append(("visual", visual))
             for n, g in enumerate(b.geoms):
-                for role, cls in (("collision", pad if distal else collision), ("visual", visual)):
+                for role, cls in roles:
                     kw = dict(name=f"{b.name}_{role}_{n}", default=cls)
                     if isinstance(g, Capsule):
                         body.add_geom(
@@ -631,6 +646,15 @@ class Hand:
                             type=mujoco.mjtGeom.mjGEOM_BOX, pos=g.pos, size=g.half_size, **kw
                         )
             body_specs.append(body)
+        if self.params.surface == "skin":
+            for part in build_skin(self.params):
+                name = f"{self.skeleton.bodies[part.body].name}_visual_0"
+                spec.add_mesh(
+                    name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel()
+                )
+                body_specs[part.body].add_geom(
+                    name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
+                )
 
         for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
             body_specs[body_index].add_site(
