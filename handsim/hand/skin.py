@@ -62,6 +62,7 @@ _TIP_WIDTH_RATIO = 1.12
 _RINGS_PER_CAP = 8
 _RINGS_ON_CONE = 6
 _AROUND = 24
+_BURIED_M = 2e-4
 _PALM_GRID_M = 0.0025  # surface-nets grid step of the palm, metres
 
 Sdf = Callable[[np.ndarray], np.ndarray]
@@ -205,16 +206,16 @@ def _sd_cone_between(p: np.ndarray, a: np.ndarray, b: np.ndarray, ra: float, rb:
 def _sd_forearm(p: np.ndarray, y: np.ndarray, half_width: np.ndarray, half_depth: np.ndarray):
     """Elliptic sections with half axes interpolated between knots ``y``; flat end at ``y[0]``.
 
-    The distal end (``y[-1]``) lies inside the palm, so only the proximal end is capped.
+    The distal end (``y[-1]``) lies inside the palm, so only the proximal end is rounded.
     """
     a = np.interp(p[:, 1], y, half_width)
     c = np.interp(p[:, 1], y, half_depth)
     radial = (np.hypot(p[:, 0] / a, p[:, 2] / c) - 1.0) * np.minimum(a, c)
     # Round the rim of the cut end (radius `rim`) so that it meshes cleanly.
     rim = 0.3 * float(half_depth[0])
-    w = np.stack([radial + rim, y[0] + rim - p[:, 1], p[:, 1] - y[-1]], axis=1)
-    w[:, 2] = np.minimum(w[:, 2], 0.0)
-    return np.linalg.norm(np.maximum(w[:, :2], 0.0), axis=1) + np.minimum(w.max(axis=1), 0) - rim
+    w = np.stack([radial + rim, y[0] + rim - p[:, 1]], axis=1)
+    rounded = np.linalg.norm(np.maximum(w, 0.0), axis=1) + np.minimum(w.max(axis=1), 0) - rim
+    return np.maximum(rounded, p[:, 1] - y[-1])  # the flat distal end lies inside the palm
 
 
 def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
@@ -238,29 +239,31 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
     r_cmc = bodies[index["thumb_metacarpal"]].geoms[0].radius
     r_pp = {f: bodies[index[f"{f}_proximal"]].geoms[0].radius for f in mcp}
     breadth = params.breadth
-    rounding = 0.6 * half_t
+    rounding = 0.3 * half_t
 
     def core(p: np.ndarray) -> np.ndarray:
+        # The collision palm itself (hard union: the capsules are tangent to the box, where a
+        # smooth union would inflate the palm by a quarter of its blend size).
         q = np.abs(p - box.pos) - (box.half_size - rounding)
         d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0) - rounding
         for g in metacarpals:
-            d = _smin(d, _sd_capsule(p, g.start, g.end, g.radius), 0.010 * hl / 0.189)
+            d = np.minimum(d, _sd_capsule(p, g.start, g.end, g.radius))
         return d
 
     # Thenar eminence: from the sphere the thumb metacarpal turns in toward the palm centre.
-    thenar_end = np.array([0.12 * breadth, 0.30 * mcp["middle"][1], half_t - 0.55 * r_cmc])
+    thenar_end = np.array([0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
     # Hypothenar eminence along the ulnar border, proximal two thirds of the palm.
     hyp_r = 0.75 * half_t
-    hyp_z = half_t + 0.0015 * thick - hyp_r
-    hyp_a = np.array([-0.26 * breadth, 0.14 * mcp["little"][1], hyp_z])
+    hyp_z = half_t + 0.0008 * thick - hyp_r
+    hyp_a = np.array([-0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
     hyp_b = np.array([-0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
     # Web spaces: ridges between neighbouring knuckles, palmar and distal of the MCP line.
     webs = []
     fingers = ("index", "middle", "ring", "little")
     for f, g in zip(fingers[:-1], fingers[1:], strict=True):
         r = 0.5 * (r_pp[f] + r_pp[g])
-        shift = np.array([0.0, 0.45 * r, 0.35 * r])
-        webs.append((mcp[f] + shift, mcp[g] + shift, 0.55 * r))
+        shift = np.array([0.0, 0.45 * r, 0.3 * r])
+        webs.append((mcp[f] + shift, mcp[g] + shift, 0.5 * r))
     forearm = None
     if params.forearm:
         # Broadest and deepest at the stub's end, tapering to the wrist, where it is as deep
@@ -275,9 +278,9 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
     def sdf(p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
         d = core(p)
-        d = _smin(d, np.linalg.norm(p - cmc, axis=1) - r_cmc, 0.6 * k)
-        d = _smin(d, _sd_cone_between(p, cmc, thenar_end, r_cmc, 0.55 * r_cmc), 0.6 * k)
-        d = _smin(d, _sd_capsule(p, hyp_a, hyp_b, hyp_r), 0.6 * k)
+        d = _smin(d, np.linalg.norm(p - cmc, axis=1) - r_cmc, 0.4 * k)
+        d = _smin(d, _sd_cone_between(p, cmc, thenar_end, r_cmc, 0.55 * r_cmc), 0.4 * k)
+        d = _smin(d, _sd_capsule(p, hyp_a, hyp_b, hyp_r), 0.4 * k)
         for a, b, r in webs:
             d = _smin(d, _sd_capsule(p, a, b, r), 0.6 * k)
         if forearm is not None:
@@ -470,3 +473,147 @@ def build_skin(params) -> tuple[SkinPart, ...]:
         p.vertices.setflags(write=False)
         p.faces.setflags(write=False)
     return parts
+
+
+# Measuring the skin against the skeleton ------------------------------------------------------
+
+
+def _world_from_body(binding, data) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(R, t) of every skeleton body in the world (``p_world = R p_body + t``)."""
+    out = []
+    for b in binding.hand.skeleton.bodies:
+        body = binding.model.body(binding.hand.prefix + b.name).id
+        out.append((data.xmat[body].reshape(3, 3).copy(), data.xpos[body].copy()))
+    return out
+
+
+def _collision_sdf(binding, data) -> Sdf:
+    """Signed distance (world, metres) to the union of the hand's collision primitives."""
+    frames = _world_from_body(binding, data)
+    bodies = binding.hand.skeleton.bodies
+
+    def sdf(p: np.ndarray) -> np.ndarray:
+        d = np.full(len(p), np.inf)
+        for (rot, t), body in zip(frames, bodies, strict=True):
+            local = (p - t) @ rot
+            for g in body.geoms:
+                if hasattr(g, "radius"):
+                    gd = _sd_capsule(local, g.start, g.end, g.radius)
+                else:
+                    q = np.abs(local - g.pos) - g.half_size
+                    gd = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0)
+                np.minimum(d, gd, out=d)
+        return d
+
+    return sdf
+
+
+def _vertex_normals(part: SkinPart) -> np.ndarray:
+    tri = part.vertices[part.faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals = np.zeros_like(part.vertices)
+    for k in range(3):
+        np.add.at(normals, part.faces[:, k], n)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
+
+
+def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
+    """Distance from the skin to the collision surface where the hand touches things.
+
+    Args:
+        binding: the hand's binding in a compiled model (:meth:`Hand.bind`).
+        data: its data after ``mj_forward`` (the pose to measure).
+
+    Returns:
+        ``{"pads": ..., "palm": ...}``: (N,) absolute distances, metres, from each skin vertex
+        on the palmar side (body-frame normal ``z > 0.5``) of the phalanges, and of the palm
+        between the wrist crease and the knuckles, to the union of the collision primitives.
+        Vertices more than 0.2 mm inside another part's skin (buried in a joint) are left out.
+    """
+    hand = binding.hand
+    sdf = _collision_sdf(binding, data)
+    frames = _world_from_body(binding, data)
+    y_knuckles = max(b.pos[1] for b in hand.skeleton.bodies if b.name.endswith("_proximal"))
+    out: dict[str, list[np.ndarray]] = {"pads": [], "palm": []}
+    parts = build_skin(hand.params)
+    for part in parts:
+        palmar = _vertex_normals(part)[:, 2] > 0.5
+        if part.body == 0:
+            y = part.vertices[:, 1]
+            palmar &= (y >= 0.0) & (y <= y_knuckles)
+        rot, t = frames[part.body]
+        world = part.vertices[palmar] @ rot.T + t
+        # Only the outer surface: skin buried inside another part is never seen nor touched.
+        buried = np.zeros(len(world), dtype=bool)
+        for other in parts:
+            if other.body != part.body:
+                orot, ot = frames[other.body]
+                buried |= other.sdf((world - ot) @ orot) < -_BURIED_M
+        out["palm" if part.body == 0 else "pads"].append(np.abs(sdf(world[~buried])))
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def joint_crease_depth_m(binding, data, samples: int = 400) -> np.ndarray:
+    """How far each joint's distal segment sticks out of its parent's skin, metres.
+
+    The base of a segment is the spheroid its round cone starts with (the joint's envelope).
+    Where the parent's skin holds all of it, the joint shows neither a gap nor a step for this
+    pose; a point of the envelope outside the parent's skin at depth ``d`` opens a notch about
+    ``d`` deep between the two segments (a gap if the parts separate).
+
+    Args:
+        binding: the hand's binding in a compiled model.
+        data: its data after ``mj_forward``.
+        samples: points on each envelope (a Fibonacci sphere).
+
+    Returns:
+        (B - 1,) depth per non-palm body in skeleton order, metres (0 = fully held).
+    """
+    hand = binding.hand
+    parts = build_skin(hand.params)
+    frames = _world_from_body(binding, data)
+    k = np.arange(samples) + 0.5
+    polar = np.arccos(1.0 - 2.0 * k / samples)
+    azimuth = np.pi * (1.0 + 5.0**0.5) * k
+    unit = np.stack(
+        [np.sin(polar) * np.cos(azimuth), np.cos(polar), np.sin(polar) * np.sin(azimuth)], 1
+    )
+    depth = []
+    for part in parts[1:]:
+        body = hand.skeleton.bodies[part.body]
+        base = part.vertices[part.vertices[:, 1] <= 0.0]
+        # Half axes of the base spheroid from the proximal cap's vertices.
+        half = np.array([np.abs(base[:, 0]).max(), np.abs(base[:, 1]).max(), 0.0])
+        half[2] = np.abs(base[:, 2]).max()
+        envelope = unit * half
+        rot, t = frames[part.body]
+        prot, pt = frames[body.parent]
+        world = envelope @ rot.T + t
+        d = parts[body.parent].sdf((world - pt) @ prot)
+        depth.append(max(float(d.max()), 0.0))
+    return np.array(depth)
+
+
+def digit_volume_m3(binding, data, digit: str, samples: int = 200_000, seed: int = 0) -> float:
+    """Volume of the union of one digit's skin segments (Monte Carlo, seeded), cubic metres.
+
+    Args:
+        binding: the hand's binding in a compiled model.
+        data: its data after ``mj_forward``.
+        digit: ``"thumb"``, ``"index"``, ``"middle"``, ``"ring"`` or ``"little"``.
+        samples: uniform samples in the digit's bounding box (relative error about
+            ``1 / sqrt(samples)``).
+        seed: sampling seed.
+    """
+    hand = binding.hand
+    parts = [p for p in build_skin(hand.params) if hand.skeleton.bodies[p.body].part == digit]
+    frames = _world_from_body(binding, data)
+    posed = [p.vertices @ frames[p.body][0].T + frames[p.body][1] for p in parts]
+    lo = np.min([v.min(axis=0) for v in posed], axis=0)
+    hi = np.max([v.max(axis=0) for v in posed], axis=0)
+    points = np.random.default_rng(seed).uniform(lo, hi, (samples, 3))
+    inside = np.zeros(samples, dtype=bool)
+    for part in parts:
+        rot, t = frames[part.body]
+        inside |= part.sdf((points - t) @ rot) < 0.0
+    return float(inside.mean() * np.prod(hi - lo))
