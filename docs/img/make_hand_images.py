@@ -23,8 +23,8 @@ OUT = Path(__file__).parent
 WRIST = np.array([0.0, -0.05, 0.25])
 # (file suffix, gesture, wrist rotation vector, camera eye relative to the wrist)
 VIEWS = (
-    ("palm", "open", (0.0, 0.0, 0.0), (0.0, 0.05, -0.40)),
-    ("back", "open", (0.0, 0.0, 0.0), (0.0, 0.05, 0.40)),
+    ("back", "open", (0.0, 0.0, 0.0), (0.0, 0.05, -0.40)),
+    ("palm", "open", (0.0, 0.0, 0.0), (0.0, 0.05, 0.40)),
     ("fist", "fist", (0.0, 0.0, 0.0), (0.25, 0.05, -0.30)),
     ("pinch", "pinch", (0.0, 0.0, 0.0), (0.30, 0.10, -0.25)),
 )
@@ -40,10 +40,16 @@ def _depth_image(surface: str, name: str, rotvec, eye) -> np.ndarray:
     with DepthRenderer(scene.model, "cam", intr) as renderer:
         depth, _ = renderer.render(scene.data)
     seen = depth > 0
+    # Shade the depth map by its surface normals (a light at the camera) so that relief shows;
+    # the depth itself is what the camera measures, nothing else is drawn.
+    fx = intr.fx
+    dz_du = np.gradient(depth, axis=1) * fx / np.maximum(depth, 1e-6)
+    dz_dv = np.gradient(depth, axis=0) * fx / np.maximum(depth, 1e-6)
+    normal_z = 1.0 / np.sqrt(1.0 + dz_du**2 + dz_dv**2)
     lo, hi = depth[seen].min(), depth[seen].max()
+    near = (hi - depth) / max(hi - lo, 1e-6)
     image = np.zeros(depth.shape, np.uint8)
-    # Near = bright; 8 bits over the hand's depth range.
-    image[seen] = (40 + 215 * (hi - depth[seen]) / max(hi - lo, 1e-6)).astype(np.uint8)
+    image[seen] = np.clip(30 + 170 * normal_z[seen] + 55 * near[seen], 0, 255).astype(np.uint8)
     return image
 
 

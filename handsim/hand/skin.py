@@ -63,6 +63,9 @@ _RINGS_PER_CAP = 8
 _RINGS_ON_CONE = 6
 _AROUND = 24
 _BURIED_M = 2e-4
+# The palm's skin stays within this of its collision primitives (blended over _CLIP_BLEND_M).
+_CLIP_M = 0.0018
+_CLIP_BLEND_M = 0.0015
 _PALM_GRID_M = 0.0025  # surface-nets grid step of the palm, metres
 
 Sdf = Callable[[np.ndarray], np.ndarray]
@@ -240,15 +243,26 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
     r_pp = {f: bodies[index[f"{f}_proximal"]].geoms[0].radius for f in mcp}
     breadth = params.breadth
     rounding = 0.3 * half_t
+    scale = hl / 0.189
 
-    def core(p: np.ndarray) -> np.ndarray:
-        # The collision palm itself (hard union: the capsules are tangent to the box, where a
-        # smooth union would inflate the palm by a quarter of its blend size).
-        q = np.abs(p - box.pos) - (box.half_size - rounding)
-        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0) - rounding
+    def collision(p: np.ndarray) -> np.ndarray:
+        """The palm's collision primitives (exact union; the forearm's capsules left out)."""
+        q = np.abs(p - box.pos) - box.half_size
+        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
         for g in metacarpals:
             d = np.minimum(d, _sd_capsule(p, g.start, g.end, g.radius))
         return d
+
+    def core(p: np.ndarray) -> np.ndarray:
+        # The collision palm with its edges rounded and the grooves between the metacarpal
+        # capsules filled (a smooth union among the capsules only: they are tangent to the
+        # box, where a smooth union would inflate the palm everywhere).
+        q = np.abs(p - box.pos) - (box.half_size - rounding)
+        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0) - rounding
+        caps = _sd_capsule(p, metacarpals[0].start, metacarpals[0].end, metacarpals[0].radius)
+        for g in metacarpals[1:]:
+            caps = _smin(caps, _sd_capsule(p, g.start, g.end, g.radius), 0.008 * scale)
+        return np.minimum(d, caps)
 
     # Thenar eminence: from the sphere the thumb metacarpal turns in toward the palm centre.
     thenar_end = np.array([0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
@@ -277,15 +291,21 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
 
     def sdf(p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
+        cmc_sphere = np.linalg.norm(p - cmc, axis=1) - r_cmc
         d = core(p)
-        d = _smin(d, np.linalg.norm(p - cmc, axis=1) - r_cmc, 0.4 * k)
+        d = _smin(d, cmc_sphere, 0.4 * k)
         d = _smin(d, _sd_cone_between(p, cmc, thenar_end, r_cmc, 0.55 * r_cmc), 0.4 * k)
         d = _smin(d, _sd_capsule(p, hyp_a, hyp_b, hyp_r), 0.4 * k)
         for a, b, r in webs:
             d = _smin(d, _sd_capsule(p, a, b, r), 0.6 * k)
         if forearm is not None:
             d = _smin(d, _sd_forearm(p, *forearm), k)
-        return d
+        # Nothing of the hand (y >= 0) stands more than _CLIP_M outside the collision palm, so a
+        # contact in physics is a contact in depth; the forearm is free. The sphere the thumb
+        # metacarpal turns in is kept whole (the thumb's own collision capsule starts in it).
+        offset = _CLIP_M + 3.0 * np.maximum(-p[:, 1], 0.0)
+        d = -_smin(-d, offset - collision(p), _CLIP_BLEND_M)
+        return np.minimum(d, cmc_sphere)
 
     # Bounds: the radial edge (index knuckle, thenar), the ulnar edge, the knuckle row, the
     # forearm's end and the palmar/dorsal reach of the largest pieces.
@@ -384,7 +404,7 @@ def _surface_nets(sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
     return vertices, faces
 
 
-def _project(sdf: Sdf, p: np.ndarray, steps: int = 2) -> np.ndarray:
+def _project(sdf: Sdf, p: np.ndarray, steps: int = 4) -> np.ndarray:
     """Newton steps of (N, 3) points onto the zero set of ``sdf`` (finite differences)."""
     eps = 1e-6
     for _ in range(steps):
@@ -487,7 +507,7 @@ def _world_from_body(binding, data) -> list[tuple[np.ndarray, np.ndarray]]:
     return out
 
 
-def _collision_sdf(binding, data) -> Sdf:
+def _collision_sdf(binding, data, forearm: bool = True) -> Sdf:
     """Signed distance (world, metres) to the union of the hand's collision primitives."""
     frames = _world_from_body(binding, data)
     bodies = binding.hand.skeleton.bodies
@@ -497,6 +517,8 @@ def _collision_sdf(binding, data) -> Sdf:
         for (rot, t), body in zip(frames, bodies, strict=True):
             local = (p - t) @ rot
             for g in body.geoms:
+                if not forearm and body.part == "palm" and hasattr(g, "radius") and g.start[1] < 0:
+                    continue
                 if hasattr(g, "radius"):
                     gd = _sd_capsule(local, g.start, g.end, g.radius)
                 else:
@@ -528,10 +550,13 @@ def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
         ``{"pads": ..., "palm": ...}``: (N,) absolute distances, metres, from each skin vertex
         on the palmar side (body-frame normal ``z > 0.5``) of the phalanges, and of the palm
         between the wrist crease and the knuckles, to the union of the collision primitives.
-        Vertices more than 0.2 mm inside another part's skin (buried in a joint) are left out.
+        Vertices more than 0.2 mm inside another part's skin (buried in a joint) are left out,
+        and the forearm's collision capsules are not counted: the forearm is no contact
+        surface, and for thick hands its capsules stand out of the wrist, where the skin does
+        not follow them.
     """
     hand = binding.hand
-    sdf = _collision_sdf(binding, data)
+    sdf = _collision_sdf(binding, data, forearm=False)
     frames = _world_from_body(binding, data)
     y_knuckles = max(b.pos[1] for b in hand.skeleton.bodies if b.name.endswith("_proximal"))
     out: dict[str, list[np.ndarray]] = {"pads": [], "palm": []}
