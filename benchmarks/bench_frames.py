@@ -1,6 +1,6 @@
 """Benchmark: labelled frames per second against MuJoCo's plain depth render of the same scene.
 
-Run: ``python benchmarks/bench_frames.py [--frames 100] [--out FILE.json]``.
+Run: ``python benchmarks/bench_frames.py [--frames 100] [--repeats 3] [--out FILE.json]``.
 
 For 320x240 (ICVL) and 640x480 (NYU Carmine) it measures, in one run on one scene (hand +
 3 objects on the table, third-person camera):
@@ -60,17 +60,25 @@ def _poses(n: int) -> list:
     ]
 
 
+REPEATS = 3
+"""Each rate is the best of this many passes over the poses (a shared machine's load only
+ever slows a pass down)."""
+
+
 def _rate(fn, scene: Scene, poses: list, move_objects: bool = False) -> float:
     fn()  # warm-up (first draw uploads meshes)
     x_adr = [scene.model.body(body).jntadr[0] for body, _ in scene.objects]
     x_adr = scene.model.jnt_qposadr[x_adr]
-    start = time.perf_counter()
-    for i, pose in enumerate(poses):
-        if move_objects:
-            scene.data.qpos[x_adr] += 1e-4 if i % 2 else -1e-4
-        scene.binding.set_pose(scene.data, pose)  # also runs mj_forward
-        fn()
-    return len(poses) / (time.perf_counter() - start)
+    best = 0.0
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        for i, pose in enumerate(poses):
+            if move_objects:
+                scene.data.qpos[x_adr] += 1e-4 if i % 2 else -1e-4
+            scene.binding.set_pose(scene.data, pose)  # also runs mj_forward
+            fn()
+        best = max(best, len(poses) / (time.perf_counter() - start))
+    return best
 
 
 def bench(preset: str, frames: int, surface: str = "skin") -> dict:
@@ -116,7 +124,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--frames", type=int, default=100)
     parser.add_argument("--out", default="benchmarks/results/bench_frames.json")
+    parser.add_argument("--repeats", type=int, default=REPEATS, help="passes per rate (best)")
     args = parser.parse_args()
+    globals()["REPEATS"] = args.repeats
     results = {}
     for preset in ("icvl", "nyu_carmine"):
         intr = camera_preset(preset)

@@ -421,6 +421,7 @@ def _segment_kind(name: str) -> str:
     return name.split("_", 1)[1]
 
 
+@functools.lru_cache(maxsize=16)
 def _right_parts(params) -> tuple[SkinPart, ...]:
     from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
 
@@ -486,7 +487,9 @@ def build_skin(params) -> tuple[SkinPart, ...]:
         One :class:`SkinPart` per body of :func:`~handsim.hand.model.build_skeleton`, in body
         order (the palm, with the forearm stub, first). Arrays are read-only.
     """
-    parts = _right_parts(params)
+    # The skin depends on the sizes and the forearm only: left and right share one build.
+    shape = dataclasses.replace(params, side="right", surface="skin", couple_dip=False)
+    parts = _right_parts(shape)
     if params.side == "left":
         parts = tuple(_mirror(p) for p in parts)
     for p in parts:
