@@ -22,13 +22,15 @@ stay closed by construction instead of by blending:
 - The joint radii are the means of the neighbouring collision capsule radii (the MCP takes the
   proximal phalanx's), so the pads follow the collision capsules to within half a radius step
   (0.5 mm on a medium hand), and the fingertip ends exactly at the tip keypoint.
-- The palm (with the forearm stub) is a smooth union of signed-distance primitives meshed by
-  marching tetrahedra and decimated on the surface (:mod:`handsim.world.meshing`): the
-  collision box and metacarpal capsules with rounded edges, the thenar eminence (a round cone
-  from the thumb's CMC toward the palm centre, holding the sphere the thumb metacarpal turns in),
+- The palm (with the forearm stub) is a smooth union of signed-distance primitives, meshed by
+  surface nets on a 2.5 mm grid and projected onto the zero set: the collision box and
+  metacarpal capsules with rounded edges and filled grooves, the thenar eminence (a round cone
+  from the thumb's CMC toward the palm centre, and the sphere the thumb metacarpal turns in),
   the hypothenar eminence along the ulnar border, web spaces (ridges between neighbouring
   knuckles, palmar and distal of the MCP line) and a forearm stub of elliptic section that
-  tapers to the wrist.
+  tapers to the wrist. From the wrist crease on it is clipped (smoothly) to 1.8 mm outside the
+  palm's collision primitives, so that the skin lies within 2 mm of the collision surface
+  where the hand touches things (:func:`collision_gap_m` measures it).
 
 Anatomy (medium hand, 189 mm): palm breadth at the metacarpal heads 0.45 hand length = 85 mm,
 the British adult men's median (Pheasant & Haslegrave, *Bodyspace*, 3rd ed., 2006; Nigerian
@@ -66,7 +68,7 @@ _BURIED_M = 2e-4
 # The palm's skin stays within this of its collision primitives (blended over _CLIP_BLEND_M).
 _CLIP_M = 0.0018
 _CLIP_BLEND_M = 0.0015
-_PALM_GRID_M = 0.0025  # surface-nets grid step of the palm, metres
+_PALM_GRID_M = 0.0025  # surface-nets grid step of a medium (189 mm) palm, metres
 
 Sdf = Callable[[np.ndarray], np.ndarray]
 
@@ -80,9 +82,8 @@ class SkinPart:
         vertices: (V, 3) float64 vertex positions in the body frame, metres.
         faces: (F, 3) int32 triangles, counter-clockwise seen from outside.
         sdf: signed distance of (N, 3) body-frame points to this part's surface, metres,
-            negative inside (exact for the palm's primitives, a lower-accuracy distance
-            inside the elliptic phalanx sections: the sign is exact, the magnitude within the
-            width ratio).
+            negative inside. The sign is exact; the magnitude is approximate where the palm's
+            pieces blend, and within the width ratio (10 %) of the truth for the phalanges.
     """
 
     body: int
@@ -167,8 +168,8 @@ def _elliptic_round_cone(
 def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
     """Triangles of a closed loft: pole 0, ``n_rings`` rings of ``n_around``, last pole.
 
-    Winding is counter-clockwise from outside for rings ``(cos t, y, sin t)`` with ``y``
-    increasing (outward normal = d/dt x d/dy... checked in the tests).
+    Winding is counter-clockwise seen from outside for rings ``(cos t, y, sin t)`` with ``y``
+    increasing from ring to ring (the tests check that every part's volume is positive).
     """
     j = np.arange(n_around)
     jn = (j + 1) % n_around
@@ -189,8 +190,10 @@ def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
 
 def _sd_capsule(p: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
     e = b - a
-    t = np.clip((p - a) @ e / (e @ e), 0.0, 1.0)
-    return np.linalg.norm(p - a - t[:, None] * e, axis=1) - r
+    w = p - a
+    t = np.clip(w @ (e / (e @ e)), 0.0, 1.0)
+    w -= t[:, None] * e
+    return np.sqrt(np.einsum("ij,ij->i", w, w)) - r
 
 
 def _sd_cone_between(p: np.ndarray, a: np.ndarray, b: np.ndarray, ra: float, rb: float):
@@ -404,13 +407,21 @@ def _surface_nets(sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
     return vertices, faces
 
 
-def _project(sdf: Sdf, p: np.ndarray, steps: int = 4) -> np.ndarray:
-    """Newton steps of (N, 3) points onto the zero set of ``sdf`` (finite differences)."""
+def _project(sdf: Sdf, p: np.ndarray, steps: int = 6, tol: float = 1e-7) -> np.ndarray:
+    """Newton steps of (N, 3) points onto the zero set of ``sdf`` (finite differences).
+
+    Points already within ``tol`` (metres) of the zero set are left alone.
+    """
     eps = 1e-6
+    p = np.array(p, dtype=np.float64)
     for _ in range(steps):
         f = sdf(p)
-        g = np.stack([(sdf(p + eps * e) - f) / eps for e in np.eye(3)], axis=1)
-        p = p - (f / np.maximum(np.einsum("ij,ij->i", g, g), 1e-12))[:, None] * g
+        active = np.abs(f) > tol
+        if not active.any():
+            break
+        q, fq = p[active], f[active]
+        g = np.stack([(sdf(q + eps * e) - fq) / eps for e in np.eye(3)], axis=1)
+        p[active] = q - (fq / np.maximum(np.einsum("ij,ij->i", g, g), 1e-12))[:, None] * g
     return p
 
 
@@ -431,7 +442,9 @@ def _right_parts(params) -> tuple[SkinPart, ...]:
     parts = []
 
     sdf, lo, hi = _palm_sdf(skeleton)
-    vertices, faces = _surface_nets(sdf, lo, hi, _PALM_GRID_M)
+    # The grid scales with the hand: the same mesh density (and cost) for every size.
+    step = _PALM_GRID_M * params.hand_length / 0.189
+    vertices, faces = _surface_nets(sdf, lo, hi, step)
     parts.append(SkinPart(0, _project(sdf, vertices), faces, sdf))
 
     for i, body in enumerate(bodies[1:], start=1):
