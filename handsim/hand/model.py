@@ -40,6 +40,10 @@ visual geoms        ``<side>_<part>_visual_<n>``                 ``rh_palm_visua
 default classes     ``<side>_hand``, ``<side>_collision``, ...   ``rh_visual``
 ==================  ===========================================  ==========================
 
+Visual geoms: with ``HandParams.surface == "skin"`` (default) one mesh per body,
+``<side>_<body>_visual_0`` (mesh of the same name, :mod:`handsim.hand.skin`); with
+``"capsules"`` a copy of each collision primitive.
+
 Geom groups: visual geoms are group 2 (``contype = conaffinity = 0``; what cameras render);
 collision geoms are group 3 (hidden from cameras by default; they carry the mass). Fingertip
 (distal) collision geoms use ``condim = 4`` for torsional friction.
