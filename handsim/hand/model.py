@@ -40,6 +40,10 @@ visual geoms        ``<side>_<part>_visual_<n>``                 ``rh_palm_visua
 default classes     ``<side>_hand``, ``<side>_collision``, ...   ``rh_visual``
 ==================  ===========================================  ==========================
 
+Visual geoms: with ``HandParams.surface == "skin"`` (default) one mesh per body,
+``<side>_<body>_visual_0`` (mesh of the same name, :mod:`handsim.hand.skin`); with
+``"capsules"`` a copy of each collision primitive.
+
 Geom groups: visual geoms are group 2 (``contype = conaffinity = 0``; what cameras render);
 collision geoms are group 3 (hidden from cameras by default; they carry the mass). Fingertip
 (distal) collision geoms use ``condim = 4`` for torsional friction.
@@ -67,6 +71,7 @@ from scipy.spatial.transform import Rotation
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
+from handsim.hand.skin import SURFACES, build_skin
 
 __all__ = [
     "HandParams",
@@ -85,6 +90,7 @@ __all__ = [
 ]
 
 Side = Literal["right", "left"]
+Surface = Literal["skin", "capsules"]
 
 HAND_LENGTH_RANGE_M = (0.140, 0.235)
 PALM_BREADTH_RATIO_RANGE = (0.35, 0.55)
@@ -193,6 +199,10 @@ class HandParams:
         forearm: add a forearm stub (it is part of what a depth camera sees).
         couple_dip: tie each DIP to 2/3 of its PIP with an equality constraint (the DIP
             actuators are then omitted).
+        surface: what cameras see: ``"skin"`` (default), a smooth closed mesh per segment with
+            palm eminences, web spaces and elliptic finger sections (:mod:`handsim.hand.skin`),
+            or ``"capsules"``, copies of the collision primitives (the earlier look). Physics
+            is the same for both.
     """
 
     hand_length: float = 0.189
@@ -201,6 +211,7 @@ class HandParams:
     thickness_scale: float = 1.0
     forearm: bool = True
     couple_dip: bool = False
+    surface: Surface = "skin"
 
     def __post_init__(self) -> None:
         lo, hi = HAND_LENGTH_RANGE_M
@@ -224,6 +235,11 @@ class HandParams:
         if not (np.isfinite(self.thickness_scale) and tlo <= self.thickness_scale <= thi):
             raise InvalidHandParams(
                 f"thickness_scale must be in [{tlo}, {thi}]; received {self.thickness_scale!r}"
+            )
+        if self.surface not in SURFACES:
+            raise InvalidHandParams(
+                f"surface must be one of {', '.join(map(repr, SURFACES))}; "
+                f"received {self.surface!r}"
             )
         for flag in ("forearm", "couple_dip"):
             if not isinstance(getattr(self, flag), bool):
@@ -618,8 +634,11 @@ class Hand:
                     axis=axis,
                 )
             distal = b.name.endswith("distal") and b.part != "palm"
+            roles = [("collision", pad if distal else collision)]
+            if self.params.surface == "capsules":
+                roles.append(("visual", visual))
             for n, g in enumerate(b.geoms):
-                for role, cls in (("collision", pad if distal else collision), ("visual", visual)):
+                for role, cls in roles:
                     kw = dict(name=f"{b.name}_{role}_{n}", default=cls)
                     if isinstance(g, Capsule):
                         body.add_geom(
@@ -633,6 +652,15 @@ class Hand:
                             type=mujoco.mjtGeom.mjGEOM_BOX, pos=g.pos, size=g.half_size, **kw
                         )
             body_specs.append(body)
+        if self.params.surface == "skin":
+            for part in build_skin(self.params):
+                name = f"{self.skeleton.bodies[part.body].name}_visual_0"
+                spec.add_mesh(
+                    name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel()
+                )
+                body_specs[part.body].add_geom(
+                    name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
+                )
 
         for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
             body_specs[body_index].add_site(

@@ -368,6 +368,7 @@ def test_unknown_size_preset():
 
 def test_forearm_is_optional():
     """Without the forearm stub the hand loses exactly its two capsules (visual + collision)."""
-    with_arm = Hand(HandParams(forearm=True)).compile()
-    without = Hand(HandParams(forearm=False)).compile()
+    # The capsule look has one visual copy per collision capsule; the skin has one mesh per body.
+    with_arm = Hand(HandParams(forearm=True, surface="capsules")).compile()
+    without = Hand(HandParams(forearm=False, surface="capsules")).compile()
     assert with_arm.ngeom == without.ngeom + 4

@@ -1,0 +1,660 @@
+"""The hand's skin: one smooth closed mesh per rigid segment, built from :class:`HandParams`.
+
+What a depth camera sees of the hand (:attr:`HandParams.surface` ``"skin"``, the default).
+Collision stays the primitives of :func:`~handsim.hand.model.build_skeleton`; the skin is drawn
+instead of the capsule look (``surface="capsules"``).
+
+Why per-part rigid meshes and not MuJoCo's ``<skin>`` (linear-blend skinning): every body carries
+its own mesh geom, so the depth pass is MuJoCo's ordinary mesh draw (no per-frame CPU skinning),
+segmentation by hand part comes from the geom -> body -> part map unchanged (a skin is one
+object: one segmentation id for the whole hand), and no joint can collapse (linear-blend
+skinning loses volume at twisted or strongly flexed joints, the candy-wrapper effect). Joints
+stay closed by construction instead of by blending:
+
+- A finger segment is a *round cone* (the convex hull of two spheres at its joints) whose
+  cross-sections are ellipses, wider than deep (``_WIDTH_RATIO``): in the segment frame the
+  solid is ``{(x, y, z): (x / s(y), y, z) in round cone}``. At a flexion joint both neighbours
+  end in the same spheroid ``(x / s)^2 + (y^2 + z^2) / r^2 <= 1``, which a rotation about the
+  flexion axis (``x``) maps onto itself, so a flexed joint neither opens a gap nor grows a step.
+  Where a joint also abducts (finger MCPs, thumb CMC and MCP) the proximal side holds a sphere
+  that contains the distal segment's end for every direction (the palm's knuckle spheres, the
+  thumb metacarpal's round distal end).
+- The joint radii are the means of the neighbouring collision capsule radii (the MCP takes the
+  proximal phalanx's), so the pads follow the collision capsules to within half a radius step
+  (0.5 mm on a medium hand), and the fingertip ends exactly at the tip keypoint.
+- The palm (with the forearm stub) is a smooth union of signed-distance primitives, meshed by
+  surface nets on a 2.5 mm grid and projected onto the zero set: the collision box and
+  metacarpal capsules with rounded edges and filled grooves, the thenar eminence (a round cone
+  from the thumb's CMC toward the palm centre, and the sphere the thumb metacarpal turns in),
+  the hypothenar eminence along the ulnar border, web spaces (ridges between neighbouring
+  knuckles, palmar and distal of the MCP line) and a forearm stub of elliptic section that
+  tapers to the wrist. From the wrist crease on it is clipped (smoothly) to 1.8 mm outside the
+  palm's collision primitives, so that the skin lies within 2 mm of the collision surface
+  where the hand touches things (:func:`collision_gap_m` measures it).
+
+Anatomy (medium hand, 189 mm): palm breadth at the metacarpal heads 0.45 hand length = 85 mm,
+the British adult men's median (Pheasant & Haslegrave, *Bodyspace*, 3rd ed., 2006; Nigerian
+students' means 85.8 mm men, 76.9 mm women: Ibeachu, Abu & Didia 2011, Asian J Med Sci 3:146);
+palm thickness 27 mm (the MANO mean hand, fitted to 3-D scans of 31 people: Romero, Tzionas &
+Black 2017, "Embodied Hands", ACM TOG 36:245); finger sections 10 % wider than deep, fingertip
+pads 12 % [estimate]; forearm 0.30 hand length broad and 0.18 deep at the wrist, 0.36 by 0.25 at
+the stub's end 0.55 hand length up the forearm [estimate].
+
+All geometry is in the body frames of :class:`~handsim.hand.model.Skeleton` (metres; hand frame
+``+x`` radial, ``+y`` distal, ``+z`` palmar for the right hand); a left hand is the mirror image
+(``x -> -x``) of the right one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["SURFACES", "SkinPart", "build_skin", "round_cone_profile"]
+
+SURFACES: tuple[str, ...] = ("skin", "capsules")
+"""Valid values of :attr:`HandParams.surface <handsim.hand.model.HandParams.surface>`."""
+
+# Width / depth of the phalanx sections and of the fingertip pad [estimate].
+_WIDTH_RATIO = 1.10
+_TIP_WIDTH_RATIO = 1.12
+_RINGS_PER_CAP = 8
+_RINGS_ON_CONE = 6
+_AROUND = 24
+_BURIED_M = 2e-4
+# The palm's skin stays within this of its collision primitives (blended over _CLIP_BLEND_M).
+_CLIP_M = 0.0018
+_CLIP_BLEND_M = 0.0015
+_PALM_GRID_M = 0.0025  # surface-nets grid step of a medium (189 mm) palm, metres
+
+Sdf = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclasses.dataclass(frozen=True)
+class SkinPart:
+    """The skin of one rigid body.
+
+    Attributes:
+        body: index of the body in :attr:`Skeleton.bodies <handsim.hand.model.Skeleton.bodies>`.
+        vertices: (V, 3) float64 vertex positions in the body frame, metres.
+        faces: (F, 3) int32 triangles, counter-clockwise seen from outside.
+        sdf: signed distance of (N, 3) body-frame points to this part's surface, metres,
+            negative inside. The sign is exact; the magnitude is approximate where the palm's
+            pieces blend, and within the width ratio (10 %) of the truth for the phalanges.
+    """
+
+    body: int
+    vertices: np.ndarray
+    faces: np.ndarray
+    sdf: Sdf
+
+
+# Round cones ---------------------------------------------------------------------------------
+
+
+def round_cone_profile(r0: float, r1: float, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Meridian of a round cone along ``+y`` (hull of spheres ``r0`` at 0 and ``r1`` at ``length``).
+
+    Args:
+        r0: radius of the sphere at ``y = 0``, metres.
+        r1: radius of the sphere at ``y = length``, metres.
+        length: distance between the sphere centres, metres (> ``|r0 - r1|``).
+
+    Returns:
+        ``(y, rho)``: (K,) axial positions and radii, from the proximal pole (``rho = 0``) to
+        the distal pole, sampled on both spherical caps and the cone between them.
+    """
+    alpha_t = np.arcsin((r0 - r1) / length)
+    a0 = np.linspace(-np.pi / 2, alpha_t, _RINGS_PER_CAP + 1)
+    a1 = np.linspace(alpha_t, np.pi / 2, _RINGS_PER_CAP + 1)
+    y0, rho0 = r0 * np.sin(a0), r0 * np.cos(a0)
+    y1, rho1 = length + r1 * np.sin(a1), r1 * np.cos(a1)
+    t = np.linspace(0.0, 1.0, _RINGS_ON_CONE + 2)[1:-1]
+    yc = y0[-1] + t * (y1[0] - y0[-1])
+    rc = rho0[-1] + t * (rho1[0] - rho0[-1])
+    return np.concatenate([y0, yc, y1]), np.concatenate([rho0, rc, rho1])
+
+
+def _sd_round_cone(p: np.ndarray, r0: float, r1: float, length: float) -> np.ndarray:
+    """Exact signed distance to the round cone of :func:`round_cone_profile` (Quilez)."""
+    q = np.hypot(p[:, 0], p[:, 2])
+    y = p[:, 1]
+    b = (r0 - r1) / length
+    a = np.sqrt(max(1.0 - b * b, 0.0))
+    k = -q * b + y * a  # position along the tangent line
+    d_cone = q * a + y * b - r0
+    d0 = np.hypot(q, y) - r0
+    d1 = np.hypot(q, y - length) - r1
+    return np.where(k < 0.0, d0, np.where(k > a * length, d1, d_cone))
+
+
+def _elliptic_round_cone(
+    r0: float, r1: float, length: float, s0: float, s1: float
+) -> tuple[np.ndarray, np.ndarray, Sdf]:
+    """Mesh and signed distance of a round cone whose sections are ``s(y)`` wider than deep."""
+    y, rho = round_cone_profile(r0, r1, length)
+
+    def width(yy: np.ndarray) -> np.ndarray:
+        return s0 + (s1 - s0) * np.clip(yy / length, 0.0, 1.0)
+
+    s = width(y)
+    t = 2.0 * np.pi * np.arange(_AROUND) / _AROUND
+    rings = np.stack(
+        [
+            np.cos(t)[None, :] * (s * rho)[1:-1, None],
+            np.broadcast_to(y[1:-1, None], (len(y) - 2, _AROUND)),
+            np.sin(t)[None, :] * rho[1:-1, None],
+        ],
+        axis=-1,
+    ).reshape(-1, 3)
+    vertices = np.concatenate([[[0.0, y[0], 0.0]], rings, [[0.0, y[-1], 0.0]]])
+    faces = _loft_faces(len(y) - 2, _AROUND)
+
+    def sdf(p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, dtype=np.float64)
+        scaled = p.copy()
+        sp = width(p[:, 1])
+        scaled[:, 0] = p[:, 0] / sp
+        # The distance in the frame where the sections are round: its sign is exact and its
+        # magnitude at most the true distance (the map to that frame is a contraction).
+        return _sd_round_cone(scaled, r0, r1, length)
+
+    return vertices, faces, sdf
+
+
+def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
+    """Triangles of a closed loft: pole 0, ``n_rings`` rings of ``n_around``, last pole.
+
+    Winding is counter-clockwise seen from outside for rings ``(cos t, y, sin t)`` with ``y``
+    increasing from ring to ring (the tests check that every part's volume is positive).
+    """
+    j = np.arange(n_around)
+    jn = (j + 1) % n_around
+    faces = [np.stack([np.zeros(n_around, dtype=np.int64), 1 + j, 1 + jn], axis=1)]
+    for r in range(n_rings - 1):
+        a = 1 + r * n_around
+        b = a + n_around
+        faces.append(np.stack([a + j, b + jn, a + jn], axis=1))
+        faces.append(np.stack([a + j, b + j, b + jn], axis=1))
+    last = 1 + n_rings * n_around
+    a = 1 + (n_rings - 1) * n_around
+    faces.append(np.stack([np.full(n_around, last), a + jn, a + j], axis=1))
+    return np.concatenate(faces).astype(np.int32)
+
+
+# Signed-distance pieces of the palm -----------------------------------------------------------
+
+
+def _sd_capsule(p: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
+    e = b - a
+    w = p - a
+    t = np.clip(w @ (e / (e @ e)), 0.0, 1.0)
+    w -= t[:, None] * e
+    return np.sqrt(np.einsum("ij,ij->i", w, w)) - r
+
+
+def _sd_cone_between(p: np.ndarray, a: np.ndarray, b: np.ndarray, ra: float, rb: float):
+    """Round cone from ``a`` (radius ``ra``) to ``b`` (radius ``rb``) in any direction."""
+    axis = b - a
+    length = float(np.linalg.norm(axis))
+    y_axis = axis / length
+    helper = np.array([0.0, 0.0, 1.0]) if abs(y_axis[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x_axis = np.cross(y_axis, helper)
+    x_axis /= np.linalg.norm(x_axis)
+    z_axis = np.cross(x_axis, y_axis)
+    local = (p - a) @ np.stack([x_axis, y_axis, z_axis], axis=1)
+    return _sd_round_cone(local, ra, rb, length)
+
+
+def _sd_forearm(p: np.ndarray, y: np.ndarray, half_width: np.ndarray, half_depth: np.ndarray):
+    """Elliptic sections with half axes interpolated between knots ``y``; flat end at ``y[0]``.
+
+    The distal end (``y[-1]``) lies inside the palm, so only the proximal end is rounded.
+    """
+    a = np.interp(p[:, 1], y, half_width)
+    c = np.interp(p[:, 1], y, half_depth)
+    radial = (np.hypot(p[:, 0] / a, p[:, 2] / c) - 1.0) * np.minimum(a, c)
+    # Round the rim of the cut end (radius `rim`) so that it meshes cleanly.
+    rim = 0.3 * float(half_depth[0])
+    w = np.stack([radial + rim, y[0] + rim - p[:, 1]], axis=1)
+    rounded = np.linalg.norm(np.maximum(w, 0.0), axis=1) + np.minimum(w.max(axis=1), 0) - rim
+    return np.maximum(rounded, p[:, 1] - y[-1])  # the flat distal end lies inside the palm
+
+
+def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
+    h = np.maximum(k - np.abs(a - b), 0.0) / k
+    return np.minimum(a, b) - 0.25 * k * h * h
+
+
+def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
+    """Signed distance of the palm (and forearm stub) in the palm frame, and its bounds."""
+    params = skeleton.params
+    hl = params.hand_length
+    thick = params.thickness_scale
+    bodies = skeleton.bodies
+    palm = bodies[0]
+    box = palm.geoms[0]
+    half_t = float(box.half_size[2])
+    metacarpals = [g for g in palm.geoms[1:] if g.start[1] >= 0.0]  # not the forearm
+    index = {b.name: i for i, b in enumerate(bodies)}
+    mcp = {f: bodies[index[f"{f}_proximal"]].pos for f in ("index", "middle", "ring", "little")}
+    cmc = bodies[index["thumb_metacarpal"]].pos
+    r_cmc = bodies[index["thumb_metacarpal"]].geoms[0].radius
+    r_pp = {f: bodies[index[f"{f}_proximal"]].geoms[0].radius for f in mcp}
+    breadth = params.breadth
+    rounding = 0.3 * half_t
+    scale = hl / 0.189
+
+    def collision(p: np.ndarray) -> np.ndarray:
+        """The palm's collision primitives (exact union; the forearm's capsules left out)."""
+        q = np.abs(p - box.pos) - box.half_size
+        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        for g in metacarpals:
+            d = np.minimum(d, _sd_capsule(p, g.start, g.end, g.radius))
+        return d
+
+    def core(p: np.ndarray) -> np.ndarray:
+        # The collision palm with its edges rounded and the grooves between the metacarpal
+        # capsules filled (a smooth union among the capsules only: they are tangent to the
+        # box, where a smooth union would inflate the palm everywhere).
+        q = np.abs(p - box.pos) - (box.half_size - rounding)
+        d = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0) - rounding
+        caps = _sd_capsule(p, metacarpals[0].start, metacarpals[0].end, metacarpals[0].radius)
+        for g in metacarpals[1:]:
+            caps = _smin(caps, _sd_capsule(p, g.start, g.end, g.radius), 0.008 * scale)
+        return np.minimum(d, caps)
+
+    # Thenar eminence: from the sphere the thumb metacarpal turns in toward the palm centre.
+    thenar_end = np.array([0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
+    # Hypothenar eminence along the ulnar border, proximal two thirds of the palm.
+    hyp_r = 0.75 * half_t
+    hyp_z = half_t + 0.0008 * thick - hyp_r
+    hyp_a = np.array([-0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
+    hyp_b = np.array([-0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
+    # Web spaces: ridges between neighbouring knuckles, palmar and distal of the MCP line.
+    webs = []
+    fingers = ("index", "middle", "ring", "little")
+    for f, g in zip(fingers[:-1], fingers[1:], strict=True):
+        r = 0.5 * (r_pp[f] + r_pp[g])
+        shift = np.array([0.0, 0.45 * r, 0.3 * r])
+        webs.append((mcp[f] + shift, mcp[g] + shift, 0.5 * r))
+    forearm = None
+    if params.forearm:
+        # Broadest and deepest at the stub's end, tapering to the wrist, where it is as deep
+        # as the palm (no step), and running on inside the palm.
+        forearm = (
+            np.array([-0.55, -0.25, 0.0, 0.12]) * hl,
+            np.array([0.18, 0.165, 0.145, 0.12]) * hl,
+            np.array([0.125 * hl * thick, 0.105 * hl * thick, half_t - 0.0015, 0.6 * half_t]),
+        )
+    k = 0.012 * hl / 0.189
+
+    def sdf(p: np.ndarray) -> np.ndarray:
+        p = np.asarray(p, dtype=np.float64)
+        cmc_sphere = np.linalg.norm(p - cmc, axis=1) - r_cmc
+        d = core(p)
+        d = _smin(d, cmc_sphere, 0.4 * k)
+        d = _smin(d, _sd_cone_between(p, cmc, thenar_end, r_cmc, 0.55 * r_cmc), 0.4 * k)
+        d = _smin(d, _sd_capsule(p, hyp_a, hyp_b, hyp_r), 0.4 * k)
+        for a, b, r in webs:
+            d = _smin(d, _sd_capsule(p, a, b, r), 0.6 * k)
+        if forearm is not None:
+            d = _smin(d, _sd_forearm(p, *forearm), k)
+        # Nothing of the hand (y >= 0) stands more than _CLIP_M outside the collision palm, so a
+        # contact in physics is a contact in depth; the forearm is free. The sphere the thumb
+        # metacarpal turns in is kept whole (the thumb's own collision capsule starts in it).
+        offset = _CLIP_M + 3.0 * np.maximum(-p[:, 1], 0.0)
+        d = -_smin(-d, offset - collision(p), _CLIP_BLEND_M)
+        return np.minimum(d, cmc_sphere)
+
+    # Bounds: the radial edge (index knuckle, thenar), the ulnar edge, the knuckle row, the
+    # forearm's end and the palmar/dorsal reach of the largest pieces.
+    x_hi = max(mcp["index"][0] + half_t, cmc[0] + r_cmc, 0.18 * hl)
+    x_lo = min(mcp["little"][0] - half_t, hyp_b[0] - hyp_r, -0.18 * hl)
+    y_lo = -0.55 * hl if params.forearm else -half_t
+    y_hi = mcp["middle"][1] + half_t
+    z_reach = max(half_t + 0.004, cmc[2] + r_cmc, 0.125 * hl * thick if params.forearm else 0)
+    lo = np.array([x_lo, y_lo, -z_reach]) - 0.003
+    hi = np.array([x_hi, y_hi, z_reach]) + 0.003
+    return sdf, lo, hi
+
+
+# Meshing the palm ------------------------------------------------------------------------------
+
+# Corner offsets of a grid cell and its 12 edges (pairs of corner indices).
+_CORNERS = np.array([(i & 1, i >> 1 & 1, i >> 2 & 1) for i in range(8)])
+_EDGES = np.array(
+    [
+        (a, b)
+        for a in range(8)
+        for b in range(a + 1, 8)
+        if np.abs(_CORNERS[a] - _CORNERS[b]).sum() == 1
+    ]
+)
+
+
+def _surface_nets(sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
+    """Naive surface nets: one vertex per grid cell the surface crosses, one quad per crossed edge.
+
+    Args:
+        sdf: signed distance of (N, 3) points, negative inside.
+        lo: (3,) lower corner of a box that holds the solid, metres.
+        hi: (3,) upper corner.
+        step: grid step, metres.
+
+    Returns:
+        ``(vertices, faces)``: (V, 3) float64 (each the mean of its cell's edge crossings) and
+        (F, 3) int32 triangles wound counter-clockwise from outside. The surface is closed
+        (the grid's border, one step outside the box, is outside the solid).
+    """
+    axes = [np.arange(a - step, b + 2 * step, step) for a, b in zip(lo, hi, strict=True)]
+    shape = tuple(len(a) for a in axes)
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    f = sdf(grid.reshape(-1, 3)).reshape(shape)
+    f = np.where(f == 0.0, 1e-12, f)
+    inside = f < 0.0
+    nx, ny, nz = (n - 1 for n in shape)
+
+    def corner(c: np.ndarray, a: np.ndarray) -> np.ndarray:
+        return a[c[0] : c[0] + nx, c[1] : c[1] + ny, c[2] : c[2] + nz]
+
+    total = np.zeros((nx, ny, nz, 3))
+    count = np.zeros((nx, ny, nz))
+    for a, b in _EDGES:
+        fa, fb = corner(_CORNERS[a], f), corner(_CORNERS[b], f)
+        crossed = (fa < 0) != (fb < 0)
+        t = np.where(crossed, fa / np.where(crossed, fa - fb, 1.0), 0.0)
+        pa, pb = corner(_CORNERS[a], grid), corner(_CORNERS[b], grid)
+        total += crossed[..., None] * (pa + t[..., None] * (pb - pa))
+        count += crossed
+    active = count > 0
+    index = np.full((nx, ny, nz), -1, dtype=np.int64)
+    index[active] = np.arange(int(active.sum()))
+    vertices = total[active] / count[active][:, None]
+
+    quads = []
+    for axis in range(3):
+        b, c = (axis + 1) % 3, (axis + 2) % 3
+        lo_side = [slice(None)] * 3
+        hi_side = [slice(None)] * 3
+        lo_side[axis] = slice(0, -1)
+        hi_side[axis] = slice(1, None)
+        ins, outs = inside[tuple(lo_side)], inside[tuple(hi_side)]
+        # Grid edges along `axis` that change sign, away from the border in b and c.
+        change = ins != outs
+        sel = [slice(None)] * 3
+        sel[b] = slice(1, -1)
+        sel[c] = slice(1, -1)
+        e = np.argwhere(change[tuple(sel)])
+        e[:, b] += 1
+        e[:, c] += 1
+        ring = []
+        for db, dc in ((-1, -1), (0, -1), (0, 0), (-1, 0)):
+            cell = e.copy()
+            cell[:, b] += db
+            cell[:, c] += dc
+            ring.append(index[cell[:, 0], cell[:, 1], cell[:, 2]])
+        q = np.stack(ring, axis=1)
+        # Counter-clockwise about +axis; reversed where the outside is on the -axis side.
+        outward_neg = ~ins[e[:, 0], e[:, 1], e[:, 2]]
+        q[outward_neg] = q[outward_neg][:, ::-1]
+        quads.append(q)
+    quads = np.concatenate(quads)
+    faces = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]).astype(np.int32)
+    return vertices, faces
+
+
+def _project(sdf: Sdf, p: np.ndarray, steps: int = 6, tol: float = 1e-7) -> np.ndarray:
+    """Newton steps of (N, 3) points onto the zero set of ``sdf`` (finite differences).
+
+    Points already within ``tol`` (metres) of the zero set are left alone.
+    """
+    eps = 1e-6
+    p = np.array(p, dtype=np.float64)
+    for _ in range(steps):
+        f = sdf(p)
+        active = np.abs(f) > tol
+        if not active.any():
+            break
+        q, fq = p[active], f[active]
+        g = np.stack([(sdf(q + eps * e) - fq) / eps for e in np.eye(3)], axis=1)
+        p[active] = q - (fq / np.maximum(np.einsum("ij,ij->i", g, g), 1e-12))[:, None] * g
+    return p
+
+
+# Building --------------------------------------------------------------------------------------
+
+
+def _segment_kind(name: str) -> str:
+    return name.split("_", 1)[1]
+
+
+@functools.lru_cache(maxsize=16)
+def _right_parts(params) -> tuple[SkinPart, ...]:
+    from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
+
+    skeleton = build_skeleton(dataclasses.replace(params, side="right", surface="capsules"))
+    bodies = skeleton.bodies
+    children = {b.parent: i for i, b in enumerate(bodies) if b.parent > 0}
+    parts = []
+
+    sdf, lo, hi = _palm_sdf(skeleton)
+    # The grid scales with the hand: the same mesh density (and cost) for every size.
+    step = _PALM_GRID_M * params.hand_length / 0.189
+    vertices, faces = _surface_nets(sdf, lo, hi, step)
+    parts.append(SkinPart(0, _project(sdf, vertices), faces, sdf))
+
+    for i, body in enumerate(bodies[1:], start=1):
+        capsule = body.geoms[0]
+        r = capsule.radius
+        kind = _segment_kind(body.name)
+        parent = bodies[body.parent] if body.parent > 0 else None
+        if parent is None or kind == "proximal" and body.part != "thumb":
+            r0 = r  # the MCP (or CMC) takes the segment's own radius
+        else:
+            r0 = 0.5 * (r + parent.geoms[0].radius)
+        child = children.get(i)
+        if child is None:
+            r1 = r
+            length = float(capsule.end[1])  # the tip sphere's centre: its surface is the tip
+        else:
+            r1 = 0.5 * (r + bodies[child].geoms[0].radius)
+            length = float(bodies[child].pos[1])
+        if kind == "metacarpal":
+            # Round, and so is the thumb proximal phalanx's base: the thumb MCP abducts and
+            # flexes, and a sphere shared by both sides is closed under any rotation.
+            s0 = s1 = 1.0
+        elif body.part == "thumb" and kind == "proximal":
+            s0, s1 = 1.0, _WIDTH_RATIO
+        else:
+            s0 = _WIDTH_RATIO
+            s1 = _TIP_WIDTH_RATIO if child is None else _WIDTH_RATIO
+        vertices, faces, sdf = _elliptic_round_cone(r0, r1, length, s0, s1)
+        parts.append(SkinPart(i, vertices, faces, sdf))
+    return tuple(parts)
+
+
+def _mirror(part: SkinPart) -> SkinPart:
+    flip = np.array([-1.0, 1.0, 1.0])
+    right_sdf = part.sdf
+    return SkinPart(
+        part.body,
+        part.vertices * flip,
+        part.faces[:, ::-1].copy(),
+        lambda p: right_sdf(np.asarray(p, dtype=np.float64) * flip),
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def build_skin(params) -> tuple[SkinPart, ...]:
+    """The skin of a hand, one part per body (cached per parameters).
+
+    Args:
+        params: hand parameters (:class:`~handsim.hand.model.HandParams`); ``surface`` is
+            ignored.
+
+    Returns:
+        One :class:`SkinPart` per body of :func:`~handsim.hand.model.build_skeleton`, in body
+        order (the palm, with the forearm stub, first). Arrays are read-only.
+    """
+    # The skin depends on the sizes and the forearm only: left and right share one build.
+    shape = dataclasses.replace(params, side="right", surface="skin", couple_dip=False)
+    parts = _right_parts(shape)
+    if params.side == "left":
+        parts = tuple(_mirror(p) for p in parts)
+    for p in parts:
+        p.vertices.setflags(write=False)
+        p.faces.setflags(write=False)
+    return parts
+
+
+# Measuring the skin against the skeleton ------------------------------------------------------
+
+
+def _world_from_body(binding, data) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(R, t) of every skeleton body in the world (``p_world = R p_body + t``)."""
+    out = []
+    for b in binding.hand.skeleton.bodies:
+        body = binding.model.body(binding.hand.prefix + b.name).id
+        out.append((data.xmat[body].reshape(3, 3).copy(), data.xpos[body].copy()))
+    return out
+
+
+def _collision_sdf(binding, data, forearm: bool = True) -> Sdf:
+    """Signed distance (world, metres) to the union of the hand's collision primitives."""
+    frames = _world_from_body(binding, data)
+    bodies = binding.hand.skeleton.bodies
+
+    def sdf(p: np.ndarray) -> np.ndarray:
+        d = np.full(len(p), np.inf)
+        for (rot, t), body in zip(frames, bodies, strict=True):
+            local = (p - t) @ rot
+            for g in body.geoms:
+                if not forearm and body.part == "palm" and hasattr(g, "radius") and g.start[1] < 0:
+                    continue
+                if hasattr(g, "radius"):
+                    gd = _sd_capsule(local, g.start, g.end, g.radius)
+                else:
+                    q = np.abs(local - g.pos) - g.half_size
+                    gd = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0)
+                np.minimum(d, gd, out=d)
+        return d
+
+    return sdf
+
+
+def _vertex_normals(part: SkinPart) -> np.ndarray:
+    tri = part.vertices[part.faces]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals = np.zeros_like(part.vertices)
+    for k in range(3):
+        np.add.at(normals, part.faces[:, k], n)
+    return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
+
+
+def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
+    """Distance from the skin to the collision surface where the hand touches things.
+
+    Args:
+        binding: the hand's binding in a compiled model (:meth:`Hand.bind`).
+        data: its data after ``mj_forward`` (the pose to measure).
+
+    Returns:
+        ``{"pads": ..., "palm": ...}``: (N,) absolute distances, metres, from each skin vertex
+        on the palmar side (body-frame normal ``z > 0.5``) of the phalanges, and of the palm
+        between the wrist crease and the knuckles, to the union of the collision primitives.
+        Vertices more than 0.2 mm inside another part's skin (buried in a joint) are left out,
+        and the forearm's collision capsules are not counted: the forearm is no contact
+        surface, and for thick hands its capsules stand out of the wrist, where the skin does
+        not follow them.
+    """
+    hand = binding.hand
+    sdf = _collision_sdf(binding, data, forearm=False)
+    frames = _world_from_body(binding, data)
+    y_knuckles = max(b.pos[1] for b in hand.skeleton.bodies if b.name.endswith("_proximal"))
+    out: dict[str, list[np.ndarray]] = {"pads": [], "palm": []}
+    parts = build_skin(hand.params)
+    for part in parts:
+        palmar = _vertex_normals(part)[:, 2] > 0.5
+        if part.body == 0:
+            y = part.vertices[:, 1]
+            palmar &= (y >= 0.0) & (y <= y_knuckles)
+        rot, t = frames[part.body]
+        world = part.vertices[palmar] @ rot.T + t
+        # Only the outer surface: skin buried inside another part is never seen nor touched.
+        buried = np.zeros(len(world), dtype=bool)
+        for other in parts:
+            if other.body != part.body:
+                orot, ot = frames[other.body]
+                buried |= other.sdf((world - ot) @ orot) < -_BURIED_M
+        out["palm" if part.body == 0 else "pads"].append(np.abs(sdf(world[~buried])))
+    return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def joint_crease_depth_m(binding, data, samples: int = 400) -> np.ndarray:
+    """How far each joint's distal segment sticks out of its parent's skin, metres.
+
+    The base of a segment is the spheroid its round cone starts with (the joint's envelope).
+    Where the parent's skin holds all of it, the joint shows neither a gap nor a step for this
+    pose; a point of the envelope outside the parent's skin at depth ``d`` opens a notch about
+    ``d`` deep between the two segments (a gap if the parts separate).
+
+    Args:
+        binding: the hand's binding in a compiled model.
+        data: its data after ``mj_forward``.
+        samples: points on each envelope (a Fibonacci sphere).
+
+    Returns:
+        (B - 1,) depth per non-palm body in skeleton order, metres (0 = fully held).
+    """
+    hand = binding.hand
+    parts = build_skin(hand.params)
+    frames = _world_from_body(binding, data)
+    k = np.arange(samples) + 0.5
+    polar = np.arccos(1.0 - 2.0 * k / samples)
+    azimuth = np.pi * (1.0 + 5.0**0.5) * k
+    unit = np.stack(
+        [np.sin(polar) * np.cos(azimuth), np.cos(polar), np.sin(polar) * np.sin(azimuth)], 1
+    )
+    depth = []
+    for part in parts[1:]:
+        body = hand.skeleton.bodies[part.body]
+        base = part.vertices[part.vertices[:, 1] <= 0.0]
+        # Half axes of the base spheroid from the proximal cap's vertices.
+        half = np.array([np.abs(base[:, 0]).max(), np.abs(base[:, 1]).max(), 0.0])
+        half[2] = np.abs(base[:, 2]).max()
+        envelope = unit * half
+        rot, t = frames[part.body]
+        prot, pt = frames[body.parent]
+        world = envelope @ rot.T + t
+        d = parts[body.parent].sdf((world - pt) @ prot)
+        depth.append(max(float(d.max()), 0.0))
+    return np.array(depth)
+
+
+def digit_volume_m3(binding, data, digit: str, samples: int = 200_000, seed: int = 0) -> float:
+    """Volume of the union of one digit's skin segments (Monte Carlo, seeded), cubic metres.
+
+    Args:
+        binding: the hand's binding in a compiled model.
+        data: its data after ``mj_forward``.
+        digit: ``"thumb"``, ``"index"``, ``"middle"``, ``"ring"`` or ``"little"``.
+        samples: uniform samples in the digit's bounding box (relative error about
+            ``1 / sqrt(samples)``).
+        seed: sampling seed.
+    """
+    hand = binding.hand
+    parts = [p for p in build_skin(hand.params) if hand.skeleton.bodies[p.body].part == digit]
+    frames = _world_from_body(binding, data)
+    posed = [p.vertices @ frames[p.body][0].T + frames[p.body][1] for p in parts]
+    lo = np.min([v.min(axis=0) for v in posed], axis=0)
+    hi = np.max([v.max(axis=0) for v in posed], axis=0)
+    points = np.random.default_rng(seed).uniform(lo, hi, (samples, 3))
+    inside = np.zeros(samples, dtype=bool)
+    for part in parts:
+        rot, t = frames[part.body]
+        inside |= part.sdf((points - t) @ rot) < 0.0
+    return float(inside.mean() * np.prod(hi - lo))
