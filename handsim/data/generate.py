@@ -354,7 +354,9 @@ class KinematicSource:
 
     def _scene(self, rng: np.random.Generator) -> Scene:
         c = self.config
-        length = float(rng.uniform(*c.hand_length_range_m))
+        # On a 2 mm grid: a hand's skin is built once per length (about a second) and cached.
+        lo, hi = c.hand_length_range_m
+        length = float(np.clip(np.round(rng.uniform(lo, hi) / 0.002) * 0.002, lo, hi))
         side = "left" if rng.random() < c.left_fraction else "right"
         n = int(rng.integers(c.num_objects_range[0], c.num_objects_range[1] + 1))
         names = [c.objects[i] for i in rng.choice(len(c.objects), size=n)] if n else []
