@@ -20,8 +20,8 @@ abduction, a finger with no keypoint). Options:
 
 - ``fit_wrist`` (default on): the wrist position floats; off, it is pinned at the wrist
   keypoint (which must then be present).
-- ``fit_scale`` (default on): the scale floats; off, it is fixed at the ratio of the input's
-  bone lengths to the target hand's (all present bones).
+- ``fit_scale`` (default on): the scale floats; off, it is fixed at ``initial_scale`` or, by
+  default, at the ratio of the input's bone lengths to the target hand's (all present bones).
 - warm start: ``initial`` (e.g. the previous frame's pose) and ``initial_scale``;
   :meth:`Retargeter.sequence` warm-starts every frame from the previous one.
 - ``check_side``: the keypoints are also fitted mirrored (that is, as the other side) and
@@ -72,6 +72,7 @@ _PRIOR_WEIGHT = 1e-3
 # Residual unit: 1 mm of keypoint error weighs as much as 1 rad of prior.
 _POSITION_SIGMA_M = 1e-3
 _MAX_ITERATIONS = 100
+_SIDE_CHECK_ITERATIONS = 30
 # Stop when a step lowers the cost (mm^2) by less than _COST_TOL + _RELATIVE_COST_TOL * cost
 # while converging linearly: far below what the keypoints' own noise decides. Quadratic
 # convergence (exact keypoints) runs on to the rounding floor.
@@ -83,6 +84,7 @@ _T, _W, _S, _A = slice(0, 3), slice(3, 6), 6, slice(7, 7 + NUM_ANGLES)
 _NX = 7 + NUM_ANGLES
 _LOWER, _UPPER = JOINT_LIMITS[:, 0].copy(), JOINT_LIMITS[:, 1].copy()
 _MIRROR = np.array([-1.0, 1.0, 1.0])
+_FLEXION = np.array([name.endswith("_flex") for name in JOINT_NAMES], dtype=float)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -271,6 +273,11 @@ class Retargeter:
         self.params = self.fk.skeleton.params
         self._chains = _ChainKinematics(self.fk.skeleton)
         self._template, _ = self._chains(np.zeros(NUM_ANGLES), False)
+        # Flat, half-closed and closed postures for cold starts from sparse keypoints.
+        self._postures = []
+        for fraction in (0.0, 0.4, 0.8):
+            angles = np.clip(fraction * _UPPER * _FLEXION, _LOWER, _UPPER)
+            self._postures.append((angles, self._chains(angles, False)[0]))
         self._bone_lengths = np.linalg.norm(
             self._template[_BONE_INDEX[:, 1]] - self._template[_BONE_INDEX[:, 0]], axis=-1
         )
@@ -325,15 +332,26 @@ class Retargeter:
             / self._bone_lengths[both].sum()
         )
 
-    def _cold_start(self, kp: np.ndarray, present: np.ndarray) -> _State:
+    def _cold_starts(self, kp: np.ndarray, present: np.ndarray) -> list[_State]:
+        """Initial states for a cold start.
+
+        The palm points aligned with the flat hand or, with fewer than three palm points, all
+        present points aligned with a flat, a half-closed and a closed hand.
+        """
         palm = _PALM[present[_PALM]]
-        points = palm if palm.size >= 3 else np.nonzero(present)[0]
-        rot, s, t = _umeyama(self._template[points], kp[points])
+        if palm.size >= 3:
+            points, postures = palm, self._postures[:1]
+        else:
+            points, postures = np.nonzero(present)[0], self._postures
         bone = self._bone_scale(kp, present)
-        if bone is not None:
-            s = bone
-            t = kp[points].mean(axis=0) - s * rot @ self._template[points].mean(axis=0)
-        return _State(t, rot, s, np.zeros(NUM_ANGLES))
+        starts = []
+        for angles, template in postures:
+            rot, s, t = _umeyama(template[points], kp[points])
+            if bone is not None:
+                s = bone
+                t = kp[points].mean(axis=0) - s * rot @ template[points].mean(axis=0)
+            starts.append(_State(t, rot, s, angles.copy()))
+        return starts
 
     # Solver ------------------------------------------------------------------------------
 
@@ -353,58 +371,68 @@ class Retargeter:
         lower = np.where(bounded, _LOWER, -np.inf)
         upper = np.where(bounded, _UPPER, np.inf)
 
-        def residual(st: _State, jacobian: bool):
-            q, dq = self._chains(st.angles, jacobian)
+        m = idx.size
+        jac = np.zeros((m, 3, _NX))
+        jac[:, :, _T] = _EYE * inv_sigma
+
+        def residual(st: _State) -> tuple[float, np.ndarray, np.ndarray]:
+            q, dq = self._chains(st.angles, True)
             rq = q[idx] @ st.rot.T  # (m, 3)
             r = (st.t + st.s * rq - target) * inv_sigma
-            cost = float(np.sum(r * r) + _PRIOR_WEIGHT**2 * np.sum(st.angles**2))
-            if not jacobian:
-                return cost, r, None
-            m = idx.size
-            jac = np.zeros((m, 3, _NX))
-            jac[:, :, _T] = _EYE * inv_sigma
+            cost = float(np.dot(r.ravel(), r.ravel()) + _PRIOR_WEIGHT**2 * st.angles @ st.angles)
+            j = jac.copy()
             # d(exp(w) v)/dw = -[v]x for v = s R q.
             v = rq * (st.s * inv_sigma)
-            jac[:, 0, 4], jac[:, 0, 5] = v[:, 2], -v[:, 1]
-            jac[:, 1, 3], jac[:, 1, 5] = -v[:, 2], v[:, 0]
-            jac[:, 2, 3], jac[:, 2, 4] = v[:, 1], -v[:, 0]
-            jac[:, :, _S] = rq * inv_sigma
-            jac[:, :, _A] = (st.s * inv_sigma) * np.einsum("ij,mjk->mik", st.rot, dq[idx])
-            return cost, r, jac.reshape(3 * m, _NX)
+            j[:, 0, 4], j[:, 0, 5] = v[:, 2], -v[:, 1]
+            j[:, 1, 3], j[:, 1, 5] = -v[:, 2], v[:, 0]
+            j[:, 2, 3], j[:, 2, 4] = v[:, 1], -v[:, 0]
+            j[:, :, _S] = rq * inv_sigma
+            j[:, :, _A] = st.rot @ dq[idx] * (st.s * inv_sigma)
+            return cost, r.ravel(), j.reshape(3 * m, _NX)
 
-        cost, r, jac = residual(state, True)
+        cost, r, jac_now = residual(state)
         lam = 1e-3
         iterations = 0
-        prior_diag = np.zeros(_NX)
-        prior_diag[_A] = _PRIOR_WEIGHT**2
+        all_free = bool(free.all())
         for iterations in range(1, max_iterations + 1):  # noqa: B007
-            grad = jac.T @ r.reshape(-1)
+            grad = jac_now.T @ r
             grad[_A] += _PRIOR_WEIGHT**2 * state.angles
-            hess = jac.T @ jac + np.diag(prior_diag)
-            active = free.copy()
+            hess = jac_now.T @ jac_now
+            hess[_A, _A][np.diag_indices(NUM_ANGLES)] += _PRIOR_WEIGHT**2
+            active = free
             if bounded:
-                at_low = (state.angles <= _LOWER + 1e-12) & (grad[_A] > 0)
-                at_high = (state.angles >= _UPPER - 1e-12) & (grad[_A] < 0)
-                active[_A] &= ~(at_low | at_high)
-            h = hess[np.ix_(active, active)]
-            g = grad[active]
-            diag = np.diag(h).copy()
+                held = ((state.angles <= _LOWER) & (grad[_A] > 0)) | (
+                    (state.angles >= _UPPER) & (grad[_A] < 0)
+                )
+                if held.any():
+                    active = free.copy()
+                    active[_A] &= ~held
+            if all_free and active is free:
+                h, g = hess, grad
+            else:
+                h, g = hess[np.ix_(active, active)], grad[active]
+            diag = h[np.diag_indices(len(g))] + 1e-9
             improved = False
             while lam < 1e12:
+                damped = h.copy()
+                damped[np.diag_indices(len(g))] += lam * diag
                 try:
-                    step_active = np.linalg.solve(h + lam * np.diag(diag + 1e-9), -g)
+                    step_active = np.linalg.solve(damped, -g)
                 except np.linalg.LinAlgError:
                     lam *= 10.0
                     continue
-                step = np.zeros(_NX)
-                step[active] = step_active
+                if active is free and all_free:
+                    step = step_active
+                else:
+                    step = np.zeros(_NX)
+                    step[active] = step_active
                 trial = _State(
                     state.t + step[_T],
                     _exp(step[_W]) @ state.rot,
                     state.s + step[_S],
                     np.clip(state.angles + step[_A], lower, upper),
                 )
-                trial_cost, _, _ = residual(trial, False)
+                trial_cost, trial_r, trial_jac = residual(trial)
                 if trial_cost <= cost and trial.s > 0:
                     improved = True
                     break
@@ -412,9 +440,8 @@ class Retargeter:
             if not improved:
                 break
             reduction = cost - trial_cost
-            state = trial
             linear = reduction < 0.5 * cost
-            cost, r, jac = residual(state, True)
+            state, cost, r, jac_now = trial, trial_cost, trial_r, trial_jac
             lam = max(lam / 5.0, 1e-12)
             small = reduction < _COST_TOL + _RELATIVE_COST_TOL * cost
             if (linear and small) or np.max(np.abs(step)) < _STEP_TOL:
@@ -431,28 +458,36 @@ class Retargeter:
         initial_scale: float | None,
         fit_wrist: bool,
         fit_scale: bool,
+        max_iterations: int = _MAX_ITERATIONS,
     ) -> tuple[_State, float, int]:
         if initial is None:
-            start = self._cold_start(kp, present)
+            starts = self._cold_starts(kp, present)
         else:
             bone = self._bone_scale(kp, present)
-            start = _State(
-                np.asarray(initial.wrist_pos, dtype=np.float64).copy(),
-                Rotation.from_rotvec(initial.wrist_rotvec).as_matrix(),
-                1.0 if bone is None else bone,
-                np.clip(np.asarray(initial.angles, dtype=np.float64), _LOWER, _UPPER),
-            )
-        if initial_scale is not None:
-            start.s = float(initial_scale)
+            starts = [
+                _State(
+                    np.asarray(initial.wrist_pos, dtype=np.float64).copy(),
+                    Rotation.from_rotvec(initial.wrist_rotvec).as_matrix(),
+                    1.0 if bone is None else bone,
+                    np.clip(np.asarray(initial.angles, dtype=np.float64), _LOWER, _UPPER),
+                )
+            ]
         free = np.ones(_NX, dtype=bool)
-        if not fit_wrist:
-            start.t = kp[0].copy()
-            free[_T] = False
-        if not fit_scale:
-            bone = self._bone_scale(kp, present)
-            start.s = 1.0 if bone is None else bone
-            free[_S] = False
-        return self._solve(start, kp, present, free, bounded=True)
+        free[_T] = fit_wrist
+        free[_S] = fit_scale
+        best = None
+        for start in starts:
+            if initial_scale is not None:
+                start.s = float(initial_scale)
+            if not fit_wrist:
+                start.t = kp[0].copy()
+            if not fit_scale and initial_scale is None:
+                bone = self._bone_scale(kp, present)
+                start.s = 1.0 if bone is None else bone
+            fit = self._solve(start, kp, present, free, True, max_iterations)
+            if best is None or fit[1] < best[1]:
+                best = fit
+        return best
 
     def __call__(
         self,
@@ -478,9 +513,11 @@ class Retargeter:
                 all NaN.
             fit_wrist: let the wrist position float (default); off, it is pinned at the wrist
                 keypoint, which must be present.
-            fit_scale: let the source hand's scale float (default); off, it is fixed at the
-                ratio of the present bones' lengths to the target hand's.
-            initial_scale: warm start of the scale (e.g. the previous frame's ``scale``).
+            fit_scale: let the source hand's scale float (default); off, it is fixed at
+                ``initial_scale`` or, without it, at the ratio of the present bones' lengths to
+                the target hand's.
+            initial_scale: warm start of the scale (e.g. the previous frame's ``scale``), or
+                the fixed scale with ``fit_scale=False`` (1.0: the source is this hand's size).
             check_side: also fit the keypoints mirrored and reject them when the mirrored fit
                 (the other hand side) is better. It costs a second, cold fit.
             report_clamped: refit joints at their limits without bounds to report the
@@ -505,7 +542,10 @@ class Retargeter:
         other_error = None
         if check_side:
             mirrored = kp * _MIRROR
-            other, _, _ = self._fit(mirrored, present, None, None, fit_wrist, fit_scale)
+            # Capped: a fit stopped early only errs toward accepting the keypoints' side.
+            other, _, _ = self._fit(
+                mirrored, present, None, None, fit_wrist, fit_scale, _SIDE_CHECK_ITERATIONS
+            )
             other_error = self._error(other, mirrored, present)
             if other_error < error:
                 side = self.params.side
