@@ -270,7 +270,9 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
+        # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
+        self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
         self._object_geoms = [
             np.nonzero(scene.geom_labels == OBJECT_LABEL_OFFSET + k)[0]
             for k in range(len(scene.objects))
@@ -442,8 +444,11 @@ class FrameRenderer:
         depth_clean, geom_id = self.renderer.render(data)
         # The camera's working range: nothing is measured outside it (the far clip plane of
         # the scene may serve a camera with a longer range).
-        out_of_range = (depth_clean < self._near_m) | (depth_clean > self._far_m)
-        out_of_range &= depth_clean > 0
+        # Background pixels (depth 0, geom -1) are nearer than `near` too; resetting them is
+        # harmless and saves a pass.
+        out_of_range = depth_clean < self._near_m
+        if self._check_far:
+            out_of_range |= depth_clean > self._far_m
         if out_of_range.any():
             depth_clean[out_of_range] = 0.0
             geom_id[out_of_range] = -1

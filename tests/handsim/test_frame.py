@@ -240,13 +240,19 @@ def _range_camera(near_m: float, far_m: float) -> CameraSpec:
     return CameraSpec.look_at("front", intrinsics, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
 
 
-@pytest.mark.parametrize(("near_m", "far_m"), [(0.1, 0.4), (0.6, 2.0)])
-def test_hand_out_of_range_has_no_depth_and_no_visible_keypoint(near_m, far_m):
+@pytest.mark.parametrize(
+    ("near_m", "far_m", "other_camera"), [(0.1, 0.4, False), (0.6, 2.0, False), (0.1, 0.4, True)]
+)
+def test_hand_out_of_range_has_no_depth_and_no_visible_keypoint(near_m, far_m, other_camera):
     """A hand 0.5 m away, beyond the far end or inside the near end: nothing is visible.
 
-    A pixel without depth is never evidence of visibility.
+    A pixel without depth is never evidence of visibility. A second camera with a longer range
+    (which sets the scene's far clip plane) changes nothing.
     """
-    scene = Scene(SceneSpec(cameras=(_range_camera(near_m, far_m),), table=False))
+    cameras = (_range_camera(near_m, far_m),)
+    if other_camera:
+        cameras += (CameraSpec.look_at("far", ICVL, (0.0, 0.0, 0.5), (0.0, 0.5, 0.19)),)
+    scene = Scene(SceneSpec(cameras=cameras, table=False))
     scene.reset(_flat_hand_facing(0.0))
     with FrameRenderer(scene, "front") as renderer:
         frame = renderer.render(np.random.default_rng(0), keep_clean=True)
