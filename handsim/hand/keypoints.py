@@ -43,10 +43,9 @@ Formats (``FORMATS[name]`` holds the names of a format's points in its own order
     ``C, T1-T3, I1-I3, M1-M3, R1-R3, P1-P3``) and V2V-PoseNet
     ``vis/icvl/draw_2Dskeleton_ICVL.m`` (V2V calls point 0 "wrist", DeepPrior++ "C"; it is
     the crop centre, so it is treated as the palm centre). The fingers' ``root, mid, tip``
-    are PIP, DIP and tip: in the ICVL labels the index's root -> mid and mid -> tip segments
-    are 28.7 and 18.6 mm long, the lengths of the middle and distal phalanges, not of the
-    proximal one (the fit of handsim's hand to the labels drops from 13.3 to 5.0 mm read this
-    way). The thumb's are, by the same count from the base, MCP, IP and tip.
+    are PIP, DIP and tip: in the ICVL test labels the index's root -> mid and mid -> tip
+    segments are 28.7 and 18.6 mm long, the lengths of the middle and distal phalanges, not
+    of the proximal one. The thumb's are, by the same count from the base, MCP, IP and tip.
 ``nyu14``
     The 14 of NYU's 36 joints used by the Tompson et al. / DeepPrior / V2V / A2J evaluations:
     NYU indices ``[0, 3, 6, 9, 12, 15, 18, 21, 24, 25, 27, 30, 31, 32]``
