@@ -77,7 +77,7 @@ _SIDE_CHECK_ITERATIONS = 30
 # while converging linearly: far below what the keypoints' own noise decides. Quadratic
 # convergence (exact keypoints) runs on to the rounding floor.
 _COST_TOL = 1e-2
-_RELATIVE_COST_TOL = 1e-3
+_RELATIVE_COST_TOL = 1e-2
 _STEP_TOL = 1e-10
 # Unknowns: translation (3), rotation increment (3), scale (1), angles (21).
 _T, _W, _S, _A = slice(0, 3), slice(3, 6), 6, slice(7, 7 + NUM_ANGLES)
@@ -463,15 +463,20 @@ class Retargeter:
         if initial is None:
             starts = self._cold_starts(kp, present)
         else:
-            bone = self._bone_scale(kp, present)
-            starts = [
-                _State(
-                    np.asarray(initial.wrist_pos, dtype=np.float64).copy(),
-                    Rotation.from_rotvec(initial.wrist_rotvec).as_matrix(),
-                    1.0 if bone is None else bone,
-                    np.clip(np.asarray(initial.angles, dtype=np.float64), _LOWER, _UPPER),
-                )
-            ]
+            rot = Rotation.from_rotvec(initial.wrist_rotvec).as_matrix()
+            angles = np.clip(np.asarray(initial.angles, dtype=np.float64), _LOWER, _UPPER)
+            t, s = np.asarray(initial.wrist_pos, dtype=np.float64).copy(), 1.0
+            if initial_scale is None:
+                # Scale and wrist position that best place the initial posture on the input
+                # (linear least squares), so a stream need not carry its scale along.
+                rq = self._chains(angles, False)[0][present] @ rot.T
+                y = kp[present]
+                a, b = rq - rq.mean(axis=0), y - y.mean(axis=0)
+                s = float(np.sum(a * b) / np.sum(a * a))
+                if not np.isfinite(s) or s <= 0:
+                    s = self._bone_scale(kp, present) or 1.0
+                t = y.mean(axis=0) - s * rq.mean(axis=0)
+            starts = [_State(t, rot, s, angles)]
         free = np.ones(_NX, dtype=bool)
         free[_T] = fit_wrist
         free[_S] = fit_scale
