@@ -30,8 +30,17 @@ abduction, a finger with no keypoint). Options:
 Cold starts align the palm points (wrist, thumb CMC, MCPs; all present points when fewer than
 three palm points are given) with a flat target hand by a similarity transform (Umeyama).
 
-Speed and accuracy: ``python benchmarks/bench_hand.py`` prints the per-frame time warm-started
-and cold, and the keypoint and angle errors with 5 mm Gaussian noise on every keypoint.
+Speed and accuracy (``python benchmarks/bench_hand.py --only retarget``: 200 frames of 90 Hz
+streams of random in-limit poses, medium hand, 5 mm Gaussian noise on every keypoint, one core
+of a shared 2-core machine): warm-started 1.0 ms per frame at best and 2.0 ms median, cold
+1.4 ms at best and 10 ms median (other processes inflate the medians); the fitted hand is
+5.4 mm from the true keypoints (the noisy input is 8.0 mm from them) with a mean angle error
+of 9.2 deg; clean keypoints round-trip exactly. NYU-14 and ICVL-16 labels with the same noise
+give 7.4 and 10.1 mm over all 21 keypoints. The side check refused 200 of 200 noisy right
+hands offered to a left hand and 0 to 2 of 500 offered to a right hand. ``mink`` (differential
+IK, a QP per step) was measured on the same warm-started fits: 24 times slower (48 ms median)
+at the same accuracy (4.9 against 4.8 mm with the scale fixed), so handsim keeps its own
+solver.
 """
 
 from __future__ import annotations
@@ -73,6 +82,9 @@ _PRIOR_WEIGHT = 1e-3
 _POSITION_SIGMA_M = 1e-3
 _MAX_ITERATIONS = 100
 _SIDE_CHECK_ITERATIONS = 30
+# Mean keypoint error (at the target hand's size) above which a cold fit is retried from more
+# starts; 5 mm keypoint noise fits to about 5 mm.
+_RESTART_ERROR_M = 0.015
 # Stop when a step lowers the cost (mm^2) by less than _COST_TOL + _RELATIVE_COST_TOL * cost
 # while converging linearly: far below what the keypoints' own noise decides. Quadratic
 # convergence (exact keypoints) runs on to the rounding floor.
@@ -332,14 +344,16 @@ class Retargeter:
             / self._bone_lengths[both].sum()
         )
 
-    def _cold_starts(self, kp: np.ndarray, present: np.ndarray) -> list[_State]:
+    def _cold_starts(
+        self, kp: np.ndarray, present: np.ndarray, extended: bool = False
+    ) -> list[_State]:
         """Initial states for a cold start.
 
-        The palm points aligned with the flat hand or, with fewer than three palm points, all
-        present points aligned with a flat, a half-closed and a closed hand.
+        The palm points aligned with the flat hand or, with fewer than three palm points (or
+        ``extended``), all present points aligned with a flat, a half-closed and a closed hand.
         """
         palm = _PALM[present[_PALM]]
-        if palm.size >= 3:
+        if palm.size >= 3 and not extended:
             points, postures = palm, self._postures[:1]
         else:
             points, postures = np.nonzero(present)[0], self._postures
@@ -459,6 +473,7 @@ class Retargeter:
         fit_wrist: bool,
         fit_scale: bool,
         max_iterations: int = _MAX_ITERATIONS,
+        restart: bool = True,
     ) -> tuple[_State, float, int]:
         if initial is None:
             starts = self._cold_starts(kp, present)
@@ -481,17 +496,25 @@ class Retargeter:
         free[_T] = fit_wrist
         free[_S] = fit_scale
         best = None
-        for start in starts:
-            if initial_scale is not None:
-                start.s = float(initial_scale)
-            if not fit_wrist:
-                start.t = kp[0].copy()
-            if not fit_scale and initial_scale is None:
-                bone = self._bone_scale(kp, present)
-                start.s = 1.0 if bone is None else bone
-            fit = self._solve(start, kp, present, free, True, max_iterations)
-            if best is None or fit[1] < best[1]:
-                best = fit
+        for round_ in range(2):
+            for start in starts:
+                if initial_scale is not None:
+                    start.s = float(initial_scale)
+                if not fit_wrist:
+                    start.t = kp[0].copy()
+                if not fit_scale and initial_scale is None:
+                    bone = self._bone_scale(kp, present)
+                    start.s = 1.0 if bone is None else bone
+                fit = self._solve(start, kp, present, free, True, max_iterations)
+                if best is None or fit[1] < best[1]:
+                    best = fit
+            # A cold fit this far off is usually a local minimum (0.4% of random poses from
+            # the flat-hand start): try the flat, half-closed and closed starts on all points.
+            if round_ or not restart or initial is not None or len(starts) > 1:
+                break
+            if self._error(best[0], kp, present) <= _RESTART_ERROR_M:
+                break
+            starts = self._cold_starts(kp, present, extended=True)
         return best
 
     def __call__(
@@ -547,9 +570,17 @@ class Retargeter:
         other_error = None
         if check_side:
             mirrored = kp * _MIRROR
-            # Capped: a fit stopped early only errs toward accepting the keypoints' side.
+            # Capped, and from more starts only when this side's fit is poor itself: a mirrored
+            # fit that is worse than it could be only errs toward accepting the keypoints.
             other, _, _ = self._fit(
-                mirrored, present, None, None, fit_wrist, fit_scale, _SIDE_CHECK_ITERATIONS
+                mirrored,
+                present,
+                None,
+                None,
+                fit_wrist,
+                fit_scale,
+                _SIDE_CHECK_ITERATIONS,
+                restart=error > _RESTART_ERROR_M,
             )
             other_error = self._error(other, mirrored, present)
             if other_error < error:

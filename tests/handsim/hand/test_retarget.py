@@ -237,3 +237,30 @@ def test_partial_input_errors():
         retarget(no_wrist, fit_wrist=False)
     with pytest.raises(InvalidKeypoints, match=r"mask must be a \(21,\) bool array"):
         retarget(good, mask=np.ones(20, dtype=bool))
+
+
+# A right hand with 5 mm noise whose flat-hand cold start ends in a 43 mm local minimum (found by
+# the benchmark's side check, which then refused it); millimetre-rounded.
+_LOCAL_MINIMUM_KP = [
+    [-0.0671, -0.17132, 0.06353], [-0.08741, -0.19062, 0.044], [-0.10847, -0.20186, 0.00747],
+    [-0.10848, -0.19646, -0.0358], [-0.11353, -0.19178, -0.06528], [-0.16242, -0.18242, 0.05586],
+    [-0.18321, -0.16216, 0.01121], [-0.19718, -0.15848, -0.01567], [-0.17087, -0.16538, -0.01069],
+    [-0.14682, -0.16295, 0.06116], [-0.18239, -0.14633, 0.01525], [-0.14667, -0.1508, 0.00271],
+    [-0.13069, -0.16141, 0.01366], [-0.14887, -0.14414, 0.06677], [-0.20245, -0.14684, 0.07418],
+    [-0.22379, -0.13598, 0.0591], [-0.22805, -0.13473, 0.04039], [-0.14304, -0.13215, 0.06594],
+    [-0.15282, -0.11136, 0.03702], [-0.14969, -0.1369, 0.03152], [-0.1402, -0.14619, 0.03227],
+]  # fmt: skip
+
+
+def test_a_poor_cold_fit_is_retried_from_more_starts():
+    """A cold fit stuck in a local minimum is retried, and the side check then accepts it."""
+    retarget = Retargeter(HandParams())
+    kp = np.array(_LOCAL_MINIMUM_KP)
+    present = np.ones(21, dtype=bool)
+    flat_only = retarget._solve(
+        retarget._cold_starts(kp, present)[0], kp, present, np.ones(28, dtype=bool), True
+    )[0]
+    assert retarget._error(flat_only, kp, present) > 0.03
+    result = retarget(kp)
+    assert result.keypoint_error_m < 0.008
+    assert result.other_side_error_m > 2 * result.keypoint_error_m
