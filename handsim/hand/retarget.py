@@ -27,20 +27,22 @@ abduction, a finger with no keypoint). Options:
 - ``check_side``: the keypoints are also fitted mirrored (that is, as the other side) and
   rejected when the mirrored fit is better: a comparison of two fits, not a threshold.
 
-Cold starts align the palm points (wrist, thumb CMC, MCPs; all present points when fewer than
-three palm points are given) with a flat target hand by a similarity transform (Umeyama).
+Cold starts align the palm points (wrist, thumb CMC, MCPs) with a flat target hand by a
+similarity transform (Umeyama). With fewer than three palm points, or when that fit stays more
+than 15 mm from the keypoints (a local minimum, about 0.4% of random poses), all present points
+are aligned with a flat, a half-closed and a closed hand and the best of those fits is kept.
 
 Speed and accuracy (``python benchmarks/bench_hand.py --only retarget``: 200 frames of 90 Hz
 streams of random in-limit poses, medium hand, 5 mm Gaussian noise on every keypoint, one core
-of a shared 2-core machine): warm-started 1.0 ms per frame at best and 2.0 ms median, cold
-1.4 ms at best and 10 ms median (other processes inflate the medians); the fitted hand is
-5.4 mm from the true keypoints (the noisy input is 8.0 mm from them) with a mean angle error
-of 9.2 deg; clean keypoints round-trip exactly. NYU-14 and ICVL-16 labels with the same noise
-give 7.4 and 10.1 mm over all 21 keypoints. The side check refused 200 of 200 noisy right
-hands offered to a left hand and 0 to 2 of 500 offered to a right hand. ``mink`` (differential
-IK, a QP per step) was measured on the same warm-started fits: 24 times slower (48 ms median)
-at the same accuracy (4.9 against 4.8 mm with the scale fixed), so handsim keeps its own
-solver.
+of a 2-core machine shared with other jobs, load average ~10): warm-started 1.0 ms per frame
+at best (median 2.0 and 7.9 ms in two runs; other processes inflate the medians), cold 1.4 to
+1.8 ms at best (median 10 and 14 ms). The fitted hand is 5.4 mm from the true keypoints (the
+noisy input is 8.0 mm from them), with a mean angle error of 9.2 to 9.6 deg; clean keypoints
+round-trip exactly. NYU-14 and ICVL-16 labels with the same noise give 7.4 and 9.7 to 10.1 mm
+over all 21 keypoints. The side check refused 200 of 200 noisy right hands offered to a left
+hand and 0 of 500 offered to a right hand. ``mink`` (differential IK, one QP per step) was
+measured on the same warm-started fits with the scale fixed: 9 to 24 times slower (48 to 54 ms
+median) at the same accuracy (4.9 to 5.0 mm against 4.8 mm), so handsim keeps its own solver.
 """
 
 from __future__ import annotations
