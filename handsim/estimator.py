@@ -24,10 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections import OrderedDict
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from handsim.errors import (
     InvalidEstimate,
@@ -36,7 +38,7 @@ from handsim.errors import (
     UnknownName,
 )
 from handsim.hand.keypoints import KEYPOINT_NAMES
-from handsim.metrics import MM_PER_M, add_error_mm, add_or_adi_error_mm, adi_error_mm
+from handsim.metrics import MM_PER_M
 from handsim.world.objects import YCBObject
 from handsim.world.registry import get_object
 
@@ -407,6 +409,48 @@ def _object_models(frame: Frame, objects: Sequence[YCBObject] | None) -> list[YC
     return models
 
 
+# KD-trees over object model points (object frame), built once per model: ADI's nearest
+# neighbours are searched in the estimate's object frame, where the model points do not move.
+_TREE_CACHE: OrderedDict[tuple[str, int, int], tuple[np.ndarray, cKDTree]] = OrderedDict()
+_TREE_CACHE_SIZE = 64
+
+
+def _model_tree(model: YCBObject) -> tuple[np.ndarray, cKDTree]:
+    """(model points (M, 3) float64, KD-tree over them), cached per model points."""
+    points = np.asarray(model.model_points_m, dtype=np.float64)
+    key = (str(getattr(model, "name", "")), points.shape[0], hash(points.tobytes()))
+    cached = _TREE_CACHE.get(key)
+    if cached is not None and np.array_equal(cached[0], points):
+        _TREE_CACHE.move_to_end(key)
+        return cached
+    entry = (points.copy(), cKDTree(points))
+    _TREE_CACHE[key] = entry
+    if len(_TREE_CACHE) > _TREE_CACHE_SIZE:
+        _TREE_CACHE.popitem(last=False)
+    return entry
+
+
+def _add_and_adi_mm(
+    T_est: np.ndarray,  # noqa: N803
+    T_gt: np.ndarray,  # noqa: N803
+    model: YCBObject,
+) -> tuple[float, float]:
+    """ADD and ADI (ADD-S) in mm, as :func:`handsim.metrics.add_error_mm` / ``adi_error_mm``.
+
+    ADI: each ground-truth-posed point's distance to the nearest estimate-posed point, found
+    in the estimate's object frame (rigid motions keep distances) with the model's cached tree.
+    """
+    points, tree = _model_tree(model)
+    T_est = np.asarray(T_est, dtype=np.float64)  # noqa: N806
+    T_gt = np.asarray(T_gt, dtype=np.float64)  # noqa: N806
+    p_est = points @ T_est[:3, :3].T + T_est[:3, 3]
+    p_gt = points @ T_gt[:3, :3].T + T_gt[:3, 3]
+    add = float(np.mean(np.linalg.norm(p_est - p_gt, axis=1)) * MM_PER_M)
+    in_est = (p_gt - T_est[:3, 3]) @ T_est[:3, :3]
+    dist, _ = tree.query(in_est, k=1)
+    return add, float(np.mean(dist) * MM_PER_M)
+
+
 def estimate_errors(
     estimate: Estimate,
     frame: Frame,
@@ -434,7 +478,9 @@ def estimate_errors(
           true keypoints (float);
         - ``"add_mm"``, ``"adi_mm"``, ``"add_or_adi_mm"``: ``{instance: float}`` for every
           object instance of the frame: ADD, ADI (ADD-S) and ADD(-S) (ADI for symmetric
-          objects), as in :mod:`handsim.metrics`.
+          objects), as in :mod:`handsim.metrics` (equal to its functions to rounding). Each is
+          computed once per instance, and ADI searches a KD-tree over the model points that is
+          built once per object model and cached.
 
     Raises:
         InvalidEstimate: if the estimate poses an instance the frame does not have.
@@ -465,8 +511,9 @@ def estimate_errors(
             if T_est is None:
                 continue
             T_gt = label.T_cam_from_obj  # noqa: N806
-            add[label.instance] = add_error_mm(T_est, T_gt, model.model_points_m)
-            adi[label.instance] = adi_error_mm(T_est, T_gt, model.model_points_m)
-            add_or_adi[label.instance] = add_or_adi_error_mm(T_est, T_gt, model)
+            add_mm, adi_mm = _add_and_adi_mm(T_est, T_gt, model)
+            add[label.instance], adi[label.instance] = add_mm, adi_mm
+            symmetric = model.symmetry.kind != "none"
+            add_or_adi[label.instance] = adi_mm if symmetric else add_mm
     errors.update(add_mm=add, adi_mm=adi, add_or_adi_mm=add_or_adi)
     return errors

@@ -3,16 +3,29 @@
 :class:`FrameRenderer` is bound to one :class:`~handsim.world.Scene` and one of its cameras; it
 keeps one :class:`~handsim.world.render.DepthRenderer` and renders :class:`Frame` records.
 
+Depth range: the camera's working range ``intrinsics.range_m = (near, far)`` bounds what is
+seen. The render's far clip plane is ``far``; surfaces nearer than ``near`` are dropped from the
+clean render (depth 0, segmentation background), as a real sensor returns nothing there.
+
 Keypoint visibility rule (tolerance :data:`VISIBILITY_TOLERANCE_M`): a keypoint is a point
 *inside* the hand (a joint centre, or the end of a fingertip's skin), so the surface the camera
-sees at its pixel is normally its own skin, up to one skin radius ``r`` in front of it. The
-keypoint is **visible** when it is in front of the camera, inside the image, and the rendered
-depth ``D`` at its (rounded) pixel is not nearer than ``z - (r + tolerance)`` (``z``: the
-keypoint's depth; no surface at the pixel also counts as visible: the keypoint sits on the
-silhouette edge). Otherwise it is **occluded**, and the occluder is what the camera sees at the
-pixel: a hand part (its own digit folded in front included) -> :data:`OCCLUDER_SELF`; an object
-instance ``k`` -> ``k``; the table -> :data:`OCCLUDER_SCENE`. ``r`` is the largest collision
-radius of the segments meeting at the keypoint (the palm's half thickness at the wrist and MCPs).
+sees at its pixel is normally its own skin, up to one skin radius ``r`` in front of it (``r``:
+the largest collision radius of the segments meeting at the keypoint; the palm's half thickness
+at the wrist and MCPs). A keypoint is **visible** only when the rendered surface confirms it: it
+is in front of the camera and inside the image, and the *clean* render shows one of its own hand
+parts (the part of the segment it belongs to, or of the segment it joins, e.g. palm or finger at
+an MCP) at a depth within ``r + tolerance`` of the keypoint's depth ``z``, at its rounded pixel,
+or, when that pixel has no nearer surface (the keypoint on its silhouette's edge), at one of the
+8 pixels around it. A pixel without depth (outside the camera's range, background) is never
+evidence of visibility. Visibility is decided on the clean render, so sensor dropouts and noise
+do not change it. A keypoint that is not visible has as occluder what the camera sees at its
+pixel when that surface is nearer than ``z - (r + tolerance)``: a hand part (its own digit
+folded in front included) -> :data:`OCCLUDER_SELF`; an object instance ``k`` -> ``k``; the table
+-> :data:`OCCLUDER_SCENE`. With nothing in front (out of range, or its surface not rendered) the
+occluder is :data:`OCCLUDER_NONE`.
+
+Keypoints behind the camera (``z <= 0``) have NaN pixels (``keypoints_px``) and are neither in
+frame nor visible.
 
 Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
 ``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
@@ -54,7 +67,7 @@ __all__ = [
 ]
 
 OCCLUDER_NONE = -1
-"""The keypoint is visible (or outside the image)."""
+"""Nothing in front of the keypoint: it is visible, outside the image or out of range."""
 OCCLUDER_SELF = -2
 """Hidden by the hand itself."""
 OCCLUDER_SCENE = -3
@@ -120,10 +133,12 @@ class Frame:
         K: (3, 3) intrinsic matrix.
         T_cam_from_world: (4, 4) world-to-camera transform (OpenCV frame).
         depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
-        depth_clean: (H, W) float32 noise-free depth (``None`` unless requested).
+        depth_clean: (H, W) float32 noise-free depth within the camera's range, metres, 0 =
+            nothing seen (``None`` unless requested).
         segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects 8+).
         keypoints_cam: (21, 3) keypoints in the camera frame, metres.
-        keypoints_px: (21, 2) keypoint pixels ``(u, v)``.
+        keypoints_px: (21, 2) keypoint pixels ``(u, v)``; NaN for keypoints behind the camera
+            (``z <= 0``).
         in_frame: (21,) bool, in front of the camera and inside the image.
         visible: (21,) bool (rule in the module docstring).
         occluder: (21,) int, :data:`OCCLUDER_NONE`, :data:`OCCLUDER_SELF`,
@@ -198,6 +213,21 @@ def _keypoint_radii(scene: Scene) -> np.ndarray:
     return np.array(radii)
 
 
+def _keypoint_parts(scene: Scene) -> np.ndarray:
+    """(21, 2) segmentation labels a keypoint's own surface may carry (its body's, its parent's)."""
+    skeleton = scene.hand.skeleton
+    label = [SEGMENT_LABELS.index(b.part) for b in skeleton.bodies]
+    parts = []
+    for body_index, _ in skeleton.keypoints:
+        parent = skeleton.bodies[body_index].parent
+        parts.append((label[body_index], label[parent] if parent >= 0 else label[body_index]))
+    return np.array(parts, dtype=np.int16)
+
+
+# Offsets of a pixel and its 8 neighbours (the centre first).
+_NEIGHBOURS = np.array([(0, 0)] + [(dv, du) for dv in (-1, 0, 1) for du in (-1, 0, 1) if dv or du])
+
+
 def _equal(a: object, b: object) -> bool:
     """Exact equality of label values: arrays bitwise (NaN equals NaN), records field-wise."""
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
@@ -254,7 +284,12 @@ class FrameRenderer:
         self.sensor = sensor if sensor is not None else NoNoise()
         self.renderer = DepthRenderer(scene.model, camera, self.intrinsics)
         self._kp_radius = _keypoint_radii(scene)
+        self._kp_parts = _keypoint_parts(scene)
+        self._near_m = np.float32(self.intrinsics.range_m[0])
+        self._far_m = np.float32(self.intrinsics.range_m[1])
+        # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
+        self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
         self._object_geoms = [
             np.nonzero(scene.geom_labels == OBJECT_LABEL_OFFSET + k)[0]
             for k in range(len(scene.objects))
@@ -367,6 +402,43 @@ class FrameRenderer:
             self._silhouette_cache[k] = (keys[k], mask)
         return masks
 
+    def _visibility(
+        self,
+        depth_m: np.ndarray,
+        labels: np.ndarray,
+        z: np.ndarray,
+        row: np.ndarray,
+        col: np.ndarray,
+        in_frame: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per-keypoint ``visible`` and ``occluder`` from the clean render (module docstring)."""
+        visible = np.zeros(21, dtype=bool)
+        occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
+        k = np.nonzero(in_frame)[0]
+        if k.size == 0:
+            return visible, occluder
+        h, w = depth_m.shape
+        rows = np.clip(row[k, None].astype(np.intp) + _NEIGHBOURS[:, 0], 0, h - 1)
+        cols = np.clip(col[k, None].astype(np.intp) + _NEIGHBOURS[:, 1], 0, w - 1)
+        seen = depth_m[rows, cols]  # (n, 9), the keypoint's own pixel first
+        label = labels[rows, cols]
+        band = (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)[:, None]
+        own = (label[..., None] == self._kp_parts[k, None, :]).any(axis=-1)
+        confirms = own & (seen > 0) & (np.abs(seen - z[k, None]) <= band)
+        blocked = (seen[:, 0] > 0) & (seen[:, 0] < z[k] - band[:, 0])
+        # The pixel itself, or a neighbour when nothing nearer covers the keypoint's pixel.
+        vis = confirms[:, 0] | (~blocked & confirms[:, 1:].any(axis=1))
+        visible[k] = vis
+        hidden = blocked & ~vis
+        centre = label[:, 0].astype(np.int32)
+        code = np.where(
+            centre >= OBJECT_LABEL_OFFSET,
+            centre - OBJECT_LABEL_OFFSET,
+            np.where(centre >= _PALM_LABEL, OCCLUDER_SELF, OCCLUDER_SCENE),
+        )
+        occluder[k[hidden]] = code[hidden]
+        return visible, occluder
+
     def render(
         self,
         rng: np.random.Generator,
@@ -387,6 +459,16 @@ class FrameRenderer:
         scene, model, data = self.scene, self.scene.model, self.scene.data
         intr = self.intrinsics
         depth_clean, geom_id = self.renderer.render(data)
+        # The camera's working range: nothing is measured outside it (the far clip plane of
+        # the scene may serve a camera with a longer range).
+        # Background pixels (depth 0, geom -1) are nearer than `near` too; resetting them is
+        # harmless and saves a pass.
+        out_of_range = depth_clean < self._near_m
+        if self._check_far:
+            out_of_range |= depth_clean > self._far_m
+        if out_of_range.any():
+            depth_clean[out_of_range] = 0.0
+            geom_id[out_of_range] = -1
         labels = scene.segment(geom_id)
         depth = self.sensor.apply(depth_clean, intr, rng)
         T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
@@ -401,23 +483,7 @@ class FrameRenderer:
         col = np.rint(kp_px[:, 0])
         row = np.rint(kp_px[:, 1])
         in_frame = (z > 0) & (col >= 0) & (col < intr.width) & (row >= 0) & (row < intr.height)
-        visible = np.zeros(21, dtype=bool)
-        occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
-        for k in np.nonzero(in_frame)[0]:
-            v, u = int(row[k]), int(col[k])
-            seen = depth_clean[v, u]
-            limit = z[k] - (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)
-            if seen == 0 or seen >= limit:
-                visible[k] = True
-                continue
-            label = int(labels[v, u])
-            if label >= OBJECT_LABEL_OFFSET:
-                occluder[k] = label - OBJECT_LABEL_OFFSET
-            elif label >= _PALM_LABEL:
-                occluder[k] = OCCLUDER_SELF
-            else:
-                occluder[k] = OCCLUDER_SCENE
-
+        visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
         # Objects.
         poses, boxes = [], []
         for body, obj in scene.objects:

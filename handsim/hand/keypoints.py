@@ -42,9 +42,10 @@ Formats (``FORMATS[name]`` holds the names of a format's points in its own order
     ``root, mid, tip``. Order source: DeepPrior++ ``ICVLHandposeEvaluation`` (joint names
     ``C, T1-T3, I1-I3, M1-M3, R1-R3, P1-P3``) and V2V-PoseNet
     ``vis/icvl/draw_2Dskeleton_ICVL.m`` (V2V calls point 0 "wrist", DeepPrior++ "C"; it is
-    the crop centre, so it is treated as the palm). **Not confirmed:** the anatomical joints
-    behind "root" and "mid". They are taken as MCP and PIP for the fingers and as MCP and IP
-    for the thumb. No source found states this.
+    the crop centre, so it is treated as the palm centre). The fingers' ``root, mid, tip``
+    are PIP, DIP and tip: in the ICVL test labels the index's root -> mid and mid -> tip
+    segments are 28.7 and 18.6 mm long, the lengths of the middle and distal phalanges, not
+    of the proximal one. The thumb's are, by the same count from the base, MCP, IP and tip.
 ``nyu14``
     The 14 of NYU's 36 joints used by the Tompson et al. / DeepPrior / V2V / A2J evaluations:
     NYU indices ``[0, 3, 6, 9, 12, 15, 18, 21, 24, 25, 27, 30, 31, 32]``
@@ -56,7 +57,9 @@ Formats (``FORMATS[name]`` holds the names of a format's points in its own order
     tip/mid/root, wrist back, wrist, palm. So F1..F4 are pinky, ring, middle and index.
     Canonical mapping: ``Fk_KNU3_A`` is the tip, ``Fk_KNU2_B`` is the PIP, ``TH_KNU3_A``,
     ``TH_KNU3_B`` and ``TH_KNU2_B`` are the thumb tip, IP and MCP, ``PALM_1`` and ``PALM_2``
-    are the two wrist points and ``PALM_3`` is the palm centre. The meaning of KNU/A/B
+    are the two wrist points (about 29 mm apart in the labels; taken as the ulnar and radial
+    sides of the wrist, in NYU's ulnar-to-radial finger order; their exact anatomical meaning
+    is not documented) and ``PALM_3`` is the palm centre. The meaning of KNU/A/B
     (KNU3/2/1 = distal/middle/proximal phalanx, B = base of that bone) is from community
     notes (zanecodes/thesis ``docs/nyu_dataset.md``), not from the dataset authors.
 ``openxr26``
@@ -69,23 +72,25 @@ Formats (``FORMATS[name]`` holds the names of a format's points in its own order
     the middle finger's metacarpal bone". That phrase is the spec's as quoted in Godot's
     OpenXRHand docs; the spec section itself was not read.
 
-Points missing from the canonical set are derived in :func:`to_format` as affine
-combinations of canonical points (weights sum to 1, so the rules hold in any frame):
+Points missing from the canonical set (:data:`EXTRA_POINT_NAMES`) are sites of the hand, fixed
+in the palm and placed by :data:`EXTRA_POINT_RULES`, affine combinations of the wrist and the
+MCPs (weights sum to 1, so the rules hold in any frame):
 
-* palm centre (``icvl16`` palm, ``nyu14`` PALM_3) = mean of wrist and the index, middle, ring
-  and little MCPs;
-* finger metacarpal base (``openxr26`` INDEX/MIDDLE/RING/LITTLE_METACARPAL)
-  = wrist + :data:`METACARPAL_BASE_FRACTION` * (MCP - wrist);
-* ``openxr26`` PALM = midpoint of the middle metacarpal base and the middle MCP
-  = 0.375 * wrist + 0.625 * middle MCP;
-* ``nyu14`` PALM_1 and PALM_2 (two wrist points) = wrist, because handsim has a single wrist.
+* ``palm_centre`` (``icvl16`` palm, ``nyu14`` PALM_3) = mean of the wrist and the four MCPs;
+* ``wrist_ulnar``, ``wrist_radial`` (``nyu14`` PALM_1, PALM_2) = wrist -/+
+  :data:`NYU_WRIST_HALF_SPAN` * (index MCP - little MCP);
+* ``<finger>_cmc`` (``openxr26`` METACARPAL of the fingers) = wrist +
+  :data:`METACARPAL_BASE_FRACTION` [finger] * (MCP - wrist);
+* ``middle_metacarpal_centre`` (``openxr26`` PALM) = midpoint of the middle CMC and MCP.
 
-For 2D (pixel) keypoints the same weights are applied in the image plane. Under a perspective
-camera this differs slightly from projecting the 3D derived point.
+:func:`to_format` copies them from the hand's points (:data:`HAND_POINT_NAMES`, read from the
+sites or from forward kinematics) or computes them by the same rules from the 21 keypoints.
+For 2D (pixel) keypoints the rules are applied in the image plane, which differs slightly from
+projecting the 3D points under a perspective camera.
 
 :func:`from_format` returns NaN for canonical points a format lacks; :func:`present_mask`
 tells which points are present. The only non-copied canonical point is the ``nyu14`` wrist,
-which is the midpoint of PALM_1 and PALM_2.
+the midpoint of PALM_1 and PALM_2. See ``docs/keypoints.md`` for every format's joints and sources.
 """
 
 from __future__ import annotations
@@ -101,9 +106,13 @@ from handsim.errors import InvalidKeypoints, UnknownName
 from handsim.hand.pose import FINGERS
 
 __all__ = [
+    "EXTRA_POINT_NAMES",
+    "EXTRA_POINT_RULES",
     "FORMATS",
+    "HAND_POINT_NAMES",
     "KEYPOINT_NAMES",
     "METACARPAL_BASE_FRACTION",
+    "NYU_WRIST_HALF_SPAN",
     "from_format",
     "present_mask",
     "to_format",
@@ -120,10 +129,70 @@ KEYPOINT_NAMES: tuple[str, ...] = (
 )
 """Names of the 21 canonical keypoints, in canonical order."""
 
-METACARPAL_BASE_FRACTION: float = 0.25
-"""Where the finger metacarpal base (CMC) sits on the wrist -> MCP segment.
+METACARPAL_BASE_FRACTION: Mapping[str, float] = MappingProxyType(
+    {"index": 0.19, "middle": 0.16, "ring": 0.21, "little": 0.30}
+)
+"""Where each finger's metacarpal base (CMC joint) sits on the wrist -> MCP segment.
 
-An approximation: the carpal bones span roughly a quarter of the wrist-to-MCP distance.
+The MCP minus the metacarpal's length (Buchholz, Armstrong & Goldstein 1992: 0.374, 0.373,
+0.336, 0.295 of hand length for index to little) along the wrist -> MCP line, as a fraction of
+that line, for handsim's default hand proportions.
+"""
+
+NYU_WRIST_HALF_SPAN: float = 0.25
+"""NYU's two wrist points: wrist -/+ this times (index MCP - little MCP).
+
+The two points are about 29 mm apart in NYU's annotations; on handsim's default hand the index
+and little MCPs are 58.8 mm apart, so 0.25 puts the points 29.4 mm apart, on the ulnar and
+radial sides of the wrist.
+"""
+
+EXTRA_POINT_NAMES: tuple[str, ...] = (
+    "palm_centre",
+    "wrist_ulnar",
+    "wrist_radial",
+    *(f"{finger}_cmc" for finger in FINGERS),
+    "middle_metacarpal_centre",
+)
+"""Points of other formats that the canonical 21 lack; the hand carries a site for each."""
+
+HAND_POINT_NAMES: tuple[str, ...] = KEYPOINT_NAMES + EXTRA_POINT_NAMES
+"""Every point the hand carries a site for: the 21 keypoints, then :data:`EXTRA_POINT_NAMES`."""
+
+EXTRA_POINT_RULES: Mapping[str, Mapping[str, float]] = MappingProxyType(
+    {
+        "palm_centre": MappingProxyType(
+            {"wrist": 0.2, **{f"{finger}_mcp": 0.2 for finger in FINGERS}}
+        ),
+        "wrist_ulnar": MappingProxyType(
+            {"wrist": 1.0, "index_mcp": -NYU_WRIST_HALF_SPAN, "little_mcp": NYU_WRIST_HALF_SPAN}
+        ),
+        "wrist_radial": MappingProxyType(
+            {"wrist": 1.0, "index_mcp": NYU_WRIST_HALF_SPAN, "little_mcp": -NYU_WRIST_HALF_SPAN}
+        ),
+        **{
+            f"{finger}_cmc": MappingProxyType(
+                {
+                    "wrist": 1.0 - METACARPAL_BASE_FRACTION[finger],
+                    f"{finger}_mcp": METACARPAL_BASE_FRACTION[finger],
+                }
+            )
+            for finger in FINGERS
+        },
+        # Halfway between the middle metacarpal's base and its head (the MCP).
+        "middle_metacarpal_centre": MappingProxyType(
+            {
+                "wrist": (1.0 - METACARPAL_BASE_FRACTION["middle"]) / 2.0,
+                "middle_mcp": (1.0 + METACARPAL_BASE_FRACTION["middle"]) / 2.0,
+            }
+        ),
+    }
+)
+"""Each extra point as an affine combination of canonical points (weights sum to 1).
+
+The wrist and the MCPs are fixed in the palm, so these points are too: the hand's sites sit
+exactly where the rules put them (:func:`handsim.hand.model.extra_point_positions`), and
+:func:`to_format` gives the same positions from the 21 keypoints as from the sites.
 """
 
 _INDEX = {name: i for i, name in enumerate(KEYPOINT_NAMES)}
@@ -135,7 +204,7 @@ _Rule = tuple[tuple[int, float], ...]
 @dataclass(frozen=True)
 class _Format:
     names: tuple[str, ...]
-    to_rules: tuple[_Rule, ...]  # one per format point, over canonical points
+    sources: tuple[int, ...]  # one per format point: its index in HAND_POINT_NAMES
     from_rules: tuple[_Rule | None, ...]  # one per canonical point, over format points
 
 
@@ -143,38 +212,35 @@ def _combo(weights: Mapping[str, float]) -> _Rule:
     return tuple((_INDEX[name], float(w)) for name, w in weights.items())
 
 
-_PALM_CENTRE = _combo({"wrist": 0.2, **{f"{finger}_mcp": 0.2 for finger in FINGERS}})
-
-
-def _metacarpal_base(finger: str) -> _Rule:
-    a = METACARPAL_BASE_FRACTION
-    return _combo({"wrist": 1.0 - a, f"{finger}_mcp": a})
+_HAND_INDEX = {name: i for i, name in enumerate(HAND_POINT_NAMES)}
+# Rules that give every hand point from the 21 keypoints.
+_EXTEND_RULES: tuple[_Rule, ...] = tuple(((i, 1.0),) for i in range(len(KEYPOINT_NAMES))) + tuple(
+    _combo(EXTRA_POINT_RULES[name]) for name in EXTRA_POINT_NAMES
+)
 
 
 def _build(
     names: tuple[str, ...],
-    sources: tuple[str | _Rule, ...],
+    sources: tuple[str, ...],
     recover: Mapping[str, Mapping[str, float]] | None = None,
 ) -> _Format:
-    """Build a format from its point names and, per point, a canonical name or derived rule.
+    """Build a format from its point names and, per point, the hand point it is.
 
-    A canonical point is recovered by :func:`from_format` from the format point that copies
-    it, or by a ``recover`` rule (canonical name -> weights over format point names); all
-    other canonical points are absent.
+    A canonical point is recovered by :func:`from_format` from the format point that is it,
+    or by a ``recover`` rule (canonical name -> weights over format point names); all other
+    canonical points are absent.
     """
-    to_rules: list[_Rule] = []
     from_rules: list[_Rule | None] = [None] * len(KEYPOINT_NAMES)
-    for j, (_, source) in enumerate(zip(names, sources, strict=True)):
-        if isinstance(source, str):
-            to_rules.append(((_INDEX[source], 1.0),))
-            if from_rules[_INDEX[source]] is None:
-                from_rules[_INDEX[source]] = ((j, 1.0),)
-        else:
-            to_rules.append(source)
+    for j, source in enumerate(sources):
+        k = _HAND_INDEX[source]
+        if k < len(KEYPOINT_NAMES) and from_rules[k] is None:
+            from_rules[k] = ((j, 1.0),)
     position = {name: j for j, name in enumerate(names)}
     for canonical, weights in (recover or {}).items():
         from_rules[_INDEX[canonical]] = tuple((position[n], float(w)) for n, w in weights.items())
-    return _Format(names, tuple(to_rules), tuple(from_rules))
+    if len(names) != len(sources):
+        raise AssertionError("one source per format point")
+    return _Format(names, tuple(_HAND_INDEX[n] for n in sources), tuple(from_rules))
 
 
 _MEDIAPIPE_NAMES = (
@@ -231,11 +297,11 @@ _ICVL_NAMES = (
     ),
 )
 _ICVL_SOURCES = (
-    _PALM_CENTRE,
+    "palm_centre",
     "thumb_mcp",
     "thumb_ip",
     "thumb_tip",
-    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("mcp", "pip", "tip")),
+    *(f"{finger}_{joint}" for finger in FINGERS for joint in ("pip", "dip", "tip")),
 )
 
 _NYU_NAMES = (
@@ -252,9 +318,9 @@ _NYU_SOURCES = (
     "thumb_tip",
     "thumb_ip",
     "thumb_mcp",
-    "wrist",
-    "wrist",
-    _PALM_CENTRE,
+    "wrist_ulnar",
+    "wrist_radial",
+    "palm_centre",
 )
 
 _OPENXR_NAMES = tuple(
@@ -271,13 +337,7 @@ _OPENXR_NAMES = tuple(
     )
 )
 _OPENXR_SOURCES = (
-    # Centre of the middle metacarpal: halfway between its base and the middle MCP.
-    _combo(
-        {
-            "wrist": (1.0 - METACARPAL_BASE_FRACTION) / 2.0,
-            "middle_mcp": (1.0 + METACARPAL_BASE_FRACTION) / 2.0,
-        }
-    ),
+    "middle_metacarpal_centre",
     "wrist",
     "thumb_cmc",
     "thumb_mcp",
@@ -287,7 +347,7 @@ _OPENXR_SOURCES = (
         s
         for finger in FINGERS
         for s in (
-            _metacarpal_base(finger),
+            f"{finger}_cmc",
             f"{finger}_mcp",
             f"{finger}_pip",
             f"{finger}_dip",
@@ -301,7 +361,7 @@ _SPECS: dict[str, _Format] = {
     "icvl16": _build(_ICVL_NAMES, _ICVL_SOURCES),
     "mediapipe21": _build(_MEDIAPIPE_NAMES, KEYPOINT_NAMES),
     "msra21": _build(_MSRA_NAMES, _MSRA_SOURCES),
-    # Both NYU wrist points are the canonical wrist, so their midpoint recovers it.
+    # The two NYU wrist points lie symmetrically about the wrist: their midpoint is the wrist.
     "nyu14": _build(_NYU_NAMES, _NYU_SOURCES, {"wrist": {"PALM_1": 0.5, "PALM_2": 0.5}}),
     "openpose21": _build(KEYPOINT_NAMES, KEYPOINT_NAMES),
     "openxr26": _build(_OPENXR_NAMES, _OPENXR_SOURCES),
@@ -346,18 +406,21 @@ def _apply(arr: NDArray[np.floating], rules: tuple[_Rule | None, ...]) -> NDArra
 
 
 def to_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:
-    """Convert canonical keypoints to the order of another format.
+    """Convert canonical keypoints (or all hand points) to the order of another format.
 
-    Points that the canonical set lacks are derived by the rules in the module docstring:
-    palm centre = mean of wrist and the four finger MCPs (``icvl16``, ``nyu14``); finger
-    metacarpal base = wrist + ``METACARPAL_BASE_FRACTION`` * (MCP - wrist) and PALM =
-    0.375 * wrist + 0.625 * middle MCP (``openxr26``); both NYU wrist points = wrist.
-    NaN inputs propagate only into the points computed from them.
+    Given the hand's points read from its sites (``(..., 29, D)`` in
+    :data:`HAND_POINT_NAMES` order: :meth:`handsim.hand.model.HandBinding.points`,
+    :meth:`handsim.hand.kinematics.ForwardKinematics.points`), every format point is copied
+    from the hand. Given the 21 canonical keypoints, the extra points (palm centre, NYU wrist
+    points, finger metacarpal bases, OpenXR palm) are computed by :data:`EXTRA_POINT_RULES`,
+    which put them where the hand's sites are. NaN inputs propagate only into the points
+    computed from them.
 
     Args:
-        keypoints: Canonical keypoints, shape ``(..., 21, D)`` with ``D >= 1``, e.g. metres
-            (``D = 3``) or pixels (``D = 2``). Integers are converted to float64; float
-            dtypes are kept.
+        keypoints: Canonical keypoints, shape ``(..., 21, D)``, or hand points, shape
+            ``(..., 29, D)``, with ``D >= 1``, e.g. metres (``D = 3``) or pixels (``D = 2``;
+            under a perspective camera, extra points computed from pixels differ slightly
+            from projected sites). Integers are converted to float64; float dtypes are kept.
         fmt: Target format, a key of :data:`FORMATS`.
 
     Returns:
@@ -367,11 +430,22 @@ def to_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:
     Raises:
         UnknownName: ``fmt`` is not a registered format.
         InvalidKeypoints: ``keypoints`` is not a real numeric array of shape
-            ``(..., 21, D)``.
+            ``(..., 21, D)`` or ``(..., 29, D)``.
     """
     spec = _spec(fmt)
-    arr = _as_points(keypoints, len(KEYPOINT_NAMES), "canonical keypoints")
-    return _apply(arr, spec.to_rules)
+    arr = np.asarray(keypoints)
+    if arr.ndim >= 2 and arr.shape[-2] == len(HAND_POINT_NAMES):
+        points = _as_points(arr, len(HAND_POINT_NAMES), "hand points")
+        return points[..., list(spec.sources), :].copy()
+    n = len(KEYPOINT_NAMES)
+    if arr.dtype.kind in "iuf" and (arr.ndim < 2 or arr.shape[-2] != n or arr.shape[-1] < 1):
+        raise InvalidKeypoints(
+            f"expected canonical keypoints of shape (..., {n}, D) or hand points of shape "
+            f"(..., {len(HAND_POINT_NAMES)}, D) with D >= 1, got shape {arr.shape}"
+        )
+    canonical = _as_points(arr, n, "canonical keypoints")
+    rules = tuple(_EXTEND_RULES[k] for k in spec.sources)
+    return _apply(canonical, rules)
 
 
 def from_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:

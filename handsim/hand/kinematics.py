@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from handsim.hand.model import HandParams, Skeleton, build_skeleton
+from handsim.hand.keypoints import EXTRA_POINT_NAMES
+from handsim.hand.model import HandParams, Skeleton, build_skeleton, extra_point_positions
 from handsim.hand.pose import HandPose
 
 __all__ = ["ForwardKinematics", "axis_angle_matrices"]
@@ -52,6 +53,8 @@ class ForwardKinematics:
         self._joints = [b.joints for b in bodies]
         self._kp_body = np.array([i for i, _ in self.skeleton.keypoints], dtype=np.intp)
         self._kp_local = np.stack([p for _, p in self.skeleton.keypoints])
+        extra = extra_point_positions(self.skeleton)
+        self._extra_local = np.stack([extra[name] for name in EXTRA_POINT_NAMES])
 
     def body_frames(self, pose: HandPose) -> tuple[np.ndarray, np.ndarray]:
         """World pose of every body.
@@ -97,3 +100,21 @@ class ForwardKinematics:
         r = rots[..., self._kp_body, :, :]
         t = poss[..., self._kp_body, :]
         return t + np.einsum("...kij,kj->...ki", r, self._kp_local)
+
+    def points(self, pose: HandPose) -> np.ndarray:
+        """Every hand point: the 21 keypoints, then the other formats' extra points.
+
+        Args:
+            pose: a single pose or a batch.
+
+        Returns:
+            (..., 29, 3) positions, metres, in
+            :data:`~handsim.hand.keypoints.HAND_POINT_NAMES` order.
+        """
+        rots, poss = self.body_frames(pose)
+        r = rots[..., self._kp_body, :, :]
+        t = poss[..., self._kp_body, :]
+        keypoints = t + np.einsum("...kij,kj->...ki", r, self._kp_local)
+        palm_rot, palm_pos = rots[..., 0, :, :], poss[..., 0, :]
+        extra = palm_pos[..., None, :] + np.einsum("...ij,kj->...ki", palm_rot, self._extra_local)
+        return np.concatenate([keypoints, extra], axis=-2)

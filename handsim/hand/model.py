@@ -69,7 +69,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handsim.errors import InvalidHandParams, UnknownName
-from handsim.hand.keypoints import KEYPOINT_NAMES
+from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
 from handsim.hand.skin import SURFACES, build_skin
 
@@ -525,6 +525,32 @@ def build_skeleton(params: HandParams) -> Skeleton:
     return Skeleton(params, bodies, keypoints)
 
 
+def extra_point_positions(skeleton: Skeleton) -> dict[str, np.ndarray]:
+    """Where the extra points of other keypoint formats sit in the palm frame.
+
+    Each is the affine combination :data:`~handsim.hand.keypoints.EXTRA_POINT_RULES` of the
+    wrist and the MCPs, which are fixed in the palm, so the points are too.
+
+    Args:
+        skeleton: the hand's skeleton.
+
+    Returns:
+        :data:`~handsim.hand.keypoints.EXTRA_POINT_NAMES` -> (3,) position in the palm body's
+        frame, metres.
+    """
+    in_palm = {}
+    for name, (body_index, local) in zip(KEYPOINT_NAMES, skeleton.keypoints, strict=True):
+        body = skeleton.bodies[body_index]
+        if body_index == 0:
+            in_palm[name] = local
+        elif body.parent == 0 and not np.any(local):
+            in_palm[name] = body.pos  # a digit's base joint: its body's origin
+    return {
+        name: sum(w * in_palm[source] for source, w in EXTRA_POINT_RULES[name].items())
+        for name in EXTRA_POINT_NAMES
+    }
+
+
 # MuJoCo model --------------------------------------------------------------------------------
 
 
@@ -567,6 +593,10 @@ class Hand:
             f"{p}{JOINT_NAMES[i]}_act" for i in self.actuated
         )
         self.keypoint_site_names: tuple[str, ...] = tuple(f"{p}kp_{k}" for k in KEYPOINT_NAMES)
+        self.point_site_names: tuple[str, ...] = self.keypoint_site_names + tuple(
+            f"{p}kp_{k}" for k in EXTRA_POINT_NAMES
+        )
+        """Sites of every hand point (:data:`~handsim.hand.keypoints.HAND_POINT_NAMES`)."""
         self.root_body = f"{p}palm"
         self.root_joint = f"{p}root"
         self.mocap_body = f"{p}mocap"
@@ -666,6 +696,9 @@ class Hand:
             body_specs[body_index].add_site(
                 name=f"kp_{KEYPOINT_NAMES[k]}", pos=pos, size=(0.003, 0, 0), group=4
             )
+        # The other formats' points (palm centre, NYU wrist points, metacarpal bases, ...).
+        for name, pos in extra_point_positions(self.skeleton).items():
+            body_specs[0].add_site(name=f"kp_{name}", pos=pos, size=(0.003, 0, 0), group=4)
 
         spec.add_equality(
             type=mujoco.mjtEq.mjEQ_WELD,
@@ -854,6 +887,9 @@ class HandBinding:
             self.site_ids = np.array(
                 [model.site(n).id for n in hand.keypoint_site_names], dtype=np.intp
             )
+            self.point_site_ids = np.array(
+                [model.site(n).id for n in hand.point_site_names], dtype=np.intp
+            )
             self.mocap_id = int(model.body(hand.mocap_body).mocapid[0])
         except KeyError as err:
             raise UnknownName(
@@ -897,3 +933,10 @@ class HandBinding:
     def keypoints(self, data: mujoco.MjData) -> np.ndarray:
         """(21, 3) keypoint positions in the world frame from the sites, metres."""
         return data.site_xpos[self.site_ids].copy()
+
+    def points(self, data: mujoco.MjData) -> np.ndarray:
+        """(29, 3) positions of every hand point (``HAND_POINT_NAMES``) from the sites, metres.
+
+        :func:`~handsim.hand.keypoints.to_format` turns them into any format's points.
+        """
+        return data.site_xpos[self.point_site_ids].copy()

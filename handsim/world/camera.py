@@ -55,6 +55,11 @@ class CameraIntrinsics:
         cx: principal point u, pixels (pixel centres at integers).
         cy: principal point v, pixels.
         name: preset name, for reports.
+        range_m: ``(near, far)`` working range of the sensor along the optical axis, metres.
+            Surfaces outside it give no depth (0), as on the real sensor: the render's far
+            clip plane is ``far`` and :class:`~handsim.frame.FrameRenderer` drops surfaces
+            nearer than ``near``. Presets carry their sensor's published range; the default
+            is a generic 0.1-10 m.
     """
 
     width: int
@@ -64,6 +69,7 @@ class CameraIntrinsics:
     cx: float
     cy: float
     name: str = "custom"
+    range_m: tuple[float, float] = (0.1, 10.0)
 
     def __post_init__(self) -> None:
         if not (isinstance(self.width, int) and isinstance(self.height, int)):
@@ -80,6 +86,16 @@ class CameraIntrinsics:
             )
         if not (np.isfinite(self.cx) and np.isfinite(self.cy)):
             raise InvalidCamera(f"cx and cy must be finite; received {self.cx!r}, {self.cy!r}")
+        try:
+            near, far = (float(v) for v in self.range_m)
+        except (TypeError, ValueError):
+            near, far = np.nan, np.nan
+        if not (np.isfinite(far) and 0.0 < near < far):
+            raise InvalidCamera(
+                f"range_m must be (near, far) metres with 0 < near < far < inf; received "
+                f"{self.range_m!r}"
+            )
+        object.__setattr__(self, "range_m", (near, far))
 
     @property
     def K(self) -> np.ndarray:  # noqa: N802 (the standard name of the matrix)
@@ -125,16 +141,30 @@ class CameraIntrinsics:
         return np.stack([x, y, depth], axis=-1)
 
 
+# Working ranges. PrimeSense PS1080 structured-light sensors (Kinect v1, Carmine) return depth
+# from about 0.35-0.4 m (Kinect for Windows "near mode" 0.4-3 m; Carmine 1.09 specified
+# 0.35-1.4 m for full accuracy) out to about 4 m (Kinect for Windows SDK default range
+# 0.8-4 m). The Creative Interactive Gesture Camera / Senz3D (DS325 time of flight) is
+# specified for 0.15-1 m (Creative Senz3D product sheet). The Intel RealSense SR300 is specified
+# for 0.2-1.5 m indoors (Intel RealSense SR300 datasheet; librealsense camera specs).
+_PS1080_RANGE_M = (0.35, 4.0)
+_DS325_RANGE_M = (0.15, 1.0)
+_SR300_RANGE_M = (0.2, 1.5)
+
 CAMERA_PRESETS: dict[str, CameraIntrinsics] = {
     # NYU hand dataset, PrimeSense Carmine 1.09 (structured light).
-    "nyu_carmine": CameraIntrinsics(640, 480, 588.036865, 587.075073, 320.0, 240.0, "nyu_carmine"),
+    "nyu_carmine": CameraIntrinsics(
+        640, 480, 588.036865, 587.075073, 320.0, 240.0, "nyu_carmine", _PS1080_RANGE_M
+    ),
     # ICVL and MSRA15, Intel Creative Interactive Gesture Camera (time of flight).
-    "icvl": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "icvl"),
-    "msra": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "msra"),
+    "icvl": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "icvl", _DS325_RANGE_M),
+    "msra": CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "msra", _DS325_RANGE_M),
     # BigHand2.2M / HANDS17 / FPHA, Intel RealSense SR300.
-    "sr300": CameraIntrinsics(640, 480, 475.065948, 475.065857, 315.944855, 245.287079, "sr300"),
+    "sr300": CameraIntrinsics(
+        640, 480, 475.065948, 475.065857, 315.944855, 245.287079, "sr300", _SR300_RANGE_M
+    ),
 }
-"""Depth-sensor intrinsics of the hand-pose datasets (facts section 6.1)."""
+"""Depth-sensor intrinsics and working ranges of the hand-pose datasets' sensors."""
 
 
 def camera_preset(name: str) -> CameraIntrinsics:

@@ -50,6 +50,8 @@ OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
 
 _TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
 _DEFAULT_HAND_TARGET = (0.0, 0.0, 0.12)
+# OpenGL near clip plane, metres: well inside every sensor's minimum range.
+_GL_NEAR_M = 0.01
 
 
 class InvalidScene(HandSimError, ValueError):
@@ -354,6 +356,7 @@ class Scene:
             add_camera(mj.worldbody, cam.name, cam.intrinsics, cam.pos_m, cam.quat_wxyz)
         self.model = mj.compile()
         self.mjspec = mj
+        self._set_clip_planes()
         self.data = mujoco.MjData(self.model)
         self.binding = self.hand.bind(self.model) if self.hand is not None else None
         self.geom_labels = self._label_geoms()
@@ -383,6 +386,23 @@ class Scene:
             The path of the XML file.
         """
         return save_spec(self.mjspec, path, assets_dir=assets_dir)
+
+    def _set_clip_planes(self) -> None:
+        # OpenGL clip planes from the cameras' working ranges, not from the model's extent
+        # (MuJoCo's znear/zfar are fractions of it): the far plane is the farthest camera
+        # range, so a far object is simply not seen. The near plane stays close to the lens
+        # (clipping a too-near surface would reveal what is behind it); FrameRenderer drops
+        # surfaces nearer than each camera's range instead.
+        if not self.spec.cameras:
+            return
+        extent = self.model.stat.extent
+        far_m = max(c.intrinsics.range_m[1] for c in self.spec.cameras)
+        near_m = min(_GL_NEAR_M, *(c.intrinsics.range_m[0] for c in self.spec.cameras))
+        self.model.vis.map.znear = near_m / extent
+        self.model.vis.map.zfar = far_m / extent
+        # The spec says the same, so its MJCF (to_xml, save) gives this model.
+        self.mjspec.visual.map.znear = self.model.vis.map.znear
+        self.mjspec.visual.map.zfar = self.model.vis.map.zfar
 
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)

@@ -289,3 +289,32 @@ def test_object_errors_name_the_problem():
         estimate_errors(Estimate(object_poses={0: _pose()}), frame)
     with pytest.raises(InvalidEstimatorInput, match=r"one YCBObject per frame object .* \(1\)"):
         estimate_errors(Estimate(object_poses={0: _pose()}), frame, objects=[])
+
+
+def test_object_errors_equal_the_metrics_and_reuse_one_tree_per_object():
+    """ADD, ADI and ADD(-S) equal handsim.metrics (symmetric objects too); trees are cached."""
+    from handsim.estimator import _model_tree
+    from handsim.metrics import add_error_mm, add_or_adi_error_mm, adi_error_mm
+    from handsim.world.registry import OBJECTS, get_object
+
+    rng = np.random.default_rng(3)
+    # Two continuous symmetries, a discrete one and none (building all 21 takes ~40 s).
+    names = ["002_master_chef_can", "024_bowl", "061_foam_brick", "003_cracker_box"]
+    assert set(names) <= set(OBJECTS)
+    labels, poses, models = [], {}, []
+    for k, name in enumerate(names):
+        T_gt = _pose(tuple(rng.normal(scale=0.5, size=3)), (0.1 * k, 0.0, 0.6))  # noqa: N806
+        labels.append(_label(k, name, T_gt))
+        poses[k] = T_gt @ _pose(tuple(rng.normal(scale=0.2, size=3)), tuple(rng.normal(0, 0.01, 3)))
+        models.append(get_object(name))
+    frame = _frame(_keypoints(), labels)
+    errors = estimate_errors(Estimate(object_poses=poses), frame)
+    for k, model in enumerate(models):
+        T_gt = labels[k].T_cam_from_obj  # noqa: N806
+        pts = model.model_points_m
+        assert errors["add_mm"][k] == pytest.approx(add_error_mm(poses[k], T_gt, pts), abs=1e-9)
+        assert errors["adi_mm"][k] == pytest.approx(adi_error_mm(poses[k], T_gt, pts), abs=1e-9)
+        assert errors["add_or_adi_mm"][k] == pytest.approx(
+            add_or_adi_error_mm(poses[k], T_gt, model), abs=1e-9
+        )
+        assert _model_tree(model)[1] is _model_tree(model)[1]

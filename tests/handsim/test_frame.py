@@ -7,7 +7,7 @@ import trimesh
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, FrameRenderer
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose_sources import gesture
-from handsim.world.camera import camera_preset
+from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.mesh_import import load_object
 from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
 
@@ -212,3 +212,110 @@ def test_reused_silhouettes_equal_fresh_renders():
             assert counts[-1] == [(o.px_count_all, o.px_count_visib) for o in new.objects]
     # The sweep did occlude something (else the test would prove nothing).
     assert any(all_px > visib for row in counts for all_px, visib in row)
+
+
+# Labels that cannot lie: the camera's working range and visibility evidence.
+
+
+def test_far_object_is_not_seen_and_the_hand_stays_labelled():
+    """An object 1 km (or 50 m) away changes nothing the camera sees of the hand.
+
+    Clip planes come from the camera's working range, not from the model's extent.
+    """
+    with FrameRenderer(Scene(SceneSpec()), "third_person") as renderer:
+        reference = renderer.render(np.random.default_rng(0))
+    assert reference.visible.any() and reference.depth.any()
+    for distance_m in (1e3, 50.0):
+        spec = SceneSpec(objects=(ObjectPlacement("mustard_bottle", (distance_m, 0.0, 0.1)),))
+        with FrameRenderer(Scene(spec), "third_person") as renderer:
+            frame = renderer.render(np.random.default_rng(0))
+        np.testing.assert_array_equal(frame.visible, reference.visible)
+        np.testing.assert_array_equal(frame.segmentation, reference.segmentation)
+        np.testing.assert_allclose(frame.depth, reference.depth, atol=1e-4)
+        assert frame.objects[0].px_count_all == 0 and frame.objects[0].visib_fract == 0.0
+
+
+def _range_camera(near_m: float, far_m: float) -> CameraSpec:
+    intrinsics = CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "r", (near_m, far_m))
+    return CameraSpec.look_at("front", intrinsics, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+
+
+@pytest.mark.parametrize(
+    ("near_m", "far_m", "other_camera"), [(0.1, 0.4, False), (0.6, 2.0, False), (0.1, 0.4, True)]
+)
+def test_hand_out_of_range_has_no_depth_and_no_visible_keypoint(near_m, far_m, other_camera):
+    """A hand 0.5 m away, beyond the far end or inside the near end: nothing is visible.
+
+    A pixel without depth is never evidence of visibility. A second camera with a longer range
+    (which sets the scene's far clip plane) changes nothing.
+    """
+    cameras = (_range_camera(near_m, far_m),)
+    if other_camera:
+        cameras += (CameraSpec.look_at("far", ICVL, (0.0, 0.0, 0.5), (0.0, 0.5, 0.19)),)
+    scene = Scene(SceneSpec(cameras=cameras, table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), keep_clean=True)
+    assert frame.in_frame.all()
+    assert not frame.depth_clean.any() and not frame.segmentation.any()
+    assert not frame.visible.any()
+    assert np.all(frame.occluder == OCCLUDER_NONE)
+
+
+def test_keypoints_behind_the_camera_have_nan_pixels():
+    """A camera among the fingers looking down: the fingertips are behind it."""
+    intrinsics = CameraIntrinsics(320, 240, 241.42, 241.42, 160.0, 120.0, "r", (0.01, 2.0))
+    # The flat hand's fingers point up (+z) from z = 0.1; the camera at z = 0.2 looks down.
+    cam = CameraSpec.look_at("down", intrinsics, (0.0, 0.45, 0.2), (0.0, 0.45, 0.0), up=(0, 1, 0))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "down") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    behind = frame.keypoints_cam[:, 2] <= 0
+    assert behind[TIPS].all() and not behind.all()
+    assert np.isnan(frame.keypoints_px[behind]).all()
+    assert np.isfinite(frame.keypoints_px[~behind]).all()
+    assert not frame.in_frame[behind].any() and not frame.visible[behind].any()
+
+
+class _DropEverything:
+    """A sensor that returns no depth at all (every pixel dropped out)."""
+
+    def apply(self, depth_m, intrinsics, rng):
+        return np.zeros_like(depth_m)
+
+
+def test_visibility_is_decided_on_the_clean_render():
+    """Dropouts in the sensor's depth at the keypoints' pixels do not change visibility."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        clean = renderer.render(np.random.default_rng(0))
+    with FrameRenderer(scene, "front", sensor=_DropEverything()) as renderer:
+        dropped = renderer.render(np.random.default_rng(0), keep_clean=True)
+    assert not dropped.depth.any() and dropped.depth_clean.any()
+    assert dropped.visible.all()
+    np.testing.assert_array_equal(dropped.visible, clean.visible)
+    np.testing.assert_array_equal(dropped.occluder, clean.occluder)
+
+
+def test_a_keypoint_is_visible_only_on_its_own_part():
+    """Every visible keypoint's pixel (or a neighbour) shows its own hand part near its depth."""
+    from handsim.frame import _NEIGHBOURS, _keypoint_parts
+
+    scene = Scene(SceneSpec())
+    parts = _keypoint_parts(scene)
+    with FrameRenderer(scene, "third_person") as renderer:
+        for seed, name in enumerate(("open", "fist", "pinch", "point")):
+            scene.reset(gesture(name).replace(wrist_pos=np.array([0.0, -0.05, 0.15])))
+            frame = renderer.render(np.random.default_rng(seed))
+            assert frame.visible.sum() >= 5, name
+            for k in np.nonzero(frame.visible)[0]:
+                u, v = np.rint(frame.keypoints_px[k]).astype(int)
+                rows = np.clip(v + _NEIGHBOURS[:, 0], 0, 479)
+                cols = np.clip(u + _NEIGHBOURS[:, 1], 0, 639)
+                own = np.isin(frame.segmentation[rows, cols], parts[k])
+                depth = frame.depth[rows, cols]
+                near = np.abs(depth - frame.keypoints_cam[k, 2]) < 0.03
+                assert np.any(own & near & (depth > 0)), KEYPOINT_NAMES[k]

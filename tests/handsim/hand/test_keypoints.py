@@ -10,6 +10,7 @@ import pytest
 from handsim.errors import HandSimError, InvalidKeypoints, UnknownName
 from handsim.hand.keypoints import (
     FORMATS,
+    HAND_POINT_NAMES,
     KEYPOINT_NAMES,
     METACARPAL_BASE_FRACTION,
     from_format,
@@ -34,13 +35,14 @@ EXPECTED_SOURCES: dict[str, list[int | None]] = {
     "bighand21": [WRIST, T_CMC, I_MCP, M_MCP, R_MCP, L_MCP]
     + [T_MCP, T_IP, T_TIP, I_PIP, I_DIP, I_TIP, M_PIP, M_DIP, M_TIP]
     + [R_PIP, R_DIP, R_TIP, L_PIP, L_DIP, L_TIP],
-    # palm, then root/mid/tip of thumb, index, middle, ring, pinky.
-    "icvl16": [None, T_MCP, T_IP, T_TIP, I_MCP, I_PIP, I_TIP, M_MCP, M_PIP, M_TIP]
-    + [R_MCP, R_PIP, R_TIP, L_MCP, L_PIP, L_TIP],
+    # palm, then root/mid/tip of thumb (MCP, IP, tip) and of index, middle, ring, pinky
+    # (PIP, DIP, tip: the data's segment lengths fit these joints).
+    "icvl16": [None, T_MCP, T_IP, T_TIP, I_PIP, I_DIP, I_TIP, M_PIP, M_DIP, M_TIP]
+    + [R_PIP, R_DIP, R_TIP, L_PIP, L_DIP, L_TIP],
     # NYU joints 0 3 6 9 12 15 18 21 24 25 27 30 31 32: F1 (pinky) .. F4 (index) tip and
     # PIP, thumb tip/IP/MCP, the two wrist points, palm centre.
     "nyu14": [L_TIP, L_PIP, R_TIP, R_PIP, M_TIP, M_PIP, I_TIP, I_PIP]
-    + [T_TIP, T_IP, T_MCP, WRIST, WRIST, None],
+    + [T_TIP, T_IP, T_MCP, None, None, None],
     # XrHandJointEXT 0..25.
     "openxr26": [None, WRIST, T_CMC, T_MCP, T_IP, T_TIP]
     + [None, I_MCP, I_PIP, I_DIP, I_TIP]
@@ -141,9 +143,10 @@ def test_from_format_index_mapping_and_mask(fmt: str) -> None:
     assert mask.shape == (21,) and mask.dtype == bool
     for c in range(21):
         copies = [j for j, s in enumerate(sources) if s == c]
+        if fmt == "nyu14" and c == WRIST:
+            copies = [11, 12]  # the midpoint of the two NYU wrist points is the wrist
         assert mask[c] == bool(copies), KEYPOINT_NAMES[c]
         if copies:
-            # One copy for every format except the two NYU wrist points, averaged.
             np.testing.assert_array_equal(out[:, c], given[:, copies].mean(axis=1))
         else:
             assert np.isnan(out[:, c]).all(), KEYPOINT_NAMES[c]
@@ -156,7 +159,7 @@ def test_present_points_per_format() -> None:
     }
     assert absent == {
         "bighand21": [],
-        "icvl16": ["wrist", "thumb_cmc", "index_dip", "middle_dip", "ring_dip", "little_dip"],
+        "icvl16": ["wrist", "thumb_cmc", "index_mcp", "middle_mcp", "ring_mcp", "little_mcp"],
         "mediapipe21": [],
         "msra21": [],
         "nyu14": ["thumb_cmc", "index_mcp", "index_dip", "middle_mcp", "middle_dip"]
@@ -203,28 +206,85 @@ def test_palm_centre_is_mean_of_wrist_and_finger_mcps() -> None:
 
 
 def test_openxr_metacarpal_bases_and_palm() -> None:
-    """OpenXR finger metacarpals sit a quarter of the way to the MCP; palm mid-metacarpal."""
-    assert METACARPAL_BASE_FRACTION == 0.25
+    """OpenXR finger metacarpal bases sit one metacarpal length before the MCP; palm mid-way."""
+    assert dict(METACARPAL_BASE_FRACTION) == {
+        "index": 0.19,
+        "middle": 0.16,
+        "ring": 0.21,
+        "little": 0.30,
+    }
     kp = _random(lead=(5,))
     out = to_format(kp, "openxr26")
     wrist = kp[:, WRIST]
-    for xr_index, mcp in ((6, I_MCP), (11, M_MCP), (16, R_MCP), (21, L_MCP)):
-        base = wrist + 0.25 * (kp[:, mcp] - wrist)
+    for xr_index, mcp, a in (
+        (6, I_MCP, 0.19),
+        (11, M_MCP, 0.16),
+        (16, R_MCP, 0.21),
+        (21, L_MCP, 0.3),
+    ):
+        base = wrist + a * (kp[:, mcp] - wrist)
         np.testing.assert_allclose(out[:, xr_index], base, rtol=0, atol=1e-12)
     middle_base = out[:, 11]
     np.testing.assert_allclose(out[:, 0], (middle_base + kp[:, M_MCP]) / 2, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(out[:, 0], 0.375 * wrist + 0.625 * kp[:, M_MCP], rtol=0, atol=1e-12)
 
 
 def test_nyu_wrist_points() -> None:
-    """Both NYU wrist points take the wrist; from_format takes their midpoint."""
+    """The NYU wrist points lie ulnar and radial of the wrist; from_format takes their midpoint."""
     kp = _random(lead=(5,))
     out = to_format(kp, "nyu14")
-    np.testing.assert_array_equal(out[:, 11], kp[:, WRIST])
-    np.testing.assert_array_equal(out[:, 12], kp[:, WRIST])
+    across = kp[:, I_MCP] - kp[:, L_MCP]
+    np.testing.assert_allclose(out[:, 11], kp[:, WRIST] - 0.25 * across, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out[:, 12], kp[:, WRIST] + 0.25 * across, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(from_format(out, "nyu14")[:, WRIST], kp[:, WRIST], atol=1e-12)
     nyu = _random(n_points=14)
     nyu[11], nyu[12] = [0.0, 0.0, 0.5], [0.2, 0.4, 0.7]
     np.testing.assert_allclose(from_format(nyu, "nyu14")[WRIST], [0.1, 0.2, 0.6])
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_every_format_point_is_a_site_of_the_hand(side: str) -> None:
+    """Sites, forward kinematics and to_format from the 21 keypoints agree for every format."""
+    import mujoco
+
+    from handsim.hand.kinematics import ForwardKinematics
+    from handsim.hand.model import Hand, HandParams
+    from handsim.hand.pose import JOINT_LIMITS, HandPose
+
+    hand = Hand(HandParams(hand_length=0.2, side=side))
+    model = hand.compile()
+    data = mujoco.MjData(model)
+    binding = hand.bind(model)
+    assert len(binding.point_site_ids) == len(HAND_POINT_NAMES) == 29
+    rng = np.random.default_rng(0)
+    fk = ForwardKinematics(hand.params)
+    for _ in range(3):
+        pose = HandPose(
+            rng.uniform(-0.2, 0.2, 3),
+            rng.uniform(-2, 2, 3),
+            rng.uniform(JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]),
+        )
+        binding.set_pose(data, pose)
+        points = binding.points(data)
+        np.testing.assert_allclose(points, fk.points(pose), atol=1e-9)
+        for fmt in FORMATS:
+            np.testing.assert_allclose(
+                to_format(points, fmt), to_format(points[:21], fmt), rtol=0, atol=1e-12
+            )
+    # NYU's two wrist points are about 29 mm apart in its labels; here 29.4 mm at 189 mm.
+    nyu = to_format(fk.points(HandPose.neutral()), "nyu14")
+    assert np.linalg.norm(nyu[11] - nyu[12]) == pytest.approx(0.0294 * 0.2 / 0.189, abs=5e-4)
+
+
+def test_icvl_finger_segments_are_middle_and_distal_phalanges() -> None:
+    """ICVL index root -> mid -> tip: 28.7 and 18.6 mm in the data; the same bones here."""
+    from handsim.hand.kinematics import ForwardKinematics
+    from handsim.hand.model import HandParams
+    from handsim.hand.pose import HandPose
+
+    icvl = to_format(ForwardKinematics(HandParams()).keypoints(HandPose.neutral()), "icvl16")
+    root, mid, tip = icvl[4:7]
+    assert 1000 * np.linalg.norm(mid - root) == pytest.approx(28.7, abs=3.0)
+    assert 1000 * np.linalg.norm(tip - mid) == pytest.approx(18.6, abs=3.0)
 
 
 @pytest.mark.parametrize("fmt", ALL_FORMATS)
@@ -301,6 +361,10 @@ def test_nan_propagates_only_to_dependent_points() -> None:
     kp[WRIST] = np.nan
     out = to_format(kp, "icvl16")
     assert np.isnan(out[0]).all() and np.isfinite(out[1:]).all()
+    kp = _random()
+    kp[L_MCP] = np.nan  # the NYU wrist points and the palm centre depend on it
+    out = to_format(kp, "nyu14")
+    assert np.isnan(out[11:]).all() and np.isfinite(out[:11]).all()
 
 
 @pytest.mark.parametrize("bad", ["nyu", "NYU14", "", None, 3])
@@ -335,7 +399,8 @@ def test_unknown_format_is_reported_before_shape() -> None:
 def test_to_format_rejects_bad_shapes(shape: tuple[int, ...], shown: str) -> None:
     """to_format needs (..., 21, D) and says what it got."""
     message = re.escape(
-        f"expected canonical keypoints of shape (..., 21, D) with D >= 1, got shape {shown}"
+        "expected canonical keypoints of shape (..., 21, D) or hand points of shape "
+        f"(..., 29, D) with D >= 1, got shape {shown}"
     )
     with pytest.raises(InvalidKeypoints, match=f"^{message}$"):
         to_format(np.zeros(shape), "msra21")

@@ -154,3 +154,19 @@ def test_errors():
         match=r"offscreen buffer is 640 x 480 pixels but the camera needs 1280 x 960; set",
     ):
         DepthRenderer(model, "cam", CameraIntrinsics(1280, 960, 900.0, 900.0, 640, 480))
+
+
+def test_working_range():
+    """Presets carry their sensor's working range; the scene's far clip plane is the range's."""
+    from handsim.world.scene import Scene, SceneSpec, third_person_camera
+
+    assert camera_preset("nyu_carmine").range_m == (0.35, 4.0)
+    assert camera_preset("icvl").range_m == (0.15, 1.0)
+    assert camera_preset("sr300").range_m == (0.2, 1.5)
+    for bad in ((0.5, 0.2), (0.0, 1.0), (0.1, np.inf), (1.0,), "far"):
+        with pytest.raises(InvalidCamera, match=r"range_m must be \(near, far\)"):
+            CameraIntrinsics(320, 240, 241.0, 241.0, 160, 120, "x", bad)
+    scene = Scene(SceneSpec(cameras=(third_person_camera(camera_preset("sr300")),)))
+    extent = scene.model.stat.extent
+    assert scene.model.vis.map.zfar * extent == pytest.approx(1.5)
+    assert scene.model.vis.map.znear * extent == pytest.approx(0.01)
