@@ -789,9 +789,10 @@ class Hand:
     def to_xml(self) -> str:
         """The MJCF text of the hand alone, as :meth:`compile` builds it.
 
-        The hand has no mesh assets, so the text is complete: ``mujoco.MjModel.from_xml_string``
-        compiles it to a model equal to :meth:`compile`'s (numbers at full precision, see
-        :func:`handsim.world.mjcf.spec_to_xml`). A comment at the top lists the naming scheme.
+        The skin's meshes are inline (vertex data), so the text is complete:
+        ``mujoco.MjModel.from_xml_string`` compiles it to a model equal to :meth:`compile`'s
+        (numbers at full precision, see :func:`handsim.world.mjcf.spec_to_xml`). A comment at
+        the top lists the naming scheme.
         """
         # handsim.world imports this module; import its writer here to avoid a cycle.
         from handsim.world.mjcf import spec_to_xml

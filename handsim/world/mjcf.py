@@ -189,7 +189,7 @@ def save_spec(
     """Write ``spec`` as an MJCF file plus its meshes (OBJ) in a folder next to it.
 
     Each mesh built in memory is written to ``<folder of path>/<assets_dir>/<mesh name>.obj``
-    and referenced with ``<compiler meshdir="<assets_dir>"/>``, so the folder can be moved or
+    and referenced as ``file="<assets_dir>/<mesh name>.obj"``, so the folder can be moved or
     opened with ``python -m mujoco.viewer --mjcf <path>``. Without meshes no folder is made.
 
     Args:
@@ -226,14 +226,18 @@ def save_spec(
     if meshes:
         folder = path.parent / assets_dir
         folder.mkdir(parents=True, exist_ok=True)
-        spec.meshdir = assets_dir
-        # to_xml compiles the spec, which reads the mesh files relative to the model's folder.
-        spec.modelfiledir = str(path.parent.resolve())
+        # to_xml compiles the spec, reading the mesh files. Meshes of attached specs (the
+        # hand's skin) keep their own compiler settings, so neither a parent's meshdir nor its
+        # model folder reaches them: compile from absolute paths, then write relative ones.
+        absolute = str(folder.resolve())
         for mesh in meshes:
             name = f"{mesh.name}.obj"
             write_obj(folder / name, np.array(mesh.uservert), np.array(mesh.userface))
             mesh.uservert = []
             mesh.userface = []
-            mesh.file = name
-    path.write_text(spec_to_xml(spec), encoding="utf-8")
+            mesh.file = f"{absolute}/{name}"
+    xml = spec_to_xml(spec)
+    if meshes:
+        xml = xml.replace(f'file="{absolute}/', f'file="{assets_dir}/')
+    path.write_text(xml, encoding="utf-8")
     return path

@@ -108,13 +108,12 @@ def test_assets_folders_hold_exactly_the_meshes_the_xml_uses() -> None:
         text = xml.read_text()
         used = set(re.findall(r'<mesh [^>]*file="([^"]+)"', text))
         assets = xml.parent / "assets"
-        if 'meshdir="assets"' in text:
-            on_disk = {p.name for p in assets.iterdir()}
-            owners = [x for x in xml.parent.glob("*.xml") if 'meshdir="assets"' in x.read_text()]
+        if used:
+            assert all(u.startswith("assets/") for u in used), xml
+            on_disk = {f"assets/{p.name}" for p in assets.iterdir()}
+            owners = [x for x in xml.parent.glob("*.xml") if 'file="assets/' in x.read_text()]
             assert len(owners) == 1, f"{assets} is shared by {owners}"
             assert used == on_disk, xml
-        else:
-            assert not used, xml
 
 
 def test_package_data_covers_every_committed_file() -> None:

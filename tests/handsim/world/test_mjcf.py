@@ -17,8 +17,9 @@ from handsim.world.scene import ObjectPlacement, Scene, SceneSpec
 # MuJoCo's XML writer drops trailing zero sizes and its reader fills them with the default
 # (sphere sites use size[0] only); a joint equality's unused data[5:] and objtype likewise.
 _WRITER_QUIRKS = {"site_size", "eq_data", "eq_objtype", "mesh_pathadr", "names", "paths"}
-# Mesh geom frames come from the mesh's inertia, summed in another order: ~1e-16 apart.
-_MESH_FRAME_FIELDS = {"geom_pos", "geom_quat", "bvh_aabb"}
+# Mesh geom frames come from the mesh's inertia, summed in another order: ~1e-16 apart; a
+# dof's length scale follows from its body's geom frames (the skin's meshes).
+_MESH_FRAME_FIELDS = {"geom_pos", "geom_quat", "bvh_aabb", "dof_length"}
 
 
 def _numeric_fields(model: mujoco.MjModel) -> dict[str, np.ndarray]:
@@ -164,7 +165,7 @@ def test_scene_save_writes_xml_and_obj_assets(objects_scene: Scene, tmp_path) ->
         f"{objects_scene.model.mesh(i).name}.obj" for i in range(objects_scene.model.nmesh)
     )
     xml = path.read_text()
-    assert 'meshdir="assets"' in xml
+    assert 'file="assets/' in xml and str(tmp_path) not in xml
     assert "vertex=" not in xml
     loaded = mujoco.MjModel.from_xml_path(str(path))
     assert_same_model(objects_scene.model, loaded)
