@@ -40,7 +40,7 @@ element                  name                                 notes
 body                     ``obj_<name>``                       explicit mass, COM, inertia
 free joint               ``obj_<name>_root``                  optional
 visual geom / mesh       ``obj_<name>_visual``                group 2, contype=conaffinity=0
-collision geoms / meshes ``obj_<name>_collision_<k>``         group 3, k = 0, 1, ...
+collision geoms/meshes   ``obj_<name>_collision_<k>``         group 3, k = 0, 1, ...
 =======================  ===================================  ================================
 
 A second copy of an object in one scene takes another body name (``body_name=``); every

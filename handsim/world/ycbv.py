@@ -6,8 +6,8 @@ How the shapes are made (sizes in ``_FACTS`` and next to each builder):
 object                          shape
 ==============================  =========================================================
 cans (002, 005, 007)            cylinder along ``y``, end chamfer sized to the diameter
-boxes (003, 004, 008, 009, 036, box of the nominal (Calli) size, tilted 1-12 degrees in the
-061), potted meat can (010)     model frame; 010 has rounded edges (see ``_BOXES``)
+boxes (003, 004, 008, 009,      box of the nominal (Calli) size, tilted 1-12 degrees in the
+036, 061), meat can (010)       model frame; 010 has rounded edges (see ``_BOXES``)
 bottles (006, 021)              lofted elliptic body + shoulder + neck + cap (021's cap is
                                 off-centre, as on the real bottle)
 banana (011)                    tapered tube along a circular arc (fitted radius, span and
