@@ -2,6 +2,9 @@
 
 - ``.. handsim-exports::``: a table of the names that ``import handsim`` re-exports, each linked
   to the module that defines it (generated from ``handsim.__all__``, so it never goes stale).
+- Links from a Markdown page to a file or folder of the repo outside ``docs/`` (``../README.md``,
+  ``../scenes/``) work on GitHub but are not Sphinx documents: they are rendered as their text.
+  A link to a path that does not exist still fails the build.
 - ``autodoc-skip-member``: NumPy-scalar defaults of dataclass fields are not separate entries.
 - ``autodoc-process-docstring``: RST section titles (a line underlined with ``-`` or ``=``)
   inside docstrings become rubrics; docutils forbids sections inside autodoc content.
@@ -13,10 +16,13 @@ import importlib
 import inspect
 import pkgutil
 import re
+from pathlib import Path
 
 import numpy as np
 from docutils import nodes
 from docutils.statemachine import StringList
+from sphinx import addnodes
+from sphinx.transforms.post_transforms import SphinxPostTransform
 from sphinx.util.docutils import SphinxDirective
 from sphinx.util.nodes import nested_parse_with_titles
 
@@ -84,9 +90,39 @@ def _skip_numpy_defaults(app, what, name, obj, skip, options) -> bool | None:
     return None
 
 
+class RepoLinksAsText(SphinxPostTransform):
+    """Render MyST links to repo paths outside the docs as plain text (before MyST resolves)."""
+
+    default_priority = 8  # MyST's resolver runs at 9
+
+    def run(self, **kwargs) -> None:
+        """Replace each such link by its own text."""
+        srcdir = Path(self.env.srcdir).resolve()
+        repo = srcdir.parent
+        for node in list(self.document.findall(addnodes.pending_xref)):
+            if node.get("reftype") != "myst":
+                continue
+            target = str(node["reftarget"]).split("#", 1)[0]
+            if node.get("refdomain") == "doc":
+                if target in self.env.all_docs:
+                    continue
+                path = Path(target if Path(target).is_absolute() else srcdir / target)
+                candidates = [path.with_suffix(s) for s in (".md", ".rst")] + [path]
+            else:
+                base = (srcdir / node.get("refdoc", self.env.docname)).parent
+                candidates = [(base / target).resolve()]
+            for path in candidates:
+                path = path.resolve()
+                outside = srcdir not in path.parents and path != srcdir
+                if outside and repo in path.parents and path.exists():
+                    node.replace_self(nodes.inline("", "", *node.children))
+                    break
+
+
 def setup(app):
     """Register the directive and the docstring hook."""
     app.add_directive("handsim-exports", HandsimExports)
     app.connect("autodoc-process-docstring", _titles_to_rubrics)
     app.connect("autodoc-skip-member", _skip_numpy_defaults)
+    app.add_post_transform(RepoLinksAsText)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
