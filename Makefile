@@ -24,9 +24,9 @@ lint: $(VENV)/.installed
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 
-# The documentation, built strictly (any Sphinx warning fails the build).
+# The documentation, built from scratch (-E) and strictly (-W: any Sphinx warning fails).
 docs: $(VENV)/.installed
-	$(VENV)/bin/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+	$(VENV)/bin/sphinx-build -E -W --keep-going -q -b html docs docs/_build/html
 
 test: lint docs
 	$(PY) -m pytest -q
