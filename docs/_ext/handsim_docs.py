@@ -1,5 +1,8 @@
 """Sphinx helpers of the handsim docs.
 
+- ``.. handsim-submodules:: PACKAGE``: one section with ``automodule`` per public submodule of
+  the package (found by ``pkgutil``, so a new module is documented without editing a page), in
+  the order of the ``:order:`` option, then alphabetically.
 - ``.. handsim-exports::``: a table of the names that ``import handsim`` re-exports, each linked
   to the module that defines it (generated from ``handsim.__all__``, so it never goes stale).
 - Links from a Markdown page to a file or folder of the repo outside ``docs/`` (``../README.md``,
@@ -44,6 +47,52 @@ def _defining_module(name: str, obj: object) -> str:
         if name in getattr(mod, "__all__", ()):
             return info.name
     raise LookupError(f"handsim.{name} is defined in no handsim module's __all__")
+
+
+def public_submodules(package: str) -> list[tuple[str, bool]]:
+    """``(name, is_package)`` of the public submodules of ``package``, recursively.
+
+    Private modules (``_name``) and ``__main__`` are left out, and so is everything inside them.
+    """
+    pkg = importlib.import_module(package)
+    return sorted(
+        (info.name, info.ispkg)
+        for info in pkgutil.walk_packages(pkg.__path__, f"{package}.")
+        if not any(part.startswith("_") for part in info.name[len(package) + 1 :].split("."))
+    )
+
+
+class HandsimSubmodules(SphinxDirective):
+    """Sections with ``automodule`` for every public submodule of a package."""
+
+    required_arguments = 1
+    option_spec = {"order": str.split, "exclude": str.split}
+
+    def run(self) -> list[nodes.Node]:
+        """Emit the sections as RST and parse them in place."""
+        package = self.arguments[0]
+        excluded = tuple(f"{package}.{name}" for name in self.options.get("exclude", []))
+        found = {
+            name: is_pkg
+            for name, is_pkg in public_submodules(package)
+            if not any(name == e or name.startswith(f"{e}.") for e in excluded)
+        }
+        order = [f"{package}.{name}" for name in self.options.get("order", [])]
+        unknown = sorted(set(order) - set(found))
+        if unknown:
+            raise self.error(f"handsim-submodules: no such modules in {package}: {unknown}")
+        lines: list[str] = []
+        for module in order + sorted(set(found) - set(order)):
+            title = f"``{module}``"
+            lines += [title, "-" * len(title), "", f".. automodule:: {module}"]
+            # A package's docstring only: its members are re-exports, documented where defined.
+            if not found[module]:
+                lines += ["   :members:", "   :show-inheritance:"]
+            lines.append("")
+        container = nodes.section()
+        source = StringList(lines, f"submodules of {package}")
+        nested_parse_with_titles(self.state, source, container)
+        return container.children
 
 
 def _summary(obj: object) -> str:
@@ -122,6 +171,7 @@ class RepoLinksAsText(SphinxPostTransform):
 def setup(app):
     """Register the directive and the docstring hook."""
     app.add_directive("handsim-exports", HandsimExports)
+    app.add_directive("handsim-submodules", HandsimSubmodules)
     app.connect("autodoc-process-docstring", _titles_to_rubrics)
     app.connect("autodoc-skip-member", _skip_numpy_defaults)
     app.add_post_transform(RepoLinksAsText)
