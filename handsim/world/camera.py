@@ -134,7 +134,7 @@ CAMERA_PRESETS: dict[str, CameraIntrinsics] = {
     # BigHand2.2M / HANDS17 / FPHA, Intel RealSense SR300.
     "sr300": CameraIntrinsics(640, 480, 475.065948, 475.065857, 315.944855, 245.287079, "sr300"),
 }
-"""Depth-sensor intrinsics of the hand-pose datasets, by preset name."""
+"""Depth-sensor intrinsics of the hand-pose datasets (facts section 6.1)."""
 
 
 def camera_preset(name: str) -> CameraIntrinsics:
