@@ -790,7 +790,7 @@ def _clamp(length_mm: float, spread_mm: float, thickness_mm: float) -> _Geometry
 
 # Registry -------------------------------------------------------------------------------------
 
-# (YCB-V id, name, extents x, y, z in mm, diameter mm, mass g): facts table 5.1.
+# (YCB-V id, name, extents x, y, z in mm, diameter mm, mass g). Masses: Calli et al. 2015.
 _FACTS: tuple[tuple[int, str, tuple[float, float, float], float, float], ...] = (
     (1, "002_master_chef_can", (103, 140, 103), 172.2, 414),
     (2, "003_cracker_box", (164, 215, 72), 269.6, 411),
