@@ -11,7 +11,7 @@ __all__ = [
 ]
 
 # Public name -> submodule; a name is imported on first access, so this package stays free of
-# torch until a torch estimator is asked for (STYLE.md rule 3).
+# torch until a torch estimator is asked for (`import handsim.estimators` never imports torch).
 _LAZY_NAMES = {
     "CenterOfMassLocalizer": "handsim.estimators.com",
     "OracleEstimator": "handsim.estimators.oracle",

@@ -1,6 +1,6 @@
 """The estimator protocol: what every hand / hand-object pose estimator returns and accepts.
 
-This module is the contract between the layers (DESIGN.md "Layers"): envs run any object that
+This module is the contract between the layers (docs/architecture.md): envs run any object that
 satisfies :class:`Estimator`, and estimators (``handsim.estimators``) implement it; neither
 imports the other. It imports neither torch nor the envs nor the estimators.
 

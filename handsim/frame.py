@@ -126,7 +126,7 @@ class Contact:
 
 @dataclasses.dataclass(frozen=True)
 class Frame:
-    """One labelled view (DESIGN.md "The Frame"); arrays are read-only copies.
+    """One labelled view (docs/architecture.md, "Data flow"); arrays are read-only copies.
 
     Attributes:
         camera: camera name.

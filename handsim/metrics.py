@@ -3,9 +3,9 @@
 Units
 -----
 Every input is SI: keypoints and model points in metres, poses as (4, 4) homogeneous
-``T_cam_from_obj`` transforms in metres (DESIGN.md). Every error this module returns is reported
-in millimetres (names end in ``_mm``) or pixels (``_px``); thresholds are given in the same
-units. Fractions (accuracies, F(tau), PCK, AUC) are in ``[0, 1]``, not percent.
+``T_cam_from_obj`` transforms in metres (``docs/conventions.md``). Every error this module
+returns is reported in millimetres (names end in ``_mm``) or pixels (``_px``); thresholds are
+given in the same units. Fractions (accuracies, F(tau), PCK, AUC) are in ``[0, 1]``, not percent.
 
 Hand keypoints (canonical order of :data:`handsim.hand.keypoints.KEYPOINT_NAMES`; any ``J`` works)
 ------------------------------------------------------------------------------------------------

@@ -266,7 +266,7 @@ OBJECT_SHAPE_CLASSES: dict[str, ShapeClass] = {
     "052_extra_large_clamp": "clamp",
     "061_foam_brick": "box",
 }
-"""Shape class of each YCB-Video object (after the rpng/suo_slam labels, facts table 5.1)."""
+"""Shape class of each YCB-Video object (after the rpng/suo_slam labels)."""
 
 
 @dataclasses.dataclass(frozen=True)

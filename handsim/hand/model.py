@@ -98,7 +98,7 @@ THICKNESS_SCALE_RANGE = (0.7, 1.4)
 
 HAND_SIZES: dict[str, float] = {"small": 0.165, "medium": 0.189, "large": 0.210}
 """Preset hand lengths, metres: about the women's mean, the ANSUR II mixed mean, and a large
-man's hand (facts table 2.5)."""
+man's hand (surveyed means: men 185-198 mm, women 168-181 mm)."""
 
 
 # Buchholz et al. 1992 segment lengths / hand length (metacarpal, proximal, middle, distal).
@@ -170,7 +170,7 @@ HAND_PHYSICS_OPTIONS: dict[str, object] = {
     "integrator": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
 """MuJoCo options a scene with a hand should use: elliptic cones and impratio 100 (the LEAP
-hand's value, facts section 3.2) keep grasped objects from slipping. Soft friction lets a held
+hand's value in MuJoCo Menagerie) keep grasped objects from slipping. Soft friction lets a held
 object creep at a speed proportional to the friction regularization, which impratio divides:
 a 0.41 kg can held in a power grasp creeps 3.3 mm/s at impratio 10 and 0.4 mm/s at 100."""
 

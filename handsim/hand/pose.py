@@ -15,7 +15,7 @@ Sign conventions: flexion is positive (toward the palm); finger MCP abduction is
 the thumb (radial) for every finger; thumb CMC/MCP abduction is positive away from the palm
 (palmar abduction).
 
-Joint limits, in degrees, with their sources (see ``shared/facts/hand_objects_sensors.md``):
+Joint limits, in degrees, with their sources:
 
 =====================  ===========  =========================================================
 joint                  range (deg)  source

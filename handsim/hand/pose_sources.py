@@ -22,7 +22,7 @@ Sources
 Anatomical couplings (:func:`sample_uniform` with ``coupled=True``)
 ------------------------------------------------------------------
 
-1. **DIP = 2/3 PIP** (Rijpkema & Girard 1991, used by Lin et al. 2000; facts section 1.2): each
+1. **DIP = 2/3 PIP** (Rijpkema & Girard 1991, used by Lin et al. 2000): each
    finger's DIP is ``DIP_PIP_RATIO * PIP`` plus Gaussian noise of ``DIP_NOISE_DEG`` = 5 deg
    standard deviation clipped at 2 sigma (10 deg), then clipped to the DIP limits. The noise is an
    engineering choice [E]: the rule is a mean relation, not an identity.
@@ -51,7 +51,7 @@ Synergy basis
 
 Santello, Flanders & Soechting (1998) recorded 15 joint angles while subjects shaped the hand
 to many imagined objects; the first two principal components explained over 80 % of the variance
-(facts section 4.1). No such recordings ship with handsim, so :func:`synergy_basis` follows
+(J. Neurosci. 18:10105). No such recordings ship with handsim, so :func:`synergy_basis` follows
 their protocol on a *synthetic* library: the postures of every grasp in :data:`GRASP_TYPES` at
 11 closures from 0.5 to 1.0 (that is, holding objects from the largest to the smallest size of
 each type; 143 postures). It is a PCA of handsim's own grasp table, not of human data: the
@@ -63,8 +63,8 @@ numbers below describe this library and are not a measurement.
   the variance over a third component.
 - PC1 is PIP and DIP flexion of all four fingers together (loadings 0.22 to 0.43, MCP small):
   wrapping versus pad grasps. PC2 is MCP flexion of the middle, ring and little fingers with
-  thumb flexion. Compared with GraspIt's human eigengrasps over the 12 finger flexions (facts
-  section 4.1, ``human_eigen_cgdb_refined.xml``; :data:`GRASPIT_EG1_FINGER_FLEXION`): PC1 is
+  thumb flexion. Compared with GraspIt's human eigengrasps over the 12 finger flexions (GraspIt
+  file ``human_eigen_cgdb_refined.xml``; :data:`GRASPIT_EG1_FINGER_FLEXION`): PC1 is
   GraspIt's EG2 ("PIP/DIP versus MCP", ``|cos| = 0.92``) rather than EG1 (``|cos| = 0.28``);
   EG1, finger MCP flexion together, is closest to PC2 (``|cos| = 0.83``). The two planes agree:
   span(PC1, PC2) holds 86 % of EG1's norm and 94 % of EG2's. The order differs because the
@@ -74,7 +74,7 @@ Grasp taxonomy
 --------------
 
 Each :class:`GraspType` carries its GRASP-taxonomy metadata (class power / intermediate /
-precision, opposition palm / pad / side, thumb abducted / adducted; facts section 4.2 [M]) and
+precision, opposition palm / pad / side, thumb abducted / adducted; Feix et al. 2016) and
 two anchor postures. ``closure`` in [0, 1] selects the posture:
 
 - ``closure = 0``: open preshape. The digits that touch the object (:attr:`GraspType.digits`)
@@ -91,16 +91,16 @@ rounded to whole degrees: fingers close from the flat hand with MCP : PIP : DIP 
 cylinder (power wraps; across the palm, its radial end 15 deg more distal, as a handle lies
 from the hypothenar to the index base) or a sphere (power sphere) of the stated size resting
 on the palm. For the precision grasps and the lateral pinch the finger posture is chosen from
-the facts table and the object (sphere, cylinder or disk) is placed against the distal pads.
+typical postures [E] and the object (sphere, cylinder or disk) is placed against the distal pads.
 The thumb's five angles are then optimized (SciPy L-BFGS-B, within limits) to reach the far
 side of the object, or the radial side of the index (lateral pinch, adducted thumb), without
 penetrating the object or the other digits' capsules. ``fixed_hook`` is set by hand.
 
 Mean finger (index to little) MCP / PIP / DIP flexion at the anchors (closure 0.5 -> 1, deg)
-against the facts table's estimates [E]:
+against estimated typical ranges [E]:
 
 ======================  ===================  ==================  ======================
-grasp                   handsim 0.5          handsim 1.0         facts table
+grasp                   handsim 0.5          handsim 1.0         estimate
 ======================  ===================  ==================  ======================
 large_diameter          42 / 42 / 28         54 / 56 / 38        30-45 / 30-50 / 20-30
 medium_wrap             59 / 66 / 44         68 / 80 / 54        45-60 / 60-80 / 40-50
@@ -255,7 +255,7 @@ def _batch_pose(angles: np.ndarray) -> HandPose:
 # 1. Uniform sampling with anatomical couplings ---------------------------------------------
 
 DIP_PIP_RATIO = 2.0 / 3.0
-"""Mean DIP flexion / PIP flexion (Rijpkema & Girard 1991; facts section 1.2)."""
+"""Mean DIP flexion / PIP flexion (Rijpkema & Girard 1991)."""
 DIP_NOISE_DEG = 5.0
 """Standard deviation (deg) of the DIP deviation from ``DIP_PIP_RATIO * PIP``, before clipping
 at 2 sigma [E]."""
@@ -760,7 +760,7 @@ GRASP_TYPES: Mapping[str, GraspType] = types.MappingProxyType(
         )
     }
 )
-"""The grasp types by name (read-only). Class / opposition / thumb from facts section 4.2."""
+"""The grasp types by name (read-only). Class / opposition / thumb from Feix et al. 2016."""
 
 
 _T = TypeVar("_T")
@@ -861,7 +861,7 @@ GRASPIT_EG1_FINGER_FLEXION: np.ndarray = np.array(
     ]
 )
 """(4, 3) GraspIt human-hand eigengrasp EG1 restricted to finger flexion: rows index, middle,
-ring, little; columns MCP, PIP, DIP (``human_eigen_cgdb_refined.xml``, facts section 4.1)."""
+ring, little; columns MCP, PIP, DIP (GraspIt's ``human_eigen_cgdb_refined.xml``)."""
 GRASPIT_EG1_FINGER_FLEXION.setflags(write=False)
 
 _SYNERGY_CLOSURES = np.linspace(0.5, 1.0, 11)

@@ -1,9 +1,9 @@
 """Pinhole cameras with exact intrinsics, in the OpenCV convention, and their MuJoCo cameras.
 
-Conventions (DESIGN.md): the camera frame is OpenCV's (``+x`` right, ``+y`` down, ``+z`` forward);
+Conventions: the camera frame is OpenCV's (``+x`` right, ``+y`` down, ``+z`` forward);
 pixel ``(u, v)`` has its centre at integer coordinates, ``u`` to the right, ``v`` down. MuJoCo
 cameras look along their ``-z`` with ``+y`` up; the rotation between the two frames,
-:data:`R_MJCAM_FROM_CV`, is applied here and nowhere else.
+:data:`R_MJCAM_FROM_CV`, is applied here and nowhere else (``docs/conventions.md``).
 
 Exact intrinsics in MuJoCo: a camera with ``resolution = (W, H)``, ``focal_pixel = (fx, fy)``
 and ``principal_pixel = (px, py)`` renders a point ``(X, Y, Z)`` (OpenCV camera frame) at pixel

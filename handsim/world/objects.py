@@ -11,8 +11,8 @@ meshes are imported by :mod:`handsim.world.mesh_import` (:func:`load_object`).
 
 Conventions:
 
-- Object frame: the model axes of the YCB-Video ``textured_simple.obj`` models (facts table
-  5.1: cans and bottles have their axis along ``y``), origin at the centre of the axis-aligned
+- Object frame: the model axes of the YCB-Video ``textured_simple.obj`` models (PoseCNN's
+  extents: cans and bottles have their axis along ``y``), origin at the centre of the axis-aligned
   bounding box. Extents are the bounding-box sizes along ``x, y, z``.
 - Box corners (:attr:`YCBObject.corners_m`, 8 x 3) are in ``itertools.product`` order of
   (min, max) per axis: corner ``k`` takes the max along ``x`` if bit 2 of ``k`` is set, along
@@ -40,7 +40,7 @@ element                  name                                 notes
 body                     ``obj_<name>``                       explicit mass, COM, inertia
 free joint               ``obj_<name>_root``                  optional
 visual geom / mesh       ``obj_<name>_visual``                group 2, contype=conaffinity=0
-collision geoms / meshes ``obj_<name>_collision_<k>``         group 3, k = 0, 1, ...
+collision geoms/meshes   ``obj_<name>_collision_<k>``         group 3, k = 0, 1, ...
 =======================  ===================================  ================================
 
 A second copy of an object in one scene takes another body name (``body_name=``); every
@@ -371,7 +371,7 @@ class YCBObject:
 
 @dataclasses.dataclass(frozen=True)
 class ObjectSpec:
-    """A registered YCB-Video object: facts (facts table 5.1) and the recipe of its shape.
+    """A registered YCB-Video object: facts (extents, diameter, mass) and the recipe of its shape.
 
     :meth:`build` (or :func:`get_object`) makes the :class:`YCBObject`.
     """

@@ -3,7 +3,7 @@
 Every model is a frozen dataclass with ``apply(depth_m, intrinsics, rng) -> depth_m``: input and
 output are (H, W) float32 depth along the optical axis in metres, ``0.0`` = no measurement; the
 input is not modified, so the clean and the noisy depth of a frame can both be kept. Models
-compose with :class:`Compose`. Sources are in ``shared/facts/hand_objects_sensors.md`` section 6.
+compose with :class:`Compose`. Each step below names the paper it follows.
 
 The models compute in float32 (OpenCV for remapping and morphology, per-thread scratch arrays
 instead of fresh temporaries) and draw random numbers only where they are used: per valid

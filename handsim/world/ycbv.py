@@ -6,8 +6,8 @@ How the shapes are made (sizes in ``_FACTS`` and next to each builder):
 object                          shape
 ==============================  =========================================================
 cans (002, 005, 007)            cylinder along ``y``, end chamfer sized to the diameter
-boxes (003, 004, 008, 009, 036, box of the nominal (Calli) size, tilted 1-12 degrees in the
-061), potted meat can (010)     model frame; 010 has rounded edges (see ``_BOXES``)
+boxes (003, 004, 008, 009,      box of the nominal (Calli) size, tilted 1-12 degrees in the
+036, 061), meat can (010)       model frame; 010 has rounded edges (see ``_BOXES``)
 bottles (006, 021)              lofted elliptic body + shoulder + neck + cap (021's cap is
                                 off-centre, as on the real bottle)
 banana (011)                    tapered tube along a circular arc (fitted radius, span and
@@ -790,7 +790,7 @@ def _clamp(length_mm: float, spread_mm: float, thickness_mm: float) -> _Geometry
 
 # Registry -------------------------------------------------------------------------------------
 
-# (YCB-V id, name, extents x, y, z in mm, diameter mm, mass g): facts table 5.1.
+# (YCB-V id, name, extents x, y, z in mm, diameter mm, mass g). Masses: Calli et al. 2015.
 _FACTS: tuple[tuple[int, str, tuple[float, float, float], float, float], ...] = (
     (1, "002_master_chef_can", (103, 140, 103), 172.2, 414),
     (2, "003_cracker_box", (164, 215, 72), 269.6, 411),
