@@ -8,34 +8,34 @@ are padded to :data:`MAX_OBJECTS` slots (``object_valid`` marks the used ones) a
 strongest normal force kept). Images (depth, segmentation) are not labels: they are added only
 with ``images=True``.
 
-=========================  ==========  =======  ======  ======================================
-key                        shape       dtype    unit    meaning
-=========================  ==========  =======  ======  ======================================
-``valid``                  ()          bool             labels describe a rendered frame
-``K``                      (3, 3)      float64  px      intrinsics (OpenCV)
-``T_cam_from_world``       (4, 4)      float64  m       world to camera (OpenCV frame)
-``keypoints_cam``          (21, 3)     float64  m       keypoints, camera frame
-``keypoints_px``           (21, 2)     float64  px      ``(u, v)``; NaN behind the camera
-``in_frame``               (21,)       bool             in front of the camera and in the image
-``visible``                (21,)       bool             visibility (:mod:`handsim.frame`)
-``occluder``               (21,)       int32            -1 none, -2 self, -3 scene, k object k
-``hand_pose``              (27,)       float64  m, rad  27-DoF pose, world frame
-``hand_length_m``          ()          float64  m       wrist crease to middle fingertip
-``is_left``                ()          bool             left hand
-``hand_occlusion_ratio``   ()          float64          NaN unless it was computed
-``object_valid``           (N,)        bool             slot holds an object
-``object_ycbv_id``         (N,)        int16            YCB-Video id, -1 imported or empty
-``object_T_cam_from_obj``  (N, 4, 4)   float64  m       object pose, camera frame
-``object_corners_cam``     (N, 8, 3)   float64  m       box corners, camera frame
-``object_visib_fract``     (N,)        float64          BOP visible fraction
-``object_px_count_all``    (N,)        int32    px      silhouette pixels of the object alone
-``object_px_count_visib``  (N,)        int32    px      pixels where the full render sees it
-``contact_count``          ()          int16            used contact slots
-``contact_hand_part``      (C,)        int8             segmentation label of the hand part
-``contact_instance``       (C,)        int16            object instance
-``contact_pos_cam``        (C, 3)      float64  m       contact position, camera frame
-``contact_normal_force_n``  (C,)        float64  N       normal force
-=========================  ==========  =======  ======  ======================================
+===========================  ==========  =======  ======  ======================================
+key                          shape       dtype    unit    meaning
+===========================  ==========  =======  ======  ======================================
+``valid``                    ()          bool             labels describe a rendered frame
+``K``                        (3, 3)      float64  px      intrinsics (OpenCV)
+``T_cam_from_world``         (4, 4)      float64  m       world to camera (OpenCV frame)
+``keypoints_cam``            (21, 3)     float64  m       keypoints, camera frame
+``keypoints_px``             (21, 2)     float64  px      ``(u, v)``; NaN behind the camera
+``in_frame``                 (21,)       bool             in front of the camera and in the image
+``visible``                  (21,)       bool             visibility (:mod:`handsim.frame`)
+``occluder``                 (21,)       int32            -1 none, -2 self, -3 scene, k object k
+``hand_pose``                (27,)       float64  m, rad  27-DoF pose, world frame
+``hand_length_m``            ()          float64  m       wrist crease to middle fingertip
+``is_left``                  ()          bool             left hand
+``hand_occlusion_ratio``     ()          float64          NaN unless it was computed
+``object_valid``             (N,)        bool             slot holds an object
+``object_ycbv_id``           (N,)        int16            YCB-Video id, -1 imported or empty
+``object_T_cam_from_obj``    (N, 4, 4)   float64  m       object pose, camera frame
+``object_corners_cam``       (N, 8, 3)   float64  m       box corners, camera frame
+``object_visib_fract``       (N,)        float64          BOP visible fraction
+``object_px_count_all``      (N,)        int32    px      silhouette pixels of the object alone
+``object_px_count_visib``    (N,)        int32    px      pixels where the full render sees it
+``contact_count``            ()          int16            used contact slots
+``contact_hand_part``        (C,)        int8             segmentation label of the hand part
+``contact_instance``         (C,)        int16            object instance
+``contact_pos_cam``          (C, 3)      float64  m       contact position, camera frame
+``contact_normal_force_n``   (C,)        float64  N       normal force
+===========================  ==========  =======  ======  ======================================
 
 ``N`` = :data:`MAX_OBJECTS`, ``C`` = :data:`MAX_CONTACTS`. Object slot ``k`` is object instance
 ``k`` (segmentation label ``8 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
