@@ -20,6 +20,7 @@ from handsim.estimator import hand_center
 from handsim.hand.pose import HandPose
 from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
     InvalidScene,
     ObjectPlacement,
     sample_placements,
@@ -148,7 +149,18 @@ class GraspEnv(HandSimEnv):
         return {"target_label": np.array([OBJECT_LABEL_OFFSET + self.target_instance], np.int16)}
 
     def _contact_parts(self) -> int:
-        return len({c.hand_part for c in self.frame.contacts if c.instance == self.target_instance})
+        """Hand parts touching the target (the frame's contacts), read from the physics."""
+        scene, data = self.scene, self.scene.data
+        if data.ncon == 0:
+            return 0
+        geoms = data.contact.geom[: data.ncon]
+        bodies = scene.model.geom_bodyid[geoms]
+        labels = scene.geom_labels[geoms]
+        target = scene.model.body(scene.objects[self.target_instance][0]).id
+        is_hand = (labels >= SEGMENT_LABELS.index("palm")) & (labels < OBJECT_LABEL_OFFSET)
+        parts = set(labels[:, 0][is_hand[:, 0] & (bodies[:, 1] == target)].tolist())
+        parts |= set(labels[:, 1][is_hand[:, 1] & (bodies[:, 0] == target)].tolist())
+        return len(parts)
 
     def _task_info(self) -> dict[str, Any]:
         outcome = self.tracker.outcome()
