@@ -303,6 +303,11 @@ class EnvConfig:
             )
         if frame_skip < 1:
             raise InvalidEnvConfig(f"frame_skip must be a positive integer; received {frame_skip}")
+        if render_mode == "human" and not _HAS_DISPLAY:
+            raise InvalidEnvConfig(
+                "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
+                "'depth_array' headless"
+            )
         if render_mode is not None:
             _choice(render_mode, "render_mode", tuple(HandSimEnv.metadata["render_modes"]))
         camera = _choice(camera, "camera", tuple(CAMERA_PRESETS))
