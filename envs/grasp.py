@@ -50,9 +50,12 @@ class GraspEnv(HandSimEnv):
     absolute (``"pose"``) or normalized deltas (``"delta"``), see :mod:`handsim.envs.base`.
 
     ## Observation Space
-    ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` by ``obs_mode`` and ``target_label``:
+    ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` / ``object_poses`` and
+    ``object_present`` (``"privileged_state"``) by ``obs_mode`` (see
+    :class:`~handsim.envs.base.HandSimEnv`) and ``target_label``:
     (1,) int16 in [8, 13], the segmentation label of the object to lift (8 + its instance).
-    The object's pose and every other label are in ``info["frame"]`` only.
+    Except in ``"privileged_state"``, the object poses and every other label are in
+    ``info["frame"]`` only.
 
     ## Rewards
     Dense (``reward_type="dense"``), the sum of:
@@ -83,7 +86,15 @@ class GraspEnv(HandSimEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. Added later under v0, every default unchanged: ``labels``,
+      ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
+      ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
+      observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
+      the datasets take that form, so the channel axis is an option rather than a new version.
+      Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
+      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
+      ``labels=True``.
     """
 
     max_objects = 1
@@ -260,7 +271,15 @@ class GraspClutterEnv(GraspEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. Added later under v0, every default unchanged: ``labels``,
+      ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
+      ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
+      observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
+      the datasets take that form, so the channel axis is an option rather than a new version.
+      Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
+      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
+      ``labels=True``.
     """
 
     max_objects = 6
