@@ -436,8 +436,8 @@ _VIEWER_AZIMUTH_DEG = 150.0
 _VIEWER_ELEVATION_DEG = -25.0
 _VIEWER_LIFT_MARGIN_M = 0.12
 """Room framed above the objects (a lift is 0.10 m), metres."""
-_VIEWER_SHADOW_SIZE = 1024
-"""Shadow map size of the viewer (MuJoCo's default 4096 costs much more in software GL)."""
+_SHADOW_LIGHT = "key"
+"""The one light that casts shadows in ``render()`` (each shadow is one more pass)."""
 
 # GL objects inherited through fork: kept referenced so that they are never freed (freeing would
 # call into the parent's OpenGL contexts).
@@ -913,7 +913,8 @@ class HandSimEnv(gym.Env):
         depth sensor.
 
         Returns:
-            ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image;
+            ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image (one light
+            casts shadows, with a shadow map about half the image size; no reflections);
             ``depth_array``: the same shape, uint8 colour-mapped depth (:func:`depth_colormap`:
             near red, far blue, no surface black); ``human``: ``None`` (updates the viewer
             window).
@@ -933,8 +934,16 @@ class HandSimEnv(gym.Env):
             w, h = self.config.render_width, self.config.render_height
             model.vis.global_.offwidth = max(model.vis.global_.offwidth, w)
             model.vis.global_.offheight = max(model.vis.global_.offheight, h)
-            model.vis.quality.shadowsize = _VIEWER_SHADOW_SIZE
+            # Cheap shadows (software GL pays per pixel and per pass): one shadow-casting
+            # light, a shadow map about half the image size (MuJoCo's default is 4096), no
+            # reflection pass. The depth sensor's renderer draws no shadows.
+            model.vis.quality.shadowsize = int(
+                np.clip(2 ** int(np.ceil(np.log2(max(w, h)))) // 2, 256, 2048)
+            )
+            for light in range(model.nlight):
+                model.light_castshadow[light] = model.light(light).name == _SHADOW_LIGHT
             self._rgb_renderer = mujoco.Renderer(model, h, w)
+            self._rgb_renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
             if self.render_mode == "depth_array":
                 self._rgb_renderer.enable_depth_rendering()
         self._rgb_renderer.update_scene(self.scene.data, camera=self._viewer_camera)
