@@ -1,6 +1,7 @@
 """Benchmark: env step rates, vector-env scaling, the closed loop, and memory over 10^4 steps.
 
-Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--out FILE.json]``.
+Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--repeats 2]
+[--only {all,vector,obs_modes,rgb_array}] [--out FILE.json]``.
 
 Measured in one run (ICVL camera, 320x240 depth observation, default frame skip 10 = 50 Hz
 control, no sensor noise unless stated):
@@ -205,7 +206,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--memory-steps", type=int, default=10_000)
-    parser.add_argument("--out", default="benchmarks/results/bench_envs.json")
+    parser.add_argument(
+        "--out", default=None, help="default: benchmarks/results/bench_envs[_ONLY].json"
+    )
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument(
         "--only",
@@ -214,6 +217,9 @@ def main() -> None:
         help="run one group of measurements",
     )
     args = parser.parse_args()
+    if args.out is None:
+        suffix = "" if args.only == "all" else f"_{args.only}"
+        args.out = f"benchmarks/results/bench_envs{suffix}.json"
     results: dict = {"cpu_count": os.cpu_count(), "load_avg_1min_start": os.getloadavg()[0]}
     if args.only != "all":
         runs = {
