@@ -17,10 +17,15 @@ handsim/GraspClutter-v0   the same for a named target among 3-6 objects       40
 
 Episode lengths are at the default ``frame_skip=10`` (50 Hz control).
 
-Vector envs: ``gymnasium.vector.AsyncVectorEnv(fns, context="spawn")`` with
-``gym.make("handsim.envs:handsim/Grasp-v0")`` in each ``fn`` (the ``module:id`` form registers the
-ids in the worker). Use ``"spawn"`` or ``"forkserver"``: a worker forked after its parent created
-an OpenGL (EGL) context can hang.
+Vector envs: ``gym.make_vec("handsim/Grasp-v0", num_envs=2, vectorization_mode="async")``
+works with the default start method (fork on Linux) and with
+``vector_kwargs={"context": "spawn"}`` or ``"forkserver"``; OpenGL contexts are made in the
+process that renders (:mod:`handsim.envs.base`). With ``AsyncVectorEnv`` and spawned workers
+use the ``module:id`` form, ``gym.make("handsim.envs:handsim/Grasp-v0")``, which registers the
+ids in the worker.
+
+Scripted experts through ``gym.make``'s wrappers: ``env.get_wrapper_attr("make_expert")()`` (or
+``env.unwrapped.make_expert()``); Gymnasium 1.x does not forward attributes.
 """
 
 from gymnasium.envs.registration import register

@@ -22,10 +22,18 @@ Control (``control_mode``):
   rotation, world axes) and :data:`DELTA_JOINT_SPEED` rad/s (each joint) times the control
   period; the result is clipped to the ``"pose"`` bounds. Out-of-range actions are clipped.
 
-NaN/Inf actions raise ``ValueError``; an action of the wrong shape raises ``ValueError`` naming
-the expected shape. If the physics diverges (a MuJoCo instability warning or a non-finite state)
+A bad action raises :class:`InvalidAction` (a :class:`~handsim.errors.HandSimError` and a
+``ValueError``): the wrong shape, NaN/Inf values, a complex, boolean or non-numeric dtype.
+If the physics diverges (a MuJoCo instability warning or a non-finite state)
 the step returns the last valid observation with ``truncated=True`` and
 ``info["physics_diverged"] = True``; observations are never non-finite.
+
+Processes: OpenGL contexts are made lazily, in the process that renders, and an env that finds
+itself in a new process (a fork of a process that had rendered) drops the inherited contexts
+without touching them and makes its own. ``import handsim`` also sets ``LP_NUM_THREADS=0``
+(unless set) so that Mesa's software rasterizer keeps no worker threads that a forked child
+would wait for; vector envs therefore work with the ``fork``, ``spawn`` and ``forkserver`` start
+methods.
 """
 
 from __future__ import annotations
@@ -34,6 +42,7 @@ import dataclasses
 import os
 from typing import Any
 
+import cv2
 import gymnasium as gym
 import mujoco
 import numpy as np
@@ -45,7 +54,7 @@ from handsim.frame import Frame, FrameRenderer
 from handsim.hand.model import HAND_SIZES, hand_params
 from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import MAX_WRIST_SPEED
-from handsim.world.camera import CAMERA_PRESETS, camera_preset
+from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.world.registry import OBJECTS
 from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
@@ -77,10 +86,29 @@ __all__ = [
     "DEPTH_MAX_M",
     "DELTA_ANGULAR_SPEED",
     "DELTA_JOINT_SPEED",
+    "DEPTH_FORMATS",
+    "InvalidAction",
+    "IMAGE_SIZE_RANGE",
+    "RENDER_SIZE_RANGE",
+    "depth_colormap",
+    "scaled_intrinsics",
 ]
 
-OBS_MODES: tuple[str, ...] = ("depth", "depth+segmentation", "state", "depth+state")
+OBS_MODES: tuple[str, ...] = (
+    "depth",
+    "depth+segmentation",
+    "state",
+    "depth+state",
+    "privileged_state",
+)
 """Observation modes: which keys the observation ``Dict`` has (see :class:`HandSimEnv`)."""
+DEPTH_FORMATS: tuple[str, ...] = ("float32_m", "uint16_mm")
+"""Depth observation encodings: float32 metres, or uint16 millimetres (rounded)."""
+IMAGE_SIZE_RANGE: tuple[int, int] = (8, 2048)
+"""Valid observation image ``width`` / ``height``, pixels (inclusive)."""
+RENDER_SIZE_RANGE: tuple[int, int] = (16, 4096)
+"""Valid ``render_width`` / ``render_height``, pixels (inclusive)."""
+_HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 CONTROL_MODES: tuple[str, ...] = ("pose", "delta")
 """Absolute 27-DoF pose targets, or normalized deltas of the current target."""
 REWARD_TYPES: tuple[str, ...] = ("dense", "sparse")
@@ -117,6 +145,29 @@ _DIVERGENCE_WARNINGS = (
 
 class InvalidEnvConfig(HandSimError, ValueError):
     """An env keyword argument is invalid."""
+
+
+class InvalidAction(HandSimError, ValueError):
+    """An action passed to ``step`` has the wrong shape, dtype or a non-finite value."""
+
+
+def _bool(value: object, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidEnvConfig(f"{name} must be True or False; received {value!r}")
+    return bool(value)
+
+
+def _size(value: object, name: str, valid: tuple[int, int], note: str = "") -> int:
+    lo, hi = valid
+    if (
+        not isinstance(value, (int, np.integer))
+        or isinstance(value, (bool, np.bool_))
+        or not lo <= value <= hi
+    ):
+        raise InvalidEnvConfig(
+            f"{name} must be an integer number of pixels in [{lo}, {hi}]{note}; received {value!r}"
+        )
+    return int(value)
 
 
 def _choice(value: object, name: str, valid: tuple[str, ...]) -> str:
@@ -183,7 +234,20 @@ class EnvConfig:
         control_mode: one of :data:`CONTROL_MODES`.
         reward_type: one of :data:`REWARD_TYPES`.
         frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
-        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or ``"human"``.
+        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or (only with a display)
+            ``"human"``.
+        labels: render and label a :class:`~handsim.frame.Frame` every step (``info["frame"]``);
+            default ``True`` for modes with images, ``False`` for ``"state"`` and
+            ``"privileged_state"`` (nothing is rendered then).
+        width: observation image width, pixels (default: the camera preset's); images are
+            resized from the sensor resolution (nearest neighbour) and ``K`` scaled with them.
+        height: observation image height, pixels (default: the preset's, or ``width`` times the
+            preset's aspect ratio when only ``width`` is given).
+        depth_format: ``"float32_m"`` (metres) or ``"uint16_mm"`` (millimetres, rounded).
+        channel_axis: give images a leading channel axis: depth and segmentation ``(1, H, W)``
+            (what Stable-Baselines3's CNN policies take) instead of ``(H, W)``.
+        render_width: width of ``render()`` images, pixels.
+        render_height: height of ``render()`` images, pixels.
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
     :mod:`handsim.envs`).
@@ -200,6 +264,13 @@ class EnvConfig:
     reward_type: str = "dense"
     frame_skip: int = 10
     render_mode: str | None = None
+    labels: bool = True
+    width: int = 320
+    height: int = 240
+    depth_format: str = "float32_m"
+    channel_axis: bool = False
+    render_width: int = 480
+    render_height: int = 360
 
     @classmethod
     def from_kwargs(
@@ -217,6 +288,13 @@ class EnvConfig:
         reward_type: object = "dense",
         frame_skip: object = 10,
         render_mode: object = None,
+        labels: object = None,
+        width: object = None,
+        height: object = None,
+        depth_format: object = "float32_m",
+        channel_axis: object = False,
+        render_width: object = 480,
+        render_height: object = 360,
     ) -> EnvConfig:
         """Validate the keyword arguments of an env (each error lists the valid values)."""
         if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
@@ -225,20 +303,49 @@ class EnvConfig:
             )
         if frame_skip < 1:
             raise InvalidEnvConfig(f"frame_skip must be a positive integer; received {frame_skip}")
+        if render_mode == "human" and not _HAS_DISPLAY:
+            raise InvalidEnvConfig(
+                "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
+                "'depth_array' headless"
+            )
         if render_mode is not None:
             _choice(render_mode, "render_mode", tuple(HandSimEnv.metadata["render_modes"]))
+        camera = _choice(camera, "camera", tuple(CAMERA_PRESETS))
+        obs_mode = _choice(obs_mode, "obs_mode", OBS_MODES)
+        preset = CAMERA_PRESETS[camera]
+        note = f" (the {camera!r} sensor is {preset.width} x {preset.height})"
+        if width is not None:
+            width = _size(width, "width", IMAGE_SIZE_RANGE, note)
+        if height is not None:
+            height = _size(height, "height", IMAGE_SIZE_RANGE, note)
+        if width is None:
+            width = (
+                preset.width
+                if height is None
+                else max(IMAGE_SIZE_RANGE[0], round(height * preset.width / preset.height))
+            )
+        if height is None:
+            height = max(IMAGE_SIZE_RANGE[0], round(width * preset.height / preset.width))
+        labels = "depth" in obs_mode if labels is None else _bool(labels, "labels")
         return cls(
             objects=_object_names(objects, min_objects) if min_objects or objects else (),
             hand_size_m=_hand_size(hand_size),
             handedness=_choice(handedness, "handedness", HANDEDNESS),
-            camera=_choice(camera, "camera", tuple(CAMERA_PRESETS)),
+            camera=camera,
             viewpoint=_choice(viewpoint, "viewpoint", VIEWPOINTS),
             sensor=_choice(sensor, "sensor", SENSORS),
-            obs_mode=_choice(obs_mode, "obs_mode", OBS_MODES),
+            obs_mode=obs_mode,
             control_mode=_choice(control_mode, "control_mode", CONTROL_MODES),
             reward_type=_choice(reward_type, "reward_type", REWARD_TYPES),
             frame_skip=int(frame_skip),
             render_mode=render_mode,  # type: ignore[arg-type]
+            labels=labels,
+            width=int(width),
+            height=int(height),
+            depth_format=_choice(depth_format, "depth_format", DEPTH_FORMATS),
+            channel_axis=_bool(channel_axis, "channel_axis"),
+            render_width=_size(render_width, "render_width", RENDER_SIZE_RANGE),
+            render_height=_size(render_height, "render_height", RENDER_SIZE_RANGE),
         )
 
 
@@ -325,22 +432,93 @@ class HandDriver:
         return False
 
 
+_VIEWER_AZIMUTH_DEG = 150.0
+_VIEWER_ELEVATION_DEG = -25.0
+_VIEWER_LIFT_MARGIN_M = 0.12
+"""Room framed above the objects (a lift is 0.10 m), metres."""
+_SHADOW_LIGHT = "key"
+"""The one light that casts shadows in ``render()`` (each shadow is one more pass)."""
+
+# GL objects inherited through fork: kept referenced so that they are never freed (freeing would
+# call into the parent's OpenGL contexts).
+_INHERITED_GL: list[object] = []
+
+
+def _nearest_indices(src: int, dst: int) -> np.ndarray:
+    """Source pixel of each destination pixel for a centre-aligned nearest-neighbour resize."""
+    return np.minimum(((np.arange(dst) + 0.5) * (src / dst)).astype(np.intp), src - 1)
+
+
+def scaled_intrinsics(intrinsics: CameraIntrinsics, width: int, height: int) -> CameraIntrinsics:
+    """Intrinsics of an image resized from ``intrinsics``' resolution to ``width`` x ``height``.
+
+    Pixel centres are mapped to pixel centres (``u' = (u + 0.5) * width / W - 0.5``), the
+    mapping of :func:`_nearest_indices`.
+    """
+    sx, sy = width / intrinsics.width, height / intrinsics.height
+    return CameraIntrinsics(
+        width,
+        height,
+        intrinsics.fx * sx,
+        intrinsics.fy * sy,
+        (intrinsics.cx + 0.5) * sx - 0.5,
+        (intrinsics.cy + 0.5) * sy - 0.5,
+        intrinsics.name if (sx, sy) == (1.0, 1.0) else f"{intrinsics.name}@{width}x{height}",
+    )
+
+
+def depth_colormap(depth_m: np.ndarray, near_m: float, far_m: float) -> np.ndarray:
+    """Colour-map depth for people: near red, far blue (turbo), no surface black.
+
+    Args:
+        depth_m: (H, W) depth, metres (0 or beyond ``far_m``: no surface shown).
+        near_m: depth shown red, metres.
+        far_m: depth shown dark blue, metres.
+
+    Returns:
+        (H, W, 3) uint8 RGB image.
+    """
+    t = (far_m - depth_m) / max(far_m - near_m, 1e-6)
+    index = np.clip(t * 255.0, 0, 255).astype(np.uint8)
+    rgb = cv2.applyColorMap(index, cv2.COLORMAP_TURBO)[..., ::-1]
+    rgb[(depth_m <= 0) | (depth_m > far_m)] = 0
+    return np.ascontiguousarray(rgb)
+
+
 class HandSimEnv(gym.Env):
     """Base of handsim's envs (not registered itself); see the module docstring.
 
-    Observation keys by ``obs_mode``: ``depth`` (H, W) float32 metres, 0 = no measurement
-    (modes with ``depth``); ``segmentation`` (H, W) int16 labels
-    (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 8) in ``"depth+segmentation"``;
-    ``proprio`` (54,) float64 = the hand's measured pose vector (27) and velocities (27: wrist
-    linear m/s and angular rad/s, then joint rad/s) in modes with ``state``; plus each task's
-    own keys (its goal or target).
+    Observation keys by ``obs_mode``:
+
+    - ``depth`` (modes with ``depth``): ``(H, W)``, or ``(1, H, W)`` with ``channel_axis=True``;
+      float32 metres in [0, :data:`DEPTH_MAX_M`] (``depth_format="float32_m"``) or uint16
+      millimetres in [0, 10000] (``"uint16_mm"``); 0 = no measurement. ``H, W`` are ``height``
+      and ``width`` (default: the camera preset's resolution).
+    - ``segmentation`` (``"depth+segmentation"``): the same shape, int16 labels
+      (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 8).
+    - ``proprio`` (modes with ``state``): (54,) float64 = the hand's measured pose vector (27)
+      and velocities (27: wrist linear m/s and angular rad/s, then joint rad/s).
+    - ``object_poses`` (``"privileged_state"``, envs with objects): ``(max_objects, 7)``
+      float64, one row per object instance: position (3, metres) and orientation
+      ``quat_wxyz`` (4) of the object's body frame in the world frame; rows of absent
+      instances are zero. ``object_present``: ``(max_objects,)`` int8, 1 for a present
+      instance.
+    - each task's own keys (its goal or target).
+
+    ``info["frame"]`` is the :class:`~handsim.frame.Frame` of the step without its images (the
+    labels) when ``labels`` is on, else ``None`` (then no label work is done, and in the state
+    modes nothing is rendered). :attr:`obs_intrinsics` are the intrinsics of the observation
+    images (the frame's ``K`` is at the sensor resolution).
 
     Subclasses implement :meth:`_episode_objects`, :meth:`_reset_task`, :meth:`_task_reward`
     and may add task observation keys with :meth:`_task_observation_space` and
     :meth:`_task_observation`.
     """
 
-    metadata = {"render_modes": ["rgb_array", "depth_array", "human"], "render_fps": 50}
+    metadata = {
+        "render_modes": ["rgb_array", "depth_array"] + (["human"] if _HAS_DISPLAY else []),
+        "render_fps": 50,
+    }
     max_objects: int = 0
     """Largest number of objects an episode can have (sets the segmentation bound)."""
     use_table: bool = True
@@ -348,24 +526,41 @@ class HandSimEnv(gym.Env):
     def __init__(self, config: EnvConfig) -> None:
         self.config = config
         self.render_mode = config.render_mode
-        if self.render_mode == "human" and not os.environ.get("DISPLAY"):
+        if self.render_mode == "human" and not _HAS_DISPLAY:
             raise InvalidEnvConfig(
                 "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
                 "'depth_array' headless"
             )
         self.intrinsics = camera_preset(config.camera)
+        self.obs_intrinsics = scaled_intrinsics(self.intrinsics, config.width, config.height)
+        """Intrinsics of the observation images (``width`` x ``height``)."""
+        self._resize = None
+        if (config.width, config.height) != (self.intrinsics.width, self.intrinsics.height):
+            self._resize = (
+                _nearest_indices(self.intrinsics.height, config.height)[:, None],
+                _nearest_indices(self.intrinsics.width, config.width)[None, :],
+            )
         self.sensor = sensor_model(config.sensor)
         self.control_dt = config.frame_skip * 0.002
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.control_dt))}
-        h, w = self.intrinsics.height, self.intrinsics.width
+        shape = (config.height, config.width)
+        if config.channel_axis:
+            shape = (1, *shape)
         obs: dict[str, spaces.Space] = {}
         if "depth" in config.obs_mode:
-            obs["depth"] = spaces.Box(0.0, DEPTH_MAX_M, (h, w), np.float32)
+            if config.depth_format == "uint16_mm":
+                top = int(round(DEPTH_MAX_M * 1000))
+                obs["depth"] = spaces.Box(0, top, shape, np.uint16)
+            else:
+                obs["depth"] = spaces.Box(0.0, DEPTH_MAX_M, shape, np.float32)
         if config.obs_mode == "depth+segmentation":
             top = OBJECT_LABEL_OFFSET + max(self.max_objects, 1) - 1
-            obs["segmentation"] = spaces.Box(0, top, (h, w), np.int16)
+            obs["segmentation"] = spaces.Box(0, top, shape, np.int16)
         if "state" in config.obs_mode:
             obs["proprio"] = spaces.Box(-np.inf, np.inf, (54,), np.float64)
+        if config.obs_mode == "privileged_state" and self.max_objects > 0:
+            obs["object_poses"] = spaces.Box(-np.inf, np.inf, (self.max_objects, 7), np.float64)
+            obs["object_present"] = spaces.Box(0, 1, (self.max_objects,), np.int8)
         obs.update(self._task_observation_space())
         self.observation_space = spaces.Dict(obs)
         if config.control_mode == "pose":
@@ -379,9 +574,12 @@ class HandSimEnv(gym.Env):
         )
         self.scene: Scene | None = None
         self._scene_key: tuple | None = None
-        self.frame_renderer: FrameRenderer | None = None
+        self._frame_renderer: FrameRenderer | None = None
         self._rgb_renderer: mujoco.Renderer | None = None
+        self._gl_pid = os.getpid()
         self._viewer: Any = None
+        self._viewer_camera: mujoco.MjvCamera | None = None
+        self._viewer_range_m = (0.1, 2.0)
         self.driver: HandDriver | None = None
         self.frame: Frame | None = None
         self._last_obs: dict[str, np.ndarray] | None = None
@@ -412,6 +610,40 @@ class HandSimEnv(gym.Env):
     def _task_observation(self) -> dict[str, np.ndarray]:
         return {}
 
+    # OpenGL, per process ---------------------------------------------------------------------
+
+    def _own_process(self) -> None:
+        """Drop GL objects inherited through fork (never touching them); see the module doc."""
+        pid = os.getpid()
+        if pid == self._gl_pid:
+            return
+        for obj in (self._frame_renderer, self._rgb_renderer, self._viewer):
+            if obj is not None:
+                _INHERITED_GL.append(obj)
+        self._frame_renderer = None
+        self._rgb_renderer = None
+        self._viewer = None
+        self._gl_pid = pid
+
+    @property
+    def frame_renderer(self) -> FrameRenderer | None:
+        """The scene's frame renderer, made on first use in this process (``None`` before reset).
+
+        A renderer is made only when something is rendered: never in the state modes without
+        labels.
+        """
+        self._own_process()
+        if self._frame_renderer is None and self.scene is not None:
+            self._frame_renderer = FrameRenderer(self.scene, "camera", self.sensor)
+        return self._frame_renderer
+
+    def _close_renderers(self) -> None:
+        self._own_process()
+        if self._frame_renderer is not None:
+            self._frame_renderer.close()
+            self._frame_renderer = None
+        self._close_rgb()
+
     # Scene ---------------------------------------------------------------------------------
 
     def _camera_spec(self, rng: np.random.Generator) -> CameraSpec:
@@ -431,9 +663,7 @@ class HandSimEnv(gym.Env):
         camera = self._camera_spec(rng)
         key = (length, side, tuple(p.name for p in placements))
         if key != self._scene_key:
-            if self.frame_renderer is not None:
-                self.frame_renderer.close()
-            self._close_rgb()
+            self._close_renderers()
             spec = SceneSpec(
                 hand=hand_params(length, side),
                 objects=placements,
@@ -442,7 +672,6 @@ class HandSimEnv(gym.Env):
             )
             self.scene = Scene(spec)
             self._scene_key = key
-            self.frame_renderer = FrameRenderer(self.scene, "camera", self.sensor)
         scene = self.scene
         mujoco.mj_resetData(scene.model, scene.data)
         cam = scene.model.camera("camera").id
@@ -462,7 +691,8 @@ class HandSimEnv(gym.Env):
         """Start an episode: draw the scene and the task from the env's generator.
 
         Returns:
-            ``(observation, info)``; ``info["frame"]`` holds the ground-truth labels.
+            ``(observation, info)``; ``info["frame"]`` holds the ground-truth labels (``None``
+            with ``labels=False``).
         """
         super().reset(seed=seed)
         rng = self.np_random
@@ -473,25 +703,35 @@ class HandSimEnv(gym.Env):
         self.driver.set_target(start)
         self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep)))
         self.elapsed_steps = 0
+        self._frame_viewer()
         obs = self._observe()
         return obs, self._info({})
 
     def _check_action(self, action: object) -> np.ndarray:
+        expected = (
+            "have shape (27,) ([wrist_pos 3, wrist_rotvec 3, angles 21]) and a real numeric dtype"
+        )
         try:
-            action = np.asarray(action, dtype=np.float64)
+            array = np.asarray(action)
         except (TypeError, ValueError):
-            raise ValueError(
-                f"the action must be a numeric array of shape (27,); received {action!r}"
-            ) from None
-        if action.shape != (27,):
-            raise ValueError(
-                f"the action must have shape (27,) ([wrist_pos 3, wrist_rotvec 3, angles 21]); "
-                f"received shape {action.shape}"
+            raise InvalidAction(f"the action must {expected}; received {action!r}") from None
+        if array.dtype.kind == "c":
+            raise InvalidAction(
+                f"the action must {expected}; received a complex array ({array.dtype}); "
+                "complex values are not cut to their real part"
             )
-        if not np.all(np.isfinite(action)):
-            bad = np.nonzero(~np.isfinite(action))[0].tolist()
-            raise ValueError(f"the action has NaN or Inf values at indices {bad}")
-        return action
+        if array.dtype.kind not in "iuf":
+            raise InvalidAction(
+                f"the action must {expected}; received dtype {array.dtype} "
+                f"({type(action).__name__})"
+            )
+        if array.shape != (27,):
+            raise InvalidAction(f"the action must {expected}; received shape {array.shape}")
+        array = array.astype(np.float64)
+        if not np.all(np.isfinite(array)):
+            bad = np.nonzero(~np.isfinite(array))[0].tolist()
+            raise InvalidAction(f"the action has NaN or Inf values at indices {bad}")
+        return array
 
     def _apply_action(self, action: np.ndarray) -> None:
         if self.config.control_mode == "pose":
@@ -510,8 +750,11 @@ class HandSimEnv(gym.Env):
     ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Apply one action for ``frame_skip`` physics steps, render and label the result.
 
+        Out-of-bound values are clipped to the action space (see the module docstring).
+
         Raises:
-            ValueError: for an action of the wrong shape or with NaN/Inf values.
+            InvalidAction: (a ``ValueError``) for an action of the wrong shape or dtype
+                (complex, boolean, non-numeric) or with NaN/Inf values.
         """
         if self.scene is None:
             raise gym.error.ResetNeeded("call reset() before step()")
@@ -527,15 +770,40 @@ class HandSimEnv(gym.Env):
         reward = float(sum(terms.values()))
         return obs, reward, terminated, False, self._info({**terms, **extra})
 
+    def _image(self, image: np.ndarray) -> np.ndarray:
+        if self._resize is not None:
+            image = image[self._resize]
+        return image[None] if self.config.channel_axis else image
+
     def _observe(self) -> dict[str, np.ndarray]:
-        self.frame = self.frame_renderer.render(self.np_random)
+        config = self.config
+        depth = segmentation = None
+        if config.labels:
+            self.frame = self.frame_renderer.render(self.np_random)
+            depth, segmentation = self.frame.depth, self.frame.segmentation
+        else:
+            self.frame = None
+            if "depth" in config.obs_mode:
+                # Images without labels: one draw, no label work.
+                renderer = self.frame_renderer
+                depth_clean, geom_id = renderer.renderer.render(self.scene.data)
+                depth = self.sensor.apply(depth_clean, self.intrinsics, self.np_random)
+                if config.obs_mode == "depth+segmentation":
+                    segmentation = self.scene.segment(geom_id)
         obs: dict[str, np.ndarray] = {}
-        if "depth" in self.config.obs_mode:
-            obs["depth"] = np.minimum(self.frame.depth, np.float32(DEPTH_MAX_M))
-        if self.config.obs_mode == "depth+segmentation":
-            obs["segmentation"] = self.frame.segmentation
-        if "state" in self.config.obs_mode:
+        if "depth" in config.obs_mode:
+            depth = self._image(depth)
+            if config.depth_format == "uint16_mm":
+                mm = np.rint(np.minimum(depth, np.float32(DEPTH_MAX_M)) * np.float32(1000.0))
+                obs["depth"] = mm.astype(np.uint16)
+            else:
+                obs["depth"] = np.minimum(depth, np.float32(DEPTH_MAX_M))
+        if config.obs_mode == "depth+segmentation":
+            obs["segmentation"] = self._image(np.asarray(segmentation, dtype=np.int16))
+        if "state" in config.obs_mode:
             obs["proprio"] = self._proprio()
+        if "object_poses" in self.observation_space.spaces:
+            obs.update(self._object_poses())
         obs.update(self._task_observation())
         self._last_obs = obs
         return {k: v.copy() for k, v in obs.items()}
@@ -546,9 +814,20 @@ class HandSimEnv(gym.Env):
         velocities = np.concatenate([data.qvel[root : root + 6], data.qvel[binding.joint_dof]])
         return np.concatenate([binding.pose(data).vector, velocities])
 
+    def _object_poses(self) -> dict[str, np.ndarray]:
+        poses = np.zeros((self.max_objects, 7))
+        present = np.zeros(self.max_objects, dtype=np.int8)
+        data = self.scene.data
+        for k, (body, _) in enumerate(self.scene.objects):
+            b = self.scene.model.body(body).id
+            poses[k, :3] = data.xpos[b]
+            poses[k, 3:] = data.xquat[b]
+            present[k] = 1
+        return {"object_poses": poses, "object_present": present}
+
     def _info(self, extra: dict[str, Any]) -> dict[str, Any]:
         return {
-            "frame": _without_images(self.frame),
+            "frame": _without_images(self.frame) if self.frame is not None else None,
             "time_s": float(self.scene.data.time),
             "target_pose": self.target.vector.copy(),
             "physics_diverged": False,
@@ -593,32 +872,88 @@ class HandSimEnv(gym.Env):
 
     # Rendering -----------------------------------------------------------------------------
 
+    def _frame_viewer(self) -> None:
+        """Aim the viewer camera at the hand and the objects (once per episode, at reset).
+
+        The camera looks from the user's right, 25 deg down, at the centre of the hand's
+        keypoints, the objects' boxes and the room above them for a lift, from a distance at
+        which all of it fits the vertical field of view.
+        """
+        scene, data = self.scene, self.scene.data
+        keypoints = scene.binding.keypoints(data)
+        # The forearm stub behind the wrist (keypoint 0), away from the middle MCP (9).
+        back = keypoints[0] - keypoints[9]
+        forearm = keypoints[0] + 0.1 * back / max(float(np.linalg.norm(back)), 1e-9)
+        points = [keypoints, forearm[None]]
+        for body, obj in scene.objects:
+            b = scene.model.body(body).id
+            corners = obj.corners_m @ data.xmat[b].reshape(3, 3).T + data.xpos[b]
+            points += [corners, corners + [0.0, 0.0, _VIEWER_LIFT_MARGIN_M]]
+        points = np.concatenate(points)
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        center = (lo + hi) / 2
+        radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.08)
+        aspect = self.config.render_width / self.config.render_height
+        half_fov = np.deg2rad(scene.model.vis.global_.fovy) / 2
+        half_fov = min(half_fov, np.arctan(np.tan(half_fov) * aspect))
+        distance = 1.1 * radius / np.sin(half_fov)
+        camera = mujoco.MjvCamera()
+        camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        camera.lookat[:] = center
+        camera.distance = distance
+        camera.azimuth = _VIEWER_AZIMUTH_DEG
+        camera.elevation = _VIEWER_ELEVATION_DEG
+        self._viewer_camera = camera
+        self._viewer_range_m = (max(distance - 1.5 * radius, 0.01), distance + 1.5 * radius)
+
     def render(self) -> np.ndarray | None:
-        """Render by ``render_mode``.
+        """Render by ``render_mode``, from a viewer camera that frames the hand and the objects.
+
+        The viewer camera is aimed at each reset (:meth:`_frame_viewer`); it is not the
+        depth sensor.
 
         Returns:
-            ``rgb_array``: (H, W, 3) uint8 colour image of the env camera; ``depth_array``:
-            (H, W) float32 sensor depth of the last frame, metres; ``human``: ``None`` (updates
-            the viewer window).
+            ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image (one light
+            casts shadows, with a shadow map about half the image size; no reflections);
+            ``depth_array``: the same shape, uint8 colour-mapped depth (:func:`depth_colormap`:
+            near red, far blue, no surface black); ``human``: ``None`` (updates the viewer
+            window).
         """
         if self.render_mode is None or self.scene is None:
             return None
-        if self.render_mode == "depth_array":
-            return self.frame.depth.copy()
-        if self.render_mode == "rgb_array":
-            if self._rgb_renderer is None:
-                h, w = self.intrinsics.height, self.intrinsics.width
-                self._rgb_renderer = mujoco.Renderer(self.scene.model, h, w)
-            self._rgb_renderer.update_scene(self.scene.data, camera="camera")
-            return self._rgb_renderer.render()
-        if self._viewer is None:
-            from mujoco import viewer
+        self._own_process()
+        if self.render_mode == "human":
+            if self._viewer is None:
+                from mujoco import viewer
 
-            self._viewer = viewer.launch_passive(self.scene.model, self.scene.data)
-        self._viewer.sync()
-        return None
+                self._viewer = viewer.launch_passive(self.scene.model, self.scene.data)
+            self._viewer.sync()
+            return None
+        if self._rgb_renderer is None:
+            model = self.scene.model
+            w, h = self.config.render_width, self.config.render_height
+            model.vis.global_.offwidth = max(model.vis.global_.offwidth, w)
+            model.vis.global_.offheight = max(model.vis.global_.offheight, h)
+            # Cheap shadows (software GL pays per pixel and per pass): one shadow-casting
+            # light, a shadow map about half the image size (MuJoCo's default is 4096), no
+            # reflection pass. The depth sensor's renderer draws no shadows.
+            model.vis.quality.shadowsize = int(
+                np.clip(2 ** int(np.ceil(np.log2(max(w, h)))) // 2, 256, 2048)
+            )
+            for light in range(model.nlight):
+                model.light_castshadow[light] = model.light(light).name == _SHADOW_LIGHT
+            self._rgb_renderer = mujoco.Renderer(model, h, w)
+            self._rgb_renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            if self.render_mode == "depth_array":
+                self._rgb_renderer.enable_depth_rendering()
+        self._rgb_renderer.update_scene(self.scene.data, camera=self._viewer_camera)
+        image = self._rgb_renderer.render()
+        if self.render_mode == "depth_array":
+            return depth_colormap(image, *self._viewer_range_m)
+        return image
 
     def _close_rgb(self) -> None:
+        self._own_process()
         if self._rgb_renderer is not None:
             self._rgb_renderer.close()
             self._rgb_renderer = None
@@ -628,9 +963,6 @@ class HandSimEnv(gym.Env):
 
     def close(self) -> None:
         """Free the renderers (idempotent)."""
-        if self.frame_renderer is not None:
-            self.frame_renderer.close()
-            self.frame_renderer = None
-        self._close_rgb()
+        self._close_renderers()
         self.scene = None
         self._scene_key = None

@@ -20,6 +20,7 @@ from handsim.estimator import hand_center
 from handsim.hand.pose import HandPose
 from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
     InvalidScene,
     ObjectPlacement,
     sample_placements,
@@ -49,9 +50,12 @@ class GraspEnv(HandSimEnv):
     absolute (``"pose"``) or normalized deltas (``"delta"``), see :mod:`handsim.envs.base`.
 
     ## Observation Space
-    ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` by ``obs_mode`` and ``target_label``:
+    ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` / ``object_poses`` and
+    ``object_present`` (``"privileged_state"``) by ``obs_mode`` (see
+    :class:`~handsim.envs.base.HandSimEnv`) and ``target_label``:
     (1,) int16 in [8, 13], the segmentation label of the object to lift (8 + its instance).
-    The object's pose and every other label are in ``info["frame"]`` only.
+    Except in ``"privileged_state"``, the object poses and every other label are in
+    ``info["frame"]`` only.
 
     ## Rewards
     Dense (``reward_type="dense"``), the sum of:
@@ -82,7 +86,15 @@ class GraspEnv(HandSimEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. Added later under v0, every default unchanged: ``labels``,
+      ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
+      ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
+      observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
+      the datasets take that form, so the channel axis is an option rather than a new version.
+      Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
+      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
+      ``labels=True``.
     """
 
     max_objects = 1
@@ -148,7 +160,18 @@ class GraspEnv(HandSimEnv):
         return {"target_label": np.array([OBJECT_LABEL_OFFSET + self.target_instance], np.int16)}
 
     def _contact_parts(self) -> int:
-        return len({c.hand_part for c in self.frame.contacts if c.instance == self.target_instance})
+        """Hand parts touching the target (the frame's contacts), read from the physics."""
+        scene, data = self.scene, self.scene.data
+        if data.ncon == 0:
+            return 0
+        geoms = data.contact.geom[: data.ncon]
+        bodies = scene.model.geom_bodyid[geoms]
+        labels = scene.geom_labels[geoms]
+        target = scene.model.body(scene.objects[self.target_instance][0]).id
+        is_hand = (labels >= SEGMENT_LABELS.index("palm")) & (labels < OBJECT_LABEL_OFFSET)
+        parts = set(labels[:, 0][is_hand[:, 0] & (bodies[:, 1] == target)].tolist())
+        parts |= set(labels[:, 1][is_hand[:, 1] & (bodies[:, 0] == target)].tolist())
+        return len(parts)
 
     def _task_info(self) -> dict[str, Any]:
         outcome = self.tracker.outcome()
@@ -248,7 +271,15 @@ class GraspClutterEnv(GraspEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. Added later under v0, every default unchanged: ``labels``,
+      ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
+      ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
+      observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
+      the datasets take that form, so the channel axis is an option rather than a new version.
+      Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
+      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
+      ``labels=True``.
     """
 
     max_objects = 6

@@ -44,7 +44,8 @@ class HandPoseEnv(HandSimEnv):
 
     ## Observation Space
     ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` by ``obs_mode`` (see
-    :class:`~handsim.envs.base.HandSimEnv`) and ``goal``: (27,) float64 goal pose vector
+    :class:`~handsim.envs.base.HandSimEnv`; ``"privileged_state"`` equals ``"state"`` here: there
+    are no objects) and ``goal``: (27,) float64 goal pose vector
     (world frame). Labels (keypoints, visibility, ...) are in ``info["frame"]``, never in the
     observation.
 
@@ -67,11 +68,21 @@ class HandPoseEnv(HandSimEnv):
 
     ## Arguments
     ``hand_size``, ``handedness``, ``camera``, ``viewpoint``, ``sensor``, ``obs_mode``,
-    ``control_mode``, ``reward_type``, ``frame_skip``, ``render_mode``: see
-    :class:`~handsim.envs.base.EnvConfig`.
+    ``control_mode``, ``reward_type``, ``frame_skip``, ``render_mode``, ``labels``, ``width``,
+    ``height``, ``depth_format``, ``channel_axis``, ``render_width``, ``render_height``: see
+    :class:`~handsim.envs.base.EnvConfig` (the reference with every valid value is
+    ``docs/envs.md``).
 
     ## Version History
-    - v0: initial version.
+    - v0: initial version. Added later under v0, every default unchanged: ``labels``,
+      ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
+      ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
+      observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
+      the datasets take that form, so the channel axis is an option rather than a new version.
+      Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
+      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
+      ``labels=True``.
     """
 
     use_table = False

@@ -77,8 +77,11 @@ def perceived_state_inputs(
 class EstimatorLoop(gym.Wrapper):
     """Run an estimator on every observation; report its estimate, errors and time in ``info``.
 
-    At every ``reset`` and ``step`` the wrapped env's depth observation and the frame's ``K``
-    go to ``estimator.predict``. An estimator that implements
+    At every ``reset`` and ``step`` the wrapped env's depth observation (as (H, W) float32
+    metres, whatever its ``depth_format`` and ``channel_axis``) and its ``K``
+    (:attr:`~handsim.envs.base.HandSimEnv.obs_intrinsics`, scaled with ``width``/``height``) go
+    to ``estimator.predict``. It wraps a bare env or one made by ``gym.make`` (it reaches the
+    handsim env through ``env.unwrapped``). An estimator that implements
     :class:`~handsim.estimator.PrivilegedEstimator` (an oracle) first gets the step's
     ground-truth frame through ``observe_truth``. ``info`` then holds:
 
@@ -96,13 +99,13 @@ class EstimatorLoop(gym.Wrapper):
     the first valid estimate of an episode the truth is used.
 
     Args:
-        env: a handsim env with a depth observation (``obs_mode`` with ``depth``).
+        env: a handsim env with a depth observation (``obs_mode`` with ``depth``) and labels.
         estimator: any object with the :class:`~handsim.estimator.Estimator` protocol.
         feedback: experts act on the estimate instead of the truth.
 
     Raises:
-        InvalidEnvConfig: for an env without depth observations or an estimator without the
-            protocol.
+        InvalidEnvConfig: for an env without depth observations or labels, an estimator class
+            instead of an instance, or an estimator without the protocol.
     """
 
     def __init__(self, env: gym.Env, estimator: Estimator, *, feedback: bool = False) -> None:
@@ -116,6 +119,16 @@ class EstimatorLoop(gym.Wrapper):
             raise InvalidEnvConfig(
                 f"EstimatorLoop needs depth observations; the env has obs_mode="
                 f"{base.config.obs_mode!r}; use 'depth', 'depth+segmentation' or 'depth+state'"
+            )
+        if not base.config.labels:
+            raise InvalidEnvConfig(
+                "EstimatorLoop scores estimates against the frame labels; the env has "
+                "labels=False; make it with labels=True"
+            )
+        if isinstance(estimator, type):
+            raise InvalidEnvConfig(
+                f"estimator must be an instance; received the class {estimator.__name__}; "
+                f"pass {estimator.__name__}(...)"
             )
         if not isinstance(estimator, Estimator):
             raise InvalidEnvConfig(
@@ -135,7 +148,13 @@ class EstimatorLoop(gym.Wrapper):
         if self._privileged:
             self.estimator.observe_truth(frame)
         start = time.perf_counter()
-        estimate = self.estimator.predict(obs["depth"], frame.K)
+        base = self.unwrapped
+        depth = obs["depth"]
+        if base.config.channel_axis:
+            depth = depth[0]
+        if depth.dtype == np.uint16:  # depth_format="uint16_mm"
+            depth = depth.astype(np.float32) / np.float32(1000.0)
+        estimate = self.estimator.predict(depth, base.obs_intrinsics.K)
         elapsed = time.perf_counter() - start
         errors = estimate_errors(
             estimate, frame, objects=[o for _, o in self.unwrapped.scene.objects]

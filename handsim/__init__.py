@@ -2,13 +2,17 @@
 
 ``import handsim`` never imports torch (estimators live in ``handsim.estimators``).
 Without a display and without ``MUJOCO_GL`` set, it selects MuJoCo's headless EGL backend
-(this must happen before MuJoCo is first imported).
+(this must happen before MuJoCo is first imported), and it sets ``LP_NUM_THREADS=0`` unless set,
+so that a process forked after rendering can render (Mesa's llvmpipe keeps no worker threads).
 """
 
 import os
 
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
+# Mesa's software rasterizer (llvmpipe) renders in the calling thread: a process forked after
+# rendering (a vector env's worker) would otherwise wait forever for the parent's threads.
+os.environ.setdefault("LP_NUM_THREADS", "0")
 
 # ruff: noqa: E402 (the backend is chosen before MuJoCo is imported)
 
