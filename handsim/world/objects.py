@@ -62,7 +62,7 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 import trimesh
-from scipy.spatial.distance import pdist
+from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError
@@ -480,8 +480,7 @@ def _finalize(
     points, _ = trimesh.sample.sample_surface(visual, n_model_points, seed=seed)
     points = np.asarray(points, dtype=np.float64)
 
-    hull_vertices = _hull_vertices(np.asarray(visual.vertices))
-    diameter = float(pdist(hull_vertices).max()) if len(hull_vertices) > 1 else 0.0
+    diameter = point_set_diameter(_hull_vertices(np.asarray(visual.vertices)))
 
     lo, hi = visual.bounds
     corners = np.array([[(lo, hi)[b][i] for i, b in enumerate(bits)] for bits in _CORNER_BITS])
@@ -585,10 +584,91 @@ def _rotation_to_z(up: np.ndarray) -> Rotation:
     return Rotation.from_rotvec(axis / s * math.atan2(s, c))
 
 
+def point_set_diameter(points: np.ndarray, leaf_size: int = 32) -> float:
+    """Exact largest distance between two of the (N, 3) ``points``, in O(N) memory.
+
+    Branch and bound: the points are split into boxes of at most ``leaf_size`` points (a k-d
+    split on the longest axis); a pair of boxes is compared point by point only when the
+    largest distance between the boxes can beat the best distance found so far (started from
+    the extreme points along 13 axes). The result is a distance between two input points, so
+    it is exact, not an estimate; memory stays O(N) (no N x N distance matrix).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(pts)
+    if n < 2:
+        return 0.0
+    if n <= 8 * leaf_size:
+        return _max_cross_distance(pts, pts)
+    dirs = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], float)
+    proj = pts @ dirs.T
+    extreme = pts[np.unique(np.argmax(proj, axis=0))]
+    best = _max_cross_distance(extreme, extreme)
+    # A point farther than `best` from some point lies beyond best - R of the centre.
+    center = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    radius = np.linalg.norm(pts - center, axis=1)
+    pts = pts[radius + radius.max() >= best]
+    n = len(pts)
+    if n <= 8 * leaf_size:
+        return max(best, _max_cross_distance(pts, pts))
+
+    leaves: list[np.ndarray] = []
+    stack = [np.arange(n)]
+    while stack:
+        idx = stack.pop()
+        if len(idx) <= leaf_size:
+            leaves.append(idx)
+            continue
+        sub = pts[idx]
+        axis = int(np.argmax(np.ptp(sub, axis=0)))
+        half = len(idx) // 2
+        order = np.argpartition(sub[:, axis], half)
+        stack += [idx[order[:half]], idx[order[half:]]]
+    m = len(leaves)
+    # Leaves padded to leaf_size by repeating a point (a repeat does not change a maximum).
+    padded = np.empty((m, leaf_size, 3))
+    for k, idx in enumerate(leaves):
+        padded[k] = pts[np.resize(idx, leaf_size)]
+    lo, hi = padded.min(axis=1), padded.max(axis=1)
+    chunk = max(1, 2_000_000 // m)
+    pairs_a, pairs_b, bounds = [], [], []
+    for start in range(0, m, chunk):
+        a = np.arange(start, min(m, start + chunk))
+        # Largest distance between two axis-aligned boxes (an upper bound for their points).
+        gap = np.maximum(np.abs(hi[a, None] - lo[None]), np.abs(hi[None] - lo[a, None]))
+        ub = np.sqrt(np.einsum("ijk,ijk->ij", gap, gap))
+        ia, ib = np.nonzero((ub > best) & (a[:, None] <= np.arange(m)[None]))
+        pairs_a.append(a[ia])
+        pairs_b.append(ib)
+        bounds.append(ub[ia, ib])
+    pa, pb, ub = (np.concatenate(x) for x in (pairs_a, pairs_b, bounds))
+    order = np.argsort(-ub)
+    pa, pb, ub = pa[order], pb[order], ub[order]
+    batch = max(1, 1_000_000 // (leaf_size * leaf_size))
+    start = 0
+    while start < len(ub) and ub[start] > best:
+        stop = start + batch
+        sel = slice(start, stop)
+        keep = ub[sel] > best
+        d = padded[pa[sel][keep]][:, :, None, :] - padded[pb[sel][keep]][:, None, :, :]
+        best = max(best, math.sqrt(float(np.einsum("ijkl,ijkl->ijk", d, d).max())))
+        start = stop
+    return float(best)
+
+
+def _max_cross_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance between a point of ``a`` (N, 3) and one of ``b`` (M, 3), chunked."""
+    best = 0.0
+    step = max(1, 1_000_000 // max(len(b), 1))
+    for start in range(0, len(a), step):
+        d = a[start : start + step, None, :] - b[None, :, :]
+        best = max(best, float(np.einsum("ijk,ijk->ij", d, d).max()))
+    return math.sqrt(best)
+
+
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
     """Vertices of the convex hull of (N, 3) points (all points if the hull is degenerate)."""
     try:
-        return np.asarray(trimesh.convex.convex_hull(points).vertices)
+        return points[ConvexHull(points).vertices]
     except Exception:  # noqa: BLE001 - qhull fails on flat or tiny point sets
         return points
 
