@@ -21,6 +21,7 @@ __all__ = [
     "boolean",
     "choice",
     "integer",
+    "is_real",
     "real_array",
     "real_scalar",
     "show",
@@ -36,7 +37,8 @@ def show(value: object, limit: int = 80) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _is_real(value: object) -> bool:
+def is_real(value: object) -> bool:
+    """Whether ``value`` is a real number (int, float, numpy real; not bool, not complex)."""
     if isinstance(value, (bool, np.bool_)):
         return False
     return isinstance(value, (numbers.Real, np.integer, np.floating))
@@ -72,7 +74,7 @@ def real_scalar(
     if isinstance(value, np.ndarray) and value.shape == ():
         value = value[()]
     valid = _range_text(lo, hi, lo_open, hi_open) + (f" ({unit})" if unit else "")
-    if not _is_real(value):
+    if not is_real(value):
         raise error(f"{name} must be {valid}, got {show(value)} ({type(value).__name__})")
     x = float(value)
     ok = math.isfinite(x) and (x > lo if lo_open else x >= lo) and (x < hi if hi_open else x <= hi)

@@ -158,6 +158,7 @@ from typing import Literal, TypeVar
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from handsim._validate import is_real, show
 from handsim.errors import InvalidPose, UnknownName
 from handsim.hand.pose import DIGITS, FINGERS, JOINT_LIMITS, JOINT_NAMES, NUM_ANGLES, HandPose
 
@@ -220,27 +221,27 @@ def _check_rng(rng: object) -> np.random.Generator:
     return rng
 
 
+MAX_SAMPLES = 1_000_000
+"""Largest number of poses one call returns (a batch or a motion), so memory stays sane."""
+
+
 def _check_count(n: object) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise InvalidPose(f"n must be an integer >= 1 (number of poses); received {n!r}")
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_SAMPLES:
+        raise InvalidPose(
+            f"n must be an integer in [1, {MAX_SAMPLES}] (number of poses); received {show(n)}"
+        )
     return int(n)
 
 
 def _check_positive(value: object, name: str, unit: str) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
+    v = float(value) if is_real(value) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(v) and v > 0.0):
         raise InvalidPose(f"{name} must be a finite number > 0 {unit}; received {value!r}")
     return v
 
 
 def _check_nonnegative(value: object, name: str, unit: str) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
+    v = float(value) if is_real(value) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(v) and v >= 0.0):
         raise InvalidPose(f"{name} must be a finite number >= 0 {unit}; received {value!r}")
     return v
@@ -1272,7 +1273,11 @@ def _assemble(
 
 
 def _check_holds(hold: float | Sequence[float], count: int) -> np.ndarray:
-    h = np.asarray(hold, dtype=np.float64)
+    try:
+        h = np.asarray(hold)
+    except ValueError:
+        h = np.full(count, math.nan)
+    h = h.astype(np.float64) if h.dtype.kind in "iuf" else np.full(count, math.nan)
     if h.ndim == 0:
         h = np.full(count, float(h))
     if h.shape != (count,) or not np.all(np.isfinite(h) & (h >= 0.0)):
@@ -1319,7 +1324,14 @@ def smooth_motion(
     dt = _check_positive(dt, "dt", "seconds")
     limits = _speed_limits(max_joint_speed, max_wrist_speed, max_wrist_angular_speed)
     holds = _check_holds(hold, len(frames))
-    return _assemble(frames, _segment_durations(frames, *limits), holds, dt)
+    durations = _segment_durations(frames, *limits)
+    steps = 1 + sum(math.ceil(t / dt - 1e-9) for t in (*durations, *holds))
+    if steps > MAX_SAMPLES:
+        raise InvalidPose(
+            f"the motion would have {steps} samples, more than {MAX_SAMPLES}; use a larger dt "
+            f"(received {dt!r} s) or shorter holds"
+        )
+    return _assemble(frames, durations, holds, dt)
 
 
 MOTION_SOURCES: tuple[str, ...] = ("gestures", "grasps", "synergy", "uniform")
@@ -1401,6 +1413,13 @@ def random_motion(
         raise InvalidPose(f"wrist_rotation_rad must be in [0, pi]; received {wrist_rotation_rad!r}")
     _check_nonnegative(noise_deg, "noise_deg", "(degrees)")
 
+    if dt > duration:
+        raise InvalidPose(f"dt must be <= duration ({duration!r} s); received {dt!r} s")
+    if duration / dt > MAX_SAMPLES:
+        raise InvalidPose(
+            f"duration / dt must be at most {MAX_SAMPLES} samples; received duration={duration!r}"
+            f" s, dt={dt!r} s"
+        )
     num_samples = math.floor(duration / dt + 1e-9) + 1
     frames: list[HandPose] = []
     durations: list[float] = []
@@ -1427,7 +1446,8 @@ def random_motion(
             )
             durations.append(seg)
             elapsed += math.ceil(seg / dt - 1e-9) * dt
-        holds.append(rng.uniform(h_lo, h_hi))
+        # A hold longer than the motion is cut anyway (and must not be allocated).
+        holds.append(min(rng.uniform(h_lo, h_hi), (num_samples + 1) * dt))
         elapsed += math.ceil(holds[-1] / dt - 1e-9) * dt
         frames.append(frame)
     motion = _assemble(frames, np.asarray(durations), np.asarray(holds), dt)
@@ -1436,7 +1456,7 @@ def random_motion(
 
 def _check_range(value: object, name: str, lo: float, hi: float, unit: str) -> tuple[float, float]:
     try:
-        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
+        a, b = (float(v) if is_real(v) else math.nan for v in value)  # type: ignore[attr-defined]
     except (TypeError, ValueError):
         a = b = math.nan
     if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):
