@@ -6,7 +6,7 @@ Each case runs in a fresh child process (so its peak resident memory, ``ru_maxrs
 own) and reports wall time, peak RSS of the child and of CoACD's grandchild, the faces kept
 and the warnings raised:
 
-- ``big_<N>``: a bumpy sphere (8 cm, a scanned-object stand-in) of about ``--faces`` faces
+- ``big_<N>``: a rippled torus (8.4 cm, a dense-scan stand-in) of about ``--faces`` faces
   as binary PLY, default options (decimated to the face budget, CoACD under its time limit);
 - ``big_<N>_hull``: the same with ``decomposition="convex_hull"``;
 - ``sphere_82k``: an 82k-face icosphere (the hull diameter's worst case: every vertex is on
@@ -30,13 +30,24 @@ import numpy as np
 import trimesh
 
 
-def _bumpy_sphere(faces: int, radius_m: float = 0.04) -> trimesh.Trimesh:
+def _bumpy_torus(faces: int, major_m: float = 0.03, minor_m: float = 0.012) -> trimesh.Trimesh:
+    """A watertight torus with ripples, about ``faces`` triangles (a dense-scan stand-in)."""
     n = int(np.sqrt(faces / 2))
-    mesh = trimesh.creation.uv_sphere(radius=radius_m, count=[n, n])
-    v = np.asarray(mesh.vertices)
-    rng = np.random.default_rng(0)
-    bump = 1.0 + 0.02 * np.sin(7 * np.arctan2(v[:, 1], v[:, 0])) + 0.002 * rng.random(len(v))
-    return trimesh.Trimesh(v * bump[:, None], mesh.faces, process=False)
+    u, v = np.meshgrid(
+        np.linspace(0, 2 * np.pi, n, endpoint=False),
+        np.linspace(0, 2 * np.pi, n, endpoint=False),
+        indexing="ij",
+    )
+    r = minor_m * (1.0 + 0.05 * np.sin(9 * u) * np.sin(7 * v))
+    x = (major_m + r * np.cos(v)) * np.cos(u)
+    y = (major_m + r * np.cos(v)) * np.sin(u)
+    z = r * np.sin(v)
+    vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    a, b = i * n + j, ((i + 1) % n) * n + j
+    c, d = ((i + 1) % n) * n + (j + 1) % n, i * n + (j + 1) % n
+    tris = np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).reshape(-1, 3)
+    return trimesh.Trimesh(vertices, tris, process=False)
 
 
 def _one(path: str, kwargs: dict) -> None:
@@ -81,7 +92,7 @@ def main() -> None:
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         big = Path(tmp, "big.ply")
-        _bumpy_sphere(args.faces).export(big)
+        _bumpy_torus(args.faces).export(big)
         sphere = Path(tmp, "sphere.ply")
         s = trimesh.creation.icosphere(subdivisions=6, radius=0.04)
         s.export(sphere)
@@ -90,7 +101,7 @@ def main() -> None:
         tube.remove_unreferenced_vertices()
         tube_path = Path(tmp, "tube.ply")
         tube.export(tube_path)
-        n_big = len(trimesh.load(big, process=False).faces)
+        n_big = len(trimesh.load(big, process=False, force="mesh").faces)
         cases = {
             f"big_{n_big}": (big, {}),
             f"big_{n_big}_hull": (big, {"decomposition": "convex_hull"}),

@@ -25,6 +25,7 @@ __all__ = [
     "real_array",
     "real_scalar",
     "show",
+    "to_real_array",
 ]
 
 
@@ -170,3 +171,23 @@ def real_array(
     if max_abs != math.inf and arr.size and float(np.max(np.abs(arr))) > max_abs:
         raise error(f"{name} must be {valid}, got {show(value)}")
     return arr
+
+
+def to_real_array(value: Any) -> np.ndarray:
+    """``value`` as a float64 array; ``ValueError`` for strings, complex, ragged or objects.
+
+    For callers that raise their own error with their own message (shape and range checks
+    stay with them); NaN and infinities pass.
+    """
+    try:
+        arr = np.asarray(value)
+    except Exception as err:  # noqa: BLE001 - ragged or exotic inputs
+        raise ValueError(f"not an array of numbers ({type(value).__name__})") from err
+    if arr.dtype == object:
+        try:
+            arr = np.asarray(arr.tolist(), dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"not an array of numbers ({type(value).__name__})") from None
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"not an array of real numbers (dtype {arr.dtype})")
+    return arr.astype(np.float64)

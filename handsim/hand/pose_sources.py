@@ -158,7 +158,7 @@ from typing import Literal, TypeVar
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from handsim._validate import is_real, show
+from handsim._validate import is_real, show, to_real_array
 from handsim.errors import InvalidPose, UnknownName
 from handsim.hand.pose import DIGITS, FINGERS, JOINT_LIMITS, JOINT_NAMES, NUM_ANGLES, HandPose
 
@@ -321,6 +321,8 @@ def sample_uniform(rng: np.random.Generator, n: int, *, coupled: bool = True) ->
     """
     rng = _check_rng(rng)
     n = _check_count(n)
+    if not isinstance(coupled, (bool, np.bool_)):
+        raise InvalidPose(f"coupled must be True or False; received {show(coupled)}")
     if not coupled:
         return _batch_pose(rng.uniform(_LO, _HI, size=(n, NUM_ANGLES)))
     angles = np.empty((n, NUM_ANGLES))
@@ -427,7 +429,9 @@ class GraspType:
 
 def _check_closure(closure: object) -> np.ndarray:
     try:
-        c = np.asarray(closure, dtype=np.float64)
+        if isinstance(closure, (bool, np.bool_)):
+            raise TypeError("closure")
+        c = to_real_array(closure)
     except (TypeError, ValueError):
         raise InvalidPose(
             f"closure must be a number or array in [0, 1]; received {closure!r}"
@@ -840,6 +844,8 @@ def sample_grasp(
     """
     rng = _check_rng(rng)
     n = _check_count(n)
+    if names is not None and (isinstance(names, str) or not isinstance(names, Sequence)):
+        raise InvalidPose(f"names must be a sequence of grasp type names; received {show(names)}")
     pool = tuple(GRASP_TYPES) if names is None else tuple(names)
     if not pool:
         raise InvalidPose(f"names must hold at least one grasp type; received {names!r}")
@@ -1182,7 +1188,12 @@ def _check_keyframes(keyframes: object) -> list[HandPose]:
 def _speed_limits(
     max_joint_speed: float | np.ndarray, max_wrist_speed: float, max_wrist_angular_speed: float
 ) -> tuple[np.ndarray, float, float]:
-    joint = np.broadcast_to(np.asarray(max_joint_speed, dtype=np.float64), (NUM_ANGLES,))
+    try:
+        if isinstance(max_joint_speed, (bool, np.bool_)):
+            raise TypeError("max_joint_speed")
+        joint = np.broadcast_to(to_real_array(max_joint_speed), (NUM_ANGLES,))
+    except (TypeError, ValueError):
+        joint = np.full(NUM_ANGLES, np.nan)
     if not np.all(np.isfinite(joint) & (joint > 0.0)):
         raise InvalidPose(
             "max_joint_speed must be > 0 rad/s, a scalar or one per joint (21,); received "
@@ -1393,6 +1404,11 @@ def random_motion(
     rng = _check_rng(rng)
     duration = _check_positive(duration, "duration", "seconds")
     dt = _check_positive(dt, "dt", "seconds")
+    if not isinstance(sources, (str, Sequence)):
+        raise InvalidPose(
+            f"sources must be a name or a sequence of names of {', '.join(MOTION_SOURCES)}; "
+            f"received {show(sources)}"
+        )
     srcs = [sources] if isinstance(sources, str) else list(sources)
     if not srcs:
         raise InvalidPose(

@@ -65,6 +65,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
+from handsim._validate import real_array, show
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -143,19 +144,23 @@ class Symmetry:
 
     def __post_init__(self) -> None:
         kinds = ("none", "continuous", "discrete")
-        if self.kind not in kinds:
-            raise InvalidObjectParams(f"symmetry kind must be one of {kinds}, got {self.kind!r}")
-        discrete = np.asarray(self.discrete, dtype=np.float64)
+        if not isinstance(self.kind, str) or self.kind not in kinds:
+            raise InvalidObjectParams(
+                f"symmetry kind must be one of {kinds}, got {show(self.kind)}"
+            )
+        discrete = real_array("discrete", self.discrete, InvalidObjectParams)
         if discrete.size % 16 or (discrete.ndim != 3 and discrete.size):
             raise InvalidObjectParams(
                 f"discrete must be a (K, 4, 4) array of transforms, got shape {discrete.shape}"
             )
         discrete = discrete.reshape(-1, 4, 4).copy()
-        offset = np.asarray(self.offset_m, dtype=np.float64)
+        offset = real_array("offset_m", self.offset_m, InvalidObjectParams, max_abs=1000.0)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
             raise InvalidObjectParams(f"offset_m must be 3 finite numbers, got {self.offset_m!r}")
         if self.kind == "continuous":
-            axis = np.asarray(self.axis if self.axis is not None else (), dtype=np.float64)
+            axis = real_array(
+                "axis", self.axis if self.axis is not None else (), InvalidObjectParams
+            )
             if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
                 raise InvalidObjectParams(
                     f"a continuous symmetry needs a finite non-zero 3-vector axis, got "
@@ -688,7 +693,9 @@ def _check_sampling(n_model_points: int, seed: int) -> None:
         raise InvalidObjectParams(f"n_model_points must be an int >= 1, got {n_model_points!r}")
     if n_model_points < 1:
         raise InvalidObjectParams(f"n_model_points must be >= 1, got {n_model_points}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+    if n_model_points > 1_000_000:
+        raise InvalidObjectParams(f"n_model_points must be <= 1000000, got {n_model_points}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise InvalidObjectParams(f"seed must be a non-negative int, got {seed!r}")
 
 

@@ -63,13 +63,13 @@ TARGETS = [
         {
             "hand_length": REAL,
             "side": STR,
-            "palm_breadth": REAL,
+            "palm_breadth": REAL + "|none",
             "thickness_scale": REAL,
             "forearm": BOOL,
             "couple_dip": BOOL,
         },
     ),
-    Target("hand_params", handsim.hand_params, {}, {"size": REAL, "side": STR}),
+    Target("hand_params", handsim.hand_params, {}, {"size": REAL + "|" + STR, "side": STR}),
     Target("Hand", handsim.Hand, {}, {"params": OBJ}),
     Target("build_skeleton", handsim.build_skeleton, {}, {"params": OBJ}),
     Target("ForwardKinematics", handsim.ForwardKinematics, {}, {"hand": OBJ}),
@@ -150,7 +150,7 @@ TARGETS = [
         "grasp_pose",
         handsim.grasp_pose,
         {"name": "power_sphere"},
-        {"name": STR, "closure": REAL, "noise_deg": REAL},
+        {"name": STR, "closure": VEC, "noise_deg": REAL},
     ),
     Target(
         "sample_uniform",
@@ -193,10 +193,10 @@ TARGETS = [
         {
             "keyframes": OBJ,
             "dt": REAL,
-            "max_joint_speed": REAL,
+            "max_joint_speed": VEC,
             "max_wrist_speed": REAL,
             "max_wrist_angular_speed": REAL,
-            "hold": REAL,
+            "hold": VEC,
         },
     ),
     Target(
@@ -284,7 +284,9 @@ TARGETS = [
         {},
         {"keypoints_cam": VEC, "center_cam": VEC, "confidence": VEC, "valid": BOOL},
     ),
-    Target("hand_center", handsim.hand_center, {"keypoints_cam": _keypoints()}, {"keypoints_cam": VEC}),
+    Target(
+        "hand_center", handsim.hand_center, {"keypoints_cam": _keypoints()}, {"keypoints_cam": VEC}
+    ),
 ]
 
 _NAMES = ("medium", "left", "right", "icvl", "fist", "mug", "tof", "", "ICVL", "no", "none")
@@ -331,6 +333,10 @@ def _values() -> st.SearchStrategy[Any]:
 
 def _kind_ok(kind: str, value: Any) -> bool:
     """Whether ``value`` is of the argument's kind (then accepting it may be right)."""
+    if "|" in kind:
+        return any(_kind_ok(k, value) for k in kind.split("|"))
+    if kind == "none":
+        return value is None
     if kind == OBJ:
         return True
     if kind == STR:
@@ -346,7 +352,7 @@ def _kind_ok(kind: str, value: Any) -> bool:
             and math.isfinite(float(value))
         )
     # VEC: a numeric, finite array-like.
-    if isinstance(value, (str, bytes)):
+    if isinstance(value, (str, bytes, bool, np.bool_)):
         return False
     try:
         arr = np.asarray(value)
@@ -406,3 +412,151 @@ def test_public_api_catches_bad_input_at_the_door(data):
 def test_fuzz_ran_enough_cases():
     """The property test above ran at least 400 generated calls (over every target)."""
     assert len(_CALLS) >= 400
+
+
+# Regression tests: the cases measured on main, each caught at the door ---------------------
+
+
+def test_hand_params_rejects_a_string_length():
+    """A hand length given as text is refused by name, not by a numpy ufunc error."""
+    with pytest.raises(handsim.InvalidHandParams, match=r"hand_length must be a real number.*str"):
+        handsim.HandParams(hand_length="0.18")
+
+
+def test_hand_rejects_a_size_name_for_its_params():
+    """Hand("medium") says to pass HandParams (e.g. hand_params("medium"))."""
+    with pytest.raises(
+        handsim.InvalidHandParams, match=r"params must be a HandParams.*hand_params"
+    ):
+        handsim.Hand("medium")
+
+
+def test_camera_preset_rejects_a_list():
+    """An unhashable preset name gives UnknownName listing the presets."""
+    with pytest.raises(handsim.UnknownName, match=r"unknown camera preset \['icvl'\]; valid"):
+        handsim.camera_preset(["icvl"])
+
+
+def test_metrics_refuse_a_threshold_grid_that_cannot_be_allocated():
+    """A 1e-9 mm step would need 8e10 thresholds (596 GiB): refused with the limit."""
+    gt = _keypoints()[None]
+    with pytest.raises(handsim.HandSimError, match=r"at most 100000 thresholds.*step_mm=1e-09"):
+        handsim.evaluate_hand_poses(gt, gt, step_mm=1e-9)
+    with pytest.raises(handsim.HandSimError, match=r"tau_max_mm must be <= 10000 mm"):
+        handsim.evaluate_hand_poses(gt, gt, tau_max_mm=1e300)
+
+
+def test_camera_resolution_is_capped():
+    """A 20000 x 20000 camera (a MuJoCo FatalError on main) is refused with the cap."""
+    with pytest.raises(handsim.HandSimError, match=r"width and height must be in \[1, 8192\]"):
+        handsim.CameraIntrinsics(20000, 20000, 20000.0, 20000.0, 10000.0, 10000.0)
+    with pytest.raises(handsim.HandSimError, match=r"width and height must be integers"):
+        handsim.CameraIntrinsics(320.0, 240, 241.0, 241.0, 160.0, 120.0)
+    with pytest.raises(handsim.HandSimError, match=r"fx must be a finite real number.*complex"):
+        handsim.CameraIntrinsics(320, 240, 241j, 241.0, 160.0, 120.0)
+    with pytest.raises(handsim.HandSimError, match=r"fx must be in \[0.32, 3.2e\+06\] pixels"):
+        handsim.CameraIntrinsics(320, 240, 1e300, 241.0, 160.0, 120.0)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -0.1, 0.0, "0.6", 0.6j, True])
+def test_third_person_camera_rejects_a_bad_distance(bad):
+    """NaN distance gave NaN extrinsics on main; now every bad distance names the argument."""
+    with pytest.raises(handsim.HandSimError, match=r"distance_m must be in \(0, 1000\]"):
+        handsim.third_person_camera(distance_m=bad)
+
+
+def test_camera_specs_reject_non_finite_placements():
+    """CameraSpec / ObjectPlacement check their vectors (no NaN pose reaches MuJoCo)."""
+    icvl = handsim.camera_preset("icvl")
+    with pytest.raises(handsim.HandSimError, match=r"pos_m must be finite numbers of shape \(3,\)"):
+        handsim.CameraSpec("cam", icvl, (0.0, math.nan, 1.0), (1.0, 0.0, 0.0, 0.0))
+    with pytest.raises(handsim.HandSimError, match=r"quat_wxyz must be a non-zero quaternion"):
+        handsim.ObjectPlacement("mug", (0.0, 0.0, 0.1), (0.0, 0.0, 0.0, 0.0))
+    with pytest.raises(handsim.HandSimError, match=r"intrinsics must be a CameraIntrinsics"):
+        handsim.CameraSpec("cam", "icvl", (0.0, 0.0, 1.0), (1.0, 0.0, 0.0, 0.0))
+
+
+def test_hand_pose_rejects_a_huge_rotation_vector():
+    """A 1e300 rad rotation vector (a NaN quaternion in qpos on main) is refused."""
+    with pytest.raises(
+        handsim.InvalidPose, match=r"wrist_rotvec must have entries with \|x\| <= 100"
+    ):
+        handsim.HandPose(np.zeros(3), np.array([1e300, 0.0, 0.0]), np.zeros(21))
+    with pytest.raises(handsim.InvalidPose, match=r"angles must be real numbers.*complex"):
+        handsim.HandPose(np.zeros(3), np.zeros(3), np.zeros(21, dtype=complex))
+    with pytest.raises(handsim.InvalidPose, match=r"wrist_pos must be real numbers.*<U"):
+        handsim.HandPose(["0", "0", "0"], np.zeros(3), np.zeros(21))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, "0.003", None, True])
+def test_time_of_flight_rejects_a_bad_sigma(bad):
+    """ToF sigma_m=nan silently switched the noise off on main."""
+    with pytest.raises(handsim.HandSimError, match=r"sigma_m must be"):
+        handsim.TimeOfFlight(sigma_m=bad)
+    with pytest.raises(handsim.HandSimError, match=r"sigma_m must be"):
+        handsim.sensor_model("tof", sigma_m=bad)
+
+
+def test_sensor_model_rejects_unknown_parameters_and_names():
+    """Unknown keyword arguments and unhashable names are HandSimErrors, not TypeErrors."""
+    with pytest.raises(handsim.HandSimError, match=r"unknown parameter\(s\) sigma for sensor"):
+        handsim.sensor_model("tof", sigma=0.01)
+    with pytest.raises(handsim.UnknownName, match=r"unknown sensor model \['tof'\]"):
+        handsim.sensor_model(["tof"])
+    with pytest.raises(handsim.HandSimError, match=r"shadow must be True or False"):
+        handsim.StructuredLight(shadow="no")
+
+
+def test_pose_sources_reject_text_numbers_and_bad_flags():
+    """Numbers given as text and non-bool flags are refused (accepted silently on main)."""
+    rng = np.random.default_rng(0)
+    with pytest.raises(handsim.InvalidPose, match=r"closure must be"):
+        handsim.grasp_pose("power_sphere", closure="0.5")
+    with pytest.raises(handsim.InvalidPose, match=r"coupled must be True or False"):
+        handsim.sample_uniform(rng, 2, coupled="no")
+    with pytest.raises(handsim.InvalidPose, match=r"noise_deg must be a finite number >= 0"):
+        handsim.gesture("fist", noise_deg="3")
+    with pytest.raises(handsim.InvalidPose, match=r"n must be an integer in \[1, 1000000\]"):
+        handsim.sample_uniform(rng, 2**63)
+    with pytest.raises(handsim.InvalidPose, match=r"duration / dt must be at most 1000000"):
+        handsim.random_motion(rng, 10.0, 1e-9)
+    with pytest.raises(handsim.InvalidPose, match=r"dt must be <= duration"):
+        handsim.random_motion(rng, 0.2, 1e300)
+
+
+def test_estimators_reject_classes_text_and_bools():
+    """Estimator constructors take real numbers only (text and bools were accepted on main)."""
+    with pytest.raises(handsim.InvalidEstimatorParams, match=r"noise_mm must be a number >= 0"):
+        OracleEstimator(noise_mm="5")
+    with pytest.raises(handsim.InvalidEstimatorParams, match=r"dropout must be a number >= 0"):
+        OracleEstimator(dropout=True)
+    with pytest.raises(handsim.InvalidEstimatorParams, match=r"latency_steps must be an int in"):
+        OracleEstimator(latency_steps=2**63)
+    with pytest.raises(handsim.InvalidEstimatorParams, match=r"rng must be a seed >= 0"):
+        OracleEstimator(rng=-1)
+    with pytest.raises(handsim.InvalidEstimatorParams, match=r"cube_mm must be a number > 0"):
+        CenterOfMassLocalizer(cube_mm="250")
+
+
+def test_load_object_rejects_a_non_bool_recenter(tmp_path):
+    """recenter="no" recentred on main (a truthy string); now it must be a bool."""
+    import trimesh
+
+    path = tmp_path / "box.stl"
+    trimesh.creation.box((0.05, 0.08, 0.03)).export(path)
+    with pytest.raises(handsim.HandSimError, match=r"recenter must be True or False.*'no'"):
+        handsim.load_object(path, name="box", mass_kg=0.1, recenter="no")
+    with pytest.raises(handsim.HandSimError, match=r"mass_kg must be a finite number > 0.*complex"):
+        handsim.load_object(path, name="box", mass_kg=0.1j)
+
+
+def test_scene_spec_checks_its_parts():
+    """SceneSpec refuses wrong part types before anything is compiled."""
+    with pytest.raises(handsim.HandSimError, match=r"hand must be a HandParams or None"):
+        handsim.SceneSpec(hand="medium")
+    with pytest.raises(handsim.HandSimError, match=r"cameras must hold only CameraSpec"):
+        handsim.SceneSpec(cameras=("icvl",))
+    with pytest.raises(handsim.HandSimError, match=r"table must be True or False"):
+        handsim.SceneSpec(table="yes")
+    with pytest.raises(handsim.HandSimError, match=r"spec must be a SceneSpec"):
+        handsim.Scene("scene")
