@@ -140,9 +140,7 @@ def load_object(
         "coacd_timeout_s", coacd_timeout_s, InvalidObjectParams, lo=0.0, hi=3600.0, lo_open=True
     )
     _check_sampling(n_model_points, seed)
-    mesh = _read_mesh(Path(path))
-    if len(mesh.faces) > max_faces:
-        mesh = _decimate(mesh, max_faces, path, "max_faces", hint=True)
+    mesh = _read_mesh(Path(path), max_faces)
     mesh.apply_scale(float(scale))
     extent = float(np.max(mesh.extents))
     lo, hi = SIZE_RANGE_M
@@ -240,13 +238,17 @@ def _decimate(
             f"{path}: the mesh has {n:,} faces, more than {what}={max_faces:,}; it was "
             f"decimated to {len(reduced.faces):,} faces (quadric decimation)",
             MeshImportWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
     return reduced
 
 
-def _read_mesh(path: Path) -> trimesh.Trimesh:
-    """Read a mesh file into one Trimesh (metres as stored), validating it."""
+def _read_mesh(path: Path, max_faces: int = MAX_FACES) -> trimesh.Trimesh:
+    """Read a mesh file into one Trimesh (metres as stored), validating it.
+
+    A mesh above ``max_faces`` is decimated right after its vertices are merged (before the
+    per-face clean-up, which would cost seconds on millions of faces).
+    """
     if path.suffix.lower() not in MESH_FORMATS:
         raise InvalidMesh(
             f"{path}: unsupported mesh format {path.suffix!r}; supported: {', '.join(MESH_FORMATS)}"
@@ -283,6 +285,9 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
         bad = int(np.count_nonzero(~np.isfinite(vertices).all(axis=1)))
         raise InvalidMesh(f"{path}: {bad} of {len(vertices)} vertices are not finite (NaN/inf)")
     mesh = trimesh.Trimesh(vertices, np.asarray(loaded.faces), process=True)
+    del loaded, vertices
+    if len(mesh.faces) > max_faces:
+        mesh = _decimate(mesh, max_faces, path, "max_faces", hint=True)
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.update_faces(mesh.unique_faces())
     mesh.remove_unreferenced_vertices()

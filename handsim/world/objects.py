@@ -548,17 +548,20 @@ def _stable_up(
     _, group = np.unique(keys, axis=0, return_inverse=True)
     group = group.ravel()
     best_up, best_score, best_margin, fallback = None, -np.inf, -np.inf, hint
-    for g in range(group.max() + 1):
+    # Which faces contain the projection of the centre of mass on their group's plane, for
+    # all faces at once (a hull can have 10^4 faces); only those groups are looked at below.
+    _, first = np.unique(group, return_index=True)
+    n_face = normals[first][group]
+    p_face = com - (np.einsum("ij,j->i", n_face, com) - offsets[first][group])[:, None] * n_face
+    tri_all = verts[faces]
+    inside_all = np.ones(len(faces), dtype=bool)
+    for i in range(3):
+        u, v = tri_all[:, i], tri_all[:, (i + 1) % 3]
+        inside_all &= np.einsum("ij,ij->i", np.cross(v - u, p_face - u), n_face) >= -1e-12
+    for g in np.unique(group[inside_all]):
         members = np.flatnonzero(group == g)
         n = normals[members[0]]
         p = com - (n @ com - offsets[members[0]]) * n
-        tri = verts[faces[members]]
-        inside = np.ones(len(members), dtype=bool)
-        for i in range(3):
-            u, v = tri[:, i], tri[:, (i + 1) % 3]
-            inside &= np.einsum("ij,j->i", np.cross(v - u, p - u), n) >= -1e-12
-        if not inside.any():
-            continue
         # Distance from p to the boundary edges of the face (edges used by one triangle).
         edges = np.sort(
             np.concatenate(

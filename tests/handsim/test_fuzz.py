@@ -411,7 +411,10 @@ def test_public_api_catches_bad_input_at_the_door(data):
 
 def test_fuzz_ran_enough_cases():
     """The property test above ran at least 400 generated calls (over every target)."""
+    if not _CALLS:  # run alone (-k): run the property test here
+        test_public_api_catches_bad_input_at_the_door()
     assert len(_CALLS) >= 400
+    assert set(_CALLS) == {t.name for t in TARGETS}
 
 
 # Regression tests: the cases measured on main, each caught at the door ---------------------
