@@ -765,6 +765,11 @@ class HandBinding:
     """
 
     def __init__(self, hand: Hand, model: mujoco.MjModel) -> None:
+        if not isinstance(hand, Hand) or not isinstance(model, mujoco.MjModel):
+            raise InvalidHandParams(
+                f"HandBinding needs a Hand and a compiled mujoco.MjModel; received "
+                f"{type(hand).__name__}, {type(model).__name__}"
+            )
         self.hand = hand
         self.model = model
         try:

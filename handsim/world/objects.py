@@ -65,7 +65,7 @@ import trimesh
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from handsim._validate import real_array, show
+from handsim._validate import real_array, show, to_real_array
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -685,10 +685,21 @@ def _hull_vertices(points: np.ndarray) -> np.ndarray:
 
 
 def _check_rgba(rgba: Sequence[float]) -> tuple[float, float, float, float]:
-    arr = np.asarray(rgba, dtype=np.float64)
+    try:
+        arr = to_real_array(rgba)
+    except ValueError:
+        arr = np.full(4, np.nan)
     if arr.shape != (4,) or not np.all((arr >= 0) & (arr <= 1)):
         raise InvalidObjectParams(f"rgba must be 4 numbers in [0, 1], got {rgba!r}")
     return tuple(float(c) for c in arr)
+
+
+def _reals(value: object) -> np.ndarray:
+    """``value`` as float64, or an array of NaN (refused by the caller) for non-real input."""
+    try:
+        return to_real_array(value)
+    except ValueError:
+        return np.full(1, np.nan)
 
 
 def _check_sampling(n_model_points: int, seed: int) -> None:
@@ -738,20 +749,25 @@ def add_object(
     Raises:
         InvalidObjectParams: a name already in ``spec``, a bad body name, a non-finite pose.
     """
+    if not isinstance(spec, mujoco.MjSpec) or not isinstance(obj, YCBObject):
+        raise InvalidObjectParams(
+            f"add_object needs a mujoco.MjSpec and a YCBObject; received "
+            f"{type(spec).__name__}, {type(obj).__name__}"
+        )
     name = obj.body_name if body_name is None else body_name
     if not isinstance(name, str) or not _NAME_RE.match(name):
         raise InvalidObjectParams(
             f"body_name must use only letters, digits and underscores, got {name!r}"
         )
-    position = np.asarray(pos, dtype=np.float64)
-    quat = np.asarray(quat_wxyz, dtype=np.float64)
+    position = _reals(pos)
+    quat = _reals(quat_wxyz)
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise InvalidObjectParams(f"pos must be 3 finite numbers (m), got {pos!r}")
     if quat.shape != (4,) or not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-9:
         raise InvalidObjectParams(
             f"quat_wxyz must be 4 finite numbers, not all 0, got {quat_wxyz!r}"
         )
-    fric = np.asarray(friction, dtype=np.float64)
+    fric = _reals(friction)
     if fric.shape != (3,) or not np.all(np.isfinite(fric)) or np.any(fric < 0):
         raise InvalidObjectParams(f"friction must be 3 non-negative numbers, got {friction!r}")
     color = obj.rgba if rgba is None else _check_rgba(rgba)

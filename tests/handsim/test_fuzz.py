@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import tempfile
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import pytest
+import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -54,6 +57,9 @@ def _keypoints(offset: float = 0.0) -> np.ndarray:
 
 
 _ICVL = handsim.camera_preset("icvl")
+_MESH_DIR = tempfile.mkdtemp(prefix="handsim_fuzz_")
+_BALL = os.path.join(_MESH_DIR, "ball.ply")
+trimesh.creation.icosphere(subdivisions=1, radius=0.04).export(_BALL)
 
 TARGETS = [
     Target(
@@ -284,6 +290,36 @@ TARGETS = [
         {},
         {"keypoints_cam": VEC, "center_cam": VEC, "confidence": VEC, "valid": BOOL},
     ),
+    Target(
+        "load_object",
+        handsim.load_object,
+        {
+            "path": _BALL,
+            "name": "ball",
+            "mass_kg": 0.1,
+            "decomposition": "convex_hull",
+            "n_model_points": 50,
+        },
+        {
+            "path": OBJ,
+            "name": STR,
+            "mass_kg": REAL,
+            "scale": REAL,
+            "symmetry": OBJ,
+            "decomposition": STR,
+            "coacd_threshold": REAL,
+            "recenter": BOOL,
+            "rest_up": VEC,
+            "rgba": VEC,
+            "n_model_points": INT,
+            "seed": INT,
+            "max_faces": INT,
+            "coacd_timeout_s": REAL,
+        },
+    ),
+    Target("Scene", handsim.Scene, {}, {"spec": OBJ}),
+    Target("FrameRenderer", handsim.FrameRenderer, {"camera": "cam"}, {"scene": OBJ}),
+    Target("HandBinding", handsim.HandBinding, {"model": None}, {"hand": OBJ}),
     Target(
         "hand_center", handsim.hand_center, {"keypoints_cam": _keypoints()}, {"keypoints_cam": VEC}
     ),
@@ -563,3 +599,20 @@ def test_scene_spec_checks_its_parts():
         handsim.SceneSpec(table="yes")
     with pytest.raises(handsim.HandSimError, match=r"spec must be a SceneSpec"):
         handsim.Scene("scene")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"pos": "abc"}, r"pos must be 3 finite numbers \(m\), got 'abc'"),
+        ({"quat_wxyz": [1j, 0, 0, 0]}, r"quat_wxyz must be 4 finite numbers"),
+        ({"friction": ["a", "b", "c"]}, r"friction must be 3 non-negative numbers"),
+        ({"rgba": "red"}, r"rgba must be 4 numbers in \[0, 1\], got 'red'"),
+    ],
+)
+def test_add_object_rejects_text_and_complex(kwargs, match):
+    """add_object's vectors refuse strings and complex numbers (converted or cut on main)."""
+    import mujoco
+
+    with pytest.raises(handsim.HandSimError, match=match):
+        handsim.add_object(mujoco.MjSpec(), handsim.get_object("mug"), **kwargs)
