@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -117,6 +118,9 @@ def main() -> None:
             )
             results[name] = {"kwargs": kwargs, **json.loads(run.stdout.strip().splitlines()[-1])}
             print(name, json.dumps(results[name]), flush=True)
+    # The machine is shared: record its load so that the times can be read in context.
+    results["load_average_1min_at_end"] = round(os.getloadavg()[0], 2)
+    results["cpu_count"] = os.cpu_count()
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=2) + "\n")

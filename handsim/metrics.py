@@ -901,6 +901,10 @@ def adi_error_mm(T_est: Any, T_gt: Any, model_points_m: Any) -> float:  # noqa: 
 
 def _is_symmetric(obj: Any, symmetric: bool | None) -> bool:
     if symmetric is not None:
+        if not isinstance(symmetric, (bool, np.bool_)):
+            raise InvalidMetricInput(
+                f"symmetric must be True, False or None; received {symmetric!r}"
+            )
         return bool(symmetric)
     sym = getattr(obj, "symmetry", None)
     if not isinstance(sym, Symmetry):
@@ -1514,6 +1518,10 @@ def errors_by_joint(
 
 
 def _png_path(path: str | os.PathLike[str]) -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidMetricInput(
+            f"path must be a str or os.PathLike ending in .png; received {path!r}"
+        )
     p = Path(path)
     if p.suffix.lower() != ".png":
         raise InvalidMetricInput(f"path must end in .png; received {str(p)!r}")
@@ -1585,6 +1593,9 @@ def plot_f_tau(
         InvalidMetricInput: on no method, a path not ending in ``.png`` or bad errors.
     """
     _check_methods(methods)
+    threshold_grid_mm(tau_max_mm, step_mm)  # checked even when only reports are given
+    if title is not None and not isinstance(title, str):
+        raise InvalidMetricInput(f"title must be a str or None; received {title!r}")
     out = _png_path(path)
     curves = []
     for name, value in methods.items():
@@ -1632,6 +1643,9 @@ def plot_pck(
         InvalidMetricInput: on no method, a path not ending in ``.png`` or bad errors.
     """
     _check_methods(methods)
+    threshold_grid_mm(tau_max_mm, step_mm)  # checked even when only reports are given
+    if title is not None and not isinstance(title, str):
+        raise InvalidMetricInput(f"title must be a str or None; received {title!r}")
     out = _png_path(path)
     curves = []
     for name, value in methods.items():

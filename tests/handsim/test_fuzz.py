@@ -616,3 +616,19 @@ def test_add_object_rejects_text_and_complex(kwargs, match):
 
     with pytest.raises(handsim.HandSimError, match=match):
         handsim.add_object(mujoco.MjSpec(), handsim.get_object("mug"), **kwargs)
+
+
+def test_metric_options_are_checked_even_when_unused(tmp_path):
+    """Plot options and the symmetric flag are checked (a text tau or a non-bool flag)."""
+    gt = _keypoints()[None]
+    report = handsim.evaluate_hand_poses(gt, gt)
+    png = tmp_path / "pck.png"
+    with pytest.raises(handsim.HandSimError, match=r"tau_max_mm must be a positive number"):
+        handsim.plot_pck({"a": report}, png, tau_max_mm="80")
+    with pytest.raises(handsim.HandSimError, match=r"title must be a str or None"):
+        handsim.plot_f_tau({"a": report}, png, title=5)
+    with pytest.raises(handsim.HandSimError, match=r"path must be a str or os.PathLike"):
+        handsim.plot_pck({"a": report}, 5)
+    pose = np.eye(4)[None]
+    with pytest.raises(handsim.HandSimError, match=r"symmetric must be True, False or None"):
+        handsim.evaluate_object_poses(pose, pose, handsim.get_object("mug"), symmetric="no")
