@@ -558,8 +558,25 @@ def _stable_up(
     for i in range(3):
         u, v = tri_all[:, i], tri_all[:, (i + 1) % 3]
         inside_all &= np.einsum("ij,ij->i", np.cross(v - u, p_face - u), n_face) >= -1e-12
-    for g in np.unique(group[inside_all]):
-        members = np.flatnonzero(group == g)
+    candidates = np.unique(group[inside_all])
+    sizes = np.bincount(group)[candidates]
+    margins = np.empty(len(candidates))
+    # One-triangle faces (all of them on a finely tessellated round hull) at once.
+    single = sizes == 1
+    if single.any():
+        tri_faces = faces[first[candidates[single]]]
+        p = p_face[first[candidates[single]]]
+        m = np.full(len(tri_faces), np.inf)
+        for i in range(3):
+            e = np.sort(np.stack([tri_faces[:, i], tri_faces[:, (i + 1) % 3]], axis=1), axis=1)
+            a, b = verts[e[:, 0]], verts[e[:, 1]]
+            t = np.clip(
+                np.einsum("ij,ij->i", p - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1
+            )
+            m = np.minimum(m, np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1))
+        margins[single] = m
+    for k in np.flatnonzero(~single):
+        members = np.flatnonzero(group == candidates[k])
         n = normals[members[0]]
         p = com - (n @ com - offsets[members[0]]) * n
         # Distance from p to the boundary edges of the face (edges used by one triangle).
@@ -572,12 +589,16 @@ def _stable_up(
         uniq, count = np.unique(edges, axis=0, return_counts=True)
         a, b = verts[uniq[count == 1, 0]], verts[uniq[count == 1, 1]]
         t = np.clip(np.einsum("ij,ij->i", p - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1)
-        m = float(np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1).min())
+        margins[k] = float(np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1).min())
+    up_normals = -normals[first[candidates]]
+    scores = up_normals @ hint
+    for k in range(len(candidates)):
+        m = float(margins[k])
         if m > best_margin:
-            best_margin, fallback = m, -n
-        score = float(-n @ hint)
+            best_margin, fallback = m, up_normals[k]
+        score = float(scores[k])
         if m >= margin and score > best_score:
-            best_up, best_score = -n, score
+            best_up, best_score = up_normals[k], score
     return best_up if best_up is not None else fallback
 
 
