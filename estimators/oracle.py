@@ -108,11 +108,14 @@ class OracleEstimator(EstimatorBase):
         if (
             isinstance(latency_steps, bool)
             or not isinstance(latency_steps, int | np.integer)
-            or not 0 <= latency_steps <= 10_000
+            or latency_steps < 0
         ):
             raise InvalidEstimatorParams(
-                f"latency_steps must be an int in [0, 10000] (steps of delay); received "
-                f"{latency_steps!r}"
+                f"latency_steps must be an int >= 0 (steps of delay); received {latency_steps!r}"
+            )
+        if latency_steps > 10_000:
+            raise InvalidEstimatorParams(
+                f"latency_steps must be at most 10000 steps; received {latency_steps!r}"
             )
         self.latency_steps = int(latency_steps)
         self.object_noise_mm = _non_negative("object_noise_mm", object_noise_mm)

@@ -226,10 +226,10 @@ MAX_SAMPLES = 1_000_000
 
 
 def _check_count(n: object) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= MAX_SAMPLES:
-        raise InvalidPose(
-            f"n must be an integer in [1, {MAX_SAMPLES}] (number of poses); received {show(n)}"
-        )
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise InvalidPose(f"n must be an integer >= 1 (number of poses); received {show(n)}")
+    if n > MAX_SAMPLES:
+        raise InvalidPose(f"n must be at most {MAX_SAMPLES} (number of poses); received {n}")
     return int(n)
 
 

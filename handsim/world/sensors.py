@@ -287,13 +287,10 @@ _UPPER = {
     "baseline_m": 10.0,
     "disparity_step_px": 100.0,
     "lateral_jitter_px": 100.0,
-    "max_incidence_deg": 90.0,
     "min_range_m": 1000.0,
     "max_range_m": 1000.0,
     "sigma_m": 10.0,
     "edge_threshold_m": 1000.0,
-    "flying_pixel_prob": 1.0,
-    "dropout_prob": 1.0,
 }
 
 
