@@ -48,10 +48,10 @@ MAX_FACES = 100_000
 """Default face budget of an imported visual mesh; larger meshes are decimated to it
 (quadric decimation, ``pip install fast-simplification``) or refused when that is missing."""
 
-COACD_MAX_FACES = 20_000
+COACD_MAX_FACES = 10_000
 """CoACD gets a copy decimated to at most this many faces (when fast-simplification is there)."""
 
-COACD_TIMEOUT_S = 30.0
+COACD_TIMEOUT_S = 10.0
 """Default time limit of the CoACD decomposition, seconds (then: the convex hull, a warning)."""
 
 # Import of user meshes -------------------------------------------------------------------------
