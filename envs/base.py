@@ -794,7 +794,8 @@ class HandSimEnv(gym.Env):
         if "depth" in config.obs_mode:
             depth = self._image(depth)
             if config.depth_format == "uint16_mm":
-                mm = np.rint(np.minimum(depth, np.float32(DEPTH_MAX_M)) * np.float32(1000.0))
+                # In float64: float32 products round some x.5 mm values the wrong way.
+                mm = np.rint(np.minimum(depth, np.float32(DEPTH_MAX_M)).astype(np.float64) * 1e3)
                 obs["depth"] = mm.astype(np.uint16)
             else:
                 obs["depth"] = np.minimum(depth, np.float32(DEPTH_MAX_M))

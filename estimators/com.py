@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from handsim._validate import is_real
 from handsim.errors import InvalidEstimatorParams
 from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
 from handsim.metrics import MM_PER_M
@@ -58,6 +59,8 @@ _CONVERGED_M = 1e-4
 
 def _positive(name: str, value: Any) -> float:
     try:
+        if not is_real(value):
+            raise TypeError(name)
         v = float(value)
     except (TypeError, ValueError):
         raise InvalidEstimatorParams(f"{name} must be a number > 0; received {value!r}") from None
@@ -69,6 +72,8 @@ def _positive(name: str, value: Any) -> float:
 def _positive_int(name: str, value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
         raise InvalidEstimatorParams(f"{name} must be an int >= 1; received {value!r}")
+    if value > 10**9:
+        raise InvalidEstimatorParams(f"{name} must be an int <= 10**9; received {value!r}")
     return int(value)
 
 

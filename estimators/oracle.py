@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handsim._validate import is_real
 from handsim.errors import EstimatorStateError, InvalidEstimatorInput, InvalidEstimatorParams
 from handsim.estimator import N_KEYPOINTS, Estimate, EstimatorBase, validate_depth_input
 from handsim.metrics import MM_PER_M
@@ -46,6 +47,8 @@ __all__ = ["OracleEstimator"]
 
 def _non_negative(name: str, value: Any) -> float:
     try:
+        if not is_real(value):
+            raise TypeError(name)
         v = float(value)
     except (TypeError, ValueError):
         raise InvalidEstimatorParams(f"{name} must be a number >= 0; received {value!r}") from None
@@ -86,7 +89,8 @@ class OracleEstimator(EstimatorBase):
     ) -> None:
         self.noise_mm = _non_negative("noise_mm", noise_mm)
         try:
-            bias = np.array(bias_mm, dtype=np.float64)
+            bias = np.array(bias_mm)
+            bias = bias.astype(np.float64) if bias.dtype.kind in "iuf" else np.full(0, np.nan)
         except (TypeError, ValueError):
             bias = np.full(0, np.nan)
         if bias.shape != (3,) or not np.all(np.isfinite(bias)):
@@ -109,9 +113,15 @@ class OracleEstimator(EstimatorBase):
             raise InvalidEstimatorParams(
                 f"latency_steps must be an int >= 0 (steps of delay); received {latency_steps!r}"
             )
+        if latency_steps > 10_000:
+            raise InvalidEstimatorParams(
+                f"latency_steps must be at most 10000 steps; received {latency_steps!r}"
+            )
         self.latency_steps = int(latency_steps)
         self.object_noise_mm = _non_negative("object_noise_mm", object_noise_mm)
         self.object_noise_deg = _non_negative("object_noise_deg", object_noise_deg)
+        if isinstance(rng, int | np.integer) and not isinstance(rng, bool) and rng < 0:
+            raise InvalidEstimatorParams(f"rng must be a seed >= 0 when an int; received {rng!r}")
         if rng is None or (isinstance(rng, int | np.integer) and not isinstance(rng, bool)):
             rng = np.random.default_rng(rng)
         if not isinstance(rng, np.random.Generator):

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 from scipy.spatial import cKDTree
 
+from handsim._validate import show, to_real_array
 from handsim.errors import (
     InvalidEstimate,
     InvalidEstimatorInput,
@@ -82,7 +83,13 @@ def hand_center(keypoints_cam: Any) -> np.ndarray:
     Raises:
         InvalidKeypoints: if the last two axes are not (21, 3).
     """
-    kp = np.asarray(keypoints_cam, dtype=np.float64)
+    try:
+        kp = to_real_array(keypoints_cam)
+    except ValueError as err:
+        raise InvalidKeypoints(
+            f"hand_center expects (..., {N_KEYPOINTS}, 3) keypoints in metres; received "
+            f"{show(keypoints_cam)}: {err}"
+        ) from None
     if kp.ndim < 2 or kp.shape[-2:] != (N_KEYPOINTS, 3):
         raise InvalidKeypoints(
             f"hand_center expects (..., {N_KEYPOINTS}, 3) keypoints in metres; received shape "
@@ -93,7 +100,7 @@ def hand_center(keypoints_cam: Any) -> np.ndarray:
 
 def _read_only_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     try:
-        arr = np.array(value, dtype=np.float64)
+        arr = to_real_array(value).copy()
     except (TypeError, ValueError) as err:
         raise InvalidEstimate(
             f"{name} must be a {shape} array of numbers; received {type(value).__name__} ({err})"

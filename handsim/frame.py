@@ -52,8 +52,8 @@ from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import HandPose
 from handsim.world.camera import T_cam_from_world
 from handsim.world.render import DepthRenderer
-from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, Scene
-from handsim.world.sensors import NoNoise, SensorModel
+from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, InvalidScene, Scene
+from handsim.world.sensors import InvalidSensor, NoNoise, SensorModel
 
 __all__ = [
     "Frame",
@@ -276,6 +276,15 @@ class FrameRenderer:
     """
 
     def __init__(self, scene: Scene, camera: str, sensor: SensorModel | None = None) -> None:
+        if not isinstance(scene, Scene):
+            raise InvalidScene(f"scene must be a Scene; received {type(scene).__name__}")
+        if not isinstance(camera, str):
+            raise UnknownName(f"camera must be a camera name (str); received {camera!r}")
+        if sensor is not None and not callable(getattr(sensor, "apply", None)):
+            raise InvalidSensor(
+                f"sensor must be a sensor model with apply(depth_m, intrinsics, rng) (e.g. "
+                f"sensor_model('tof')) or None; received {type(sensor).__name__}"
+            )
         if scene.hand is None:
             raise UnknownName("a FrameRenderer needs a scene with a hand; SceneSpec(hand=None)")
         self.scene = scene

@@ -125,6 +125,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.spatial import cKDTree
 
+from handsim._validate import is_real
 from handsim.errors import HandSimError
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.world.camera import CameraIntrinsics
@@ -218,7 +219,12 @@ AucRule = Literal["posecnn", "exact"]
 
 def _array(name: str, x: Any) -> np.ndarray:
     try:
-        return np.asarray(x, dtype=np.float64)
+        raw = np.asarray(x)
+        if raw.dtype == object:
+            raw = np.asarray(raw.tolist(), dtype=np.float64)
+        if raw.dtype.kind not in "biuf":
+            raise TypeError(f"dtype {raw.dtype}; strings and complex numbers are not valid")
+        return raw.astype(np.float64)
     except (TypeError, ValueError) as err:
         raise InvalidMetricInput(
             f"{name} must be an array of numbers; received {type(x).__name__} ({err})"
@@ -242,7 +248,17 @@ def _keypoint_array(name: str, x: Any) -> np.ndarray:
 def _visible_mask(visible: Any, shape: tuple[int, int]) -> np.ndarray:
     if visible is None:
         return np.ones(shape, dtype=bool)
-    mask = np.asarray(visible)
+    try:
+        mask = np.asarray(visible)
+    except ValueError:
+        raise InvalidMetricInput(
+            f"visible must be an (N, J) = {shape} boolean mask; received a ragged "
+            f"{type(visible).__name__}"
+        ) from None
+    if mask.dtype.kind not in "biuf":
+        raise InvalidMetricInput(
+            f"visible must be an (N, J) = {shape} boolean mask; received dtype {mask.dtype}"
+        )
     if mask.shape != shape:
         raise InvalidMetricInput(
             f"visible must be an (N, J) = {shape} mask; received shape {mask.shape}"
@@ -322,6 +338,8 @@ def _thresholds(name: str, taus: Any) -> np.ndarray:
 
 def _positive(name: str, value: float) -> float:
     try:
+        if not is_real(value):
+            raise TypeError(name)
         v = float(value)
     except (TypeError, ValueError):
         raise InvalidMetricInput(f"{name} must be a positive number; received {value!r}") from None
@@ -403,6 +421,13 @@ def frame_max_error_mm(pred_m: Any, gt_m: Any, visible: Any = None) -> np.ndarra
     return _frame_reduce(keypoint_errors_mm(pred_m, gt_m, visible), "max")
 
 
+MAX_TAU_MM = 10_000.0
+"""Largest threshold of the hand curves, mm (10 m)."""
+
+MAX_THRESHOLDS = 100_000
+"""Most thresholds in a curve (so a tiny ``step_mm`` cannot allocate gigabytes)."""
+
+
 def threshold_grid_mm(tau_max_mm: float = TAU_MAX_MM, step_mm: float = TAU_STEP_MM) -> np.ndarray:
     """The uniform threshold grid ``0, step, ..., tau_max`` of the hand curves.
 
@@ -419,7 +444,16 @@ def threshold_grid_mm(tau_max_mm: float = TAU_MAX_MM, step_mm: float = TAU_STEP_
     """
     tau_max = _positive("tau_max_mm", tau_max_mm)
     step = _positive("step_mm", step_mm)
+    if tau_max > MAX_TAU_MM:
+        raise InvalidMetricInput(
+            f"tau_max_mm must be <= {MAX_TAU_MM:g} mm; received {tau_max_mm!r}"
+        )
     n = tau_max / step
+    if n > MAX_THRESHOLDS:
+        raise InvalidMetricInput(
+            f"tau_max_mm / step_mm must be at most {MAX_THRESHOLDS} thresholds; received "
+            f"tau_max_mm={tau_max_mm!r}, step_mm={step_mm!r} ({n:.3g} thresholds)"
+        )
     if abs(n - round(n)) > 1e-9 * max(1.0, n):
         raise InvalidMetricInput(
             f"tau_max_mm must be a whole multiple of step_mm; received tau_max_mm={tau_max_mm}, "
@@ -867,6 +901,10 @@ def adi_error_mm(T_est: Any, T_gt: Any, model_points_m: Any) -> float:  # noqa: 
 
 def _is_symmetric(obj: Any, symmetric: bool | None) -> bool:
     if symmetric is not None:
+        if not isinstance(symmetric, (bool, np.bool_)):
+            raise InvalidMetricInput(
+                f"symmetric must be True, False or None; received {symmetric!r}"
+            )
         return bool(symmetric)
     sym = getattr(obj, "symmetry", None)
     if not isinstance(sym, Symmetry):
@@ -1480,6 +1518,10 @@ def errors_by_joint(
 
 
 def _png_path(path: str | os.PathLike[str]) -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise InvalidMetricInput(
+            f"path must be a str or os.PathLike ending in .png; received {path!r}"
+        )
     p = Path(path)
     if p.suffix.lower() != ".png":
         raise InvalidMetricInput(f"path must end in .png; received {str(p)!r}")
@@ -1551,6 +1593,9 @@ def plot_f_tau(
         InvalidMetricInput: on no method, a path not ending in ``.png`` or bad errors.
     """
     _check_methods(methods)
+    threshold_grid_mm(tau_max_mm, step_mm)  # checked even when only reports are given
+    if title is not None and not isinstance(title, str):
+        raise InvalidMetricInput(f"title must be a str or None; received {title!r}")
     out = _png_path(path)
     curves = []
     for name, value in methods.items():
@@ -1598,6 +1643,9 @@ def plot_pck(
         InvalidMetricInput: on no method, a path not ending in ``.png`` or bad errors.
     """
     _check_methods(methods)
+    threshold_grid_mm(tau_max_mm, step_mm)  # checked even when only reports are given
+    if title is not None and not isinstance(title, str):
+        raise InvalidMetricInput(f"title must be a str or None; received {title!r}")
     out = _png_path(path)
     curves = []
     for name, value in methods.items():

@@ -68,6 +68,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
@@ -214,13 +215,23 @@ class HandParams:
     surface: Surface = "skin"
 
     def __post_init__(self) -> None:
+        for field in ("hand_length", "palm_breadth", "thickness_scale"):
+            value = getattr(self, field)
+            if value is None and field == "palm_breadth":
+                continue
+            if not is_real(value):
+                raise InvalidHandParams(
+                    f"{field} must be a real number (metres for lengths); received "
+                    f"{show(value)} ({type(value).__name__})"
+                )
+            object.__setattr__(self, field, float(value))
         lo, hi = HAND_LENGTH_RANGE_M
         if not (np.isfinite(self.hand_length) and lo <= self.hand_length <= hi):
             raise InvalidHandParams(
                 f"hand_length must be in [{lo}, {hi}] m (wrist crease to middle fingertip); "
                 f"received {self.hand_length!r}"
             )
-        if self.side not in ("right", "left"):
+        if not isinstance(self.side, str) or self.side not in ("right", "left"):
             raise InvalidHandParams(f"side must be 'right' or 'left'; received {self.side!r}")
         if self.palm_breadth is not None:
             ratio = self.palm_breadth / self.hand_length
@@ -270,6 +281,11 @@ def hand_params(size: str | float = "medium", side: Side = "right", **kwargs: ob
         UnknownName: for an unknown preset name.
         InvalidHandParams: for invalid values.
     """
+    if not isinstance(size, str) and not is_real(size):
+        raise InvalidHandParams(
+            f"size must be one of {', '.join(HAND_SIZES)} or a hand length in metres; "
+            f"received {show(size)} ({type(size).__name__})"
+        )
     if isinstance(size, str):
         if size not in HAND_SIZES:
             raise UnknownName(
@@ -508,6 +524,10 @@ def build_skeleton(params: HandParams) -> Skeleton:
         The skeleton; for a left hand every position, axis and orientation is mirrored through
         the hand frame's ``x = 0`` plane, so equal angles give mirror-image postures.
     """
+    if not isinstance(params, HandParams):
+        raise InvalidHandParams(
+            f"params must be a HandParams; received {show(params)} ({type(params).__name__})"
+        )
     right = _right_skeleton(dataclasses.replace(params, side="right"))
     if params.side == "right":
         return right
@@ -577,6 +597,11 @@ class Hand:
     """
 
     def __init__(self, params: HandParams | None = None) -> None:
+        if params is not None and not isinstance(params, HandParams):
+            raise InvalidHandParams(
+                f"params must be a HandParams (e.g. hand_params({params!r}) for a preset size) "
+                f"or None; received {show(params)} ({type(params).__name__})"
+            )
         self.params = params if params is not None else HandParams()
         self.skeleton = build_skeleton(self.params)
         p = self.params.prefix
@@ -870,6 +895,11 @@ class HandBinding:
     """
 
     def __init__(self, hand: Hand, model: mujoco.MjModel) -> None:
+        if not isinstance(hand, Hand) or not isinstance(model, mujoco.MjModel):
+            raise InvalidHandParams(
+                f"HandBinding needs a Hand and a compiled mujoco.MjModel; received "
+                f"{type(hand).__name__}, {type(model).__name__}"
+            )
         self.hand = hand
         self.model = model
         try:

@@ -139,13 +139,41 @@ class LimitViolation(NamedTuple):
         )
 
 
+MAX_ABS_POSE = {"wrist_pos": 1000.0, "wrist_rotvec": 100.0, "angles": 100.0}
+"""Largest magnitude accepted per pose field (metres, radians): beyond it a value is a mistake
+(and a rotation vector of 1e300 rad has no usable quaternion)."""
+
+
 def _as_float_array(value: object, name: str, last_dim: int) -> np.ndarray:
     # A copy: poses do not alias (or get mutated through) the caller's arrays.
-    array = np.array(value, dtype=np.float64)
+    try:
+        raw = np.array(value)
+    except ValueError:
+        raise InvalidPose(
+            f"{name} must be a real array of shape (..., {last_dim}); received a ragged or "
+            f"invalid {type(value).__name__}"
+        ) from None
+    if raw.dtype == object:
+        try:
+            raw = np.array(raw.tolist(), dtype=np.float64)
+        except (TypeError, ValueError):
+            pass
+    if raw.dtype.kind not in "iuf":
+        raise InvalidPose(
+            f"{name} must be real numbers of shape (..., {last_dim}); received dtype "
+            f"{raw.dtype} ({type(value).__name__})"
+        )
+    array = raw.astype(np.float64)
     if array.ndim == 0 or array.shape[-1] != last_dim:
         raise InvalidPose(f"{name} must have shape (..., {last_dim}); received shape {array.shape}")
     if not np.all(np.isfinite(array)):
         raise InvalidPose(f"{name} contains NaN or Inf: {array}")
+    bound = MAX_ABS_POSE[name]
+    if array.size and float(np.max(np.abs(array))) > bound:
+        raise InvalidPose(
+            f"{name} must have entries with |x| <= {bound:g}; received a largest magnitude of "
+            f"{float(np.max(np.abs(array))):.4g}"
+        )
     return array
 
 

@@ -158,6 +158,7 @@ from typing import Literal, TypeVar
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from handsim._validate import is_real, show, to_real_array
 from handsim.errors import InvalidPose, UnknownName
 from handsim.hand.pose import DIGITS, FINGERS, JOINT_LIMITS, JOINT_NAMES, NUM_ANGLES, HandPose
 
@@ -220,27 +221,27 @@ def _check_rng(rng: object) -> np.random.Generator:
     return rng
 
 
+MAX_SAMPLES = 1_000_000
+"""Largest number of poses one call returns (a batch or a motion), so memory stays sane."""
+
+
 def _check_count(n: object) -> int:
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise InvalidPose(f"n must be an integer >= 1 (number of poses); received {n!r}")
+        raise InvalidPose(f"n must be an integer >= 1 (number of poses); received {show(n)}")
+    if n > MAX_SAMPLES:
+        raise InvalidPose(f"n must be at most {MAX_SAMPLES} (number of poses); received {n}")
     return int(n)
 
 
 def _check_positive(value: object, name: str, unit: str) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
+    v = float(value) if is_real(value) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(v) and v > 0.0):
         raise InvalidPose(f"{name} must be a finite number > 0 {unit}; received {value!r}")
     return v
 
 
 def _check_nonnegative(value: object, name: str, unit: str) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        v = math.nan
+    v = float(value) if is_real(value) else math.nan  # type: ignore[arg-type]
     if not (math.isfinite(v) and v >= 0.0):
         raise InvalidPose(f"{name} must be a finite number >= 0 {unit}; received {value!r}")
     return v
@@ -320,6 +321,8 @@ def sample_uniform(rng: np.random.Generator, n: int, *, coupled: bool = True) ->
     """
     rng = _check_rng(rng)
     n = _check_count(n)
+    if not isinstance(coupled, (bool, np.bool_)):
+        raise InvalidPose(f"coupled must be True or False; received {show(coupled)}")
     if not coupled:
         return _batch_pose(rng.uniform(_LO, _HI, size=(n, NUM_ANGLES)))
     angles = np.empty((n, NUM_ANGLES))
@@ -426,7 +429,9 @@ class GraspType:
 
 def _check_closure(closure: object) -> np.ndarray:
     try:
-        c = np.asarray(closure, dtype=np.float64)
+        if isinstance(closure, (bool, np.bool_)):
+            raise TypeError("closure")
+        c = to_real_array(closure)
     except (TypeError, ValueError):
         raise InvalidPose(
             f"closure must be a number or array in [0, 1]; received {closure!r}"
@@ -839,6 +844,8 @@ def sample_grasp(
     """
     rng = _check_rng(rng)
     n = _check_count(n)
+    if names is not None and (isinstance(names, str) or not isinstance(names, Sequence)):
+        raise InvalidPose(f"names must be a sequence of grasp type names; received {show(names)}")
     pool = tuple(GRASP_TYPES) if names is None else tuple(names)
     if not pool:
         raise InvalidPose(f"names must hold at least one grasp type; received {names!r}")
@@ -1181,7 +1188,12 @@ def _check_keyframes(keyframes: object) -> list[HandPose]:
 def _speed_limits(
     max_joint_speed: float | np.ndarray, max_wrist_speed: float, max_wrist_angular_speed: float
 ) -> tuple[np.ndarray, float, float]:
-    joint = np.broadcast_to(np.asarray(max_joint_speed, dtype=np.float64), (NUM_ANGLES,))
+    try:
+        if isinstance(max_joint_speed, (bool, np.bool_)):
+            raise TypeError("max_joint_speed")
+        joint = np.broadcast_to(to_real_array(max_joint_speed), (NUM_ANGLES,))
+    except (TypeError, ValueError):
+        joint = np.full(NUM_ANGLES, np.nan)
     if not np.all(np.isfinite(joint) & (joint > 0.0)):
         raise InvalidPose(
             "max_joint_speed must be > 0 rad/s, a scalar or one per joint (21,); received "
@@ -1272,7 +1284,11 @@ def _assemble(
 
 
 def _check_holds(hold: float | Sequence[float], count: int) -> np.ndarray:
-    h = np.asarray(hold, dtype=np.float64)
+    try:
+        h = np.asarray(hold)
+    except ValueError:
+        h = np.full(count, math.nan)
+    h = h.astype(np.float64) if h.dtype.kind in "iuf" else np.full(count, math.nan)
     if h.ndim == 0:
         h = np.full(count, float(h))
     if h.shape != (count,) or not np.all(np.isfinite(h) & (h >= 0.0)):
@@ -1319,7 +1335,14 @@ def smooth_motion(
     dt = _check_positive(dt, "dt", "seconds")
     limits = _speed_limits(max_joint_speed, max_wrist_speed, max_wrist_angular_speed)
     holds = _check_holds(hold, len(frames))
-    return _assemble(frames, _segment_durations(frames, *limits), holds, dt)
+    durations = _segment_durations(frames, *limits)
+    steps = 1 + sum(math.ceil(t / dt - 1e-9) for t in (*durations, *holds))
+    if steps > MAX_SAMPLES:
+        raise InvalidPose(
+            f"the motion would have {steps} samples, more than {MAX_SAMPLES}; use a larger dt "
+            f"(received {dt!r} s) or shorter holds"
+        )
+    return _assemble(frames, durations, holds, dt)
 
 
 MOTION_SOURCES: tuple[str, ...] = ("gestures", "grasps", "synergy", "uniform")
@@ -1381,6 +1404,11 @@ def random_motion(
     rng = _check_rng(rng)
     duration = _check_positive(duration, "duration", "seconds")
     dt = _check_positive(dt, "dt", "seconds")
+    if not isinstance(sources, (str, Sequence)):
+        raise InvalidPose(
+            f"sources must be a name or a sequence of names of {', '.join(MOTION_SOURCES)}; "
+            f"received {show(sources)}"
+        )
     srcs = [sources] if isinstance(sources, str) else list(sources)
     if not srcs:
         raise InvalidPose(
@@ -1401,6 +1429,14 @@ def random_motion(
         raise InvalidPose(f"wrist_rotation_rad must be in [0, pi]; received {wrist_rotation_rad!r}")
     _check_nonnegative(noise_deg, "noise_deg", "(degrees)")
 
+    if dt > 3600.0:
+        # A larger step is a mistake (and segments shorter than 1e-9 dt would never end).
+        raise InvalidPose(f"dt must be at most 3600 seconds; received {dt!r}")
+    if duration / dt > MAX_SAMPLES:
+        raise InvalidPose(
+            f"duration / dt must be at most {MAX_SAMPLES} samples; received duration={duration!r}"
+            f" s, dt={dt!r} s"
+        )
     num_samples = math.floor(duration / dt + 1e-9) + 1
     frames: list[HandPose] = []
     durations: list[float] = []
@@ -1427,7 +1463,8 @@ def random_motion(
             )
             durations.append(seg)
             elapsed += math.ceil(seg / dt - 1e-9) * dt
-        holds.append(rng.uniform(h_lo, h_hi))
+        # A hold longer than the motion is cut anyway (and must not be allocated).
+        holds.append(min(rng.uniform(h_lo, h_hi), (num_samples + 1) * dt))
         elapsed += math.ceil(holds[-1] / dt - 1e-9) * dt
         frames.append(frame)
     motion = _assemble(frames, np.asarray(durations), np.asarray(holds), dt)
@@ -1436,7 +1473,7 @@ def random_motion(
 
 def _check_range(value: object, name: str, lo: float, hi: float, unit: str) -> tuple[float, float]:
     try:
-        a, b = (float(v) for v in value)  # type: ignore[attr-defined]
+        a, b = (float(v) if is_real(v) else math.nan for v in value)  # type: ignore[attr-defined]
     except (TypeError, ValueError):
         a = b = math.nan
     if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):

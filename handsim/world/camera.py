@@ -19,6 +19,7 @@ import dataclasses
 import mujoco
 import numpy as np
 
+from handsim._validate import is_real, show
 from handsim.errors import HandSimError, UnknownName
 
 __all__ = [
@@ -41,6 +42,10 @@ _SENSOR_PIXEL_PITCH_M = 6e-6
 
 class InvalidCamera(HandSimError, ValueError):
     """Camera intrinsics or placement are invalid."""
+
+
+MAX_IMAGE_SIDE = 8192
+"""Largest image width or height, pixels (MuJoCo's offscreen buffer and memory stay sane)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -72,28 +77,57 @@ class CameraIntrinsics:
     range_m: tuple[float, float] = (0.1, 10.0)
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.width, int) and isinstance(self.height, int)):
-            raise InvalidCamera(
-                f"width and height must be integers; received {self.width!r}, {self.height!r}"
-            )
-        if self.width < 1 or self.height < 1:
-            raise InvalidCamera(
-                f"width and height must be >= 1 pixel; received {self.width} x {self.height}"
-            )
+        for field in ("width", "height"):
+            value = getattr(self, field)
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                raise InvalidCamera(
+                    f"width and height must be integers; received {field}={show(value)} "
+                    f"({type(value).__name__})"
+                )
+            if not 1 <= value <= MAX_IMAGE_SIDE:
+                raise InvalidCamera(
+                    f"width and height must be in [1, {MAX_IMAGE_SIDE}] pixels; received "
+                    f"{self.width} x {self.height}"
+                )
+            object.__setattr__(self, field, int(value))
+        for field in ("fx", "fy", "cx", "cy"):
+            if not is_real(getattr(self, field)):
+                value = getattr(self, field)
+                raise InvalidCamera(
+                    f"{field} must be a finite real number of pixels; received {show(value)} "
+                    f"({type(value).__name__})"
+                )
+            object.__setattr__(self, field, float(getattr(self, field)))
         if not (np.isfinite(self.fx) and np.isfinite(self.fy) and self.fx > 0 and self.fy > 0):
             raise InvalidCamera(
                 f"fx and fy must be positive pixels; received fx={self.fx!r}, fy={self.fy!r}"
             )
+        # A focal length far outside the image (a < 1e-4 or > 1e4 pixel field of view ratio)
+        # gives a degenerate projection in MuJoCo.
+        side = max(self.width, self.height)
+        for field in ("fx", "fy"):
+            if not 1e-3 * side <= getattr(self, field) <= 1e4 * side:
+                raise InvalidCamera(
+                    f"{field} must be in [{1e-3 * side:g}, {1e4 * side:g}] pixels for a "
+                    f"{self.width} x {self.height} image; received {getattr(self, field)!r}"
+                )
         if not (np.isfinite(self.cx) and np.isfinite(self.cy)):
             raise InvalidCamera(f"cx and cy must be finite; received {self.cx!r}, {self.cy!r}")
-        try:
-            near, far = (float(v) for v in self.range_m)
-        except (TypeError, ValueError):
-            near, far = np.nan, np.nan
+        for field, size in (("cx", self.width), ("cy", self.height)):
+            if not -10 * size <= getattr(self, field) <= 11 * size:
+                raise InvalidCamera(
+                    f"{field} must be within 10 image sizes of the image, [{-10 * size}, "
+                    f"{11 * size}] pixels; received {getattr(self, field)!r}"
+                )
+        if not isinstance(self.name, str):
+            raise InvalidCamera(f"name must be a str; received {show(self.name)}")
+        pair = self.range_m
+        ok = isinstance(pair, (tuple, list)) and len(pair) == 2 and all(is_real(v) for v in pair)
+        near, far = (float(pair[0]), float(pair[1])) if ok else (np.nan, np.nan)
         if not (np.isfinite(far) and 0.0 < near < far):
             raise InvalidCamera(
                 f"range_m must be (near, far) metres with 0 < near < far < inf; received "
-                f"{self.range_m!r}"
+                f"{show(self.range_m)}"
             )
         object.__setattr__(self, "range_m", (near, far))
 
@@ -173,7 +207,7 @@ def camera_preset(name: str) -> CameraIntrinsics:
     Raises:
         UnknownName: listing the valid presets.
     """
-    if name not in CAMERA_PRESETS:
+    if not isinstance(name, str) or name not in CAMERA_PRESETS:
         raise UnknownName(
             f"unknown camera preset {name!r}; valid presets: {', '.join(CAMERA_PRESETS)}"
         )

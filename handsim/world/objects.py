@@ -62,9 +62,10 @@ from typing import Any, Literal
 import mujoco
 import numpy as np
 import trimesh
-from scipy.spatial.distance import pdist
+from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
+from handsim._validate import real_array, show, to_real_array
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -143,19 +144,23 @@ class Symmetry:
 
     def __post_init__(self) -> None:
         kinds = ("none", "continuous", "discrete")
-        if self.kind not in kinds:
-            raise InvalidObjectParams(f"symmetry kind must be one of {kinds}, got {self.kind!r}")
-        discrete = np.asarray(self.discrete, dtype=np.float64)
+        if not isinstance(self.kind, str) or self.kind not in kinds:
+            raise InvalidObjectParams(
+                f"symmetry kind must be one of {kinds}, got {show(self.kind)}"
+            )
+        discrete = real_array("discrete", self.discrete, InvalidObjectParams)
         if discrete.size % 16 or (discrete.ndim != 3 and discrete.size):
             raise InvalidObjectParams(
                 f"discrete must be a (K, 4, 4) array of transforms, got shape {discrete.shape}"
             )
         discrete = discrete.reshape(-1, 4, 4).copy()
-        offset = np.asarray(self.offset_m, dtype=np.float64)
+        offset = real_array("offset_m", self.offset_m, InvalidObjectParams, max_abs=1000.0)
         if offset.shape != (3,) or not np.all(np.isfinite(offset)):
             raise InvalidObjectParams(f"offset_m must be 3 finite numbers, got {self.offset_m!r}")
         if self.kind == "continuous":
-            axis = np.asarray(self.axis if self.axis is not None else (), dtype=np.float64)
+            axis = real_array(
+                "axis", self.axis if self.axis is not None else (), InvalidObjectParams
+            )
             if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
                 raise InvalidObjectParams(
                     f"a continuous symmetry needs a finite non-zero 3-vector axis, got "
@@ -480,8 +485,7 @@ def _finalize(
     points, _ = trimesh.sample.sample_surface(visual, n_model_points, seed=seed)
     points = np.asarray(points, dtype=np.float64)
 
-    hull_vertices = _hull_vertices(np.asarray(visual.vertices))
-    diameter = float(pdist(hull_vertices).max()) if len(hull_vertices) > 1 else 0.0
+    diameter = point_set_diameter(_hull_vertices(np.asarray(visual.vertices)))
 
     lo, hi = visual.bounds
     corners = np.array([[(lo, hi)[b][i] for i, b in enumerate(bits)] for bits in _CORNER_BITS])
@@ -544,17 +548,37 @@ def _stable_up(
     _, group = np.unique(keys, axis=0, return_inverse=True)
     group = group.ravel()
     best_up, best_score, best_margin, fallback = None, -np.inf, -np.inf, hint
-    for g in range(group.max() + 1):
-        members = np.flatnonzero(group == g)
+    # Which faces contain the projection of the centre of mass on their group's plane, for
+    # all faces at once (a hull can have 10^4 faces); only those groups are looked at below.
+    _, first = np.unique(group, return_index=True)
+    n_face = normals[first][group]
+    p_face = com - (np.einsum("ij,j->i", n_face, com) - offsets[first][group])[:, None] * n_face
+    tri_all = verts[faces]
+    inside_all = np.ones(len(faces), dtype=bool)
+    for i in range(3):
+        u, v = tri_all[:, i], tri_all[:, (i + 1) % 3]
+        inside_all &= np.einsum("ij,ij->i", np.cross(v - u, p_face - u), n_face) >= -1e-12
+    candidates = np.unique(group[inside_all])
+    sizes = np.bincount(group)[candidates]
+    margins = np.empty(len(candidates))
+    # One-triangle faces (all of them on a finely tessellated round hull) at once.
+    single = sizes == 1
+    if single.any():
+        tri_faces = faces[first[candidates[single]]]
+        p = p_face[first[candidates[single]]]
+        m = np.full(len(tri_faces), np.inf)
+        for i in range(3):
+            e = np.sort(np.stack([tri_faces[:, i], tri_faces[:, (i + 1) % 3]], axis=1), axis=1)
+            a, b = verts[e[:, 0]], verts[e[:, 1]]
+            t = np.clip(
+                np.einsum("ij,ij->i", p - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1
+            )
+            m = np.minimum(m, np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1))
+        margins[single] = m
+    for k in np.flatnonzero(~single):
+        members = np.flatnonzero(group == candidates[k])
         n = normals[members[0]]
         p = com - (n @ com - offsets[members[0]]) * n
-        tri = verts[faces[members]]
-        inside = np.ones(len(members), dtype=bool)
-        for i in range(3):
-            u, v = tri[:, i], tri[:, (i + 1) % 3]
-            inside &= np.einsum("ij,j->i", np.cross(v - u, p - u), n) >= -1e-12
-        if not inside.any():
-            continue
         # Distance from p to the boundary edges of the face (edges used by one triangle).
         edges = np.sort(
             np.concatenate(
@@ -565,12 +589,16 @@ def _stable_up(
         uniq, count = np.unique(edges, axis=0, return_counts=True)
         a, b = verts[uniq[count == 1, 0]], verts[uniq[count == 1, 1]]
         t = np.clip(np.einsum("ij,ij->i", p - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1)
-        m = float(np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1).min())
+        margins[k] = float(np.linalg.norm(a + t[:, None] * (b - a) - p, axis=1).min())
+    up_normals = -normals[first[candidates]]
+    scores = up_normals @ hint
+    for k in range(len(candidates)):
+        m = float(margins[k])
         if m > best_margin:
-            best_margin, fallback = m, -n
-        score = float(-n @ hint)
+            best_margin, fallback = m, up_normals[k]
+        score = float(scores[k])
         if m >= margin and score > best_score:
-            best_up, best_score = -n, score
+            best_up, best_score = up_normals[k], score
     return best_up if best_up is not None else fallback
 
 
@@ -585,10 +613,91 @@ def _rotation_to_z(up: np.ndarray) -> Rotation:
     return Rotation.from_rotvec(axis / s * math.atan2(s, c))
 
 
+def point_set_diameter(points: np.ndarray, leaf_size: int = 32) -> float:
+    """Exact largest distance between two of the (N, 3) ``points``, in O(N) memory.
+
+    Branch and bound: the points are split into boxes of at most ``leaf_size`` points (a k-d
+    split on the longest axis); a pair of boxes is compared point by point only when the
+    largest distance between the boxes can beat the best distance found so far (started from
+    the extreme points along 13 axes). The result is a distance between two input points, so
+    it is exact, not an estimate; memory stays O(N) (no N x N distance matrix).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = len(pts)
+    if n < 2:
+        return 0.0
+    if n <= 8 * leaf_size:
+        return _max_cross_distance(pts, pts)
+    dirs = np.array([d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], float)
+    proj = pts @ dirs.T
+    extreme = pts[np.unique(np.argmax(proj, axis=0))]
+    best = _max_cross_distance(extreme, extreme)
+    # A point farther than `best` from some point lies beyond best - R of the centre.
+    center = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    radius = np.linalg.norm(pts - center, axis=1)
+    pts = pts[radius + radius.max() >= best]
+    n = len(pts)
+    if n <= 8 * leaf_size:
+        return max(best, _max_cross_distance(pts, pts))
+
+    leaves: list[np.ndarray] = []
+    stack = [np.arange(n)]
+    while stack:
+        idx = stack.pop()
+        if len(idx) <= leaf_size:
+            leaves.append(idx)
+            continue
+        sub = pts[idx]
+        axis = int(np.argmax(np.ptp(sub, axis=0)))
+        half = len(idx) // 2
+        order = np.argpartition(sub[:, axis], half)
+        stack += [idx[order[:half]], idx[order[half:]]]
+    m = len(leaves)
+    # Leaves padded to leaf_size by repeating a point (a repeat does not change a maximum).
+    padded = np.empty((m, leaf_size, 3))
+    for k, idx in enumerate(leaves):
+        padded[k] = pts[np.resize(idx, leaf_size)]
+    lo, hi = padded.min(axis=1), padded.max(axis=1)
+    chunk = max(1, 2_000_000 // m)
+    pairs_a, pairs_b, bounds = [], [], []
+    for start in range(0, m, chunk):
+        a = np.arange(start, min(m, start + chunk))
+        # Largest distance between two axis-aligned boxes (an upper bound for their points).
+        gap = np.maximum(np.abs(hi[a, None] - lo[None]), np.abs(hi[None] - lo[a, None]))
+        ub = np.sqrt(np.einsum("ijk,ijk->ij", gap, gap))
+        ia, ib = np.nonzero((ub > best) & (a[:, None] <= np.arange(m)[None]))
+        pairs_a.append(a[ia])
+        pairs_b.append(ib)
+        bounds.append(ub[ia, ib])
+    pa, pb, ub = (np.concatenate(x) for x in (pairs_a, pairs_b, bounds))
+    order = np.argsort(-ub)
+    pa, pb, ub = pa[order], pb[order], ub[order]
+    batch = max(1, 1_000_000 // (leaf_size * leaf_size))
+    start = 0
+    while start < len(ub) and ub[start] > best:
+        stop = start + batch
+        sel = slice(start, stop)
+        keep = ub[sel] > best
+        d = padded[pa[sel][keep]][:, :, None, :] - padded[pb[sel][keep]][:, None, :, :]
+        best = max(best, math.sqrt(float(np.einsum("ijkl,ijkl->ijk", d, d).max())))
+        start = stop
+    return float(best)
+
+
+def _max_cross_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance between a point of ``a`` (N, 3) and one of ``b`` (M, 3), chunked."""
+    best = 0.0
+    step = max(1, 1_000_000 // max(len(b), 1))
+    for start in range(0, len(a), step):
+        d = a[start : start + step, None, :] - b[None, :, :]
+        best = max(best, float(np.einsum("ijk,ijk->ij", d, d).max()))
+    return math.sqrt(best)
+
+
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
     """Vertices of the convex hull of (N, 3) points (all points if the hull is degenerate)."""
     try:
-        return np.asarray(trimesh.convex.convex_hull(points).vertices)
+        return points[ConvexHull(points).vertices]
     except Exception:  # noqa: BLE001 - qhull fails on flat or tiny point sets
         return points
 
@@ -597,10 +706,21 @@ def _hull_vertices(points: np.ndarray) -> np.ndarray:
 
 
 def _check_rgba(rgba: Sequence[float]) -> tuple[float, float, float, float]:
-    arr = np.asarray(rgba, dtype=np.float64)
+    try:
+        arr = to_real_array(rgba)
+    except ValueError:
+        arr = np.full(4, np.nan)
     if arr.shape != (4,) or not np.all((arr >= 0) & (arr <= 1)):
         raise InvalidObjectParams(f"rgba must be 4 numbers in [0, 1], got {rgba!r}")
     return tuple(float(c) for c in arr)
+
+
+def _reals(value: object) -> np.ndarray:
+    """``value`` as float64, or an array of NaN (refused by the caller) for non-real input."""
+    try:
+        return to_real_array(value)
+    except ValueError:
+        return np.full(1, np.nan)
 
 
 def _check_sampling(n_model_points: int, seed: int) -> None:
@@ -608,7 +728,9 @@ def _check_sampling(n_model_points: int, seed: int) -> None:
         raise InvalidObjectParams(f"n_model_points must be an int >= 1, got {n_model_points!r}")
     if n_model_points < 1:
         raise InvalidObjectParams(f"n_model_points must be >= 1, got {n_model_points}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+    if n_model_points > 1_000_000:
+        raise InvalidObjectParams(f"n_model_points must be <= 1000000, got {n_model_points}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise InvalidObjectParams(f"seed must be a non-negative int, got {seed!r}")
 
 
@@ -648,20 +770,25 @@ def add_object(
     Raises:
         InvalidObjectParams: a name already in ``spec``, a bad body name, a non-finite pose.
     """
+    if not isinstance(spec, mujoco.MjSpec) or not isinstance(obj, YCBObject):
+        raise InvalidObjectParams(
+            f"add_object needs a mujoco.MjSpec and a YCBObject; received "
+            f"{type(spec).__name__}, {type(obj).__name__}"
+        )
     name = obj.body_name if body_name is None else body_name
     if not isinstance(name, str) or not _NAME_RE.match(name):
         raise InvalidObjectParams(
             f"body_name must use only letters, digits and underscores, got {name!r}"
         )
-    position = np.asarray(pos, dtype=np.float64)
-    quat = np.asarray(quat_wxyz, dtype=np.float64)
+    position = _reals(pos)
+    quat = _reals(quat_wxyz)
     if position.shape != (3,) or not np.all(np.isfinite(position)):
         raise InvalidObjectParams(f"pos must be 3 finite numbers (m), got {pos!r}")
     if quat.shape != (4,) or not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-9:
         raise InvalidObjectParams(
             f"quat_wxyz must be 4 finite numbers, not all 0, got {quat_wxyz!r}"
         )
-    fric = np.asarray(friction, dtype=np.float64)
+    fric = _reals(friction)
     if fric.shape != (3,) or not np.all(np.isfinite(fric)) or np.any(fric < 0):
         raise InvalidObjectParams(f"friction must be 3 non-negative numbers, got {friction!r}")
     color = obj.rgba if rgba is None else _check_rgba(rgba)

@@ -22,6 +22,7 @@ import pathlib
 import mujoco
 import numpy as np
 
+from handsim._validate import boolean, integer, real_array, real_scalar, show
 from handsim.errors import HandSimError
 from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.hand.pose import DIGITS, HandPose
@@ -76,6 +77,13 @@ class ObjectPlacement:
     quat_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
     mesh: YCBObject | None = None
 
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        object.__setattr__(self, "pos_m", _vec("pos_m", self.pos_m, 3))
+        object.__setattr__(self, "quat_wxyz", _quat("quat_wxyz", self.quat_wxyz))
+        if self.mesh is not None and not isinstance(self.mesh, YCBObject):
+            raise InvalidScene(f"mesh must be a YCBObject or None; received {show(self.mesh)}")
+
     @property
     def object(self) -> YCBObject:
         """The object (imported mesh, or the registry entry by name)."""
@@ -98,6 +106,16 @@ class CameraSpec:
     pos_m: tuple[float, float, float]
     quat_wxyz: tuple[float, float, float, float]
 
+    def __post_init__(self) -> None:
+        _check_name("name", self.name)
+        if not isinstance(self.intrinsics, CameraIntrinsics):
+            raise InvalidScene(
+                f"intrinsics must be a CameraIntrinsics (e.g. camera_preset('icvl')); received "
+                f"{show(self.intrinsics)}"
+            )
+        object.__setattr__(self, "pos_m", _vec("pos_m", self.pos_m, 3))
+        object.__setattr__(self, "quat_wxyz", _quat("quat_wxyz", self.quat_wxyz))
+
     @classmethod
     def look_at(
         cls,
@@ -108,6 +126,9 @@ class CameraSpec:
         up: tuple[float, float, float] = (0.0, 0.0, 1.0),
     ) -> CameraSpec:
         """A camera at ``eye_m`` looking at ``target_m`` (world frame, metres)."""
+        eye_m, target_m = _vec("eye_m", eye_m, 3), _vec("target_m", target_m, 3)
+        if np.linalg.norm(np.subtract(eye_m, target_m)) < 1e-6:
+            raise InvalidScene(f"eye_m and target_m must differ; both are {eye_m}")
         quat = look_at_quat_wxyz(np.asarray(eye_m), np.asarray(target_m), up)
         return cls(name, intrinsics, tuple(map(float, eye_m)), tuple(map(float, quat)))
 
@@ -137,7 +158,15 @@ def third_person_camera(
         azimuth_deg: direction of the camera from the target in the table plane, from ``+x``.
         elevation_deg: angle above the table plane.
     """
-    intrinsics = intrinsics or camera_preset("nyu_carmine")
+    intrinsics = _intrinsics(intrinsics, "nyu_carmine")
+    target_m = _vec("target_m", target_m, 3)
+    distance_m = real_scalar(
+        "distance_m", distance_m, InvalidScene, lo=0.0, hi=_MAX_DIST_M, lo_open=True, unit="m"
+    )
+    azimuth_deg = real_scalar("azimuth_deg", azimuth_deg, InvalidScene, lo=-720.0, hi=720.0)
+    elevation_deg = real_scalar(
+        "elevation_deg", elevation_deg, InvalidScene, lo=-90.0, hi=90.0, lo_open=True, hi_open=True
+    )
     eye = _spherical_eye(target_m, distance_m, azimuth_deg, elevation_deg)
     return CameraSpec.look_at(name, intrinsics, tuple(eye), target_m)
 
@@ -157,7 +186,9 @@ def egocentric_camera(
         target_m: point looked at (the hands), world, metres.
         head_offset_m: head position relative to the target, metres.
     """
-    intrinsics = intrinsics or camera_preset("sr300")
+    intrinsics = _intrinsics(intrinsics, "sr300")
+    target_m = _vec("target_m", target_m, 3)
+    head_offset_m = _vec("head_offset_m", head_offset_m, 3)
     eye = np.asarray(target_m) + np.asarray(head_offset_m)
     return CameraSpec.look_at(name, intrinsics, tuple(eye), target_m, up=(0.0, 1.0, 0.0))
 
@@ -188,6 +219,16 @@ def sample_viewpoint(
     Raises:
         InvalidScene: for empty or out-of-range intervals.
     """
+    if not isinstance(rng, np.random.Generator):
+        raise InvalidScene(f"rng must be a numpy.random.Generator; received {show(rng)}")
+    intrinsics = _intrinsics(intrinsics, "nyu_carmine")
+    target_m = _vec("target_m", target_m, 3)
+    distance_range_m = _pair("distance_range_m", distance_range_m, _MAX_DIST_M)
+    azimuth_range_deg = _pair("azimuth_range_deg", azimuth_range_deg, 720.0)
+    elevation_range_deg = _pair("elevation_range_deg", elevation_range_deg, 90.0)
+    target_jitter_m = real_scalar(
+        "target_jitter_m", target_jitter_m, InvalidScene, lo=0.0, hi=_MAX_DIST_M, unit="m"
+    )
     for label, (lo, hi) in (
         ("distance_range_m", distance_range_m),
         ("azimuth_range_deg", azimuth_range_deg),
@@ -246,9 +287,23 @@ def sample_placements(
         UnknownName: for an unknown object name.
         InvalidScene: if the objects do not fit in the region.
     """
+    if not isinstance(rng, np.random.Generator):
+        raise InvalidScene(f"rng must be a numpy.random.Generator; received {show(rng)}")
+    if isinstance(names, str) or not isinstance(names, (list, tuple)):
+        raise InvalidScene(f"names must be a list or tuple of object names; received {show(names)}")
+    for name in names:
+        _check_name("names[i]", name)
+    region = real_array("region_m", region_m, InvalidScene, shape=(2, 2), max_abs=_MAX_DIST_M)
+    if not np.all(region[:, 0] <= region[:, 1]):
+        raise InvalidScene(
+            f"region_m must be ((x_min, x_max), (y_min, y_max)) with min <= max; received "
+            f"{show(region_m)}"
+        )
+    gap_m = real_scalar("gap_m", gap_m, InvalidScene, lo=0.0, hi=_MAX_DIST_M, unit="m")
+    max_tries = integer("max_tries", max_tries, InvalidScene, lo=1, hi=1_000_000)
     placed: list[tuple[np.ndarray, float]] = []
     placements = []
-    (x0, x1), (y0, y1) = region_m
+    (x0, x1), (y0, y1) = region.tolist()
     for name in names:
         obj = get_object(name)
         radius = _footprint_radius(obj)
@@ -292,6 +347,23 @@ class SceneSpec:
     table: bool = True
 
     def __post_init__(self) -> None:
+        if self.hand is not None and not isinstance(self.hand, HandParams):
+            raise InvalidScene(
+                f"hand must be a HandParams or None (e.g. hand_params('medium')); received "
+                f"{show(self.hand)}"
+            )
+        for field, kind in (("objects", ObjectPlacement), ("cameras", CameraSpec)):
+            items = getattr(self, field)
+            if isinstance(items, (str, bytes)) or not isinstance(items, (list, tuple)):
+                raise InvalidScene(
+                    f"{field} must be a tuple of {kind.__name__}; received {show(items)}"
+                )
+            if not all(isinstance(x, kind) for x in items):
+                raise InvalidScene(
+                    f"{field} must hold only {kind.__name__} instances; received {show(items)}"
+                )
+            object.__setattr__(self, field, tuple(items))
+        boolean("table", self.table, InvalidScene)
         if not self.cameras:
             raise InvalidScene("a scene needs at least one camera; received none")
         names = [c.name for c in self.cameras]
@@ -299,6 +371,42 @@ class SceneSpec:
             raise InvalidScene(f"camera names must be unique; received {names}")
         for placement in self.objects:
             placement.object  # noqa: B018 (raises UnknownName listing the valid names)
+
+
+_MAX_DIST_M = 1000.0  # positions and distances beyond a kilometre are a mistake
+
+
+def _check_name(label: str, name: object) -> None:
+    if not isinstance(name, str) or not name:
+        raise InvalidScene(f"{label} must be a non-empty str; received {show(name)}")
+
+
+def _vec(label: str, value: object, n: int) -> tuple[float, ...]:
+    arr = real_array(label, value, InvalidScene, shape=(n,), max_abs=_MAX_DIST_M, unit="m")
+    return tuple(float(x) for x in arr)
+
+
+def _quat(label: str, value: object) -> tuple[float, float, float, float]:
+    arr = real_array(label, value, InvalidScene, shape=(4,), max_abs=1e6)
+    if np.linalg.norm(arr) < 1e-9:
+        raise InvalidScene(f"{label} must be a non-zero quaternion (w, x, y, z); got {value!r}")
+    return tuple(float(x) for x in arr)  # type: ignore[return-value]
+
+
+def _pair(label: str, value: object, bound: float) -> tuple[float, float]:
+    arr = real_array(label, value, InvalidScene, shape=(2,), max_abs=bound)
+    return float(arr[0]), float(arr[1])
+
+
+def _intrinsics(value: object, default: str) -> CameraIntrinsics:
+    if value is None:
+        return camera_preset(default)
+    if not isinstance(value, CameraIntrinsics):
+        raise InvalidScene(
+            f"intrinsics must be a CameraIntrinsics or None (e.g. camera_preset('icvl')); "
+            f"received {show(value)}"
+        )
+    return value
 
 
 class Scene:
@@ -319,6 +427,8 @@ class Scene:
     """
 
     def __init__(self, spec: SceneSpec) -> None:
+        if not isinstance(spec, SceneSpec):
+            raise InvalidScene(f"spec must be a SceneSpec; received {show(spec)}")
         self.spec = spec
         mj = mujoco.MjSpec()
         mj.modelname = "handsim_scene"

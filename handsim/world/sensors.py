@@ -62,6 +62,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from handsim._validate import boolean, real_scalar, show
 from handsim.errors import HandSimError, UnknownName
 from handsim.world.camera import CameraIntrinsics
 
@@ -279,6 +280,29 @@ def _check_depth(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarra
     if not (depth.min() >= 0 and depth.max() < np.inf):
         raise InvalidSensor("depth must be finite and >= 0 m (0 = no measurement)")
     return np.ascontiguousarray(depth, dtype=np.float32)
+
+
+# Sane upper bounds of the sensor parameters (beyond them a value is a mistake).
+_UPPER = {
+    "baseline_m": 10.0,
+    "disparity_step_px": 100.0,
+    "lateral_jitter_px": 100.0,
+    "min_range_m": 1000.0,
+    "max_range_m": 1000.0,
+    "sigma_m": 10.0,
+    "edge_threshold_m": 1000.0,
+}
+
+
+def _check_fields(model: object) -> None:
+    """Type checks of a sensor dataclass: bool fields are bools, the others finite numbers."""
+    for field in dataclasses.fields(model):  # type: ignore[arg-type]
+        value = getattr(model, field.name)
+        if isinstance(field.default, bool):
+            boolean(field.name, value, InvalidSensor)
+            continue
+        real_scalar(field.name, value, InvalidSensor, hi=_UPPER.get(field.name, math.inf))
+        object.__setattr__(model, field.name, float(value))
 
 
 def _check_positive(name: str, value: float) -> None:
@@ -524,6 +548,7 @@ class StructuredLight:
     shadow: bool = True
 
     def __post_init__(self) -> None:
+        _check_fields(self)
         for name in ("baseline_m", "disparity_step_px", "max_range_m"):
             _check_positive(name, getattr(self, name))
         if self.lateral_jitter_px < 0:
@@ -672,6 +697,7 @@ class TimeOfFlight:
     max_range_m: float = 1.0
 
     def __post_init__(self) -> None:
+        _check_fields(self)
         if self.sigma_m < 0:
             raise InvalidSensor(f"sigma_m must be >= 0; received {self.sigma_m}")
         _check_positive("edge_threshold_m", self.edge_threshold_m)
@@ -752,8 +778,16 @@ def sensor_model(name: str, **kwargs: object) -> SensorModel:
     Raises:
         UnknownName: listing the valid names.
     """
-    if name not in _SENSOR_MODELS:
+    if not isinstance(name, str) or name not in _SENSOR_MODELS:
         raise UnknownName(
-            f"unknown sensor model {name!r}; valid models: {', '.join(_SENSOR_MODELS)}"
+            f"unknown sensor model {show(name)}; valid models: {', '.join(_SENSOR_MODELS)}"
         )
-    return _SENSOR_MODELS[name](**kwargs)
+    cls = _SENSOR_MODELS[name]
+    valid = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(kwargs) - set(valid))
+    if unknown:
+        raise InvalidSensor(
+            f"unknown parameter(s) {', '.join(unknown)} for sensor model {name!r}; valid: "
+            f"{', '.join(valid) or 'none'}"
+        )
+    return cls(**kwargs)
