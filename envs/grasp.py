@@ -290,7 +290,12 @@ class GraspClutterEnv(GraspEnv):
         if isinstance(num_objects, (int, np.integer)) and not isinstance(num_objects, bool):
             num_objects = (int(num_objects), int(num_objects))
         try:
-            lo, hi = (int(n) for n in num_objects)  # type: ignore[union-attr]
+            lo, hi = num_objects  # type: ignore[misc]
+            if not all(
+                isinstance(n, (int, np.integer)) and not isinstance(n, bool) for n in (lo, hi)
+            ):
+                raise TypeError  # a float bound would be truncated
+            lo, hi = int(lo), int(hi)
         except (TypeError, ValueError):
             raise InvalidEnvConfig(
                 f"num_objects must be an int or a (low, high) pair in [1, 6]; received "

@@ -428,3 +428,10 @@ def test_out_of_bound_actions_are_clipped():
     np.testing.assert_array_equal(a["target_pose"], b["target_pose"])
     assert not np.array_equal(a["target_pose"], start)
     env.close()
+
+
+@pytest.mark.parametrize("num_objects", [(1.5, 2.5), (1, 2.0), (True, 2), "3"])
+def test_clutter_num_objects_refuses_non_integers(num_objects):
+    """A float bound is refused, not truncated (it would silently change the episode)."""
+    with pytest.raises(InvalidEnvConfig, match=r"num_objects must be an int or a \(low, high\)"):
+        gym.make("handsim/GraspClutter-v0", num_objects=num_objects)
