@@ -275,6 +275,34 @@ def _demo_closed_loop(out: Path, episodes: int, progress: bool = False) -> dict:
     return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
 
 
+def _demo_dataset(folder: Path, frames: int, *, progress: bool) -> dict:
+    """A small occlusion-heavy dataset (the preset, noisy depth) and its occlusion histogram."""
+    from handsim.data.generate import PRESETS, GenerationConfig, generate
+
+    config = GenerationConfig.from_mapping(
+        PRESETS["occlusion-heavy"], frames=frames, frames_per_shard=max(1, frames // 2)
+    )
+    bar = progress_bar(frames, "occlusion-heavy dataset", "frame", enabled=progress)
+    done = [0]
+
+    def advance(n: int, _total: int) -> None:
+        bar.update(n - done[0])
+        done[0] = n
+
+    try:
+        manifest = generate(config, folder, workers=2, progress=advance)
+    finally:
+        bar.close()
+    size = sum(s.bytes for s in manifest.shards.values())
+    return {
+        "path": str(folder),
+        "frames": manifest.frames,
+        "shards": len(manifest.shards),
+        "bytes_per_frame": size / max(1, manifest.frames),
+        "occlusion_histogram": manifest.occlusion_histogram,
+    }
+
+
 def _run(args: argparse.Namespace) -> int:
     # The core demo (hands, frames) cannot import the envs (layers); the CLI adds the loop.
     summary = run_demo(args.out, width=args.size, height=args.size, progress=not args.quiet)
@@ -302,8 +330,20 @@ def _run(args: argparse.Namespace) -> int:
                 f"{mode['f_tau_auc']:.3f}"
             )
         lines.append(f"closed-loop plots: {loop['paths']['f_tau']}, {loop['paths']['success']}")
-        (out / "summary.json").write_text(strict_json(summary))
-        (out / "summary.txt").write_text("\n".join(lines) + "\n")
+    if args.dataset_frames > 0:
+        dataset = _demo_dataset(out / "dataset", args.dataset_frames, progress=not args.quiet)
+        summary["dataset"] = dataset
+        hist = dataset["occlusion_histogram"]
+        lines.append(
+            f"occlusion-heavy dataset: {dataset['frames']} frames in {dataset['shards']} shards, "
+            f"{dataset['bytes_per_frame'] / 1000:.1f} kB per frame, at {dataset['path']}"
+        )
+        lines.append("  hand occlusion ratio   frames")
+        for lo, hi, n in zip(hist["edges"][:-1], hist["edges"][1:], hist["counts"], strict=True):
+            bar = "#" * round(40 * n / max(1, dataset["frames"]))
+            lines.append(f"  {lo:4.2f} - {hi:4.2f}          {n:6d}  {bar}")
+    (out / "summary.json").write_text(strict_json(summary))
+    (out / "summary.txt").write_text("\n".join(lines) + "\n")
     print((out / "summary.txt").read_text(), end="")
     return 0 if summary["hands"] else 1
 
@@ -315,8 +355,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="play gestures with hands of three sizes and both sides; write a contact sheet",
         description="Build hands of three sizes and both sides, play a gesture sequence under "
         "physics, render labelled noisy depth frames of a hand among objects, run the oracle "
-        "estimator in the loop of handsim/Grasp-v0 with feedback off and on, and write the "
-        "contact sheets, plots and a summary to the output folder.",
+        "estimator in the loop of handsim/Grasp-v0 with feedback off and on, generate a small "
+        "occlusion-heavy dataset, and write the contact sheets, plots, the dataset and a summary "
+        "to the output folder.",
     )
     demo.add_argument("--out", default="handsim-demo", help="output folder (default: %(default)s)")
     demo.add_argument(
@@ -327,6 +368,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=non_negative_int,
         default=3,
         help="episodes per feedback mode of the Grasp-v0 closed loop; 0 skips it (default: 3)",
+    )
+    demo.add_argument(
+        "--dataset-frames",
+        type=non_negative_int,
+        default=200,
+        help="frames of the occlusion-heavy dataset it generates; 0 skips it (default: 200)",
     )
     demo.add_argument(
         "-q", "--quiet", action="store_true", help="no progress bars (they go to stderr)"

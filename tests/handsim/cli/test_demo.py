@@ -37,7 +37,8 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
     from handsim.cli import main
 
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--size", "32", "--closed-loop-episodes", "1"]) == 0
+    args = ["--size", "32", "--closed-loop-episodes", "1", "--dataset-frames", "4"]
+    assert main(["demo", "--out", str(out), *args]) == 0
     text = (out / "summary.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
     summary = json.loads(text)
@@ -52,3 +53,9 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
         assert bar in captured.err  # tqdm progress bars with rate and ETA
     assert "<" in captured.err and "/s" in captured.err
     assert (out / "closed_loop" / "worst_frame_feedback_off.png").exists()
+    # The occlusion-heavy dataset: complete, and its histogram printed.
+    dataset = summary["dataset"]
+    assert dataset["frames"] == 4 and sum(dataset["occlusion_histogram"]["counts"]) == 4
+    assert (out / "dataset" / "manifest.json").exists()
+    assert "occlusion-heavy dataset: 4 frames" in captured.out
+    assert "hand occlusion ratio" in captured.out
