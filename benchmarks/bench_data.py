@@ -33,7 +33,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 
 def _generate(frames: int, workers: int, out: Path, preset: str = "hand-only") -> float:
-    from handsim.data.generate import PRESETS, GenerationConfig, generate
+    from handsim.data.generation import PRESETS, GenerationConfig, generate
 
     config = GenerationConfig.from_mapping(
         PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8)
@@ -85,7 +85,7 @@ def _read_fps(folder: Path, seconds: float = 10.0) -> float:
 def _peak_rss_mib(frames: int, out: Path) -> float:
     code = (
         "import resource, sys\n"
-        "from handsim.data.generate import PRESETS, GenerationConfig, generate\n"
+        "from handsim.data.generation import PRESETS, GenerationConfig, generate\n"
         f"c = GenerationConfig.from_mapping(PRESETS['hand-only'], frames={frames}, "
         "frames_per_shard=250)\n"
         "generate(c, sys.argv[1])\n"

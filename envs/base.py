@@ -38,8 +38,10 @@ methods.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
+from collections.abc import Iterator
 from typing import Any
 
 import cv2
@@ -907,6 +909,23 @@ class HandSimEnv(gym.Env):
         self._viewer_camera = camera
         self._viewer_range_m = (max(distance - 1.5 * radius, 0.01), distance + 1.5 * radius)
 
+    @contextlib.contextmanager
+    def viewer_clip_planes(self) -> Iterator[None]:
+        """Within the block, OpenGL's clip planes span the viewer camera's range.
+
+        The scene's clip planes follow the depth sensor's working range (a 320 x 240 ICVL
+        sensor sees up to 1 m), which would cut what the viewer camera, further away, shows.
+        """
+        vis = self.scene.model.vis.map
+        extent = self.scene.model.stat.extent
+        saved = (vis.znear, vis.zfar)
+        near_m, far_m = self._viewer_range_m
+        vis.znear, vis.zfar = min(saved[0], near_m / extent), max(saved[1], far_m / extent)
+        try:
+            yield
+        finally:
+            vis.znear, vis.zfar = saved
+
     def render(self) -> np.ndarray | None:
         """Render by ``render_mode``, from a viewer camera that frames the hand and the objects.
 
@@ -947,8 +966,9 @@ class HandSimEnv(gym.Env):
             self._rgb_renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
             if self.render_mode == "depth_array":
                 self._rgb_renderer.enable_depth_rendering()
-        self._rgb_renderer.update_scene(self.scene.data, camera=self._viewer_camera)
-        image = self._rgb_renderer.render()
+        with self.viewer_clip_planes():
+            self._rgb_renderer.update_scene(self.scene.data, camera=self._viewer_camera)
+            image = self._rgb_renderer.render()
         if self.render_mode == "depth_array":
             return depth_colormap(image, *self._viewer_range_m)
         return image

@@ -22,7 +22,7 @@ EXPORTS = ("hand-labels", "bop")
 
 
 def _config(args: argparse.Namespace):
-    from handsim.data.generate import PRESETS, GenerationConfig
+    from handsim.data.generation import PRESETS, GenerationConfig
 
     overrides = {"frames": args.frames, "seed": args.seed}
     if args.config is not None:
@@ -31,7 +31,7 @@ def _config(args: argparse.Namespace):
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from handsim.data.generate import generate
+    from handsim.data.generation import generate
 
     config = _config(args)
     bar = progress_bar(config.frames, f"generate {Path(args.out).name}", "frame")
@@ -141,7 +141,7 @@ def _export(args: argparse.Namespace) -> int:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim generate``, ``handsim dataset`` and ``handsim export``."""
-    from handsim.data.generate import PRESETS
+    from handsim.data.generation import PRESETS
 
     presets = tuple(PRESETS)
     gen = sub.add_parser(

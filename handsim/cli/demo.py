@@ -277,7 +277,7 @@ def _demo_closed_loop(out: Path, episodes: int, progress: bool = False) -> dict:
 
 def _demo_dataset(folder: Path, frames: int, *, progress: bool) -> dict:
     """A small occlusion-heavy dataset (the preset, noisy depth) and its occlusion histogram."""
-    from handsim.data.generate import PRESETS, GenerationConfig, generate
+    from handsim.data.generation import PRESETS, GenerationConfig, generate
 
     config = GenerationConfig.from_mapping(
         PRESETS["occlusion-heavy"], frames=frames, frames_per_shard=max(1, frames // 2)

@@ -6,7 +6,7 @@ module                   holds
 :mod:`.arrays`           :func:`frame_to_arrays`: a Frame's labels as fixed-shape arrays and back
 :mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
-:mod:`.generate`         :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
+:mod:`.generation`       :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 :mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================
@@ -16,7 +16,7 @@ Nothing here imports the envs or torch.
 
 from handsim.data.arrays import LABEL_SCHEMA, arrays_to_frame, frame_to_arrays
 from handsim.data.export import export_bop, export_hand_labels
-from handsim.data.generate import PRESETS, GenerationConfig, generate
+from handsim.data.generation import PRESETS, GenerationConfig, generate
 from handsim.data.manifest import Manifest, check_dataset
 from handsim.data.shards import ShardReader, ShardWriter, check_shard
 from handsim.data.torch_dataset import HandSimDataset

@@ -248,7 +248,7 @@ def test_viewer_frames_the_hand_and_the_objects(env_id, mode):
     assert image.shape == (120, 160, 3) and image.dtype == np.uint8
     assert image.std() > 10  # not blank
     base = env.unwrapped
-    with mujoco.Renderer(base.scene.model, 120, 160) as renderer:
+    with mujoco.Renderer(base.scene.model, 120, 160) as renderer, base.viewer_clip_planes():
         renderer.enable_segmentation_rendering()
         renderer.update_scene(base.scene.data, camera=base._viewer_camera)
         seen = renderer.render()

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from handsim.data.export import InvalidExport, export_bop, export_hand_labels
-from handsim.data.generate import GenerationConfig, generate
+from handsim.data.generation import GenerationConfig, generate
 from handsim.data.shards import ShardReader
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES
 from handsim.world.registry import get_object

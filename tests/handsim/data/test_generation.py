@@ -1,4 +1,4 @@
-"""Tests of handsim.data.generate: configs, presets, determinism, resume after a kill, checks."""
+"""Tests of handsim.data.generation: configs, presets, determinism, resume after a kill, checks."""
 
 import json
 import os
@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from handsim.data.generate import (
+from handsim.data.generation import (
     PRESETS,
     GenerationConfig,
     GenerationError,
@@ -160,7 +160,7 @@ def test_occlusion_control_keeps_the_range_and_fills_buckets(tmp_path):
 
 def test_an_unreachable_occlusion_range_fails_clearly(tmp_path, monkeypatch):
     """A marker cannot hide 97 % of a hand: the error says what to change, nothing is left."""
-    from handsim.data import generate as generate_module
+    from handsim.data import generation as generate_module
 
     monkeypatch.setattr(generate_module, "MAX_TRIES_PER_FRAME", 3)
     config = GenerationConfig.from_mapping(
@@ -177,7 +177,7 @@ def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
     """A run killed with SIGKILL mid-way resumes to the same dataset as an uninterrupted run."""
     values = dict(TINY, frames=8)
     code = (
-        "import sys; from handsim.data.generate import GenerationConfig, generate\n"
+        "import sys; from handsim.data.generation import GenerationConfig, generate\n"
         f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
     )
     run = tmp_path / "killed"

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from handsim.data.generate import GenerationConfig, generate
+from handsim.data.generation import GenerationConfig, generate
 from handsim.data.shards import ShardReader
 from handsim.data.torch_dataset import HandSimDataset, InvalidDatasetQuery, split_of_episode
 
