@@ -23,9 +23,12 @@ Control (``control_mode``):
   period; the result is clipped to the ``"pose"`` bounds. Out-of-range actions are clipped.
 
 NaN/Inf actions raise ``ValueError``; an action of the wrong shape raises ``ValueError`` naming
-the expected shape. If the physics diverges (a MuJoCo instability warning or a non-finite state)
-the step returns the last valid observation with ``truncated=True`` and
-``info["physics_diverged"] = True``; observations are never non-finite.
+the expected shape. Divergence is checked at the end of every step (:class:`HandDriver`: a
+MuJoCo instability warning, a non-finite state, or a velocity above a bound scaled to the hand).
+The step in which it happens returns the last valid observation with ``truncated=True`` and
+``info["physics_diverged"] = True``; observations are never non-finite and never carry
+exploded velocities. Stepping again raises :class:`PhysicsDiverged` until ``reset()`` (or
+``set_state``).
 """
 
 from __future__ import annotations
@@ -62,6 +65,10 @@ from handsim.world.sensors import sensor_model
 __all__ = [
     "HandSimEnv",
     "HandDriver",
+    "PhysicsDiverged",
+    "divergence_speed_bounds",
+    "DIVERGENCE_SPEED_M_S",
+    "DIVERGENCE_LEVER_RATIO",
     "EnvConfig",
     "InvalidEnvConfig",
     "OBS_MODES",
@@ -101,6 +108,12 @@ WRIST_TRACKING_SPEED = 2.0
 """Fastest motion of the mocap body toward the wrist target, m/s (fast human reaching)."""
 WRIST_TRACKING_ANGULAR_SPEED = 4 * np.pi
 """Fastest rotation of the mocap body toward the wrist target, rad/s."""
+DIVERGENCE_SPEED_M_S = 5.0
+"""Speed above which the physics counts as diverged, m/s: five times the fastest wrist tracking
+and about twice the fastest human finger and hand motions (pitching, finger flicks)."""
+DIVERGENCE_LEVER_RATIO = 0.1
+"""Lever arm, as a fraction of the hand length (about a middle phalanx), that turns
+:data:`DIVERGENCE_SPEED_M_S` into the angular-velocity bound of rotational DoFs."""
 SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
 """Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
 SETTLE_S = 0.1
@@ -246,14 +259,52 @@ def _without_images(frame: Frame) -> Frame:
     return dataclasses.replace(frame, depth=None, depth_clean=None, segmentation=None)
 
 
+class PhysicsDiverged(HandSimError, RuntimeError):
+    """The physics diverged and the episode was truncated; it cannot be stepped further."""
+
+
+def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.ndarray:
+    """Per-DoF speed bound above which a state counts as diverged.
+
+    Linear DoFs (free-joint translations, slides) are bounded by :data:`DIVERGENCE_SPEED_M_S`;
+    rotational DoFs (hinges, free and ball rotations) by that speed at a lever of
+    :data:`DIVERGENCE_LEVER_RATIO` times the hand length (a phalanx), so a smaller hand, whose
+    fingers legitimately turn faster, gets a higher angular bound.
+
+    Args:
+        model: the compiled model.
+        hand_length_m: the hand's length, metres.
+
+    Returns:
+        (nv,) bound per DoF: m/s for linear DoFs, rad/s for rotational ones.
+    """
+    angular = DIVERGENCE_SPEED_M_S / (DIVERGENCE_LEVER_RATIO * hand_length_m)
+    bounds = np.full(model.nv, angular)
+    for j in range(model.njnt):
+        adr = model.jnt_dofadr[j]
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            bounds[adr : adr + 3] = DIVERGENCE_SPEED_M_S
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            bounds[adr] = DIVERGENCE_SPEED_M_S
+    return bounds
+
+
 class HandDriver:
     """Drives a scene's physical hand toward a target pose, one control step at a time.
 
-    The finger targets go to the position actuators at once; the mocap body (the hand's wrist
-    target, welded softly to the hand root) moves toward the wrist target at most
-    :data:`WRIST_TRACKING_SPEED` m/s and :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s, one
-    physics step at a time. Envs and scripted-episode loops share it, so both run the same
-    physics.
+    The finger targets go to the position actuators at once. The mocap body (the hand's wrist
+    target, welded softly to the hand root) is moved once per :meth:`step` toward the wrist
+    target, by at most :data:`WRIST_TRACKING_SPEED` m/s and
+    :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s times the step's duration; the weld's own
+    time constant (10 ms) smooths the motion in between. The physics sub-steps then run in one
+    ``mj_step(..., nstep=n)`` call (no Python per sub-step).
+
+    Divergence is checked once per :meth:`step`, on the state it ends in: a MuJoCo
+    instability warning raised during any of its sub-steps (MuJoCo then resets the state), a
+    non-finite position or velocity, or a velocity above :func:`divergence_speed_bounds` (a
+    blow-up grows by orders of magnitude within a few sub-steps, long before MuJoCo warns about
+    a huge acceleration). A diverged driver refuses to step again (:class:`PhysicsDiverged`).
+    Envs and scripted-episode loops share it, so both run the same physics.
 
     Args:
         scene: a scene with a hand.
@@ -264,6 +315,9 @@ class HandDriver:
         self.target = scene.binding.pose(scene.data)
         self._target_quat_wxyz = self.target.quat_wxyz
         self._warnings = self._divergence_count()
+        self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
+        self.diverged = False
+        """``True`` once a :meth:`step` diverged."""
 
     def set_target(self, target: HandPose) -> None:
         """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
@@ -276,14 +330,14 @@ class HandDriver:
         data = self.scene.data
         return int(sum(data.warning[w].number for w in _DIVERGENCE_WARNINGS))
 
-    def _track(self) -> None:
+    def _track(self, duration_s: float) -> None:
+        """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""
         data, mocap = self.scene.data, self.scene.binding.mocap_id
-        dt = self.scene.model.opt.timestep
         pos = data.mocap_pos[mocap]
         offset = self.target.wrist_pos - pos
         distance = np.linalg.norm(offset)
-        if distance > WRIST_TRACKING_SPEED * dt:
-            offset *= WRIST_TRACKING_SPEED * dt / distance
+        if distance > WRIST_TRACKING_SPEED * duration_s:
+            offset *= WRIST_TRACKING_SPEED * duration_s / distance
         data.mocap_pos[mocap] = pos + offset
         quat = data.mocap_quat[mocap]
         # Rotation from the current to the target orientation (the short way), as axis * angle.
@@ -294,7 +348,7 @@ class HandDriver:
             relative = -relative
         mujoco.mju_quat2Vel(rotvec, relative, 1.0)
         angle = np.linalg.norm(rotvec)
-        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * dt)
+        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * duration_s)
         if angle_step <= 0:
             return
         step, new = np.empty(4), np.empty(4)
@@ -307,17 +361,29 @@ class HandDriver:
         """Run ``n`` physics steps toward the target, then ``mj_forward``.
 
         Returns:
-            ``True`` if the physics diverged (a MuJoCo instability warning or a non-finite
-            state); the data is then not forwarded.
+            ``True`` if the physics diverged during these steps (see the class docstring); the
+            data is then not forwarded and the driver refuses further steps.
+
+        Raises:
+            PhysicsDiverged: if an earlier step diverged.
         """
+        if self.diverged:
+            raise PhysicsDiverged(
+                "the physics diverged in an earlier step and the episode was truncated; "
+                "call reset() (or restore a state) before stepping again"
+            )
         model, data = self.scene.model, self.scene.data
-        for _ in range(n):
-            self._track()
-            mujoco.mj_step(model, data)
-            if self._divergence_count() != self._warnings:
-                self._warnings = self._divergence_count()
-                return True
-        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+        self._track(n * model.opt.timestep)
+        mujoco.mj_step(model, data, nstep=n)
+        warnings = self._divergence_count()
+        # NaN fails both comparisons, so one test per array covers non-finite values too.
+        if (
+            warnings != self._warnings
+            or not np.all(np.abs(data.qvel) <= self._speed_bounds)
+            or not np.all(np.abs(data.qpos) < np.inf)
+        ):
+            self._warnings = warnings
+            self.diverged = True
             return True
         # mj_step leaves positions, contacts and sites at the state before integration; the
         # observation and labels describe the state after it.
@@ -515,6 +581,11 @@ class HandSimEnv(gym.Env):
         """
         if self.scene is None:
             raise gym.error.ResetNeeded("call reset() before step()")
+        if self.driver.diverged:
+            raise PhysicsDiverged(
+                f"the physics diverged at step {self.elapsed_steps} of this episode, which was "
+                "truncated (info['physics_diverged']); call reset() before stepping again"
+            )
         self._apply_action(self._check_action(action))
         diverged = self.driver.step(self.config.frame_skip)
         self.elapsed_steps += 1
@@ -587,6 +658,7 @@ class HandSimEnv(gym.Env):
                 )
             getattr(data, key)[:] = state[key]
         data.time = float(state["time"])
+        self.driver = HandDriver(self.scene)  # a restored state may follow a divergence
         self.driver.set_target(HandPose.from_vector(state["target"]))
         mujoco.mj_forward(self.scene.model, data)
         return self._observe()
