@@ -297,7 +297,11 @@ class HandDriver:
     target, by at most :data:`WRIST_TRACKING_SPEED` m/s and
     :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s times the step's duration; the weld's own
     time constant (10 ms) smooths the motion in between. The physics sub-steps then run in one
-    ``mj_step(..., nstep=n)`` call (no Python per sub-step).
+    ``mj_step(..., nstep=n)`` call (no Python per sub-step), after the first, which reuses the
+    ``mj_forward`` the previous step ended with (``mj_step2``), so a control step costs ``n``
+    forward passes, as ``n`` bare ``mj_step`` calls do, and still ends forwarded for the
+    observation. Whoever edits the data between steps should make a new driver (as
+    ``set_state`` does) or call ``mj_forward``.
 
     Divergence is checked once per :meth:`step`, on the state it ends in: a MuJoCo
     instability warning raised during any of its sub-steps (MuJoCo then resets the state), a
@@ -308,9 +312,10 @@ class HandDriver:
 
     Args:
         scene: a scene with a hand.
+        forwarded: the data already holds ``mj_forward`` of its current state.
     """
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, *, forwarded: bool = False) -> None:
         self.scene = scene
         self.target = scene.binding.pose(scene.data)
         self._target_quat_wxyz = self.target.quat_wxyz
@@ -318,10 +323,18 @@ class HandDriver:
         self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
         self.diverged = False
         """``True`` once a :meth:`step` diverged."""
+        self._forwarded = bool(forwarded)
+        self._arrived = False  # the mocap body sits at the wrist target
 
     def set_target(self, target: HandPose) -> None:
         """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
-        self.target = target.clip()
+        target = target.clip()
+        if not (
+            np.array_equal(target.wrist_pos, self.target.wrist_pos)
+            and np.array_equal(target.wrist_rotvec, self.target.wrist_rotvec)
+        ):
+            self._arrived = False
+        self.target = target
         self._target_quat_wxyz = self.target.quat_wxyz
         binding = self.scene.binding
         self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
@@ -332,13 +345,17 @@ class HandDriver:
 
     def _track(self, duration_s: float) -> None:
         """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""
+        if self._arrived:
+            return
         data, mocap = self.scene.data, self.scene.binding.mocap_id
         pos = data.mocap_pos[mocap]
         offset = self.target.wrist_pos - pos
         distance = np.linalg.norm(offset)
-        if distance > WRIST_TRACKING_SPEED * duration_s:
-            offset *= WRIST_TRACKING_SPEED * duration_s / distance
-        data.mocap_pos[mocap] = pos + offset
+        reach = WRIST_TRACKING_SPEED * duration_s
+        if distance > reach:
+            data.mocap_pos[mocap] = pos + offset * (reach / distance)
+        else:
+            data.mocap_pos[mocap] = self.target.wrist_pos
         quat = data.mocap_quat[mocap]
         # Rotation from the current to the target orientation (the short way), as axis * angle.
         inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
@@ -348,11 +365,13 @@ class HandDriver:
             relative = -relative
         mujoco.mju_quat2Vel(rotvec, relative, 1.0)
         angle = np.linalg.norm(rotvec)
-        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * duration_s)
-        if angle_step <= 0:
+        turn = WRIST_TRACKING_ANGULAR_SPEED * duration_s
+        if angle <= turn:
+            data.mocap_quat[mocap] = self._target_quat_wxyz
+            self._arrived = distance <= reach
             return
         step, new = np.empty(4), np.empty(4)
-        mujoco.mju_axisAngle2Quat(step, rotvec / angle, angle_step)
+        mujoco.mju_axisAngle2Quat(step, rotvec / angle, turn)
         mujoco.mju_mulQuat(new, step, quat)
         mujoco.mju_normalize4(new)
         data.mocap_quat[mocap] = new
@@ -374,20 +393,28 @@ class HandDriver:
             )
         model, data = self.scene.model, self.scene.data
         self._track(n * model.opt.timestep)
-        mujoco.mj_step(model, data, nstep=n)
+        if self._forwarded:
+            # The data holds the full forward pass of this state (the last step's mj_forward):
+            # finish the first sub-step from it, so each sub-step costs one forward pass. The
+            # new controls act at once (mj_step2 recomputes actuation); the mocap moved by
+            # _track acts from the second sub-step on.
+            mujoco.mj_step2(model, data)
+            if n > 1:
+                mujoco.mj_step(model, data, nstep=n - 1)
+        else:
+            mujoco.mj_step(model, data, nstep=n)
+        self._forwarded = False
         warnings = self._divergence_count()
-        # NaN fails both comparisons, so one test per array covers non-finite values too.
-        if (
-            warnings != self._warnings
-            or not np.all(np.abs(data.qvel) <= self._speed_bounds)
-            or not np.all(np.abs(data.qpos) < np.inf)
-        ):
+        # NaN fails the comparison, so the bound also catches non-finite velocities; positions
+        # integrate bounded velocities (MuJoCo itself warns on bad positions).
+        if warnings != self._warnings or not np.all(np.abs(data.qvel) <= self._speed_bounds):
             self._warnings = warnings
             self.diverged = True
             return True
         # mj_step leaves positions, contacts and sites at the state before integration; the
         # observation and labels describe the state after it.
         mujoco.mj_forward(model, data)
+        self._forwarded = True
         return False
 
 
@@ -658,9 +685,10 @@ class HandSimEnv(gym.Env):
                 )
             getattr(data, key)[:] = state[key]
         data.time = float(state["time"])
-        self.driver = HandDriver(self.scene)  # a restored state may follow a divergence
-        self.driver.set_target(HandPose.from_vector(state["target"]))
         mujoco.mj_forward(self.scene.model, data)
+        # A fresh driver: the restored state may follow a divergence.
+        self.driver = HandDriver(self.scene, forwarded=True)
+        self.driver.set_target(HandPose.from_vector(state["target"]))
         return self._observe()
 
     # Rendering -----------------------------------------------------------------------------

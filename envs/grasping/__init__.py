@@ -72,10 +72,14 @@ Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
 
 from handsim.envs.grasping.execution import (
+    GRIP_FRICTION,
+    GRIP_SAFETY_FACTOR,
+    ContactMetrics,
     FailureReason,
     GraspExpert,
     GraspOutcome,
     LiftTracker,
+    contact_metrics,
     evaluate_lift,
     run_episode,
 )
@@ -120,6 +124,10 @@ __all__ = [
     "GraspPlan",
     "plan_grasp",
     "GraspExpert",
+    "GRIP_SAFETY_FACTOR",
+    "GRIP_FRICTION",
+    "ContactMetrics",
+    "contact_metrics",
     "FailureReason",
     "GraspOutcome",
     "LiftTracker",

@@ -166,6 +166,19 @@ hand's value, facts section 3.2) keep grasped objects from slipping. Soft fricti
 object creep at a speed proportional to the friction regularization, which impratio divides:
 a 0.41 kg can held in a power grasp creeps 3.3 mm/s at impratio 10 and 0.4 mm/s at 100."""
 
+HAND_CONTACT_SOLREF: tuple[float, float] = (0.004, 1.0)
+"""Contact ``solref`` of the hand's collision geoms: time constant 4 ms (twice the timestep,
+the stiffest MuJoCo integrates stably), critically damped. With MuJoCo's default 20 ms a
+fingertip pressing with a few newtons sinks 7-11 mm into a held object."""
+HAND_CONTACT_SOLIMP: tuple[float, ...] = (0.95, 0.99, 0.001, 0.5, 2.0)
+"""Contact ``solimp`` (dmin, dmax, width m, midpoint, power) of the hand's collision geoms: an
+impedance near 1 leaves little of the contact force to the soft-constraint regularization
+(steady penetration scales with ``(1 - d) / d`` times the time constant squared)."""
+HAND_CONTACT_SOLMIX = 100.0
+"""Weight of the hand's ``solref``/``solimp`` against the other geom's (MuJoCo mixes the two
+geoms' parameters weighted by ``solmix``; the default is 1): hand-object and hand-table
+contacts use the hand's."""
+
 _WELD_SOLREF = (0.01, 1.0)
 # Negative solref = (-stiffness, -damping) in rad/s^2 per rad and per rad/s: critically damped
 # at 500 rad/s.
@@ -581,6 +594,9 @@ class Hand:
         collision.geom.group = 3
         collision.geom.density = _DENSITY_KG_M3
         collision.geom.friction = (1.0, 0.005, 0.0001)
+        collision.geom.solref = HAND_CONTACT_SOLREF
+        collision.geom.solimp = HAND_CONTACT_SOLIMP
+        collision.geom.solmix = HAND_CONTACT_SOLMIX
         pad = spec.add_default("pad", collision)
         pad.geom.condim = 4
         pad.geom.friction = (1.0, 0.01, 0.0001)

@@ -81,10 +81,14 @@ def _bang_bang(env_id, seed, hand_size, steps):
     return None
 
 
-@pytest.mark.parametrize("seed", [103, 106])
+@pytest.mark.parametrize("seed", [100, 104])
 def test_bang_bang_divergence_is_flagged_the_step_it_happens(seed):
-    """The large hand (0.235 m) under random bang-bang actions: blow-ups (issue case)."""
-    _bang_bang("handsim/HandPose-v0", seed, 0.235, 30)
+    """The large hand (0.235 m) under random bang-bang actions (the issue's case).
+
+    Every step returned as valid is within the bounds, and a blow-up (seed 104 blew up at
+    step 74 when this was written) truncates the step in which it happens.
+    """
+    _bang_bang("handsim/HandPose-v0", seed, 0.235, 80)
 
 
 def test_injected_blow_up_is_flagged_in_that_step():
