@@ -128,7 +128,8 @@ class GraspExpert:
     speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
-    actuators press), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
+    actuators press), ``"settle"`` (0.2 s: the fingers ease off to the grip force the object
+    needs, :meth:`grip_targets`), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
     ``"hold"`` (until the episode ends). :attr:`grasp_type` is the grasp taxonomy type and
     ``plan.strategy`` how it is applied (:class:`GraspRecipe`).
 
@@ -137,7 +138,9 @@ class GraspExpert:
     one ended), and waits (up to 1 s) at the end of the reach and of the approach until the
     state's wrist is within 2 cm of its target. It closes along a fixed schedule; contact needs
     no sensing because the position actuators stop at the object and press with their
-    torque-limited stiffness.
+    torque-limited stiffness. The grip force is then set from proprioception: the joint
+    angles at the end of the squeeze say how far each actuator is held off its target, hence
+    how hard each digit presses.
 
     Args:
         obj: the object to grasp.
@@ -256,7 +259,12 @@ class GraspExpert:
         keypoints = state.keypoints_world
         forces = {}
         for digit, joints in _DIGIT_JOINTS.items():
-            tip = keypoints[KEYPOINT_NAMES.index(f"{digit}_tip")]
+            # The pad touches the object halfway along the distal phalanx, not at the tip.
+            distal = "ip" if digit == "thumb" else "dip"
+            tip = 0.5 * (
+                keypoints[KEYPOINT_NAMES.index(f"{digit}_tip")]
+                + keypoints[KEYPOINT_NAMES.index(f"{digit}_{distal}")]
+            )
             estimates = []
             for joint, keypoint in joints:
                 j = JOINT_NAMES.index(joint)

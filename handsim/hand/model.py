@@ -174,6 +174,9 @@ HAND_CONTACT_SOLIMP: tuple[float, ...] = (0.95, 0.99, 0.001, 0.5, 2.0)
 """Contact ``solimp`` (dmin, dmax, width m, midpoint, power) of the hand's collision geoms: an
 impedance near 1 leaves little of the contact force to the soft-constraint regularization
 (steady penetration scales with ``(1 - d) / d`` times the time constant squared)."""
+HAND_FRICTION = 1.0
+"""Sliding friction coefficient of the hand's collision geoms (MuJoCo uses the larger of the
+two geoms' coefficients)."""
 HAND_CONTACT_SOLMIX = 100.0
 """Weight of the hand's ``solref``/``solimp`` against the other geom's (MuJoCo mixes the two
 geoms' parameters weighted by ``solmix``; the default is 1): hand-object and hand-table
@@ -593,13 +596,13 @@ class Hand:
         collision = spec.add_default("collision", hand_cls)
         collision.geom.group = 3
         collision.geom.density = _DENSITY_KG_M3
-        collision.geom.friction = (1.0, 0.005, 0.0001)
+        collision.geom.friction = (HAND_FRICTION, 0.005, 0.0001)
         collision.geom.solref = HAND_CONTACT_SOLREF
         collision.geom.solimp = HAND_CONTACT_SOLIMP
         collision.geom.solmix = HAND_CONTACT_SOLMIX
         pad = spec.add_default("pad", collision)
         pad.geom.condim = 4
-        pad.geom.friction = (1.0, 0.01, 0.0001)
+        pad.geom.friction = (HAND_FRICTION, 0.01, 0.0001)
         joint_classes = {}
         for kind in sorted({_joint_class(n) for n in JOINT_NAMES}):
             cls = spec.add_default(f"{kind}", hand_cls)
