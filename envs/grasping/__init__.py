@@ -76,6 +76,7 @@ Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 from handsim.envs.grasping.execution import (
     GRIP_FRICTION,
     GRIP_SAFETY_FACTOR,
+    MIN_GRIP_SCALE,
     ContactMetrics,
     FailureReason,
     GraspExpert,
@@ -128,6 +129,7 @@ __all__ = [
     "GraspExpert",
     "GRIP_SAFETY_FACTOR",
     "GRIP_FRICTION",
+    "MIN_GRIP_SCALE",
     "ContactMetrics",
     "contact_metrics",
     "FailureReason",

@@ -71,6 +71,10 @@ GRIP_FRICTION = 1.0
 LIFT_ACCELERATION_M_S2 = 2.0
 """Upward acceleration the grip is sized for on top of gravity (the expert's minimum-jerk lift
 peaks near 1.5 m/s^2), m/s^2."""
+MIN_GRIP_SCALE = 0.2
+"""The grip eases off to no less than this fraction of the squeeze's joint deflections: the
+force model leaves out the palm and the proximal segments, and below it small boxes and the
+extra-large clamp were dropped in the sweep (docs/grasping.md)."""
 _PRESSING_N = 0.2  # a finger pressing with less than this carries no share of the grip
 
 # Flexion joints of each digit and the keypoint on each joint's axis (its lever to the tip).
@@ -244,7 +248,7 @@ class GraspExpert:
         :data:`GRIP_SAFETY_FACTOR` times what the weight and the lift acceleration need at
         friction :data:`GRIP_FRICTION`: half on the thumb, half shared by the pressing fingers.
         Each digit's deflections are scaled down to that force (never up: the squeeze is the
-        most the expert presses).
+        most the expert presses; never below :data:`MIN_GRIP_SCALE` of them).
 
         Args:
             state: the state at the end of the squeeze.
@@ -259,12 +263,7 @@ class GraspExpert:
         keypoints = state.keypoints_world
         forces = {}
         for digit, joints in _DIGIT_JOINTS.items():
-            # The pad touches the object halfway along the distal phalanx, not at the tip.
-            distal = "ip" if digit == "thumb" else "dip"
-            tip = 0.5 * (
-                keypoints[KEYPOINT_NAMES.index(f"{digit}_tip")]
-                + keypoints[KEYPOINT_NAMES.index(f"{digit}_{distal}")]
-            )
+            tip = keypoints[KEYPOINT_NAMES.index(f"{digit}_tip")]
             estimates = []
             for joint, keypoint in joints:
                 j = JOINT_NAMES.index(joint)
@@ -276,7 +275,7 @@ class GraspExpert:
         targets = squeeze.copy()
         for digit, force_n in forces.items():
             wanted = 0.5 * grip_n / (1 if digit == "thumb" else max(len(fingers), 1))
-            scale = float(np.clip(wanted / max(force_n, 1e-6), 0.0, 1.0))
+            scale = float(np.clip(wanted / max(force_n, 1e-6), MIN_GRIP_SCALE, 1.0))
             joints = _DIGIT_ALL_JOINTS[digit]
             targets[joints] = measured[joints] + scale * (squeeze[joints] - measured[joints])
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
