@@ -45,7 +45,13 @@ from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
-from handsim.hand.model import HAND_SIZES, hand_params
+from handsim.hand.model import (
+    HAND_CONTACT_SOLIMP,
+    HAND_CONTACT_SOLMIX,
+    HAND_CONTACT_SOLREF,
+    HAND_SIZES,
+    hand_params,
+)
 from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import MAX_WRIST_SPEED
 from handsim.world.camera import CAMERA_PRESETS, camera_preset
@@ -66,6 +72,7 @@ __all__ = [
     "HandSimEnv",
     "HandDriver",
     "PhysicsDiverged",
+    "stiffen_hand_contacts",
     "divergence_speed_bounds",
     "DIVERGENCE_SPEED_M_S",
     "DIVERGENCE_LEVER_RATIO",
@@ -289,6 +296,25 @@ def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.n
     return bounds
 
 
+def stiffen_hand_contacts(scene: Scene) -> None:
+    """Give the scene's hand-object and hand-table contacts the hand's contact parameters.
+
+    Writes :data:`~handsim.hand.model.HAND_CONTACT_SOLREF`, ``HAND_CONTACT_SOLIMP`` and
+    ``HAND_CONTACT_SOLMIX`` onto every collision geom outside the hand (idempotent). MuJoCo
+    mixes the two geoms' parameters by ``solmix``, so hand-object and hand-table contacts (and
+    object-object and object-table ones) are stiff, and contacts between the hand's own
+    segments keep MuJoCo's defaults.
+    """
+    model = scene.model
+    root = model.body(scene.hand.root_body).id
+    other = (model.body_rootid[model.geom_bodyid] != root) & (
+        (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    )
+    model.geom_solref[other] = HAND_CONTACT_SOLREF
+    model.geom_solimp[other] = HAND_CONTACT_SOLIMP
+    model.geom_solmix[other] = HAND_CONTACT_SOLMIX
+
+
 class HandDriver:
     """Drives a scene's physical hand toward a target pose, one control step at a time.
 
@@ -321,6 +347,7 @@ class HandDriver:
         self._target_quat_wxyz = self.target.quat_wxyz
         self._warnings = self._divergence_count()
         self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
+        stiffen_hand_contacts(scene)
         self.diverged = False
         """``True`` once a :meth:`step` diverged."""
         self._forwarded = bool(forwarded)

@@ -178,9 +178,14 @@ HAND_FRICTION = 1.0
 """Sliding friction coefficient of the hand's collision geoms (MuJoCo uses the larger of the
 two geoms' coefficients)."""
 HAND_CONTACT_SOLMIX = 100.0
-"""Weight of the hand's ``solref``/``solimp`` against the other geom's (MuJoCo mixes the two
-geoms' parameters weighted by ``solmix``; the default is 1): hand-object and hand-table
-contacts use the hand's."""
+"""Weight of these ``solref``/``solimp`` against the hand geom's MuJoCo defaults (MuJoCo mixes
+the two geoms' parameters weighted by ``solmix``; the default is 1).
+
+The three ``HAND_CONTACT_*`` values are the contact parameters of hand-object and hand-table
+contacts. They are written onto the geoms the hand touches (every geom outside the hand) of a
+compiled scene by ``handsim.envs.base.HandDriver``, so contacts between the hand's own
+segments keep MuJoCo's defaults (a fist's fingers press into each other softly, as gesture
+targets assume)."""
 
 _WELD_SOLREF = (0.01, 1.0)
 # Negative solref = (-stiffness, -damping) in rad/s^2 per rad and per rad/s: critically damped
@@ -597,9 +602,6 @@ class Hand:
         collision.geom.group = 3
         collision.geom.density = _DENSITY_KG_M3
         collision.geom.friction = (HAND_FRICTION, 0.005, 0.0001)
-        collision.geom.solref = HAND_CONTACT_SOLREF
-        collision.geom.solimp = HAND_CONTACT_SOLIMP
-        collision.geom.solmix = HAND_CONTACT_SOLMIX
         pad = spec.add_default("pad", collision)
         pad.geom.condim = 4
         pad.geom.friction = (HAND_FRICTION, 0.01, 0.0001)
