@@ -81,14 +81,14 @@ def _bang_bang(env_id, seed, hand_size, steps):
     return None
 
 
-@pytest.mark.parametrize("seed", [100, 104])
+@pytest.mark.parametrize("seed", [101, 103])
 def test_bang_bang_divergence_is_flagged_the_step_it_happens(seed):
     """The large hand (0.235 m) under random bang-bang actions (the issue's case).
 
-    Every step returned as valid is within the bounds, and a blow-up (seed 104 blew up at
-    step 74 when this was written) truncates the step in which it happens.
+    Every step returned as valid is within the bounds, and a blow-up (seeds 101 and 103 blew
+    up at steps 29 and 8 when this was written) truncates the step in which it happens.
     """
-    _bang_bang("handsim/HandPose-v0", seed, 0.235, 80)
+    _bang_bang("handsim/HandPose-v0", seed, 0.235, 40)
 
 
 def test_injected_blow_up_is_flagged_in_that_step():
