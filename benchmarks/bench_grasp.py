@@ -11,8 +11,24 @@ the env's own placement and start pose, depth rendered every step, the expert fr
 ``make_expert``) and success is the env's ``info["is_success"]`` when it ends.
 
 Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
-[--first-seed S] [--out benchmarks/results/bench_grasp.json]``. Prints one row per object
-(grasp type, successes, mean lift and slip, failure reasons) and writes every episode to JSON.
+[--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
+[--out benchmarks/results/bench_grasp.json]``. Prints one row per object (grasp type,
+successes, mean lift and slip, failure reasons) and writes every episode to JSON.
+
+Contact quality (``run_episode`` mode), per object over its episodes:
+
+- ``hold p95/max mm``: the deepest hand-object penetration (MuJoCo contact ``dist < 0``) of
+  every control step of the hold phase: its 95th percentile and maximum;
+- ``all mm``: the deepest hand-object penetration over whole episodes; ``table mm``: the
+  deepest hand-table penetration;
+- ``F/W``: the median over the hold of the total hand-object normal force over the object's
+  weight (the median over episodes; ``F/W max`` the largest episode median);
+- ``slip mm``: the largest slip in the palm frame of a successful hold.
+
+``--sizes all`` runs the small, medium and large presets, right and left (one table each).
+``--physics`` instead measures the physics rate of a held grasp: ``HandDriver.step`` (one
+control step: mocap tracking, ``mj_step(nstep=10)``, divergence checks, ``mj_forward``) against
+bare single ``mj_step`` calls from the same state, in physics steps/s and their ratio.
 """
 
 from __future__ import annotations
@@ -27,26 +43,31 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from handsim.envs.base import HandDriver
 from handsim.envs.grasping import (
+    CONTROL_DT_S,
+    FRAME_SKIP,
     GraspExpert,
     GraspPlanningError,
+    GraspState,
+    contact_metrics,
     run_episode,
     shape_class,
 )
-from handsim.hand.model import hand_params
+from handsim.hand.model import HAND_SIZES, hand_params
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import Scene, SceneSpec, sample_placements
 
 _MAX_STEPS = 400  # 8 s at 50 Hz
 
 
-def _env_episode(name: str, seed: int) -> dict:
+def _env_episode(name: str, seed: int, hand_size_m: float = 0.189, side: str = "right") -> dict:
     """One handsim/Grasp-v0 episode with the grasp expert."""
     import gymnasium as gym
 
     import handsim.envs  # noqa: F401 (registers the ids)
 
-    env = gym.make("handsim/Grasp-v0", objects=name)
+    env = gym.make("handsim/Grasp-v0", objects=name, hand_size=hand_size_m, handedness=side)
     try:
         _, info = env.reset(seed=seed)
         expert = env.unwrapped.make_expert()
@@ -112,9 +133,42 @@ def run_clutter(episodes: int, first_seed: int = 0) -> dict:
     return {"episodes": len(runs), "successes": ok, "runs": runs}
 
 
-def run_object(name: str, seeds: int, first_seed: int = 0, use_env: bool = False) -> dict:
+def _contact_summary(obj, records: list[tuple[str, object]]) -> dict:
+    """Penetration and force figures of one episode from its per-step contact metrics."""
+    hold = [m for phase, m in records if phase == "hold"]
+    weight = obj.mass_kg * 9.81
+    summary = {
+        "max_depth_mm": 1000 * max((m.object_depth_m for _, m in records), default=0.0),
+        "max_table_depth_mm": 1000 * max((m.table_depth_m for _, m in records), default=0.0),
+    }
+    if hold:
+        depth = np.array([m.object_depth_m for m in hold])
+        force = np.array([m.normal_force_n for m in hold])
+        summary.update(
+            {
+                "hold_depth_p95_mm": 1000 * float(np.percentile(depth, 95)),
+                "hold_depth_max_mm": 1000 * float(depth.max()),
+                "hold_force_over_weight": float(np.median(force) / weight),
+                "deepest_geom": max(hold, key=lambda m: m.object_depth_m).deepest_geom,
+            }
+        )
+    return summary
+
+
+def _size_length(hand_size: str) -> float:
+    return HAND_SIZES[hand_size] if hand_size in HAND_SIZES else float(hand_size)
+
+
+def run_object(
+    name: str,
+    seeds: int,
+    first_seed: int = 0,
+    use_env: bool = False,
+    hand_size: str = "medium",
+    side: str = "right",
+) -> dict:
     """Run ``seeds`` episodes with one object; return its row and the episodes."""
-    params = hand_params("medium")
+    params = hand_params(_size_length(hand_size), side)
     obj = get_object(name)
     episodes = []
     start = time.perf_counter()
@@ -122,7 +176,7 @@ def run_object(name: str, seeds: int, first_seed: int = 0, use_env: bool = False
     for seed in range(first_seed, first_seed + seeds):
         if use_env:
             try:
-                episode = _env_episode(name, seed)
+                episode = _env_episode(name, seed, params.hand_length, side)
             except GraspPlanningError as err:
                 episode = {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
             grasp_types[episode.get("grasp_type", "-")] += 1
@@ -132,20 +186,37 @@ def run_object(name: str, seeds: int, first_seed: int = 0, use_env: bool = False
         placements = sample_placements(rng, [name])
         scene = Scene(SceneSpec(hand=params, objects=placements))
         expert = GraspExpert(obj, params)
+        records: list = []
+
+        def record(step: int, expert: GraspExpert, scene: Scene = scene, records=records):
+            records.append((expert.phase, contact_metrics(scene, 0)))
+
         try:
-            outcome = run_episode(scene, 0, expert, rng, _MAX_STEPS)
+            outcome = run_episode(scene, 0, expert, rng, _MAX_STEPS, on_step=record)
         except GraspPlanningError as err:
             episodes.append(
                 {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
             )
             continue
         grasp_types[expert.grasp_type] += 1
-        episodes.append({"seed": seed, "grasp_type": expert.grasp_type, **outcome.to_dict()})
+        episodes.append(
+            {
+                "seed": seed,
+                "grasp_type": expert.grasp_type,
+                **outcome.to_dict(),
+                **_contact_summary(obj, records),
+            }
+        )
     wall = time.perf_counter() - start
     ok = [e for e in episodes if e["success"]]
     lifts = [e["max_lift_m"] for e in episodes if "max_lift_m" in e]
     slips = [e["slip_m"] for e in ok]
     failures = collections.Counter(e["failure"] for e in episodes if not e["success"])
+
+    def pooled(key: str, fn) -> float | None:
+        values = [e[key] for e in episodes if key in e]
+        return float(fn(values)) if values else None
+
     return {
         "object": name,
         "shape_class": shape_class(obj),
@@ -155,8 +226,131 @@ def run_object(name: str, seeds: int, first_seed: int = 0, use_env: bool = False
         "mean_lift_m": float(np.mean(lifts)) if lifts else 0.0,
         "mean_slip_m": float(np.mean(slips)) if slips else None,
         "failures": dict(failures),
+        "hold_depth_p95_mm": pooled("hold_depth_p95_mm", np.max),
+        "hold_depth_max_mm": pooled("hold_depth_max_mm", np.max),
+        "max_depth_mm": pooled("max_depth_mm", np.max),
+        "max_table_depth_mm": pooled("max_table_depth_mm", np.max),
+        "force_over_weight": pooled("hold_force_over_weight", np.median),
+        "max_slip_m": max(slips) if slips else None,
         "wall_s": wall,
         "runs": episodes,
+    }
+
+
+def bench_physics(names: list[str], control_steps: int = 100, repeats: int = 7) -> dict:
+    """Physics steps/s of held grasps: ``HandDriver.step`` against bare ``mj_step`` calls.
+
+    Timed in process CPU time (MuJoCo runs on one thread), best of ``repeats`` interleaved
+    runs, so other processes on a shared machine distort the ratio less.
+    """
+    params = hand_params("medium")
+    rows = []
+    for name in names:
+        rng = np.random.default_rng(0)
+        scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [name])))
+        expert = GraspExpert(get_object(name), params)
+        held = []
+
+        def stop(step: int, expert: GraspExpert, held=held) -> None:
+            held.append(expert.phase == "hold")
+
+        run_episode(scene, 0, expert, rng, _MAX_STEPS, stop_on_success=False, on_step=stop)
+        hold_target = expert.act(GraspState.from_sim(scene, 0, _MAX_STEPS * CONTROL_DT_S))
+        model, data = scene.model, scene.data
+        snapshot = mujoco.MjData(model)
+        mujoco.mj_copyData(snapshot, model, data)
+        driver_s, bare_s = [], []
+        for _ in range(repeats):  # interleaved, best of: the machine is shared
+            mujoco.mj_copyData(data, model, snapshot)
+            driver = HandDriver(scene)
+            driver.set_target(hold_target)
+            start = time.process_time()
+            for _ in range(control_steps):
+                driver.step(FRAME_SKIP)
+            driver_s.append(time.process_time() - start)
+            mujoco.mj_copyData(data, model, snapshot)
+            start = time.process_time()
+            for _ in range(control_steps * FRAME_SKIP):
+                mujoco.mj_step(model, data)
+            bare_s.append(time.process_time() - start)
+        n = control_steps * FRAME_SKIP
+        row = {
+            "object": name,
+            "held": bool(held and held[-1]),
+            "driver_steps_per_s": n / min(driver_s),
+            "bare_steps_per_s": n / min(bare_s),
+            "mean_contacts": int(data.ncon),
+        }
+        row["ratio"] = row["driver_steps_per_s"] / row["bare_steps_per_s"]
+        rows.append(row)
+        print(
+            f"{name:<24} held={row['held']!s:<5} driver {row['driver_steps_per_s']:8.0f} "
+            f"bare {row['bare_steps_per_s']:8.0f} steps/s  ratio {row['ratio']:.2f}",
+            flush=True,
+        )
+    ratios = [r["ratio"] for r in rows]
+    driver = [r["driver_steps_per_s"] for r in rows]
+    print(
+        f"median ratio {np.median(ratios):.2f} (min {min(ratios):.2f}); median held-grasp "
+        f"physics {np.median(driver):.0f} steps/s"
+    )
+    return {
+        "median_ratio": float(np.median(ratios)),
+        "median_driver_steps_per_s": float(np.median(driver)),
+        "objects": rows,
+    }
+
+
+def _fmt(value: float | None, scale: float = 1.0, digits: int = 1) -> str:
+    return "-" if value is None else f"{scale * value:.{digits}f}"
+
+
+def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: str) -> dict:
+    """One success / contact table for a hand size and side."""
+    header = (
+        f"{'object':<24} {'class':<10} {'grasp type':<20} {'ok':>7} {'lift mm':>8} "
+        f"{'slip mm':>8} {'hold p95':>8} {'hold max':>8} {'all mm':>7} {'table':>6} "
+        f"{'F/W':>6}  failures"
+    )
+    print(f"hand {hand_size} {side}")
+    print(header)
+    print("-" * len(header))
+    rows = []
+    start = time.perf_counter()
+    for name in names:
+        row = run_object(name, args.seeds, args.first_seed, args.env, hand_size, side)
+        rows.append(row)
+        failures = ", ".join(f"{k} {v}" for k, v in row["failures"].items()) or "-"
+        print(
+            f"{name:<24} {row['shape_class']:<10} {row['grasp_type']:<20} "
+            f"{row['successes']:>3}/{row['episodes']:<3} {1000 * row['mean_lift_m']:>8.0f} "
+            f"{_fmt(row['max_slip_m'], 1000):>8} "
+            f"{_fmt(row.get('hold_depth_p95_mm'), 1, 2):>8} "
+            f"{_fmt(row.get('hold_depth_max_mm'), 1, 2):>8} "
+            f"{_fmt(row.get('max_depth_mm'), 1, 2):>7} "
+            f"{_fmt(row.get('max_table_depth_mm'), 1, 2):>6} "
+            f"{_fmt(row.get('force_over_weight')):>6}  {failures}",
+            flush=True,
+        )
+    total = sum(r["successes"] for r in rows)
+    episodes = sum(r["episodes"] for r in rows)
+    at_target = sum(r["successes"] >= 0.95 * r["episodes"] for r in rows)
+    forces = [r["force_over_weight"] for r in rows if r.get("force_over_weight") is not None]
+    wall = time.perf_counter() - start
+    print("-" * len(header))
+    print(
+        f"total {total}/{episodes} ({100 * total / max(episodes, 1):.1f} %); objects at >= 95 %: "
+        f"{at_target}/{len(rows)}; median F/W {_fmt(np.median(forces) if forces else None)}; "
+        f"wall {wall:.0f} s"
+    )
+    return {
+        "hand_size": hand_size,
+        "side": side,
+        "total_successes": total,
+        "total_episodes": episodes,
+        "median_force_over_weight": float(np.median(forces)) if forces else None,
+        "wall_s": wall,
+        "objects": rows,
     }
 
 
@@ -168,62 +362,52 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds are first .. first+N-1")
     parser.add_argument("--env", action="store_true", help="run full Grasp-v0 episodes")
     parser.add_argument(
+        "--hand-size", default="medium", help="small, medium, large or a length in metres"
+    )
+    parser.add_argument("--side", default="right", choices=("right", "left"))
+    parser.add_argument(
+        "--sizes", choices=("all",), help="every preset size, right and left (6 tables)"
+    )
+    parser.add_argument(
+        "--physics", action="store_true", help="measure held-grasp physics steps/s only"
+    )
+    parser.add_argument(
         "--clutter", type=int, default=0, help="run this many GraspClutter-v0 episodes instead"
     )
     parser.add_argument("--out", default="benchmarks/results/bench_grasp.json")
     args = parser.parse_args()
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     if args.clutter:
         result = run_clutter(args.clutter, args.first_seed)
         print(f"GraspClutter-v0: {result['successes']}/{result['episodes']} successes")
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(result, indent=2))
         print(f"written: {out}")
         return
     names = [OBJECTS.canonical(n) for n in args.objects]
-    header = (
-        f"{'object':<24} {'class':<10} {'grasp type':<20} {'ok':>7} {'lift mm':>8} "
-        f"{'slip mm':>8}  failures"
+    meta = {
+        "machine": {"python": platform.python_version(), "cpu": platform.processor()},
+        "mujoco": mujoco.__version__,
+    }
+    if args.physics:
+        out.write_text(json.dumps({**meta, **bench_physics(names)}, indent=2))
+        print(f"written: {out}")
+        return
+    hands = (
+        [(size, side) for size in ("small", "medium", "large") for side in ("right", "left")]
+        if args.sizes == "all"
+        else [(args.hand_size, args.side)]
     )
-    print(header)
-    print("-" * len(header))
-    rows = []
-    start = time.perf_counter()
-    for name in names:
-        row = run_object(name, args.seeds, args.first_seed, use_env=args.env)
-        rows.append(row)
-        slip = "-" if row["mean_slip_m"] is None else f"{1000 * row['mean_slip_m']:.1f}"
-        failures = ", ".join(f"{k} {v}" for k, v in row["failures"].items()) or "-"
-        print(
-            f"{name:<24} {row['shape_class']:<10} {row['grasp_type']:<20} "
-            f"{row['successes']:>3}/{row['episodes']:<3} {1000 * row['mean_lift_m']:>8.0f} "
-            f"{slip:>8}  {failures}",
-            flush=True,
-        )
-    total = sum(r["successes"] for r in rows)
-    episodes = sum(r["episodes"] for r in rows)
-    at_target = sum(r["successes"] >= 0.9 * r["episodes"] for r in rows)
-    wall = time.perf_counter() - start
-    print("-" * len(header))
-    print(
-        f"total {total}/{episodes} ({100 * total / max(episodes, 1):.1f} %); objects at >= 90 %: "
-        f"{at_target}/{len(rows)}; wall {wall:.0f} s"
-    )
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    tables = [run_table(names, args, size, side) for size, side in hands]
     out.write_text(
         json.dumps(
             {
-                "machine": {"python": platform.python_version(), "cpu": platform.processor()},
-                "mujoco": mujoco.__version__,
+                **meta,
                 "mode": "handsim/Grasp-v0 episodes" if args.env else "run_episode",
                 "seeds": args.seeds,
                 "first_seed": args.first_seed,
                 "max_steps": _MAX_STEPS,
-                "total_successes": total,
-                "total_episodes": episodes,
-                "wall_s": wall,
-                "objects": rows,
+                "tables": tables,
             },
             indent=2,
         )

@@ -24,9 +24,12 @@ Control (``control_mode``):
 
 A bad action raises :class:`InvalidAction` (a :class:`~handsim.errors.HandSimError` and a
 ``ValueError``): the wrong shape, NaN/Inf values, a complex, boolean or non-numeric dtype.
-If the physics diverges (a MuJoCo instability warning or a non-finite state)
-the step returns the last valid observation with ``truncated=True`` and
-``info["physics_diverged"] = True``; observations are never non-finite.
+Divergence is checked at the end of every step (:class:`HandDriver`: a MuJoCo instability
+warning, a non-finite state, or a velocity above a bound scaled to the hand). The step in which
+it happens returns the last valid observation with ``truncated=True`` and
+``info["physics_diverged"] = True``; observations are never non-finite and never carry
+exploded velocities. Stepping again raises :class:`PhysicsDiverged` until ``reset()`` (or
+``set_state``).
 
 Processes: OpenGL contexts are made lazily, in the process that renders, and an env that finds
 itself in a new process (a fork of a process that had rendered) drops the inherited contexts
@@ -53,7 +56,13 @@ from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
-from handsim.hand.model import HAND_SIZES, hand_params
+from handsim.hand.model import (
+    HAND_CONTACT_SOLIMP,
+    HAND_CONTACT_SOLMIX,
+    HAND_CONTACT_SOLREF,
+    HAND_SIZES,
+    hand_params,
+)
 from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import MAX_WRIST_SPEED
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
@@ -73,6 +82,11 @@ from handsim.world.sensors import sensor_model
 __all__ = [
     "HandSimEnv",
     "HandDriver",
+    "PhysicsDiverged",
+    "stiffen_hand_contacts",
+    "divergence_speed_bounds",
+    "DIVERGENCE_SPEED_M_S",
+    "DIVERGENCE_LEVER_RATIO",
     "EnvConfig",
     "InvalidEnvConfig",
     "OBS_MODES",
@@ -131,6 +145,12 @@ WRIST_TRACKING_SPEED = 2.0
 """Fastest motion of the mocap body toward the wrist target, m/s (fast human reaching)."""
 WRIST_TRACKING_ANGULAR_SPEED = 4 * np.pi
 """Fastest rotation of the mocap body toward the wrist target, rad/s."""
+DIVERGENCE_SPEED_M_S = 5.0
+"""Speed above which the physics counts as diverged, m/s: five times the fastest wrist tracking
+and about twice the fastest human finger and hand motions (pitching, finger flicks)."""
+DIVERGENCE_LEVER_RATIO = 0.1
+"""Lever arm, as a fraction of the hand length (about a middle phalanx), that turns
+:data:`DIVERGENCE_SPEED_M_S` into the angular-velocity bound of rotational DoFs."""
 SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
 """Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
 SETTLE_S = 0.1
@@ -355,28 +375,102 @@ def _without_images(frame: Frame) -> Frame:
     return dataclasses.replace(frame, depth=None, depth_clean=None, segmentation=None)
 
 
+class PhysicsDiverged(HandSimError, RuntimeError):
+    """The physics diverged and the episode was truncated; it cannot be stepped further."""
+
+
+def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.ndarray:
+    """Per-DoF speed bound above which a state counts as diverged.
+
+    Linear DoFs (free-joint translations, slides) are bounded by :data:`DIVERGENCE_SPEED_M_S`;
+    rotational DoFs (hinges, free and ball rotations) by that speed at a lever of
+    :data:`DIVERGENCE_LEVER_RATIO` times the hand length (a phalanx), so a smaller hand, whose
+    fingers legitimately turn faster, gets a higher angular bound.
+
+    Args:
+        model: the compiled model.
+        hand_length_m: the hand's length, metres.
+
+    Returns:
+        (nv,) bound per DoF: m/s for linear DoFs, rad/s for rotational ones.
+    """
+    angular = DIVERGENCE_SPEED_M_S / (DIVERGENCE_LEVER_RATIO * hand_length_m)
+    bounds = np.full(model.nv, angular)
+    for j in range(model.njnt):
+        adr = model.jnt_dofadr[j]
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            bounds[adr : adr + 3] = DIVERGENCE_SPEED_M_S
+        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
+            bounds[adr] = DIVERGENCE_SPEED_M_S
+    return bounds
+
+
+def stiffen_hand_contacts(scene: Scene) -> None:
+    """Give the scene's hand-object and hand-table contacts the hand's contact parameters.
+
+    Writes :data:`~handsim.hand.model.HAND_CONTACT_SOLREF`, ``HAND_CONTACT_SOLIMP`` and
+    ``HAND_CONTACT_SOLMIX`` onto every collision geom outside the hand (idempotent). MuJoCo
+    mixes the two geoms' parameters by ``solmix``, so hand-object and hand-table contacts (and
+    object-object and object-table ones) are stiff, and contacts between the hand's own
+    segments keep MuJoCo's defaults.
+    """
+    model = scene.model
+    root = model.body(scene.hand.root_body).id
+    other = (model.body_rootid[model.geom_bodyid] != root) & (
+        (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    )
+    model.geom_solref[other] = HAND_CONTACT_SOLREF
+    model.geom_solimp[other] = HAND_CONTACT_SOLIMP
+    model.geom_solmix[other] = HAND_CONTACT_SOLMIX
+
+
 class HandDriver:
     """Drives a scene's physical hand toward a target pose, one control step at a time.
 
-    The finger targets go to the position actuators at once; the mocap body (the hand's wrist
-    target, welded softly to the hand root) moves toward the wrist target at most
-    :data:`WRIST_TRACKING_SPEED` m/s and :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s, one
-    physics step at a time. Envs and scripted-episode loops share it, so both run the same
-    physics.
+    The finger targets go to the position actuators at once. The mocap body (the hand's wrist
+    target, welded softly to the hand root) is moved once per :meth:`step` toward the wrist
+    target, by at most :data:`WRIST_TRACKING_SPEED` m/s and
+    :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s times the step's duration; the weld's own
+    time constant (10 ms) smooths the motion in between. The physics sub-steps then run in one
+    ``mj_step(..., nstep=n)`` call (no Python per sub-step), after the first, which reuses the
+    ``mj_forward`` the previous step ended with (``mj_step2``), so a control step costs ``n``
+    forward passes, as ``n`` bare ``mj_step`` calls do, and still ends forwarded for the
+    observation. Whoever edits the data between steps should make a new driver (as
+    ``set_state`` does) or call ``mj_forward``.
+
+    Divergence is checked once per :meth:`step`, on the state it ends in: a MuJoCo
+    instability warning raised during any of its sub-steps (MuJoCo then resets the state), a
+    non-finite position or velocity, or a velocity above :func:`divergence_speed_bounds` (a
+    blow-up grows by orders of magnitude within a few sub-steps, long before MuJoCo warns about
+    a huge acceleration). A diverged driver refuses to step again (:class:`PhysicsDiverged`).
+    Envs and scripted-episode loops share it, so both run the same physics.
 
     Args:
         scene: a scene with a hand.
+        forwarded: the data already holds ``mj_forward`` of its current state.
     """
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, scene: Scene, *, forwarded: bool = False) -> None:
         self.scene = scene
         self.target = scene.binding.pose(scene.data)
         self._target_quat_wxyz = self.target.quat_wxyz
         self._warnings = self._divergence_count()
+        self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
+        stiffen_hand_contacts(scene)
+        self.diverged = False
+        """``True`` once a :meth:`step` diverged."""
+        self._forwarded = bool(forwarded)
+        self._arrived = False  # the mocap body sits at the wrist target
 
     def set_target(self, target: HandPose) -> None:
         """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
-        self.target = target.clip()
+        target = target.clip()
+        if not (
+            np.array_equal(target.wrist_pos, self.target.wrist_pos)
+            and np.array_equal(target.wrist_rotvec, self.target.wrist_rotvec)
+        ):
+            self._arrived = False
+        self.target = target
         self._target_quat_wxyz = self.target.quat_wxyz
         binding = self.scene.binding
         self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
@@ -385,15 +479,19 @@ class HandDriver:
         data = self.scene.data
         return int(sum(data.warning[w].number for w in _DIVERGENCE_WARNINGS))
 
-    def _track(self) -> None:
+    def _track(self, duration_s: float) -> None:
+        """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""
+        if self._arrived:
+            return
         data, mocap = self.scene.data, self.scene.binding.mocap_id
-        dt = self.scene.model.opt.timestep
         pos = data.mocap_pos[mocap]
         offset = self.target.wrist_pos - pos
         distance = np.linalg.norm(offset)
-        if distance > WRIST_TRACKING_SPEED * dt:
-            offset *= WRIST_TRACKING_SPEED * dt / distance
-        data.mocap_pos[mocap] = pos + offset
+        reach = WRIST_TRACKING_SPEED * duration_s
+        if distance > reach:
+            data.mocap_pos[mocap] = pos + offset * (reach / distance)
+        else:
+            data.mocap_pos[mocap] = self.target.wrist_pos
         quat = data.mocap_quat[mocap]
         # Rotation from the current to the target orientation (the short way), as axis * angle.
         inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
@@ -403,11 +501,13 @@ class HandDriver:
             relative = -relative
         mujoco.mju_quat2Vel(rotvec, relative, 1.0)
         angle = np.linalg.norm(rotvec)
-        angle_step = min(angle, WRIST_TRACKING_ANGULAR_SPEED * dt)
-        if angle_step <= 0:
+        turn = WRIST_TRACKING_ANGULAR_SPEED * duration_s
+        if angle <= turn:
+            data.mocap_quat[mocap] = self._target_quat_wxyz
+            self._arrived = distance <= reach
             return
         step, new = np.empty(4), np.empty(4)
-        mujoco.mju_axisAngle2Quat(step, rotvec / angle, angle_step)
+        mujoco.mju_axisAngle2Quat(step, rotvec / angle, turn)
         mujoco.mju_mulQuat(new, step, quat)
         mujoco.mju_normalize4(new)
         data.mocap_quat[mocap] = new
@@ -416,21 +516,41 @@ class HandDriver:
         """Run ``n`` physics steps toward the target, then ``mj_forward``.
 
         Returns:
-            ``True`` if the physics diverged (a MuJoCo instability warning or a non-finite
-            state); the data is then not forwarded.
+            ``True`` if the physics diverged during these steps (see the class docstring); the
+            data is then not forwarded and the driver refuses further steps.
+
+        Raises:
+            PhysicsDiverged: if an earlier step diverged.
         """
+        if self.diverged:
+            raise PhysicsDiverged(
+                "the physics diverged in an earlier step and the episode was truncated; "
+                "call reset() (or restore a state) before stepping again"
+            )
         model, data = self.scene.model, self.scene.data
-        for _ in range(n):
-            self._track()
-            mujoco.mj_step(model, data)
-            if self._divergence_count() != self._warnings:
-                self._warnings = self._divergence_count()
-                return True
-        if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
+        self._track(n * model.opt.timestep)
+        if self._forwarded:
+            # The data holds the full forward pass of this state (the last step's mj_forward):
+            # finish the first sub-step from it, so each sub-step costs one forward pass. The
+            # new controls act at once (mj_step2 recomputes actuation); the mocap moved by
+            # _track acts from the second sub-step on.
+            mujoco.mj_step2(model, data)
+            if n > 1:
+                mujoco.mj_step(model, data, nstep=n - 1)
+        else:
+            mujoco.mj_step(model, data, nstep=n)
+        self._forwarded = False
+        warnings = self._divergence_count()
+        # NaN fails the comparison, so the bound also catches non-finite velocities; positions
+        # integrate bounded velocities (MuJoCo itself warns on bad positions).
+        if warnings != self._warnings or not np.all(np.abs(data.qvel) <= self._speed_bounds):
+            self._warnings = warnings
+            self.diverged = True
             return True
         # mj_step leaves positions, contacts and sites at the state before integration; the
         # observation and labels describe the state after it.
         mujoco.mj_forward(model, data)
+        self._forwarded = True
         return False
 
 
@@ -760,6 +880,11 @@ class HandSimEnv(gym.Env):
         """
         if self.scene is None:
             raise gym.error.ResetNeeded("call reset() before step()")
+        if self.driver.diverged:
+            raise PhysicsDiverged(
+                f"the physics diverged at step {self.elapsed_steps} of this episode, which was "
+                "truncated (info['physics_diverged']); call reset() before stepping again"
+            )
         self._apply_action(self._check_action(action))
         diverged = self.driver.step(self.config.frame_skip)
         self.elapsed_steps += 1
@@ -869,8 +994,10 @@ class HandSimEnv(gym.Env):
                 )
             getattr(data, key)[:] = state[key]
         data.time = float(state["time"])
-        self.driver.set_target(HandPose.from_vector(state["target"]))
         mujoco.mj_forward(self.scene.model, data)
+        # A fresh driver: the restored state may follow a divergence.
+        self.driver = HandDriver(self.scene, forwarded=True)
+        self.driver.set_target(HandPose.from_vector(state["target"]))
         return self._observe()
 
     # Rendering -----------------------------------------------------------------------------

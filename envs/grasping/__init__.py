@@ -64,18 +64,25 @@ cross-section through the centre of mass that the hand can span), the wrist pose
 hand's forward kinematics (the thumb and finger contact spheres meet the object at the closure
 where their gap equals the object's width), and every candidate is checked for collisions with
 the table and the object in a private kinematic copy of the hand and the object (the env's
-``MjData`` is never read). The squeeze past contact scales with the object's mass (people grip
-a light object more gently). Motions are minimum-jerk segments with a peak wrist speed of
+``MjData`` is never read). The digits squeeze past contact, then ease off to a grip force of
+:data:`GRIP_SAFETY_FACTOR` times the slip force of the object's weight at friction
+:data:`GRIP_FRICTION` (people scale their grip with the load; :meth:`GraspExpert.grip_targets`).
+Motions are minimum-jerk segments with a peak wrist speed of
 :data:`EXPERT_WRIST_SPEED_M_S` (below :data:`MAX_WRIST_SPEED_M_S`).
 
 Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
 
 from handsim.envs.grasping.execution import (
+    GRIP_FRICTION,
+    GRIP_SAFETY_FACTOR,
+    MIN_GRIP_SCALE,
+    ContactMetrics,
     FailureReason,
     GraspExpert,
     GraspOutcome,
     LiftTracker,
+    contact_metrics,
     evaluate_lift,
     run_episode,
 )
@@ -120,6 +127,11 @@ __all__ = [
     "GraspPlan",
     "plan_grasp",
     "GraspExpert",
+    "GRIP_SAFETY_FACTOR",
+    "GRIP_FRICTION",
+    "MIN_GRIP_SCALE",
+    "ContactMetrics",
+    "contact_metrics",
     "FailureReason",
     "GraspOutcome",
     "LiftTracker",

@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Literal
 
+import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -34,19 +36,23 @@ from handsim.envs.grasping.planning import (
     GraspState,
     InvalidGraspState,
     _check_transform,
+    _checker,
     _object_body_id,
     plan_grasp,
     shape_class,
     start_pose,
 )
+from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.model import HandParams
-from handsim.hand.pose import HandPose
+from handsim.hand.pose import JOINT_LIMITS, JOINT_NAMES, HandPose
 from handsim.hand.pose_sources import minimum_jerk
 from handsim.world.objects import YCBObject
 from handsim.world.scene import Scene
 
 __all__ = [
     "GraspExpert",
+    "ContactMetrics",
+    "contact_metrics",
     "FailureReason",
     "GraspOutcome",
     "LiftTracker",
@@ -55,6 +61,45 @@ __all__ = [
 ]
 
 # The expert -----------------------------------------------------------------------------------
+
+GRIP_SAFETY_FACTOR = 2.0
+"""Grip force over the force that just prevents slip. People grip with 1.3 to 3 times the slip
+force and scale it with the load (grip-load coupling; Johansson & Westling 1984, Exp. Brain
+Res. 56:550-564); the expert aims at 2."""
+GRIP_FRICTION = 1.0
+"""Hand-object friction coefficient the expert assumes when sizing its grip force."""
+LIFT_ACCELERATION_M_S2 = 2.0
+"""Upward acceleration the grip is sized for on top of gravity (the expert's minimum-jerk lift
+peaks near 1.5 m/s^2), m/s^2."""
+MIN_GRIP_SCALE = 0.2
+"""The grip eases off to no less than this fraction of the squeeze's joint deflections: the
+force model leaves out the palm and the proximal segments, and below it small boxes and the
+extra-large clamp were dropped in the sweep (docs/grasping.md)."""
+_PRESSING_N = 0.2  # a finger pressing with less than this carries no share of the grip
+
+# Flexion joints of each digit and the keypoint on each joint's axis (its lever to the tip).
+_DIGIT_JOINTS = {
+    "thumb": (
+        ("thumb_cmc_flex", "thumb_cmc"),
+        ("thumb_mcp_flex", "thumb_mcp"),
+        ("thumb_ip_flex", "thumb_ip"),
+    ),
+    **{
+        f: (
+            (f"{f}_mcp_flex", f"{f}_mcp"),
+            (f"{f}_pip_flex", f"{f}_pip"),
+            (f"{f}_dip_flex", f"{f}_dip"),
+        )
+        for f in ("index", "middle", "ring", "little")
+    },
+}
+_DIGIT_JOINT_INDICES = {
+    d: np.array([JOINT_NAMES.index(j) for j, _ in joints]) for d, joints in _DIGIT_JOINTS.items()
+}
+_DIGIT_ALL_JOINTS = {
+    d: np.array([i for i, name in enumerate(JOINT_NAMES) if name.startswith(f"{d}_")])
+    for d in _DIGIT_JOINTS
+}
 
 
 @dataclasses.dataclass
@@ -87,7 +132,8 @@ class GraspExpert:
     speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
-    actuators press), ``"settle"`` (0.2 s), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
+    actuators press), ``"settle"`` (0.2 s: the fingers ease off to the grip force the object
+    needs, :meth:`grip_targets`), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
     ``"hold"`` (until the episode ends). :attr:`grasp_type` is the grasp taxonomy type and
     ``plan.strategy`` how it is applied (:class:`GraspRecipe`).
 
@@ -96,7 +142,9 @@ class GraspExpert:
     one ended), and waits (up to 1 s) at the end of the reach and of the approach until the
     state's wrist is within 2 cm of its target. It closes along a fixed schedule; contact needs
     no sensing because the position actuators stop at the object and press with their
-    torque-limited stiffness.
+    torque-limited stiffness. The grip force is then set from proprioception: the joint
+    angles at the end of the squeeze say how far each actuator is held off its target, hence
+    how hard each digit presses.
 
     Args:
         obj: the object to grasp.
@@ -122,6 +170,16 @@ class GraspExpert:
         self.obj = obj
         self.hand_params = hand_params
         self.rng = rng
+        # Position-actuator stiffness per joint (N m/rad; 0 where a joint has no actuator).
+        checker = _checker(obj, hand_params)
+        self._kp = np.zeros(len(JOINT_NAMES))
+        self._kp[checker.binding.actuated] = checker.model.actuator_gainprm[
+            checker.binding.actuator_ids, 0
+        ]
+        self._torque = np.full(len(JOINT_NAMES), np.inf)
+        self._torque[checker.binding.actuated] = checker.model.actuator_forcerange[
+            checker.binding.actuator_ids, 1
+        ]
         self.recipe = GRASP_RECIPES[shape_class(obj)]
         self.plan: GraspPlan | None = None
         self.phase = "idle"
@@ -180,6 +238,48 @@ class GraspExpert:
         self._segment_start_s = state.time_s
         self.phase = segments[0].name
 
+    def grip_targets(self, state: GraspState) -> np.ndarray:
+        """Finger targets that press on the object with a grip force sized to its weight.
+
+        Called when the squeeze has pressed the digits onto the object. A position actuator
+        held off its target presses with ``kp * (target - angle)`` (up to its torque limit), so
+        the joint deflections give each digit's force (torque over the lever from the joint's
+        keypoint to the tip; the median over its flexion joints). The grip force aimed at is
+        :data:`GRIP_SAFETY_FACTOR` times what the weight and the lift acceleration need at
+        friction :data:`GRIP_FRICTION`: half on the thumb, half shared by the pressing fingers.
+        Each digit's deflections are scaled down to that force (never up: the squeeze is the
+        most the expert presses; never below :data:`MIN_GRIP_SCALE` of them).
+
+        Args:
+            state: the state at the end of the squeeze.
+
+        Returns:
+            (21,) joint targets, radians.
+        """
+        measured = state.hand_pose.angles
+        squeeze = self.plan.closed
+        load_n = self.obj.mass_kg * (9.81 + LIFT_ACCELERATION_M_S2)
+        grip_n = GRIP_SAFETY_FACTOR * load_n / GRIP_FRICTION
+        keypoints = state.keypoints_world
+        forces = {}
+        for digit, joints in _DIGIT_JOINTS.items():
+            tip = keypoints[KEYPOINT_NAMES.index(f"{digit}_tip")]
+            estimates = []
+            for joint, keypoint in joints:
+                j = JOINT_NAMES.index(joint)
+                lever = float(np.linalg.norm(tip - keypoints[KEYPOINT_NAMES.index(keypoint)]))
+                torque = min(self._kp[j] * abs(squeeze[j] - measured[j]), self._torque[j])
+                estimates.append(torque / max(lever, 1e-3))
+            forces[digit] = float(np.median(estimates))
+        fingers = [d for d in _DIGIT_JOINTS if d != "thumb" and forces[d] > _PRESSING_N]
+        targets = squeeze.copy()
+        for digit, force_n in forces.items():
+            wanted = 0.5 * grip_n / (1 if digit == "thumb" else max(len(fingers), 1))
+            scale = float(np.clip(wanted / max(force_n, 1e-6), MIN_GRIP_SCALE, 1.0))
+            joints = _DIGIT_ALL_JOINTS[digit]
+            targets[joints] = measured[joints] + scale * (squeeze[joints] - measured[joints])
+        return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
     def _check_state(self, state: GraspState) -> None:
         if not isinstance(state, GraspState):
             raise InvalidGraspState(f"state must be a GraspState; received {type(state).__name__}")
@@ -218,6 +318,11 @@ class GraspExpert:
             self._from = segment
             self._index += 1
             self._segment_start_s = t
+            if segment.name == "squeeze" and not self.plan.hooked:
+                # The digits press on the object: ease them to the grip force it needs.
+                grip = self.grip_targets(state)
+                for later in self._segments[self._index :]:
+                    later.angles = grip
         if self._index >= len(self._segments):
             self.phase = "hold"
             last = self._segments[-1]
@@ -471,6 +576,58 @@ def evaluate_lift(
 # Episodes -------------------------------------------------------------------------------------
 
 
+@dataclasses.dataclass(frozen=True)
+class ContactMetrics:
+    """How the hand touches the target object and the table at one instant.
+
+    Attributes:
+        object_depth_m: deepest hand-object penetration (MuJoCo contact ``dist < 0``), metres;
+            0 without penetration.
+        table_depth_m: deepest hand-table penetration, metres.
+        normal_force_n: total normal force of the hand-object contacts, newtons.
+        deepest_geom: name of the hand geom of the deepest hand-object contact ("" if none).
+    """
+
+    object_depth_m: float
+    table_depth_m: float
+    normal_force_n: float
+    deepest_geom: str
+
+
+def contact_metrics(scene: Scene, instance: int) -> ContactMetrics:
+    """Penetration and grip force of the hand on object ``instance`` (after ``mj_forward``).
+
+    Raises:
+        InvalidGraspState: for a scene without a hand or a bad instance.
+    """
+    body_id = _object_body_id(scene, instance)
+    model, data = scene.model, scene.data
+    n = data.ncon
+    if n == 0:
+        return ContactMetrics(0.0, 0.0, 0.0, "")
+    root = model.body(scene.hand.root_body).id
+    hand = model.body_rootid == root
+    contact = data.contact
+    g1, g2 = contact.geom1[:n], contact.geom2[:n]
+    b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
+    h1, h2 = hand[b1], hand[b2]
+    on_object = (h1 & (b2 == body_id)) | (h2 & (b1 == body_id))
+    table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")  # -1 without a table
+    on_table = (h1 & (g2 == table)) | (h2 & (g1 == table))
+    dist = contact.dist[:n]
+    object_depth = float(max(0.0, -dist[on_object].min())) if on_object.any() else 0.0
+    table_depth = float(max(0.0, -dist[on_table].min())) if on_table.any() else 0.0
+    force, wrench = 0.0, np.zeros(6)
+    for i in np.nonzero(on_object)[0]:
+        mujoco.mj_contactForce(model, data, int(i), wrench)
+        force += float(wrench[0])
+    deepest = ""
+    if on_object.any():
+        i = np.nonzero(on_object)[0][np.argmin(dist[on_object])]
+        deepest = model.geom(int(g1[i] if h1[i] else g2[i])).name
+    return ContactMetrics(object_depth, table_depth, force, deepest)
+
+
 def run_episode(
     scene: Scene,
     instance: int,
@@ -479,6 +636,7 @@ def run_episode(
     max_steps: int = 400,
     *,
     stop_on_success: bool = True,
+    on_step: Callable[[int, GraspExpert], None] | None = None,
 ) -> GraspOutcome:
     """Run one ground-truth pick-and-lift episode.
 
@@ -493,6 +651,9 @@ def run_episode(
         rng: random generator of the start pose.
         max_steps: control steps at most (400 = 8 s).
         stop_on_success: end the episode as soon as the hold succeeds.
+        on_step: called after every control step with its index and the expert (whose
+            ``phase`` says where the episode is); for measurements such as
+            :func:`contact_metrics`.
 
     Returns:
         The outcome.
@@ -527,7 +688,10 @@ def run_episode(
             diverged = True
             break
         time_s = (step + 1) * CONTROL_DT_S
-        if tracker.update_from_sim(scene, instance, time_s) and stop_on_success:
+        success = tracker.update_from_sim(scene, instance, time_s)
+        if on_step is not None:
+            on_step(step, expert)
+        if success and stop_on_success:
             break
         state = GraspState.from_sim(scene, instance, time_s)
     return tracker.outcome(diverged=diverged)

@@ -511,6 +511,8 @@ class GraspPlan:
             grasp while the digits close (an open hand reaches lower than a closed one).
         width_m: object width between the opposing pads, metres.
         contact_closure: closure of ``grasp_type`` at which the pads meet the object.
+        hooked: the fingertips hook under the far top edge of a wide box (the hooks carry
+            the load by their shape, so the squeeze is kept during the hold).
     """
 
     grasp_type: str
@@ -524,6 +526,7 @@ class GraspPlan:
     hover_m: float
     width_m: float
     contact_closure: float
+    hooked: bool = False
 
     @property
     def approach_end(self) -> np.ndarray:
@@ -723,6 +726,7 @@ def _top_candidates(
             deepest,
         )
     ]
+    hook = None
     if recipe.wide:
         # Too wide to reach down both sides: hook the fingertips under the far top edge.
         hook = _closing(params, recipe, _hook_path(), 1.0, _HOOK_SQUEEZE_RAD * _grip_scale(obj))
@@ -801,6 +805,7 @@ def _top_candidates(
                     hover_m=float(hovering[2] - wrist[2]),
                     width_m=width,
                     contact_closure=float(_CLOSURES[k]),
+                    hooked=c is hook,
                 )
                 if _approach_is_clear(plan, obj, T, params):
                     return plan

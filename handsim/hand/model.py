@@ -175,6 +175,27 @@ hand's value in MuJoCo Menagerie) keep grasped objects from slipping. Soft frict
 object creep at a speed proportional to the friction regularization, which impratio divides:
 a 0.41 kg can held in a power grasp creeps 3.3 mm/s at impratio 10 and 0.4 mm/s at 100."""
 
+HAND_CONTACT_SOLREF: tuple[float, float] = (0.004, 1.0)
+"""Contact ``solref`` of the hand's collision geoms: time constant 4 ms (twice the timestep,
+the stiffest MuJoCo integrates stably), critically damped. With MuJoCo's default 20 ms a
+fingertip pressing with a few newtons sinks 7-11 mm into a held object."""
+HAND_CONTACT_SOLIMP: tuple[float, ...] = (0.95, 0.99, 0.001, 0.5, 2.0)
+"""Contact ``solimp`` (dmin, dmax, width m, midpoint, power) of the hand's collision geoms: an
+impedance near 1 leaves little of the contact force to the soft-constraint regularization
+(steady penetration scales with ``(1 - d) / d`` times the time constant squared)."""
+HAND_FRICTION = 1.0
+"""Sliding friction coefficient of the hand's collision geoms (MuJoCo uses the larger of the
+two geoms' coefficients)."""
+HAND_CONTACT_SOLMIX = 100.0
+"""Weight of these ``solref``/``solimp`` against the hand geom's MuJoCo defaults (MuJoCo mixes
+the two geoms' parameters weighted by ``solmix``; the default is 1).
+
+The three ``HAND_CONTACT_*`` values are the contact parameters of hand-object and hand-table
+contacts. They are written onto the geoms the hand touches (every geom outside the hand) of a
+compiled scene by ``handsim.envs.base.HandDriver``, so contacts between the hand's own
+segments keep MuJoCo's defaults (a fist's fingers press into each other softly, as gesture
+targets assume)."""
+
 _WELD_SOLREF = (0.01, 1.0)
 # Negative solref = (-stiffness, -damping) in rad/s^2 per rad and per rad/s: critically damped
 # at 500 rad/s.
@@ -653,10 +674,10 @@ class Hand:
         collision = spec.add_default("collision", hand_cls)
         collision.geom.group = 3
         collision.geom.density = _DENSITY_KG_M3
-        collision.geom.friction = (1.0, 0.005, 0.0001)
+        collision.geom.friction = (HAND_FRICTION, 0.005, 0.0001)
         pad = spec.add_default("pad", collision)
         pad.geom.condim = 4
-        pad.geom.friction = (1.0, 0.01, 0.0001)
+        pad.geom.friction = (HAND_FRICTION, 0.01, 0.0001)
         joint_classes = {}
         for kind in sorted({_joint_class(n) for n in JOINT_NAMES}):
             cls = spec.add_default(f"{kind}", hand_cls)
