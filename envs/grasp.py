@@ -215,7 +215,11 @@ class GraspEnv(HandSimEnv):
         keypoints_world: np.ndarray | None = None,
         T_world_from_obj: np.ndarray | None = None,
     ) -> GraspState:
-        """The grasp expert's state: the truth, or the given (estimated) values in its place."""
+        """The grasp expert's state: the truth, or the given (estimated) values in its place.
+
+        The joint angles the hand's own sensors read (``joint_angles_rad``) stay the truth: an
+        estimated hand pose replaces what is perceived, not proprioception.
+        """
         time_s = float(self.scene.data.time - self._episode_start_s)
         truth = GraspState.from_sim(self.scene, self.target_instance, time_s)
         estimated = {

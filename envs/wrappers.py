@@ -60,8 +60,15 @@ def perceived_state_inputs(
     if estimate.keypoints_cam is not None:
         keypoints = estimate.keypoints_cam @ R.T + t
         out["keypoints_world"] = keypoints
-        # The estimate is of this hand: noise must not make it "the other side".
-        fit = retargeter(keypoints, initial=previous_pose, check_side=False, report_clamped=False)
+        # The estimate is of this hand (its side and its size): noise must not change either.
+        fit = retargeter(
+            keypoints,
+            initial=previous_pose,
+            fit_scale=False,
+            initial_scale=1.0,
+            check_side=False,
+            report_clamped=False,
+        )
         out["hand_pose"] = fit.pose
     elif estimate.center_cam is not None:
         true_keypoints = frame.keypoints_cam @ R.T + t

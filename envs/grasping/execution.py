@@ -256,7 +256,8 @@ class GraspExpert:
         Returns:
             (21,) joint targets, radians.
         """
-        measured = state.hand_pose.angles
+        # Proprioception, not the (possibly estimated) pose: the deflections set the force.
+        measured = state.joint_angles_rad
         squeeze = self.plan.closed
         load_n = self.obj.mass_kg * (9.81 + LIFT_ACCELERATION_M_S2)
         grip_n = GRIP_SAFETY_FACTOR * load_n / GRIP_FRICTION

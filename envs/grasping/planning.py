@@ -109,6 +109,8 @@ class GraspState:
         keypoints_world: (21, 3) hand keypoints, world frame, metres.
         T_world_from_obj: (4, 4) pose of the target object (world: z up, table top at z = 0).
         obj: the target's geometry (extents, model points, symmetries, name).
+        joint_angles_rad: (21,) proprioception: the physical hand's joint angles, as its own
+            joint sensors read them (never a pose estimate); default: ``hand_pose.angles``.
     """
 
     time_s: float
@@ -116,6 +118,7 @@ class GraspState:
     keypoints_world: np.ndarray
     T_world_from_obj: np.ndarray
     obj: YCBObject
+    joint_angles_rad: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.time_s, (int, float, np.floating)) and math.isfinite(self.time_s)):
@@ -135,6 +138,14 @@ class GraspState:
                 f"obj must be a YCBObject (handsim.world.get_object); received "
                 f"{type(self.obj).__name__}"
             )
+        angles = self.hand_pose.angles if self.joint_angles_rad is None else self.joint_angles_rad
+        angles = np.array(angles, dtype=np.float64)
+        if angles.shape != (21,) or not np.all(np.isfinite(angles)):
+            raise InvalidGraspState(
+                f"joint_angles_rad must be a finite (21,) array in radians; received shape "
+                f"{angles.shape}"
+            )
+        object.__setattr__(self, "joint_angles_rad", angles)
         object.__setattr__(self, "time_s", float(self.time_s))
         object.__setattr__(self, "keypoints_world", keypoints)
         object.__setattr__(
@@ -158,9 +169,11 @@ class GraspState:
         T = np.eye(4)
         T[:3, :3] = data.xmat[body_id].reshape(3, 3)
         T[:3, 3] = data.xpos[body_id]
+        pose = scene.binding.pose(data)
         return cls(
             time_s=time_s,
-            hand_pose=scene.binding.pose(data),
+            hand_pose=pose,
+            joint_angles_rad=pose.angles,
             keypoints_world=scene.binding.keypoints(data),
             T_world_from_obj=T,
             obj=scene.objects[instance][1],

@@ -1,11 +1,14 @@
 """Grasp-v0 and GraspClutter-v0: the task, its arguments and physical grasps in the env."""
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.base import InvalidEnvConfig
+from handsim.envs.grasping import InvalidGraspState
 from handsim.errors import UnknownName
 from handsim.world.scene import OBJECT_LABEL_OFFSET
 
@@ -83,4 +86,20 @@ def test_sparse_reward_is_zero_until_success():
     env.reset(seed=0)
     rewards = [env.step(np.asarray(env.unwrapped.target.vector))[1] for _ in range(5)]
     assert rewards == [0.0] * 5
+    env.close()
+
+
+def test_an_estimated_hand_pose_leaves_proprioception_true():
+    """expert_state(hand_pose=estimate) replaces the perceived pose, not the joint sensors."""
+    env = gym.make("handsim/Grasp-v0", objects="mustard_bottle", obs_mode="state")
+    env.reset(seed=0)
+    base = env.unwrapped
+    truth = base.expert_state()
+    np.testing.assert_array_equal(truth.joint_angles_rad, truth.hand_pose.angles)
+    estimate = truth.hand_pose.replace(angles=truth.hand_pose.angles + 0.2)
+    state = base.expert_state(hand_pose=estimate)
+    np.testing.assert_array_equal(state.hand_pose.angles, estimate.angles)
+    np.testing.assert_array_equal(state.joint_angles_rad, truth.joint_angles_rad)
+    with pytest.raises(InvalidGraspState, match=r"joint_angles_rad must be a finite \(21,\) array"):
+        dataclasses.replace(truth, joint_angles_rad=np.zeros(20))
     env.close()

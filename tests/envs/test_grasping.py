@@ -391,7 +391,9 @@ def test_grip_targets_scale_the_squeeze_down_to_the_grip_force():
         # As if the digits were stopped half way between contact and squeeze.
         plan = expert.plan
         pressed = state.hand_pose.replace(angles=0.5 * (plan.contact + plan.closed))
-        targets = expert.grip_targets(dataclasses.replace(state, hand_pose=pressed))
+        targets = expert.grip_targets(
+            dataclasses.replace(state, hand_pose=pressed, joint_angles_rad=pressed.angles)
+        )
         low = np.minimum(pressed.angles, plan.closed) - 1e-9
         high = np.maximum(pressed.angles, plan.closed) + 1e-9
         assert np.all((targets >= low) & (targets <= high))
