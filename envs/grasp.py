@@ -86,6 +86,7 @@ class GraspEnv(HandSimEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
+
     - v0: initial version. Added later under v0, every default unchanged: ``labels``,
       ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
       ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
@@ -275,6 +276,7 @@ class GraspClutterEnv(GraspEnv):
     :class:`~handsim.envs.base.EnvConfig`.
 
     ## Version History
+
     - v0: initial version. Added later under v0, every default unchanged: ``labels``,
       ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
       ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image

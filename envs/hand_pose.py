@@ -74,6 +74,7 @@ class HandPoseEnv(HandSimEnv):
     ``docs/envs.md``).
 
     ## Version History
+
     - v0: initial version. Added later under v0, every default unchanged: ``labels``,
       ``width``/``height``, ``depth_format``, ``channel_axis`` (opt-in ``(1, H, W)`` images),
       ``render_width``/``render_height`` and ``obs_mode="privileged_state"``. The image
