@@ -72,13 +72,15 @@ def _read_fps(folder: Path, seconds: float = 10.0) -> float:
     from handsim.data.torch_dataset import HandSimDataset
 
     data = HandSimDataset(folder)
-    loader = torch.utils.data.DataLoader(data, batch_size=32, shuffle=True, num_workers=2)
+    loader = torch.utils.data.DataLoader(
+        data, batch_size=32, shuffle=True, num_workers=2, persistent_workers=True
+    )
+    for _ in loader:  # warm-up: worker start-up and each worker's first shard reads
+        pass
     n, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
         for batch in loader:
             n += len(batch["depth"])
-            if time.perf_counter() - start > seconds:
-                break
     return n / (time.perf_counter() - start)
 
 

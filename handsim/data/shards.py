@@ -280,6 +280,8 @@ class ShardReader:
         self.path = Path(path)
         self._file = None
         self._pid = None
+        self._labels: dict[str, np.ndarray] | None = None
+        self._labels_pid: int | None = None
         f = self._open()
         self.frames = int(f.attrs["frames"])
         self.depth_scale_mm = float(f.attrs["depth_scale_mm"])
@@ -316,14 +318,26 @@ class ShardReader:
         index = int(index) % self.frames
         f = self._open()
         scale = np.float32(self.depth_scale_mm / 1000.0)
-        out = {key: ds[index] for key, ds in f["labels"].items()}
+        labels = self._all_labels()
+        out = {key: values[index].copy() for key, values in labels.items()}
         out["depth"] = f["depth"][index].astype(np.float32) * scale
         out["segmentation"] = f["segmentation"][index].astype(np.int16)
         if self.has_clean:
             out["depth_clean"] = f["depth_clean"][index].astype(np.float32) * scale
-        out["episode"] = f["episode"][index]
-        out["step"] = f["step"][index]
+        out["episode"] = labels["episode"][index]
+        out["step"] = labels["step"][index]
         return out
+
+    def _all_labels(self) -> dict[str, np.ndarray]:
+        # Labels are a few kB per frame: read each shard's once (per process) instead of
+        # decompressing a 64-frame chunk of every label for every sample.
+        if self._labels is None or self._labels_pid != os.getpid():
+            f = self._open()
+            self._labels = {key: ds[:] for key, ds in f["labels"].items()}
+            self._labels["episode"] = f["episode"][:]
+            self._labels["step"] = f["step"][:]
+            self._labels_pid = os.getpid()
+        return self._labels
 
     def labels(self, key: str) -> np.ndarray:
         """One label over every frame, ``(N, *shape)`` (e.g. for filtering)."""
@@ -331,14 +345,14 @@ class ShardReader:
             raise InvalidShard(
                 f"unknown label {key!r}; valid: episode, step, {', '.join(LABEL_SCHEMA)}"
             )
-        f = self._open()
-        return f[key][:] if key in ("episode", "step") else f["labels"][key][:]
+        return self._all_labels()[key].copy()
 
     def close(self) -> None:
         """Close the file (it re-opens on the next access)."""
         if self._file is not None:
             self._file.close()
             self._file = None
+        self._labels = None
 
 
 def check_shard(path: str | os.PathLike[str], expected: ShardInfo | None = None) -> list[str]:
