@@ -16,7 +16,7 @@ from handsim.hand.pose import (
 
 
 def test_joint_order_follows_design():
-    """The 21 angles follow DESIGN.md: thumb CMC/MCP/IP, then each finger MCP flex/abd, PIP, DIP."""
+    """The 21 angles in docs/conventions.md order: thumb CMC/MCP/IP, each finger MCP, PIP, DIP."""
     assert len(JOINT_NAMES) == 21
     assert JOINT_NAMES[:5] == (
         "thumb_cmc_flex",
