@@ -106,10 +106,9 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
     rng = np.random.default_rng(seed)
     records = sorted(manifest.shards.values(), key=lambda s: s.name)
     readers = [ShardReader(folder / r.name) for r in records]
-    picks = [(int(rng.integers(len(readers))), None) for _ in range(12)]
     tiles = []
-    for k, _ in picks:
-        reader = readers[k]
+    for _ in range(12):
+        reader = readers[int(rng.integers(len(readers)))]
         frame = arrays_to_frame(reader[int(rng.integers(len(reader)))])
         tiles.append(draw_frame(frame))
     rows = [np.hstack(tiles[i : i + 4]) for i in range(0, len(tiles), 4)]

@@ -228,7 +228,7 @@ def arrays_to_frame(
     Raises:
         InvalidLabelArrays: if the arrays do not follow the schema or ``valid`` is False.
     """
-    from handsim.frame import Contact, Frame, ObjectLabel
+    from handsim.frame import Contact, Frame, ObjectLabel, _read_only
     from handsim.world.registry import OBJECTS
 
     check_label_arrays(arrays)
@@ -244,8 +244,8 @@ def arrays_to_frame(
                 instance=int(k),
                 name=name,
                 ycbv_id=None if ycbv_id < 0 else ycbv_id,
-                T_cam_from_obj=_frozen(arrays["object_T_cam_from_obj"][k]),
-                corners_cam=_frozen(arrays["object_corners_cam"][k]),
+                T_cam_from_obj=_read_only(arrays["object_T_cam_from_obj"][k]),
+                corners_cam=_read_only(arrays["object_corners_cam"][k]),
                 visib_fract=float(arrays["object_visib_fract"][k]),
                 px_count_all=int(arrays["object_px_count_all"][k]),
                 px_count_visib=int(arrays["object_px_count_visib"][k]),
@@ -255,7 +255,7 @@ def arrays_to_frame(
         Contact(
             hand_part=int(arrays["contact_hand_part"][i]),
             instance=int(arrays["contact_instance"][i]),
-            pos_cam=_frozen(arrays["contact_pos_cam"][i]),
+            pos_cam=_read_only(arrays["contact_pos_cam"][i]),
             normal_force_n=float(arrays["contact_normal_force_n"][i]),
         )
         for i in range(int(arrays["contact_count"]))
@@ -265,16 +265,16 @@ def arrays_to_frame(
     clean = arrays.get("depth_clean")
     return Frame(
         camera=camera,
-        K=_frozen(arrays["K"]),
-        T_cam_from_world=_frozen(arrays["T_cam_from_world"]),
-        depth=_frozen(arrays.get("depth", empty)),
-        depth_clean=None if clean is None else _frozen(clean),
-        segmentation=_frozen(arrays.get("segmentation", empty.astype(np.int16))),
-        keypoints_cam=_frozen(arrays["keypoints_cam"]),
-        keypoints_px=_frozen(arrays["keypoints_px"]),
-        in_frame=_frozen(arrays["in_frame"]),
-        visible=_frozen(arrays["visible"]),
-        occluder=_frozen(arrays["occluder"]),
+        K=_read_only(arrays["K"]),
+        T_cam_from_world=_read_only(arrays["T_cam_from_world"]),
+        depth=_read_only(arrays.get("depth", empty)),
+        depth_clean=None if clean is None else _read_only(clean),
+        segmentation=_read_only(arrays.get("segmentation", empty.astype(np.int16))),
+        keypoints_cam=_read_only(arrays["keypoints_cam"]),
+        keypoints_px=_read_only(arrays["keypoints_px"]),
+        in_frame=_read_only(arrays["in_frame"]),
+        visible=_read_only(arrays["visible"]),
+        occluder=_read_only(arrays["occluder"]),
         hand_pose=HandPose.from_vector(np.asarray(arrays["hand_pose"])),
         hand_length_m=float(arrays["hand_length_m"]),
         handedness="left" if bool(arrays["is_left"]) else "right",
@@ -282,9 +282,3 @@ def arrays_to_frame(
         hand_occlusion_ratio=None if np.isnan(ratio) else ratio,
         contacts=contacts,
     )
-
-
-def _frozen(array: np.ndarray) -> np.ndarray:
-    out = np.array(array)
-    out.flags.writeable = False
-    return out

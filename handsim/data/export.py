@@ -26,10 +26,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handsim.data.manifest import Manifest
-from handsim.data.shards import ShardReader
+from handsim.data.shards import ShardReader, depth_units
 from handsim.data.torch_dataset import split_of_episode
 from handsim.errors import HandSimError
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, to_format
+from handsim.viz import project_points
 from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.render import DepthRenderer
@@ -39,6 +40,8 @@ __all__ = ["InvalidExport", "export_hand_labels", "export_bop", "OCCLUDER_NAMES"
 
 OCCLUDER_NAMES = {-1: "none", -2: "self", -3: "scene"}
 """Occluder codes of the hand labels; an integer k >= 0 is object instance k."""
+
+_YCBV_NAMES = {spec.ycbv_id: name for name, spec in OBJECTS.items()}
 
 
 class InvalidExport(HandSimError, ValueError):
@@ -52,20 +55,6 @@ def _prepare(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> tu
         raise InvalidExport(f"{out} is not empty: export into a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)
     return manifest, out
-
-
-def _depth_png(depth_m: np.ndarray, depth_scale_mm: float) -> np.ndarray:
-    units = np.rint(depth_m * (1000.0 / depth_scale_mm))
-    units[(units > 65535) | ~np.isfinite(units)] = 0
-    return units.astype(np.uint16)
-
-
-def _project(K: np.ndarray, points_cam: np.ndarray) -> np.ndarray:
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uvw = points_cam @ K.T
-        uv = uvw[..., :2] / uvw[..., 2:3]
-    uv[points_cam[..., 2] <= 0] = np.nan
-    return uv
 
 
 def _json_points(points: np.ndarray, digits: int) -> list:
@@ -95,7 +84,6 @@ def export_hand_labels(
     """
     manifest, out = _prepare(dataset, out)
     seed = int(manifest.config.get("seed", 0))
-    names = {spec.ycbv_id: name for name, spec in OBJECTS.items()}
     counts: dict[str, int] = {}
     files: dict[str, Any] = {}
     try:
@@ -111,7 +99,7 @@ def export_hand_labels(
                 k = counts.get(split, 0)
                 counts[split] = k + 1
                 png = f"depth/{k:06d}.png"
-                cv2.imwrite(str(folder / png), _depth_png(a["depth"], manifest.depth_scale_mm))
+                cv2.imwrite(str(folder / png), depth_units(a["depth"], manifest.depth_scale_mm))
                 K = a["K"]
                 kp = a["keypoints_cam"]
                 formats = {}
@@ -120,13 +108,13 @@ def export_hand_labels(
                     formats[fmt] = {
                         "names": list(point_names),
                         "keypoints_cam_m": _json_points(pts, 6),
-                        "keypoints_px": _json_points(_project(K, pts), 3),
+                        "keypoints_px": _json_points(project_points(K, pts), 3),
                     }
                 objects = [
                     {
                         "instance": int(j),
                         "ycbv_id": int(a["object_ycbv_id"][j]),
-                        "name": names.get(int(a["object_ycbv_id"][j])),
+                        "name": _YCBV_NAMES.get(int(a["object_ycbv_id"][j])),
                         "visib_fract": round(float(a["object_visib_fract"][j]), 6),
                     }
                     for j in np.flatnonzero(a["object_valid"])
@@ -175,7 +163,7 @@ def _ply_mm(path: Path, vertices_m: np.ndarray, faces: np.ndarray) -> None:
 
 def _models_info(ycbv_id: int) -> dict[str, Any]:
     """BOP ``models_info`` of one object (millimetres), symmetries in BOP's encoding."""
-    obj = get_object(next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id))
+    obj = get_object(_YCBV_NAMES[ycbv_id])
     lo = obj.visual_mesh.vertices.min(axis=0) * 1000.0
     size = obj.visual_mesh.vertices.max(axis=0) * 1000.0 - lo
     info: dict[str, Any] = {
@@ -265,7 +253,7 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
             K, T = a["K"], a["T_cam_from_world"]
             cv2.imwrite(
                 str(folder / "depth" / f"{im_id:06d}.png"),
-                _depth_png(a["depth"], manifest.depth_scale_mm),
+                depth_units(a["depth"], manifest.depth_scale_mm),
             )
             cams[str(im_id)] = {
                 "cam_K": [float(x) for x in K.ravel()],
@@ -288,7 +276,7 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
                         "obj_id": ycbv_id,
                     }
                 )
-                name = next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id)
+                name = _YCBV_NAMES[ycbv_id]
                 full = silhouettes(name, T_obj)
                 visib = a["segmentation"] == OBJECT_LABEL_OFFSET + k
                 n_all = int(full.sum())
@@ -320,7 +308,7 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
     models.mkdir()
     info_all = {}
     for ycbv_id in sorted(used):
-        obj = get_object(next(n for n, s in OBJECTS.items() if s.ycbv_id == ycbv_id))
+        obj = get_object(_YCBV_NAMES[ycbv_id])
         _ply_mm(models / f"obj_{ycbv_id:06d}.ply", obj.visual_mesh.vertices, obj.visual_mesh.faces)
         info_all[str(ycbv_id)] = _models_info(ycbv_id)
     (models / "models_info.json").write_text(json.dumps(info_all, indent=1) + "\n")

@@ -47,6 +47,7 @@ __all__ = [
     "ShardReader",
     "check_shard",
     "file_sha256",
+    "depth_units",
 ]
 
 SHARD_FORMAT = "handsim-shard-1"
@@ -60,6 +61,13 @@ DEFAULT_DEPTH_SCALE_MM = 0.1
 
 _COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 _LABEL_CHUNK = 64  # frames per label chunk
+
+
+def depth_units(depth_m: np.ndarray, depth_scale_mm: float) -> np.ndarray:
+    """Depth in metres as uint16 units of ``depth_scale_mm``; out of range or invalid -> 0."""
+    units = np.rint(np.asarray(depth_m, dtype=np.float64) * (1000.0 / depth_scale_mm))
+    units[~np.isfinite(units) | (units > np.iinfo(np.uint16).max) | (units < 0)] = 0
+    return units.astype(np.uint16)
 
 
 class InvalidShard(HandSimError, ValueError):
@@ -179,9 +187,7 @@ class ShardWriter:
                 f"{key} must be a float array of shape {self.image_shape}; received "
                 f"{depth.dtype} of shape {depth.shape}"
             )
-        units = np.rint(depth * (1000.0 / self.depth_scale_mm))
-        units[~np.isfinite(units) | (units > np.iinfo(np.uint16).max) | (units < 0)] = 0
-        return units.astype(np.uint16)
+        return depth_units(depth, self.depth_scale_mm)
 
     def append(self, arrays: Mapping[str, np.ndarray], *, episode: int, step: int) -> None:
         """Add one frame.
