@@ -12,6 +12,7 @@ the env's own placement and start pose, depth rendered every step, the expert fr
 
 Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
 [--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
+[--friction default|skin|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]]
 [--out benchmarks/results/bench_grasp.json]``. Prints one row per object (grasp type,
 successes, mean lift and slip, failure reasons) and writes every episode to JSON.
 
@@ -35,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import dataclasses
 import json
 import platform
 import time
@@ -43,7 +45,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from handsim.envs.base import HandDriver
+from handsim.envs.base import HandDriver, set_skin_friction
 from handsim.envs.grasping import (
     CONTROL_DT_S,
     FRAME_SKIP,
@@ -155,7 +157,32 @@ def _contact_summary(obj, records: list[tuple[str, object]]) -> dict:
     return summary
 
 
-def _size_length(hand_size: str) -> float:
+def _noisy_perception(sigma_mm: float, kind: str, seed: int):
+    """A ``perceive`` hook: the object position perturbed independently at every step.
+
+    ``kind="axis"``: ``N(0, sigma^2)`` per world axis (3-D error ~1.6 sigma on average);
+    ``"3d"``: an error of exactly ``sigma`` in a uniformly random direction.
+    """
+    if sigma_mm <= 0:
+        return None
+    rng = np.random.default_rng(10_000 + seed)
+
+    def perceive(state: GraspState) -> GraspState:
+        if kind == "axis":
+            offset = rng.normal(0.0, sigma_mm / 1000.0, 3)
+        else:
+            direction = rng.normal(size=3)
+            offset = sigma_mm / 1000.0 * direction / np.linalg.norm(direction)
+        T = state.T_world_from_obj.copy()
+        T[:3, 3] += offset
+        return dataclasses.replace(state, T_world_from_obj=T)
+
+    return perceive
+
+
+def _size_length(hand_size: str, seed: int = 0) -> float:
+    if hand_size == "random":  # drawn per episode from (0.15, 0.22) m
+        return float(np.random.default_rng(20_000 + seed).uniform(0.15, 0.22))
     return HAND_SIZES[hand_size] if hand_size in HAND_SIZES else float(hand_size)
 
 
@@ -166,14 +193,22 @@ def run_object(
     use_env: bool = False,
     hand_size: str = "medium",
     side: str = "right",
+    friction: str = "default",
+    object_noise_mm: float = 0.0,
+    noise_kind: str = "axis",
 ) -> dict:
-    """Run ``seeds`` episodes with one object; return its row and the episodes."""
-    params = hand_params(_size_length(hand_size), side)
+    """Run ``seeds`` episodes with one object; return its row and the episodes.
+
+    ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
+    object); ``object_noise_mm``/``noise_kind``: the expert perceives the object's position
+    with that error at every step (see :func:`_noisy_perception`).
+    """
     obj = get_object(name)
     episodes = []
     start = time.perf_counter()
     grasp_types = collections.Counter()
     for seed in range(first_seed, first_seed + seeds):
+        params = hand_params(_size_length(hand_size, seed), side)
         if use_env:
             try:
                 episode = _env_episode(name, seed, params.hand_length, side)
@@ -185,6 +220,8 @@ def run_object(
         rng = np.random.default_rng(seed)
         placements = sample_placements(rng, [name])
         scene = Scene(SceneSpec(hand=params, objects=placements))
+        if friction != "default":
+            set_skin_friction(scene, None if friction == "skin" else float(friction))
         expert = GraspExpert(obj, params)
         records: list = []
 
@@ -192,18 +229,30 @@ def run_object(
             records.append((expert.phase, contact_metrics(scene, 0)))
 
         try:
-            outcome = run_episode(scene, 0, expert, rng, _MAX_STEPS, on_step=record)
+            outcome = run_episode(
+                scene,
+                0,
+                expert,
+                rng,
+                _MAX_STEPS,
+                on_step=record,
+                perceive=_noisy_perception(object_noise_mm, noise_kind, seed),
+            )
         except GraspPlanningError as err:
             episodes.append(
                 {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
             )
             continue
         grasp_types[expert.grasp_type] += 1
+        outcome = outcome.to_dict()
+        if expert.plan is None:
+            outcome["failure"] = "no_plan"
         episodes.append(
             {
                 "seed": seed,
                 "grasp_type": expert.grasp_type,
-                **outcome.to_dict(),
+                "replans": expert.replans,
+                **outcome,
                 **_contact_summary(obj, records),
             }
         )
@@ -318,7 +367,17 @@ def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: 
     rows = []
     start = time.perf_counter()
     for name in names:
-        row = run_object(name, args.seeds, args.first_seed, args.env, hand_size, side)
+        row = run_object(
+            name,
+            args.seeds,
+            args.first_seed,
+            args.env,
+            hand_size,
+            side,
+            args.friction,
+            args.object_noise_mm,
+            args.noise_kind,
+        )
         rows.append(row)
         failures = ", ".join(f"{k} {v}" for k, v in row["failures"].items()) or "-"
         print(
@@ -362,11 +421,30 @@ def main() -> None:
     parser.add_argument("--first-seed", type=int, default=0, help="seeds are first .. first+N-1")
     parser.add_argument("--env", action="store_true", help="run full Grasp-v0 episodes")
     parser.add_argument(
-        "--hand-size", default="medium", help="small, medium, large or a length in metres"
+        "--hand-size",
+        default="medium",
+        help="small, medium, large, a length in metres, or random (0.15-0.22 m per episode)",
     )
     parser.add_argument("--side", default="right", choices=("right", "left"))
     parser.add_argument(
         "--sizes", choices=("all",), help="every preset size, right and left (6 tables)"
+    )
+    parser.add_argument(
+        "--friction",
+        default="default",
+        help="hand-object friction: default (1.0), skin (per material) or a number",
+    )
+    parser.add_argument(
+        "--object-noise-mm",
+        type=float,
+        default=0.0,
+        help="error of the perceived object position at every step, mm (see --noise-kind)",
+    )
+    parser.add_argument(
+        "--noise-kind",
+        choices=("axis", "3d"),
+        default="axis",
+        help="axis: Gaussian std per axis; 3d: that exact distance in a random direction",
     )
     parser.add_argument(
         "--physics", action="store_true", help="measure held-grasp physics steps/s only"
@@ -406,6 +484,9 @@ def main() -> None:
                 "mode": "handsim/Grasp-v0 episodes" if args.env else "run_episode",
                 "seeds": args.seeds,
                 "first_seed": args.first_seed,
+                "friction": args.friction,
+                "object_noise_mm": args.object_noise_mm,
+                "noise_kind": args.noise_kind,
                 "max_steps": _MAX_STEPS,
                 "tables": tables,
             },

@@ -84,6 +84,10 @@ __all__ = [
     "HandDriver",
     "PhysicsDiverged",
     "stiffen_hand_contacts",
+    "SKIN_FRICTION",
+    "OBJECT_MATERIALS",
+    "skin_friction",
+    "set_skin_friction",
     "divergence_speed_bounds",
     "DIVERGENCE_SPEED_M_S",
     "DIVERGENCE_LEVER_RATIO",
@@ -422,6 +426,94 @@ def stiffen_hand_contacts(scene: Scene) -> None:
     model.geom_solref[other] = HAND_CONTACT_SOLREF
     model.geom_solimp[other] = HAND_CONTACT_SOLIMP
     model.geom_solmix[other] = HAND_CONTACT_SOLMIX
+
+
+SKIN_FRICTION: dict[str, float] = {
+    "paper": 0.42,
+    "metal": 0.6,
+    "plastic": 0.53,
+    "other": 0.5,
+}
+"""Sliding friction of human skin on each object material (hand-object contacts).
+
+Measured values: palmar skin on paper 0.27 dry and 0.42 moist, on smooth vinyl 0.53, on
+textured vinyl 0.50, on aluminium 0.38 (Buchholz, Frederick & Armstrong 1988, Ergonomics
+31(3):317-325); the finger pad sliding on aluminium 0.6 on average (Seo, Armstrong & Drinkaus
+2009, Ergonomics 52(5):609-616; it falls as the normal force grows from 1 to 20 N). Cardboard
+takes moist paper (finger pads are kept moist by their sweat glands), metal the finger pad on
+aluminium (the digits, not the palm, carry the load), plastic smooth vinyl. Wood, foam and
+fruit skin have no measured value in these sources; ``"other"`` takes textured vinyl's 0.50 as
+a stand-in.
+"""
+
+OBJECT_MATERIALS: dict[str, str] = {
+    "002_master_chef_can": "metal",
+    "003_cracker_box": "paper",
+    "004_sugar_box": "paper",
+    "005_tomato_soup_can": "metal",
+    "006_mustard_bottle": "plastic",
+    "007_tuna_fish_can": "metal",
+    "008_pudding_box": "paper",
+    "009_gelatin_box": "paper",
+    "010_potted_meat_can": "metal",
+    "011_banana": "other",
+    "019_pitcher_base": "plastic",
+    "021_bleach_cleanser": "plastic",
+    "024_bowl": "plastic",
+    "025_mug": "plastic",
+    "035_power_drill": "plastic",
+    "036_wood_block": "other",
+    "037_scissors": "plastic",
+    "040_large_marker": "plastic",
+    "051_large_clamp": "plastic",
+    "052_extra_large_clamp": "plastic",
+    "061_foam_brick": "other",
+}
+"""Surface material of each YCB-Video object (its outside, where the hand touches it);
+imported objects are ``"other"``."""
+
+
+def skin_friction(name: str) -> float:
+    """Hand-object sliding friction of an object, by name.
+
+    :data:`SKIN_FRICTION` of its material (:data:`OBJECT_MATERIALS`; ``"other"`` for names
+    not listed).
+    """
+    return SKIN_FRICTION[OBJECT_MATERIALS.get(name, "other")]
+
+
+def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
+    """Give hand-object contacts the friction of skin on each object's material.
+
+    Writes the sliding friction (:func:`skin_friction`, or ``friction`` for every object) onto
+    the collision geoms of every object and raises their ``priority`` to 1, so that MuJoCo
+    takes the object's friction for its contacts with the hand (and with the table and other
+    objects) instead of the larger of the two geoms' values. Opt-in: by default the hand and
+    the objects keep MuJoCo's friction of 1.0 (with skin friction the scripted expert does not
+    yet lift every object; docs/grasping.md).
+
+    Args:
+        scene: the scene.
+        friction: one sliding friction for every object (``None``: per material).
+
+    Raises:
+        InvalidEnvConfig: for a friction that is not a finite number > 0.
+    """
+    if friction is not None and not (
+        isinstance(friction, (int, float, np.floating))
+        and not isinstance(friction, bool)
+        and np.isfinite(friction)
+        and friction > 0
+    ):
+        raise InvalidEnvConfig(f"friction must be a finite number > 0; received {friction!r}")
+    model = scene.model
+    for body_name, obj in scene.objects:
+        body = model.body(body_name).id
+        geoms = (model.geom_bodyid == body) & (
+            (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+        )
+        model.geom_friction[geoms, 0] = skin_friction(obj.name) if friction is None else friction
+        model.geom_priority[geoms] = 1
 
 
 class HandDriver:

@@ -76,7 +76,10 @@ Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 from handsim.envs.grasping.execution import (
     GRIP_FRICTION,
     GRIP_SAFETY_FACTOR,
+    MAX_GRIP_SCALE,
     MIN_GRIP_SCALE,
+    REPLAN_ANGLE_RAD,
+    REPLAN_DISTANCE_M,
     ContactMetrics,
     FailureReason,
     GraspExpert,
@@ -96,6 +99,7 @@ from handsim.envs.grasping.planning import (
     MAX_SLIP_M,
     MAX_WRIST_SPEED_M_S,
     OBJECT_SHAPE_CLASSES,
+    TOUCH_PARTS,
     GraspPlan,
     GraspPlanningError,
     GraspRecipe,
@@ -105,6 +109,7 @@ from handsim.envs.grasping.planning import (
     plan_grasp,
     shape_class,
     start_pose,
+    touch_forces,
 )
 
 __all__ = [
@@ -118,6 +123,8 @@ __all__ = [
     "InvalidGraspState",
     "GraspPlanningError",
     "GraspState",
+    "TOUCH_PARTS",
+    "touch_forces",
     "start_pose",
     "ShapeClass",
     "OBJECT_SHAPE_CLASSES",
@@ -130,6 +137,9 @@ __all__ = [
     "GRIP_SAFETY_FACTOR",
     "GRIP_FRICTION",
     "MIN_GRIP_SCALE",
+    "MAX_GRIP_SCALE",
+    "REPLAN_DISTANCE_M",
+    "REPLAN_ANGLE_RAD",
     "ContactMetrics",
     "contact_metrics",
     "FailureReason",

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from handsim.envs.base import HandDriver
+from handsim.envs.base import HandDriver, skin_friction
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
@@ -32,7 +32,9 @@ from handsim.envs.grasping.planning import (
     HOLD_DURATION_S,
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
+    TOUCH_PARTS,
     GraspPlan,
+    GraspPlanningError,
     GraspState,
     InvalidGraspState,
     _check_transform,
@@ -62,19 +64,36 @@ __all__ = [
 
 # The expert -----------------------------------------------------------------------------------
 
-GRIP_SAFETY_FACTOR = 2.0
+GRIP_SAFETY_FACTOR = 1.6
 """Grip force over the force that just prevents slip. People grip with 1.3 to 3 times the slip
 force and scale it with the load (grip-load coupling; Johansson & Westling 1984, Exp. Brain
-Res. 56:550-564); the expert aims at 2."""
-GRIP_FRICTION = 1.0
-"""Hand-object friction coefficient the expert assumes when sizing its grip force."""
+Res. 56:550-564); the expert aims at 1.6."""
+GRIP_FRICTION: float | None = None
+"""Hand-object friction the expert assumes when sizing its grip force; ``None``: skin on the
+object's material (:func:`handsim.envs.base.skin_friction`), as a person judges a surface."""
 LIFT_ACCELERATION_M_S2 = 2.0
-"""Upward acceleration the grip is sized for on top of gravity (the expert's minimum-jerk lift
-peaks near 1.5 m/s^2), m/s^2."""
-MIN_GRIP_SCALE = 0.2
-"""The grip eases off to no less than this fraction of the squeeze's joint deflections: the
-force model leaves out the palm and the proximal segments, and below it small boxes and the
-extra-large clamp were dropped in the sweep (docs/grasping.md)."""
+"""Upward acceleration the grip is sized for on top of gravity while lifting (the expert's
+minimum-jerk lift peaks near 1.5 m/s^2), m/s^2; the static hold is sized for gravity alone."""
+MIN_GRIP_SCALE = 0.02
+"""The regulated grip never eases below this fraction of the squeeze's joint deflections
+(the default of :attr:`GraspRecipe.min_grip_scale`)."""
+MAX_GRIP_SCALE = 1.5
+"""Nor presses beyond this multiple of them (a grip that touch reports too light tightens)."""
+REPLAN_DISTANCE_M = 0.004
+"""The expert re-plans when its estimate of the object's position moves this far, metres."""
+REPLAN_ANGLE_RAD = float(np.deg2rad(4.0))
+"""Or when its estimate of the object's orientation turns this far, radians."""
+_REPLAN_PERIOD_S = 0.1  # at most one re-plan per 0.1 s
+_FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
+_MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered pose by this
+_SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the table rest on it
+_GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
+_GRIP_EASE = 0.9  # the grip scale falls by at most 10 % per control step...
+_GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
+MIN_GRIP_FORCE_N = 1.0
+"""The least total grip force, newtons: for objects lighter than about 30 g people's grip-to-load
+ratio rises (Hiramatsu et al. 2015, PLoS ONE 10:e0124671), and finger forces below this are
+within the position actuators' own error."""
 _PRESSING_N = 0.2  # a finger pressing with less than this carries no share of the grip
 
 # Flexion joints of each digit and the keypoint on each joint's axis (its lever to the tip).
@@ -125,35 +144,107 @@ def _duration(
     return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
 
 
+class _PoseFilter:
+    """The object's pose from a stream of perceived poses, assuming it stays still.
+
+    Position: the per-axis median of the estimates since the object last moved (at most
+    :data:`_FILTER_WINDOW`), orientation: their chordal mean, so one bad estimate shifts the
+    result by little. It has moved when the median of the last five estimates leaves the
+    filtered position by more than :data:`_MOTION_MIN_M` or four times the spread expected of
+    such a median; the window then restarts from those five. Estimates that put the object's
+    lowest point within :data:`_SUPPORT_SNAP_M` of the table are first lowered or raised onto
+    it (an object waiting to be grasped rests on the table).
+    """
+
+    def __init__(self, obj: YCBObject) -> None:
+        self.points = np.asarray(obj.model_points_m)
+        self.pos: list[np.ndarray] = []
+        self.rot: list[np.ndarray] = []
+
+    def add(self, T: np.ndarray) -> None:
+        T = T.copy()
+        lowest = float((self.points @ T[:3, :3].T)[:, 2].min() + T[2, 3])
+        if abs(lowest) < _SUPPORT_SNAP_M:
+            T[2, 3] -= lowest
+        self.pos.append(T[:3, 3])
+        self.rot.append(T[:3, :3])
+        if len(self.pos) > _FILTER_WINDOW:
+            del self.pos[0], self.rot[0]
+        if len(self.pos) >= 10:
+            window = np.array(self.pos[:-5])
+            centre = np.median(window, axis=0)
+            # Robust per-axis spread of the estimates (MAD), and that of a median of five.
+            sigma = 1.4826 * np.median(np.abs(window - centre), axis=0)
+            recent = np.median(np.array(self.pos[-5:]), axis=0)
+            gate = max(_MOTION_MIN_M, 4.0 * float(np.linalg.norm(sigma)) * 1.25 / np.sqrt(5))
+            if np.linalg.norm(recent - centre) > gate:
+                self.pos, self.rot = self.pos[-5:], self.rot[-5:]
+
+    def pose(self) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, 3] = np.median(np.array(self.pos), axis=0)
+        T[:3, :3] = Rotation.from_matrix(np.array(self.rot)).mean().as_matrix()
+        return T
+
+
 class GraspExpert:
     """A scripted pick-and-lift expert for one object.
 
-    Phases (:attr:`phase`): ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
+    Phases (:attr:`phase`): ``"wait"`` (no grasp found yet for the perceived object pose: the
+    hand stays where it is), ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
     speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
-    actuators press), ``"settle"`` (0.2 s: the fingers ease off to the grip force the object
-    needs, :meth:`grip_targets`), ``"lift"`` (0.15 m up, peak 0.25 m/s) and
-    ``"hold"`` (until the episode ends). :attr:`grasp_type` is the grasp taxonomy type and
-    ``plan.strategy`` how it is applied (:class:`GraspRecipe`).
+    actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),
+    ``"lift"`` (0.15 m up, peak 0.25 m/s) and ``"hold"`` (until the episode ends).
+    :attr:`grasp_type` is the grasp taxonomy type and ``plan.strategy`` how it is applied
+    (:class:`GraspRecipe`).
 
-    The plan is made once, at :meth:`reset`, from the state's object pose. :meth:`act` follows
-    minimum-jerk segments in time (the target never jumps: each segment starts where the last
-    one ended), and waits (up to 1 s) at the end of the reach and of the approach until the
-    state's wrist is within 2 cm of its target. It closes along a fixed schedule; contact needs
-    no sensing because the position actuators stop at the object and press with their
-    torque-limited stiffness. The grip force is then set from proprioception: the joint
-    angles at the end of the squeeze say how far each actuator is held off its target, hence
-    how hard each digit presses.
+    Closed loop: the plan is made at :meth:`reset` from the state's object pose and, with
+    ``replan`` (the default), made again during the reach and the approach whenever the
+    expert's estimate of the object's pose moves by :data:`REPLAN_DISTANCE_M` or
+    :data:`REPLAN_ANGLE_RAD` (at most every 0.1 s). That estimate filters the perceived
+    poses of every step (:class:`_PoseFilter`: a median while the object stays still, restarted
+    when it moves), so an estimator's noise shrinks with time and one bad estimate is not
+    fatal, while an object the hand pushes before it closes is followed. The motion toward a
+    new plan starts from the pose the expert last commanded (the target never jumps); a small
+    correction during the approach continues the approach, a larger one reaches again. Without
+    a plan (no collision-free grasp for the perceived pose) the expert waits and tries again.
+
+    :meth:`act` follows minimum-jerk segments in time, and waits (up to 1 s) at the end of the
+    reach and of the approach until the state's wrist is within 2 cm of its target. It closes
+    along a fixed schedule; contact needs no sensing because the position actuators stop at
+    the object and press with their torque-limited stiffness.
+
+    Grip force: from the end of the squeeze the expert regulates the grip to
+    :data:`GRIP_SAFETY_FACTOR` times the slip force of the load (the weight, plus the lift's
+    acceleration until the hold) at the hand-object friction ``friction``: the total normal
+    force the state's touch sense reports (:attr:`GraspState.touch_forces_n`) is driven to it
+    by scaling every digit's deflection from the measured contact posture (proprioception at
+    the end of the squeeze) toward the squeeze targets, within :data:`MIN_GRIP_SCALE` and
+    :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
+    (target - angle)``, so the force follows the scale. Without touch (``touch_forces_n`` is
+    ``None``) the scale comes once from a joint-torque force model (:meth:`grip_targets`).
 
     Args:
         obj: the object to grasp.
         hand_params: the hand that will grasp it.
         rng: optional generator; it jitters the segment speeds by up to 10 % (None: none).
+        friction: the hand-object friction the grip is sized for (``None``:
+            :data:`GRIP_FRICTION`, by default skin on the object's material).
+        replan: re-plan from the filtered perceived object pose during the reach and the
+            approach (``False``: the plan of :meth:`reset` only, which then raises
+            :class:`GraspPlanningError` when it finds no grasp).
     """
 
     def __init__(
-        self, obj: YCBObject, hand_params: HandParams, *, rng: np.random.Generator | None = None
+        self,
+        obj: YCBObject,
+        hand_params: HandParams,
+        *,
+        rng: np.random.Generator | None = None,
+        friction: float | None = None,
+        replan: bool = True,
     ) -> None:
         if not isinstance(obj, YCBObject):
             raise InvalidGraspState(
@@ -167,9 +258,20 @@ class GraspExpert:
             raise InvalidGraspState(
                 f"rng must be a numpy.random.Generator or None; received {type(rng).__name__}"
             )
+        if friction is None:
+            friction = GRIP_FRICTION if GRIP_FRICTION is not None else skin_friction(obj.name)
+        if not (
+            isinstance(friction, (int, float, np.floating))
+            and not isinstance(friction, bool)
+            and math.isfinite(friction)
+            and friction > 0
+        ):
+            raise InvalidGraspState(f"friction must be a finite number > 0; received {friction!r}")
         self.obj = obj
         self.hand_params = hand_params
         self.rng = rng
+        self.friction = float(friction)
+        self.replan = bool(replan)
         # Position-actuator stiffness per joint (N m/rad; 0 where a joint has no actuator).
         checker = _checker(obj, hand_params)
         self._kp = np.zeros(len(JOINT_NAMES))
@@ -182,11 +284,23 @@ class GraspExpert:
         ]
         self.recipe = GRASP_RECIPES[shape_class(obj)]
         self.plan: GraspPlan | None = None
+        self.planning_error: GraspPlanningError | None = None
+        """The last planning failure (``None`` once a plan exists)."""
+        self.replans = 0
+        """Plans made after :meth:`reset` (closed loop)."""
         self.phase = "idle"
         self._segments: list[_Segment] = []
         self._index = 0
         self._segment_start_s = 0.0
         self._from: _Segment | None = None
+        self._filter: _PoseFilter | None = None
+        self._planned_T: np.ndarray | None = None
+        self._last_plan_s = -math.inf
+        self._commanded: _Segment | None = None
+        self._scale = np.ones(3)  # speed jitter of reach, approach, lift
+        self._grip: tuple[np.ndarray, np.ndarray] | None = None  # contact angles, squeeze
+        self._grip_scale: list[float] = [1.0]
+        self._grip_force_n: float | None = None
 
     @property
     def grasp_type(self) -> str:
@@ -198,20 +312,50 @@ class GraspExpert:
 
         Raises:
             InvalidGraspState: if ``state`` is not a :class:`GraspState` of this object.
-            GraspPlanningError: if no collision-free grasp exists.
+            GraspPlanningError: if no collision-free grasp exists and ``replan`` is off (with
+                it, the expert waits in phase ``"wait"`` and plans again on later states).
         """
         self._check_state(state)
-        plan = plan_grasp(self.obj, state.T_world_from_obj, self.hand_params)
-        self.plan = plan
         scale = 1.0 if self.rng is None else float(self.rng.uniform(0.9, 1.1))
+        self._scale = np.full(3, scale)
         hand = state.hand_pose
-        start = _Segment(
+        self._commanded = _Segment(
             "start",
             0.0,
             hand.wrist_pos.copy(),
             Rotation.from_rotvec(hand.wrist_rotvec),
             hand.angles.copy(),
         )
+        self.plan = None
+        self.planning_error = None
+        self.replans = 0
+        self._grip = None
+        self._grip_force_n = None
+        self._filter = _PoseFilter(self.obj)
+        self._filter.add(state.T_world_from_obj)
+        self._segments = []
+        self._index = 0
+        self._from = self._commanded
+        self._segment_start_s = state.time_s
+        self.phase = "wait"
+        T = state.T_world_from_obj if not self.replan else self._filter.pose()
+        try:
+            self._make_plan(T, state.time_s, "reach")
+        except GraspPlanningError as err:
+            if not self.replan:
+                raise
+            self.planning_error = err
+        self.replans = 0
+
+    def _make_plan(self, T: np.ndarray, time_s: float, first: str) -> None:
+        """Plan for object pose ``T`` and lay out the segments from the commanded pose."""
+        self._last_plan_s = time_s
+        plan = plan_grasp(self.obj, T, self.hand_params)
+        self.plan = plan
+        self.planning_error = None
+        self._planned_T = T
+        self.replans += 1
+        start = self._commanded
         pre_pos = plan.approach_end - _PREGRASP_DIST_M * plan.approach_dir
         lift_pos = plan.wrist_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
         segments = [
@@ -222,33 +366,75 @@ class GraspExpert:
             _Segment("settle", _SETTLE_S, plan.wrist_pos, plan.rotation, plan.closed),
             _Segment("lift", 0.0, lift_pos, plan.rotation, plan.closed),
         ]
+        if first == "approach":
+            segments = segments[1:]
         previous = start
         for segment in segments:
             if segment.duration_s == 0.0:
-                speed = {"reach": EXPERT_WRIST_SPEED_M_S, "lift": _LIFT_SPEED_M_S}.get(
-                    segment.name, _SLOW_SPEED_M_S
-                )
-                segment.duration_s = scale * _duration(
+                speed, jitter = {
+                    "reach": (EXPERT_WRIST_SPEED_M_S, self._scale[0]),
+                    "lift": (_LIFT_SPEED_M_S, self._scale[2]),
+                }.get(segment.name, (_SLOW_SPEED_M_S, self._scale[1]))
+                segment.duration_s = jitter * _duration(
                     previous.pos, segment.pos, previous.rotation, segment.rotation, speed, 0.4
                 )
             previous = segment
         self._segments = segments
         self._from = start
         self._index = 0
-        self._segment_start_s = state.time_s
+        self._segment_start_s = time_s
         self.phase = segments[0].name
+
+    def _maybe_replan(self, state: GraspState) -> None:
+        """Closed loop: plan again if the filtered object pose moved (reach, approach, wait)."""
+        self._filter.add(state.T_world_from_obj)
+        if not self.replan or self.phase not in ("wait", "reach", "approach"):
+            return
+        t = state.time_s
+        if t - self._last_plan_s < _REPLAN_PERIOD_S - 1e-9:
+            return
+        T = self._filter.pose()
+        if self.plan is not None:
+            moved = float(np.linalg.norm(T[:3, 3] - self._planned_T[:3, 3]))
+            turned = float(Rotation.from_matrix(T[:3, :3] @ self._planned_T[:3, :3].T).magnitude())
+            if moved < REPLAN_DISTANCE_M and turned < REPLAN_ANGLE_RAD:
+                return
+        first = "reach"
+        if self.phase == "approach" and self.plan is not None:
+            old = self.plan
+        try:
+            plan = plan_grasp(self.obj, T, self.hand_params)
+        except GraspPlanningError as err:
+            self._last_plan_s = t
+            if self.plan is None:
+                self.planning_error = err
+            return  # keep the current plan; try again later
+        if self.phase == "approach" and self.plan is not None:
+            # Continue the approach if the new approach line passes near the hand and the
+            # orientation barely changes; else reach again (back out to the new pre-grasp).
+            here = self._commanded.pos
+            a = plan.approach_end - _PREGRASP_DIST_M * plan.approach_dir
+            d = plan.approach_dir
+            along = float(np.clip((here - a) @ d, 0.0, _PREGRASP_DIST_M))
+            off_line = float(np.linalg.norm(here - (a + along * d)))
+            turn = float((plan.rotation * old.rotation.inv()).magnitude())
+            if off_line < 0.01 and turn < np.deg2rad(10.0) and plan.strategy == old.strategy:
+                first = "approach"
+        self._make_plan(T, t, first)
 
     def grip_targets(self, state: GraspState) -> np.ndarray:
         """Finger targets that press on the object with a grip force sized to its weight.
 
-        Called when the squeeze has pressed the digits onto the object. A position actuator
-        held off its target presses with ``kp * (target - angle)`` (up to its torque limit), so
-        the joint deflections give each digit's force (torque over the lever from the joint's
-        keypoint to the tip; the median over its flexion joints). The grip force aimed at is
-        :data:`GRIP_SAFETY_FACTOR` times what the weight and the lift acceleration need at
-        friction :data:`GRIP_FRICTION`: half on the thumb, half shared by the pressing fingers.
-        Each digit's deflections are scaled down to that force (never up: the squeeze is the
-        most the expert presses; never below :data:`MIN_GRIP_SCALE` of them).
+        The force model used when the state has no touch sense (:attr:`GraspState.
+        touch_forces_n` is ``None``). Called when the squeeze has pressed the digits onto the
+        object. A position actuator held off its target presses with ``kp * (target - angle)``
+        (up to its torque limit), so the joint deflections give each digit's force (torque
+        over the lever from the joint's keypoint to the tip; the median over its flexion
+        joints). The grip force aimed at is :data:`GRIP_SAFETY_FACTOR` times what the weight
+        and the lift acceleration need at the expert's friction: half on the thumb, half
+        shared by the pressing fingers. Each digit's deflections are scaled down to that force
+        (never up: the squeeze is the most the expert presses; never below 0.2 of them, as the
+        model leaves out the palm and the proximal segments).
 
         Args:
             state: the state at the end of the squeeze.
@@ -259,8 +445,7 @@ class GraspExpert:
         # Proprioception, not the (possibly estimated) pose: the deflections set the force.
         measured = state.joint_angles_rad
         squeeze = self.plan.closed
-        load_n = self.obj.mass_kg * (9.81 + LIFT_ACCELERATION_M_S2)
-        grip_n = GRIP_SAFETY_FACTOR * load_n / GRIP_FRICTION
+        grip_n = self._grip_force_target(lifting=True)
         keypoints = state.keypoints_world
         forces = {}
         for digit, joints in _DIGIT_JOINTS.items():
@@ -276,10 +461,88 @@ class GraspExpert:
         targets = squeeze.copy()
         for digit, force_n in forces.items():
             wanted = 0.5 * grip_n / (1 if digit == "thumb" else max(len(fingers), 1))
-            scale = float(np.clip(wanted / max(force_n, 1e-6), MIN_GRIP_SCALE, 1.0))
+            scale = float(np.clip(wanted / max(force_n, 1e-6), 0.2, 1.0))
             joints = _DIGIT_ALL_JOINTS[digit]
             targets[joints] = measured[joints] + scale * (squeeze[joints] - measured[joints])
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+    def _grip_force_target(self, lifting: bool) -> float:
+        """Total normal force aimed at, newtons: safety factor x load / friction."""
+        accel = 9.81 + (LIFT_ACCELERATION_M_S2 if lifting else 0.0)
+        grip_n = GRIP_SAFETY_FACTOR * self.obj.mass_kg * accel / self.friction
+        return max(grip_n, MIN_GRIP_FORCE_N)
+
+    def _grip_groups(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
+        """(joint indices, touch parts, share of the grip force) of each regulated group.
+
+        A side wrap presses the object against the palm with every digit: one group, the
+        whole hand's force. Other grasps oppose the thumb to the fingers: the thumb and the
+        fingers each press with half of it, so the object is not pushed sideways.
+        """
+        if self.plan.strategy == "side":
+            return [(np.arange(len(JOINT_NAMES)), np.arange(len(TOUCH_PARTS)), 1.0)]
+        fingers = np.concatenate([_DIGIT_ALL_JOINTS[f] for f in TOUCH_PARTS[2:]])
+        return [
+            (_DIGIT_ALL_JOINTS["thumb"], np.array([1]), 0.5),
+            (fingers, np.arange(2, len(TOUCH_PARTS)), 0.5),
+        ]
+
+    def _regulated_angles(self, state: GraspState) -> np.ndarray:
+        """Finger targets of the grip-force loop (touch + proprioception), one control step."""
+        contact, squeeze = self._grip
+        touch = state.touch_forces_n
+        # The settle eases to the first scales; the loop regulates from the lift on.
+        if touch is not None and self.phase != "settle":
+            # One correction for every group: once lifted, the thumb and the fingers press
+            # on each other through the object, so only their common level is controllable.
+            wanted = self._grip_force_target(lifting=self.phase != "hold")
+            force = float(touch.sum())
+            ratio = float(
+                np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, _GRIP_EASE, _GRIP_TIGHTEN)
+            )
+            self._grip_scale = [
+                float(np.clip(k * ratio, self.recipe.min_grip_scale, MAX_GRIP_SCALE))
+                for k in self._grip_scale
+            ]
+            self._grip_force_n = force
+        scale = np.ones(len(JOINT_NAMES))
+        for k, (joints, _, _) in enumerate(self._grip_groups()):
+            scale[joints] = self._grip_scale[k]
+        targets = contact + scale * (squeeze - contact)
+        return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+    def _start_grip(self, state: GraspState) -> None:
+        """End of the squeeze: the measured contact posture, and the first grip scales."""
+        contact = state.joint_angles_rad.copy()
+        squeeze = self.plan.closed
+        self._grip = (contact, squeeze)
+        touch = state.touch_forces_n
+        groups = self._grip_groups()
+        if touch is not None:
+            wanted = self._grip_force_target(lifting=True)
+            self._grip_scale = [
+                float(
+                    np.clip(
+                        share * wanted / max(touch[parts].sum(), 1e-3),
+                        self.recipe.min_grip_scale,
+                        1.0,
+                    )
+                )
+                if touch[parts].sum() > 1e-3
+                else 1.0
+                for _, parts, share in groups
+            ]
+        else:
+            # No touch: one scale from the force model, kept.
+            grip = self.grip_targets(state)
+            deflection = squeeze - contact
+            moving = np.abs(deflection) > 1e-6
+            scale = (
+                float(np.median((grip - contact)[moving] / deflection[moving]))
+                if moving.any()
+                else 1.0
+            )
+            self._grip_scale = [scale] * len(groups)
 
     def _check_state(self, state: GraspState) -> None:
         if not isinstance(state, GraspState):
@@ -302,10 +565,22 @@ class GraspExpert:
         Raises:
             InvalidGraspState: if called before :meth:`reset` or with a bad state.
         """
-        if self.plan is None:
+        if self._filter is None:
             raise InvalidGraspState("call reset(state) before act(state)")
         self._check_state(state)
+        self._maybe_replan(state)
+        pose = self._follow(state)
+        self._commanded = _Segment(
+            "commanded", 0.0, pose.wrist_pos, Rotation.from_rotvec(pose.wrist_rotvec), pose.angles
+        )
+        return pose
+
+    def _follow(self, state: GraspState) -> HandPose:
         t = state.time_s
+        if self.plan is None:
+            self.phase = "wait"
+            here = self._commanded
+            return HandPose(here.pos, here.rotation.as_rotvec(), here.angles)
         while self._index < len(self._segments):
             segment = self._segments[self._index]
             elapsed = t - self._segment_start_s
@@ -319,15 +594,13 @@ class GraspExpert:
             self._from = segment
             self._index += 1
             self._segment_start_s = t
-            if segment.name == "squeeze" and not self.plan.hooked:
-                # The digits press on the object: ease them to the grip force it needs.
-                grip = self.grip_targets(state)
-                for later in self._segments[self._index :]:
-                    later.angles = grip
+            if segment.name == "squeeze":
+                # The digits press on the object: from now on, regulate the grip force.
+                self._start_grip(state)
         if self._index >= len(self._segments):
             self.phase = "hold"
             last = self._segments[-1]
-            return HandPose(last.pos, last.rotation.as_rotvec(), last.angles)
+            return HandPose(last.pos, last.rotation.as_rotvec(), self._regulated_angles(state))
         segment = self._segments[self._index]
         self.phase = segment.name
         tau = (t - self._segment_start_s) / max(segment.duration_s, 1e-9)
@@ -336,7 +609,13 @@ class GraspExpert:
         pos = start.pos + s * (segment.pos - start.pos)
         slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, segment.rotation]))
         rotation = slerp([s])[0]
-        angles = start.angles + s * (segment.angles - start.angles)
+        if self._grip is not None:
+            angles = self._regulated_angles(state)
+            if segment.name == "settle":
+                # Ease from the squeeze to the regulated grip (the target never jumps).
+                angles = start.angles + s * (angles - start.angles)
+        else:
+            angles = start.angles + s * (segment.angles - start.angles)
         return HandPose(pos, rotation.as_rotvec(), angles)
 
 
@@ -638,6 +917,7 @@ def run_episode(
     *,
     stop_on_success: bool = True,
     on_step: Callable[[int, GraspExpert], None] | None = None,
+    perceive: Callable[[GraspState], GraspState] | None = None,
 ) -> GraspOutcome:
     """Run one ground-truth pick-and-lift episode.
 
@@ -655,13 +935,15 @@ def run_episode(
         on_step: called after every control step with its index and the expert (whose
             ``phase`` says where the episode is); for measurements such as
             :func:`contact_metrics`.
+        perceive: turns each ground-truth state into the one the expert acts on (e.g. a
+            noisy object pose, as an estimator would give); ``None``: the truth.
 
     Returns:
         The outcome.
 
     Raises:
         InvalidGraspState: for a bad instance, expert or ``max_steps``.
-        GraspPlanningError: if the expert finds no grasp.
+        GraspPlanningError: if the expert finds no grasp at the start and does not re-plan.
     """
     body_id = _object_body_id(scene, instance)
     if not isinstance(expert, GraspExpert):
@@ -678,7 +960,8 @@ def run_episode(
     T0 = GraspState.from_sim(scene, instance, 0.0).T_world_from_obj
     scene.reset(start_pose(rng, T0, scene.hand.params, obj=obj))
     tracker = LiftTracker(float(data.xpos[body_id][2]))
-    state = GraspState.from_sim(scene, instance, 0.0)
+    perceived = perceive if perceive is not None else (lambda state: state)
+    state = perceived(GraspState.from_sim(scene, instance, 0.0))
     expert.reset(state)
     diverged = False
     # The env's driver: same mocap tracking and stepping as handsim/Grasp-v0.
@@ -694,5 +977,5 @@ def run_episode(
             on_step(step, expert)
         if success and stop_on_success:
             break
-        state = GraspState.from_sim(scene, instance, time_s)
+        state = perceived(GraspState.from_sim(scene, instance, time_s))
     return tracker.outcome(diverged=diverged)

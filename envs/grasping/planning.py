@@ -23,7 +23,7 @@ from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.hand.pose import JOINT_LIMITS, NUM_ANGLES, HandPose, joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.objects import YCBObject, add_object
-from handsim.world.scene import Scene
+from handsim.world.scene import SEGMENT_LABELS, Scene
 
 __all__ = [
     "FRAME_SKIP",
@@ -36,6 +36,8 @@ __all__ = [
     "InvalidGraspState",
     "GraspPlanningError",
     "GraspState",
+    "TOUCH_PARTS",
+    "touch_forces",
     "start_pose",
     "ShapeClass",
     "OBJECT_SHAPE_CLASSES",
@@ -69,6 +71,10 @@ _PREGRASP_DIST_M = 0.08
 _CLOSE_S = 0.4
 _SQUEEZE_S = 0.3
 _SETTLE_S = 0.2
+
+TOUCH_PARTS: tuple[str, ...] = ("palm", "thumb", "index", "middle", "ring", "little")
+"""Hand parts of :attr:`GraspState.touch_forces_n`, in order."""
+_PALM_LABEL = SEGMENT_LABELS.index("palm")
 
 ShapeClass = Literal[
     "can", "bottle", "box", "disk", "vessel", "bowl", "tool", "flat_tool", "clamp", "elongated"
@@ -111,6 +117,10 @@ class GraspState:
         obj: the target's geometry (extents, model points, symmetries, name).
         joint_angles_rad: (21,) proprioception: the physical hand's joint angles, as its own
             joint sensors read them (never a pose estimate); default: ``hand_pose.angles``.
+        touch_forces_n: (6,) touch: the total normal force each hand part presses on the
+            target with (:data:`TOUCH_PARTS` order: palm, thumb, index, middle, ring,
+            little), newtons, as the skin's mechanoreceptors sense it (never an estimate);
+            ``None``: not sensed.
     """
 
     time_s: float
@@ -119,6 +129,7 @@ class GraspState:
     T_world_from_obj: np.ndarray
     obj: YCBObject
     joint_angles_rad: np.ndarray | None = None
+    touch_forces_n: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.time_s, (int, float, np.floating)) and math.isfinite(self.time_s)):
@@ -146,6 +157,14 @@ class GraspState:
                 f"{angles.shape}"
             )
         object.__setattr__(self, "joint_angles_rad", angles)
+        if self.touch_forces_n is not None:
+            touch = np.array(self.touch_forces_n, dtype=np.float64)
+            if touch.shape != (len(TOUCH_PARTS),) or not np.all(np.isfinite(touch)):
+                raise InvalidGraspState(
+                    f"touch_forces_n must be a finite ({len(TOUCH_PARTS)},) array in newtons "
+                    f"(palm, thumb, index, middle, ring, little); received shape {touch.shape}"
+                )
+            object.__setattr__(self, "touch_forces_n", touch)
         object.__setattr__(self, "time_s", float(self.time_s))
         object.__setattr__(self, "keypoints_world", keypoints)
         object.__setattr__(
@@ -177,7 +196,36 @@ class GraspState:
             keypoints_world=scene.binding.keypoints(data),
             T_world_from_obj=T,
             obj=scene.objects[instance][1],
+            touch_forces_n=touch_forces(scene, instance),
         )
+
+
+def touch_forces(scene: Scene, instance: int) -> np.ndarray:
+    """(6,) total normal force of each hand part on object ``instance``, newtons.
+
+    Parts in :data:`TOUCH_PARTS` order; read from the scene's current contacts (after
+    ``mj_forward``).
+
+    Raises:
+        InvalidGraspState: for a scene without a hand or a bad instance.
+    """
+    body_id = _object_body_id(scene, instance)
+    model, data = scene.model, scene.data
+    forces = np.zeros(len(TOUCH_PARTS))
+    n = data.ncon
+    if n == 0:
+        return forces
+    geoms = data.contact.geom[:n]
+    labels = scene.geom_labels[geoms].astype(int) - _PALM_LABEL
+    on_target = model.geom_bodyid[geoms] == body_id
+    wrench = np.zeros(6)
+    for i in range(n):
+        for side in (0, 1):
+            part = labels[i, side]
+            if on_target[i, 1 - side] and 0 <= part < len(TOUCH_PARTS):
+                mujoco.mj_contactForce(model, data, i, wrench)
+                forces[part] += wrench[0]
+    return forces
 
 
 def _object_body_id(scene: Scene, instance: int) -> int:
@@ -305,6 +353,8 @@ class GraspRecipe:
             long axis (a narrower section there costs its offset), metres.
         finger_holes: the digits may enter holes wider than a fingertip (scissors loops)
             and pinch the material between them.
+        min_grip_scale: the regulated grip never eases below this fraction of the squeeze's
+            joint deflections (:class:`~handsim.envs.grasping.GraspExpert`).
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -318,6 +368,7 @@ class GraspRecipe:
     wide: bool = False
     max_offset_m: float = 0.0
     finger_holes: bool = False
+    min_grip_scale: float = 0.02
 
 
 GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
@@ -349,6 +400,9 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         contact_fraction=1.0,
         finger_holes=True,
         max_offset_m=0.03,
+        # Digits in the loops pinch 2.5 mm blades: eased further, they let the scissors turn
+        # out of the pinch (seeds 0-1 dropped at 0.02, held at 0.15).
+        min_grip_scale=0.15,
         squeeze_rad=float(np.deg2rad(30.0)),
     ),
     "clamp": GraspRecipe("top", "tripod", fingers=("index",), contact_fraction=1.0),
