@@ -14,10 +14,13 @@ Error model, per ``predict`` (all in the OpenCV camera frame, metres):
 3. keypoints: ``truth + n + bias`` with ``n ~ N(0, noise_mm^2)`` independently per keypoint and
    axis; the centre is :func:`~handsim.estimator.hand_center` of the noisy keypoints, so its
    noise std is ``noise_mm / sqrt(5)`` per axis (plus the bias);
-4. objects (every instance of the truth): ``T_est = [R_n R_gt | t_gt + d]`` with
-   ``d ~ N(0, object_noise_mm^2)`` per camera axis and ``R_n = exp(w)``, ``w ~ N(0,
-   object_noise_deg^2)`` per camera axis (a rotation about the object origin). The bias applies
-   to the hand only.
+4. objects (every instance of the truth): ``T_est = [R_n R_gt | t_gt + d]`` and ``R_n =
+   exp(w)``, ``w ~ N(0, object_noise_deg^2)`` per camera axis (a rotation about the object
+   origin). The translation error ``d`` depends on ``object_noise_kind``: ``"axis"`` (the
+   default) draws ``N(0, object_noise_mm^2)`` independently per camera axis, so its 3-D length
+   averages about 1.6 ``object_noise_mm`` (a chi distribution with 3 degrees of freedom);
+   ``"3d"`` gives an error of exactly ``object_noise_mm`` in 3-D, in a uniformly random
+   direction. The bias applies to the hand only.
 
 Noise is drawn at ``predict`` time from the oracle's generator, in a fixed order (dropout,
 keypoints, objects by instance), so two oracles with the same seed fed the same frames give
@@ -44,6 +47,10 @@ if TYPE_CHECKING:
 
 __all__ = ["OracleEstimator"]
 
+OBJECT_NOISE_KINDS: tuple[str, ...] = ("axis", "3d")
+"""How ``OracleEstimator.object_noise_mm`` is read: a std per camera axis, or an exact 3-D
+error."""
+
 
 def _non_negative(name: str, value: Any) -> float:
     try:
@@ -65,15 +72,18 @@ class OracleEstimator(EstimatorBase):
         bias_mm: (3,) constant offset added to every keypoint, camera frame, mm.
         dropout: probability of ``Estimate(valid=False)`` per ``predict``, in [0, 1].
         latency_steps: delay of the returned truth, in ``observe_truth`` calls (int >= 0).
-        object_noise_mm: std of the object translation noise per axis, mm (>= 0).
+        object_noise_mm: object translation noise, mm (>= 0): the std per camera axis
+            (``object_noise_kind="axis"``) or the exact 3-D error (``"3d"``).
         object_noise_deg: std of each rotation-vector component of the object rotation noise,
             degrees (>= 0).
         rng: a ``numpy.random.Generator``, or an int seed; ``None`` seeds from OS entropy.
+        object_noise_kind: ``"axis"`` or ``"3d"`` (see ``object_noise_mm``).
 
     Raises:
         InvalidEstimatorParams: for a negative or non-finite noise, a bias that is not 3
             finite numbers, a dropout outside [0, 1], a latency that is not an int >= 0, or an
-            rng that is neither a Generator, an int nor ``None``.
+            rng that is neither a Generator, an int nor ``None``, or an unknown
+            ``object_noise_kind``.
     """
 
     def __init__(
@@ -86,6 +96,7 @@ class OracleEstimator(EstimatorBase):
         object_noise_mm: float = 0.0,
         object_noise_deg: float = 0.0,
         rng: np.random.Generator | int | None = None,
+        object_noise_kind: str = "axis",
     ) -> None:
         self.noise_mm = _non_negative("noise_mm", noise_mm)
         try:
@@ -120,6 +131,12 @@ class OracleEstimator(EstimatorBase):
         self.latency_steps = int(latency_steps)
         self.object_noise_mm = _non_negative("object_noise_mm", object_noise_mm)
         self.object_noise_deg = _non_negative("object_noise_deg", object_noise_deg)
+        if object_noise_kind not in OBJECT_NOISE_KINDS:
+            raise InvalidEstimatorParams(
+                f"object_noise_kind must be one of {OBJECT_NOISE_KINDS} (a std per camera axis, "
+                f"or an exact 3-D error); received {object_noise_kind!r}"
+            )
+        self.object_noise_kind = object_noise_kind
         if isinstance(rng, int | np.integer) and not isinstance(rng, bool) and rng < 0:
             raise InvalidEstimatorParams(f"rng must be a seed >= 0 when an int; received {rng!r}")
         if rng is None or (isinstance(rng, int | np.integer) and not isinstance(rng, bool)):
@@ -138,7 +155,8 @@ class OracleEstimator(EstimatorBase):
         return (
             f"OracleEstimator(noise_mm={self.noise_mm}, bias_mm={tuple(self.bias_mm.tolist())}, "
             f"dropout={self.dropout}, latency_steps={self.latency_steps}, "
-            f"object_noise_mm={self.object_noise_mm}, object_noise_deg={self.object_noise_deg})"
+            f"object_noise_mm={self.object_noise_mm}, object_noise_deg={self.object_noise_deg}, "
+            f"object_noise_kind={self.object_noise_kind!r})"
         )
 
     def reset(self) -> None:
@@ -200,7 +218,11 @@ class OracleEstimator(EstimatorBase):
         rot_std_rad = math.radians(self.object_noise_deg)
         for instance in sorted(truth_poses):
             T = truth_poses[instance].copy()  # noqa: N806 (the standard name of a transform)
-            T[:3, 3] += rng.normal(0.0, self.object_noise_mm / MM_PER_M, size=3)
+            if self.object_noise_kind == "axis":
+                T[:3, 3] += rng.normal(0.0, self.object_noise_mm / MM_PER_M, size=3)
+            else:
+                direction = rng.normal(size=3)
+                T[:3, 3] += self.object_noise_mm / MM_PER_M * direction / np.linalg.norm(direction)
             rotvec = rng.normal(0.0, rot_std_rad, size=3)
             T[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix() @ T[:3, :3]
             poses[instance] = T

@@ -96,6 +96,22 @@ def test_object_noise_has_the_requested_std():
     np.testing.assert_allclose(est[0].keypoints_cam, truth.keypoints_cam)  # hand untouched
 
 
+def test_object_noise_per_axis_or_in_3d():
+    """Axis noise is a std per axis (3-D mean ~1.6 sigma), 3d an exact 3-D error; bad kinds."""
+    truth = _truth(n_objects=1)
+    t_gt = truth.objects[0].T_cam_from_obj[:3, 3]
+    axis = _draw(OracleEstimator(object_noise_mm=10.0, rng=4), truth, 2000)
+    err_axis = np.linalg.norm([e.object_poses[0][:3, 3] - t_gt for e in axis], axis=1) * 1000
+    # Mean of a chi(3) distribution: 2 sqrt(2 / pi) sigma = 1.596 sigma.
+    np.testing.assert_allclose(err_axis.mean(), 15.96, rtol=0.05)
+    exact = _draw(OracleEstimator(object_noise_mm=10.0, object_noise_kind="3d", rng=4), truth, 500)
+    offsets = np.array([e.object_poses[0][:3, 3] - t_gt for e in exact]) * 1000
+    np.testing.assert_allclose(np.linalg.norm(offsets, axis=1), 10.0)
+    np.testing.assert_allclose(offsets.mean(axis=0), 0.0, atol=1.0)  # no preferred direction
+    with pytest.raises(InvalidEstimatorParams, match="object_noise_kind must be one of"):
+        OracleEstimator(object_noise_kind="sphere")
+
+
 def test_dropout_fraction():
     """With dropout p, a fraction p of the estimates is invalid (4 sigma binomial band)."""
     n, p = 4000, 0.3
