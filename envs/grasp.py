@@ -132,7 +132,12 @@ class GraspEnv(HandSimEnv):
         obj = self.scene.objects[self.target_instance][1]
         T = self._object_pose(self.target_instance)
         self.tracker = None  # made after the settling steps (the rest height is measured then)
-        return start_pose(rng, T, self.scene.hand.params, obj=obj)
+        others = tuple(
+            (other, self._object_pose(k))
+            for k, (_, other) in enumerate(self.scene.objects)
+            if k != self.target_instance
+        )
+        return start_pose(rng, T, self.scene.hand.params, obj=obj, obstacles=others)
 
     def _object_pose(self, instance: int) -> np.ndarray:
         body = self.scene.model.body(self.scene.objects[instance][0]).id

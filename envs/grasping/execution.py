@@ -294,6 +294,7 @@ class GraspExpert:
         self._segment_start_s = 0.0
         self._from: _Segment | None = None
         self._filter: _PoseFilter | None = None
+        self._obstacles: tuple = ()
         self._planned_T: np.ndarray | None = None
         self._last_plan_s = -math.inf
         self._commanded: _Segment | None = None
@@ -333,6 +334,7 @@ class GraspExpert:
         self._grip_force_n = None
         self._filter = _PoseFilter(self.obj)
         self._filter.add(state.T_world_from_obj)
+        self._obstacles = state.obstacles
         self._segments = []
         self._index = 0
         self._from = self._commanded
@@ -347,10 +349,19 @@ class GraspExpert:
             self.planning_error = err
         self.replans = 0
 
+    def _plan(self, T: np.ndarray) -> GraspPlan:
+        """A plan clear of the obstacles if one exists, else one that ignores them."""
+        if self._obstacles:
+            try:
+                return plan_grasp(self.obj, T, self.hand_params, self._obstacles)
+            except GraspPlanningError:
+                pass
+        return plan_grasp(self.obj, T, self.hand_params)
+
     def _make_plan(self, T: np.ndarray, time_s: float, first: str) -> None:
         """Plan for object pose ``T`` and lay out the segments from the commanded pose."""
         self._last_plan_s = time_s
-        plan = plan_grasp(self.obj, T, self.hand_params)
+        plan = self._plan(T)
         self.plan = plan
         self.planning_error = None
         self._planned_T = T
@@ -388,6 +399,7 @@ class GraspExpert:
     def _maybe_replan(self, state: GraspState) -> None:
         """Closed loop: plan again if the filtered object pose moved (reach, approach, wait)."""
         self._filter.add(state.T_world_from_obj)
+        self._obstacles = state.obstacles
         if not self.replan or self.phase not in ("wait", "reach", "approach"):
             return
         t = state.time_s
@@ -403,7 +415,7 @@ class GraspExpert:
         if self.phase == "approach" and self.plan is not None:
             old = self.plan
         try:
-            plan = plan_grasp(self.obj, T, self.hand_params)
+            plan = self._plan(T)
         except GraspPlanningError as err:
             self._last_plan_s = t
             if self.plan is None:

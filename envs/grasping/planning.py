@@ -121,6 +121,8 @@ class GraspState:
             target with (:data:`TOUCH_PARTS` order: palm, thumb, index, middle, ring,
             little), newtons, as the skin's mechanoreceptors sense it (never an estimate);
             ``None``: not sensed.
+        obstacles: the other objects on the table, as ``(object, (4, 4) T_world_from_obj)``
+            pairs; the planner keeps the hand off them.
     """
 
     time_s: float
@@ -130,6 +132,7 @@ class GraspState:
     obj: YCBObject
     joint_angles_rad: np.ndarray | None = None
     touch_forces_n: np.ndarray | None = None
+    obstacles: tuple[tuple[YCBObject, np.ndarray], ...] = ()
 
     def __post_init__(self) -> None:
         if not (isinstance(self.time_s, (int, float, np.floating)) and math.isfinite(self.time_s)):
@@ -165,6 +168,15 @@ class GraspState:
                     f"(palm, thumb, index, middle, ring, little); received shape {touch.shape}"
                 )
             object.__setattr__(self, "touch_forces_n", touch)
+        obstacles = []
+        for item in self.obstacles:
+            if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], YCBObject)):
+                raise InvalidGraspState(
+                    "obstacles must be (YCBObject, (4, 4) T_world_from_obj) pairs; received "
+                    f"{type(item).__name__}"
+                )
+            obstacles.append((item[0], _check_transform(item[1], "an obstacle's T_world_from_obj")))
+        object.__setattr__(self, "obstacles", tuple(obstacles))
         object.__setattr__(self, "time_s", float(self.time_s))
         object.__setattr__(self, "keypoints_world", keypoints)
         object.__setattr__(
@@ -197,7 +209,19 @@ class GraspState:
             T_world_from_obj=T,
             obj=scene.objects[instance][1],
             touch_forces_n=touch_forces(scene, instance),
+            obstacles=tuple(
+                (other, _body_pose(scene, int(scene.model.body(body).id)))
+                for k, (body, other) in enumerate(scene.objects)
+                if k != instance
+            ),
         )
+
+
+def _body_pose(scene: Scene, body_id: int) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = scene.data.xmat[body_id].reshape(3, 3)
+    T[:3, 3] = scene.data.xpos[body_id]
+    return T
 
 
 def touch_forces(scene: Scene, instance: int) -> np.ndarray:
@@ -248,6 +272,7 @@ _START_DISTANCE_M = 0.22  # palm centre to object origin, horizontal, toward -y
 _START_HEIGHT_M = 0.18  # wrist above the table
 _START_JITTER_M = 0.02
 _START_JITTER_RAD = np.deg2rad(5.0)
+_START_CLEAR_M = 0.12  # objects this close to the start palm (horizontally) raise the hand
 _PALM_DOWN = Rotation.from_matrix(np.diag([-1.0, 1.0, -1.0]))  # fingers +y, palm toward -z
 
 
@@ -257,6 +282,7 @@ def start_pose(
     hand_params: HandParams,
     *,
     obj: YCBObject | None = None,
+    obstacles: Sequence[tuple[YCBObject, np.ndarray]] = (),
 ) -> HandPose:
     """The seeded initial hand pose of a grasping episode.
 
@@ -270,6 +296,9 @@ def start_pose(
         T_world_from_obj: (4, 4) pose of the target object, world frame.
         hand_params: the hand (its length places the palm centre).
         obj: the target object; its height raises the hand above tall objects.
+        obstacles: other objects, ``(object, (4, 4) T_world_from_obj)``: the hand also starts
+            0.05 m above the top of any of them that comes within 0.12 m (horizontally) of
+            the palm centre, so that it never starts inside one.
 
     Returns:
         The start pose (world frame), all angles zero.
@@ -290,7 +319,12 @@ def start_pose(
     rot_jitter = Rotation.from_rotvec(rng.uniform(-_START_JITTER_RAD, _START_JITTER_RAD, 3))
     rotation = rot_jitter * _PALM_DOWN
     palm_centre_in_hand = np.array([0.0, 0.25 * hand_params.hand_length, 0.0])
-    palm_centre = np.array([T[0, 3], T[1, 3] - _START_DISTANCE_M, height]) + jitter
+    centre_xy = np.array([T[0, 3], T[1, 3] - _START_DISTANCE_M]) + jitter[:2]
+    for other, T_other in obstacles:
+        points = _world_points(other, _check_transform(T_other, "an obstacle's T_world_from_obj"))
+        if np.linalg.norm(points[:, :2] - centre_xy, axis=1).min() < _START_CLEAR_M:
+            height = max(height, float(points[:, 2].max()) + 0.05)
+    palm_centre = np.array([*centre_xy, height + jitter[2]])
     wrist = palm_centre - rotation.apply(palm_centre_in_hand)
     return HandPose(wrist, rotation.as_rotvec(), np.zeros(NUM_ANGLES))
 
@@ -553,7 +587,7 @@ class _CollisionChecker:
         return to_obj, to_table
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=32)
 def _checker(obj: YCBObject, params: HandParams) -> _CollisionChecker:
     return _CollisionChecker(obj, params)
 
@@ -1032,13 +1066,46 @@ def _approach_is_clear(plan: GraspPlan, obj: YCBObject, T: np.ndarray, params: H
     return True
 
 
-def plan_grasp(obj: YCBObject, T_world_from_obj: np.ndarray, params: HandParams) -> GraspPlan:
+def _clear_of_obstacles(
+    plan: GraspPlan,
+    params: HandParams,
+    obstacles: Sequence[tuple[YCBObject, np.ndarray]],
+) -> bool:
+    """The hand stays off every obstacle on the way in, while closing and while lifting."""
+    if not obstacles:
+        return True
+    hover = plan.approach_end - plan.wrist_pos
+    poses = [
+        plan.pose(plan.preshape, hover - (1.0 - s) * _PREGRASP_DIST_M * plan.approach_dir)
+        for s in np.linspace(0.0, 1.0, 5)
+    ]
+    poses += [plan.pose(angles) for angles in (plan.preshape, plan.contact, plan.closed)]
+    poses += [plan.pose(plan.closed, np.array([0.0, 0.0, z])) for z in (0.05, 0.1, 0.15)]
+    for other, T_other in obstacles:
+        checker = _checker(other, params)
+        if any(checker.clearance(pose, T_other)[0] < _OBSTACLE_CLEARANCE_M for pose in poses):
+            return False
+    return True
+
+
+_OBSTACLE_CLEARANCE_M = 0.002
+
+
+def plan_grasp(
+    obj: YCBObject,
+    T_world_from_obj: np.ndarray,
+    params: HandParams,
+    obstacles: Sequence[tuple[YCBObject, np.ndarray]] = (),
+) -> GraspPlan:
     """Plan a grasp of ``obj`` at ``T_world_from_obj`` for a hand of ``params``.
 
     Args:
         obj: the object.
         T_world_from_obj: (4, 4) its pose, world frame.
         params: the hand.
+        obstacles: other objects, ``(object, (4, 4) T_world_from_obj)`` pairs: candidates
+            whose hand comes within 2 mm of one (approach, grasp, closing or lift) are
+            skipped.
 
     Returns:
         The best-scoring candidate whose approach is free of collisions.
@@ -1055,9 +1122,10 @@ def plan_grasp(obj: YCBObject, T_world_from_obj: np.ndarray, params: HandParams)
     # First with the hand opened wide, then (a second pass) opened just enough.
     for narrow, (_, build) in itertools.product((False, True), scored):
         plan = build(narrow)
-        if plan is not None:
+        if plan is not None and _clear_of_obstacles(plan, params, obstacles):
             return plan
     raise GraspPlanningError(
         f"no collision-free {recipe.strategy} grasp ({recipe.grasp_type}) found for "
-        f"{obj.name} at {np.round(T[:3, 3], 3).tolist()} m ({len(scored)} candidates)"
+        f"{obj.name} at {np.round(T[:3, 3], 3).tolist()} m ({len(scored)} candidates"
+        f"{f', {len(obstacles)} obstacles' if obstacles else ''})"
     )
