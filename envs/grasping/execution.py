@@ -187,6 +187,13 @@ class _PoseFilter:
         return T
 
 
+def _close(T: np.ndarray, reference: np.ndarray) -> bool:
+    """Within :data:`REPLAN_DISTANCE_M` and :data:`REPLAN_ANGLE_RAD` of ``reference``."""
+    moved = float(np.linalg.norm(T[:3, 3] - reference[:3, 3]))
+    turned = float(Rotation.from_matrix(T[:3, :3] @ reference[:3, :3].T).magnitude())
+    return moved < REPLAN_DISTANCE_M and turned < REPLAN_ANGLE_RAD
+
+
 class GraspExpert:
     """A scripted pick-and-lift expert for one object.
 
@@ -296,6 +303,7 @@ class GraspExpert:
         self._filter: _PoseFilter | None = None
         self._obstacles: tuple = ()
         self._planned_T: np.ndarray | None = None
+        self._failed_T: np.ndarray | None = None
         self._last_plan_s = -math.inf
         self._commanded: _Segment | None = None
         self._scale = np.ones(3)  # speed jitter of reach, approach, lift
@@ -335,6 +343,8 @@ class GraspExpert:
         self._filter = _PoseFilter(self.obj)
         self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
+        self._planned_T = None
+        self._failed_T = None
         self._segments = []
         self._index = 0
         self._from = self._commanded
@@ -347,6 +357,7 @@ class GraspExpert:
             if not self.replan:
                 raise
             self.planning_error = err
+            self._failed_T = T
         self.replans = 0
 
     def _plan(self, T: np.ndarray) -> GraspPlan:
@@ -358,10 +369,12 @@ class GraspExpert:
                 pass
         return plan_grasp(self.obj, T, self.hand_params)
 
-    def _make_plan(self, T: np.ndarray, time_s: float, first: str) -> None:
-        """Plan for object pose ``T`` and lay out the segments from the commanded pose."""
+    def _make_plan(
+        self, T: np.ndarray, time_s: float, first: str, plan: GraspPlan | None = None
+    ) -> None:
+        """Plan for object pose ``T`` (unless given) and lay out segments from the command."""
         self._last_plan_s = time_s
-        plan = self._plan(T)
+        plan = self._plan(T) if plan is None else plan
         self.plan = plan
         self.planning_error = None
         self._planned_T = T
@@ -406,10 +419,8 @@ class GraspExpert:
         if t - self._last_plan_s < _REPLAN_PERIOD_S - 1e-9:
             return
         T = self._filter.pose()
-        if self.plan is not None:
-            moved = float(np.linalg.norm(T[:3, 3] - self._planned_T[:3, 3]))
-            turned = float(Rotation.from_matrix(T[:3, :3] @ self._planned_T[:3, :3].T).magnitude())
-            if moved < REPLAN_DISTANCE_M and turned < REPLAN_ANGLE_RAD:
+        for reference in (self._planned_T, self._failed_T):
+            if reference is not None and _close(T, reference):
                 return
         first = "reach"
         if self.phase == "approach" and self.plan is not None:
@@ -418,9 +429,10 @@ class GraspExpert:
             plan = self._plan(T)
         except GraspPlanningError as err:
             self._last_plan_s = t
+            self._failed_T = T
             if self.plan is None:
                 self.planning_error = err
-            return  # keep the current plan; try again later
+            return  # keep the current plan; try again when the estimate moves
         if self.phase == "approach" and self.plan is not None:
             # Continue the approach if the new approach line passes near the hand and the
             # orientation barely changes; else reach again (back out to the new pre-grasp).
@@ -432,7 +444,7 @@ class GraspExpert:
             turn = float((plan.rotation * old.rotation.inv()).magnitude())
             if off_line < 0.01 and turn < np.deg2rad(10.0) and plan.strategy == old.strategy:
                 first = "approach"
-        self._make_plan(T, t, first)
+        self._make_plan(T, t, first, plan)
 
     def grip_targets(self, state: GraspState) -> np.ndarray:
         """Finger targets that press on the object with a grip force sized to its weight.
@@ -509,9 +521,9 @@ class GraspExpert:
             # on each other through the object, so only their common level is controllable.
             wanted = self._grip_force_target(lifting=self.phase != "hold")
             force = float(touch.sum())
-            ratio = float(
-                np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, _GRIP_EASE, _GRIP_TIGHTEN)
-            )
+            # While the load grows (the lift) the grip only tightens; it eases in the hold.
+            ease = 1.0 if self.phase == "lift" else _GRIP_EASE
+            ratio = float(np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, ease, _GRIP_TIGHTEN))
             self._grip_scale = [
                 float(np.clip(k * ratio, self.recipe.min_grip_scale, MAX_GRIP_SCALE))
                 for k in self._grip_scale
