@@ -83,6 +83,7 @@ REPLAN_DISTANCE_M = 0.004
 """The expert re-plans when its estimate of the object's position moves this far, metres."""
 REPLAN_ANGLE_RAD = float(np.deg2rad(4.0))
 """Or when its estimate of the object's orientation turns this far, radians."""
+_PALM_PRESS_M = 0.02  # the side wrap's wrist goes this far past palm contact, m
 _REPLAN_PERIOD_S = 0.1  # at most one re-plan per 0.1 s
 _FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
 _MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered pose by this
@@ -381,13 +382,18 @@ class GraspExpert:
         self.replans += 1
         start = self._commanded
         pre_pos = plan.approach_end - _PREGRASP_DIST_M * plan.approach_dir
-        lift_pos = plan.wrist_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
+        # A side wrap presses the palm onto the object while the digits close (a power grasp
+        # holds the object against the palm).
+        grasp_pos = plan.wrist_pos + (_PALM_PRESS_M if plan.strategy == "side" else 0.0) * (
+            plan.approach_dir
+        )
+        lift_pos = grasp_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
         segments = [
             _Segment("reach", 0.0, pre_pos, plan.rotation, plan.preshape),
             _Segment("approach", 0.0, plan.approach_end, plan.rotation, plan.preshape),
-            _Segment("close", _CLOSE_S, plan.wrist_pos, plan.rotation, plan.contact),
-            _Segment("squeeze", _SQUEEZE_S, plan.wrist_pos, plan.rotation, plan.closed),
-            _Segment("settle", _SETTLE_S, plan.wrist_pos, plan.rotation, plan.closed),
+            _Segment("close", _CLOSE_S, grasp_pos, plan.rotation, plan.contact),
+            _Segment("squeeze", _SQUEEZE_S, grasp_pos, plan.rotation, plan.closed),
+            _Segment("settle", _SETTLE_S, grasp_pos, plan.rotation, plan.closed),
             _Segment("lift", 0.0, lift_pos, plan.rotation, plan.closed),
         ]
         if first == "approach":
