@@ -651,6 +651,7 @@ def _side_preshape() -> np.ndarray:
     return angles
 
 
+_SIDE_OVERCLOSE = 0.5
 _TABLE_CLEARANCE_M = 0.002
 _OPENING_M = 0.03  # the preshaped pads clear the object by this much in total
 
@@ -967,7 +968,13 @@ def _side_candidates(
     checker = _checker(obj, params)
     grasp = GRASP_TYPES[recipe.grasp_type]
     preshape = _side_preshape()
-    closed = grasp.angles(1.0)
+    # Targets past the fully closed posture, so that a hand large for the object still
+    # presses on it (the grip force loop then scales the deflections).
+    closed = np.clip(
+        grasp.angles(1.0) + _SIDE_OVERCLOSE * (grasp.angles(1.0) - grasp.large),
+        JOINT_LIMITS[:, 0],
+        JOINT_LIMITS[:, 1],
+    )
     points = _world_points(obj, T)
     top = float(points[:, 2].max())
     height = min(recipe.height_fraction * top, 0.14)
