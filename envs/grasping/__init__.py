@@ -2,13 +2,15 @@
 
 The pieces an environment needs to run a pick-and-lift episode:
 
-- :class:`GraspState`: what the expert sees (the hand pose, keypoints and the target object's
-  pose and geometry). It may come from ground truth (:meth:`GraspState.from_sim`) or from a
-  pose estimate; the expert never reads ``MjData``.
+- :class:`GraspState`: what the expert sees (the hand pose, keypoints, the target object's
+  pose and geometry, proprioception, touch and the other objects). It may come from ground
+  truth (:meth:`GraspState.from_sim`) or from a pose estimate; the expert never reads
+  ``MjData``.
 - :func:`start_pose`: the seeded initial hand pose of an episode (open hand, palm down, on the
   user's side of the object).
-- :class:`GraspExpert`: plans a grasp at :meth:`~GraspExpert.reset` and returns an absolute
-  27-DoF target pose at every control step (:meth:`~GraspExpert.act`).
+- :class:`GraspExpert`: plans a grasp at :meth:`~GraspExpert.reset` (and re-plans while it
+  reaches) and returns an absolute 27-DoF target pose at every control step
+  (:meth:`~GraspExpert.act`).
 - :class:`LiftTracker` / :func:`evaluate_lift`: the success definition (below).
 - :func:`run_episode`: the ground-truth loop used by the tests and ``benchmarks/bench_grasp.py``.
 
@@ -58,17 +60,19 @@ elongated   011 banana, 040 large marker        tripod; fingertips at the table,
                                                 body
 ==========  ==================================  ============================================
 
-Planning (at :meth:`GraspExpert.reset`, from the state's object pose and the object's model
-points): the grasp axis and centre come from the object's surface points (the narrowest
-cross-section through the centre of mass that the hand can span), the wrist pose from the
-hand's forward kinematics (the thumb and finger contact spheres meet the object at the closure
-where their gap equals the object's width), and every candidate is checked for collisions with
-the table and the object in a private kinematic copy of the hand and the object (the env's
-``MjData`` is never read). The digits squeeze past contact, then ease off to a grip force of
-:data:`GRIP_SAFETY_FACTOR` times the slip force of the object's weight at friction
-:data:`GRIP_FRICTION` (people scale their grip with the load; :meth:`GraspExpert.grip_targets`).
-Motions are minimum-jerk segments with a peak wrist speed of
-:data:`EXPERT_WRIST_SPEED_M_S` (below :data:`MAX_WRIST_SPEED_M_S`).
+Planning (at :meth:`GraspExpert.reset`, and again during the reach and the approach when the
+expert's filtered estimate of the object pose moves; from the state's object pose and the
+object's model points): the grasp axis and centre come from the object's surface points (the
+narrowest cross-section through the centre of mass that the hand can span), the wrist pose from
+the hand's forward kinematics (the thumb and finger contact spheres meet the object at the
+closure where their gap equals the object's width), and every candidate is checked for
+collisions with the table, the object and the state's ``obstacles`` (other objects) in a
+private kinematic copy (the env's ``MjData`` is never read). The digits squeeze past contact,
+then the grip force is regulated from touch (:attr:`GraspState.touch_forces_n`) to
+:data:`GRIP_SAFETY_FACTOR` times the slip force of the load at skin friction on the object's
+material (people scale their grip with the load; :class:`GraspExpert`). Motions are
+minimum-jerk segments with a peak wrist speed of :data:`EXPERT_WRIST_SPEED_M_S` (below
+:data:`MAX_WRIST_SPEED_M_S`).
 
 Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
@@ -77,6 +81,7 @@ from handsim.envs.grasping.execution import (
     GRIP_FRICTION,
     GRIP_SAFETY_FACTOR,
     MAX_GRIP_SCALE,
+    MIN_GRIP_FORCE_N,
     MIN_GRIP_SCALE,
     REPLAN_ANGLE_RAD,
     REPLAN_DISTANCE_M,
@@ -138,6 +143,7 @@ __all__ = [
     "GRIP_FRICTION",
     "MIN_GRIP_SCALE",
     "MAX_GRIP_SCALE",
+    "MIN_GRIP_FORCE_N",
     "REPLAN_DISTANCE_M",
     "REPLAN_ANGLE_RAD",
     "ContactMetrics",

@@ -34,11 +34,13 @@ from handsim.envs.grasping import (
     LiftTracker,
     contact_metrics,
     evaluate_lift,
+    plan_grasp,
     run_episode,
     shape_class,
     start_pose,
     touch_forces,
 )
+from handsim.envs.grasping.planning import _clear_of_obstacles
 from handsim.hand.model import hand_params
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
@@ -532,3 +534,52 @@ def test_without_replanning_a_missing_plan_raises():
     for step in range(1, 11):  # then the truth: the filtered pose reaches it, a plan follows
         expert.act(dataclasses.replace(state, time_s=step * CONTROL_DT_S))
     assert expert.plan is not None and expert.phase == "reach"
+
+
+# Clutter: obstacles ----------------------------------------------------------------------------
+
+
+def _resting(name: str, xy) -> np.ndarray:
+    obj = get_object(name)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat(np.roll(obj.rest_quat_wxyz, -1)).as_matrix()
+    T[:3, 3] = [xy[0], xy[1], obj.rest_height_m]
+    return T
+
+
+def test_planner_keeps_the_hand_off_neighbouring_objects():
+    """A block beside the can: the free plan would hit it, the planned one clears it."""
+    params = hand_params("medium")
+    can, block = get_object("005_tomato_soup_can"), get_object("036_wood_block")
+    T_can = _resting(can.name, (0.0, 0.0))
+    obstacles = [(block, _resting(block.name, (0.12, 0.0)))]
+    free = plan_grasp(can, T_can, params)
+    assert not _clear_of_obstacles(free, params, obstacles)
+    planned = plan_grasp(can, T_can, params, obstacles)
+    assert _clear_of_obstacles(planned, params, obstacles)
+    assert not np.allclose(planned.approach_dir, free.approach_dir)
+    walled = [(block, _resting(block.name, (0.0, -0.12)))]
+    with pytest.raises(GraspPlanningError, match="1 obstacles"):
+        plan_grasp(can, T_can, params, walled)
+
+
+def test_start_pose_rises_above_a_neighbour_under_the_palm():
+    """A tall object where the palm would start raises the start 5 cm above its top."""
+    params = hand_params("medium")
+    T = _resting("025_mug", (0.0, 0.1))
+    bottle = get_object("021_bleach_cleanser")
+    T_bottle = _resting(bottle.name, (0.0, 0.1 - 0.22))
+    low = start_pose(np.random.default_rng(0), T, params, obj=get_object("025_mug"))
+    high = start_pose(
+        np.random.default_rng(0),
+        T,
+        params,
+        obj=get_object("025_mug"),
+        obstacles=[(bottle, T_bottle)],
+    )
+    top = float(
+        (np.asarray(bottle.model_points_m) @ T_bottle[:3, :3].T + T_bottle[:3, 3])[:, 2].max()
+    )
+    assert high.wrist_pos[2] > low.wrist_pos[2] + 0.05
+    palm_height = high.wrist_pos[2]  # palm down: the palm centre is level with the wrist (+-2 cm)
+    assert palm_height > top + 0.03
