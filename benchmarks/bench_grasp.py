@@ -12,7 +12,7 @@ the env's own placement and start pose, depth rendered every step, the expert fr
 
 Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
 [--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
-[--friction default|skin|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]]
+[--friction default|skin|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]] [--no-replan]
 [--out benchmarks/results/bench_grasp.json]``. Prints one row per object (grasp type,
 successes, mean lift and slip, failure reasons) and writes every episode to JSON.
 
@@ -196,12 +196,14 @@ def run_object(
     friction: str = "default",
     object_noise_mm: float = 0.0,
     noise_kind: str = "axis",
+    replan: bool = True,
 ) -> dict:
     """Run ``seeds`` episodes with one object; return its row and the episodes.
 
     ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
     object); ``object_noise_mm``/``noise_kind``: the expert perceives the object's position
-    with that error at every step (see :func:`_noisy_perception`).
+    with that error at every step (see :func:`_noisy_perception`); ``replan=False``: the
+    expert plans once, at the start (open loop).
     """
     obj = get_object(name)
     episodes = []
@@ -222,7 +224,7 @@ def run_object(
         scene = Scene(SceneSpec(hand=params, objects=placements))
         if friction != "default":
             set_skin_friction(scene, None if friction == "skin" else float(friction))
-        expert = GraspExpert(obj, params)
+        expert = GraspExpert(obj, params, replan=replan)
         records: list = []
 
         def record(step: int, expert: GraspExpert, scene: Scene = scene, records=records):
@@ -377,6 +379,7 @@ def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: 
             args.friction,
             args.object_noise_mm,
             args.noise_kind,
+            not args.no_replan,
         )
         rows.append(row)
         failures = ", ".join(f"{k} {v}" for k, v in row["failures"].items()) or "-"
@@ -447,6 +450,9 @@ def main() -> None:
         help="axis: Gaussian std per axis; 3d: that exact distance in a random direction",
     )
     parser.add_argument(
+        "--no-replan", action="store_true", help="the expert plans once, at the start"
+    )
+    parser.add_argument(
         "--physics", action="store_true", help="measure held-grasp physics steps/s only"
     )
     parser.add_argument(
@@ -487,6 +493,7 @@ def main() -> None:
                 "friction": args.friction,
                 "object_noise_mm": args.object_noise_mm,
                 "noise_kind": args.noise_kind,
+                "replan": not args.no_replan,
                 "max_steps": _MAX_STEPS,
                 "tables": tables,
             },
