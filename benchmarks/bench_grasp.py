@@ -201,7 +201,7 @@ def run_object(
     """Run ``seeds`` episodes with one object; return its row and the episodes.
 
     ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
-    object); ``object_noise_mm``/``noise_kind``: the expert perceives the object's position
+    object, and the expert sizes its grip for it; otherwise for skin on the material); ``object_noise_mm``/``noise_kind``: the expert perceives the object's position
     with that error at every step (see :func:`_noisy_perception`); ``replan=False``: the
     expert plans once, at the start (open loop).
     """
@@ -224,7 +224,9 @@ def run_object(
         scene = Scene(SceneSpec(hand=params, objects=placements))
         if friction != "default":
             set_skin_friction(scene, None if friction == "skin" else float(friction))
-        expert = GraspExpert(obj, params, replan=replan)
+        # A number is what the hand feels: the expert sizes its grip for it too.
+        assumed = None if friction in ("default", "skin") else float(friction)
+        expert = GraspExpert(obj, params, replan=replan, friction=assumed)
         records: list = []
 
         def record(step: int, expert: GraspExpert, scene: Scene = scene, records=records):
