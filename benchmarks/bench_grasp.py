@@ -201,9 +201,10 @@ def run_object(
     """Run ``seeds`` episodes with one object; return its row and the episodes.
 
     ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
-    object, and the expert sizes its grip for it; otherwise for skin on the material); ``object_noise_mm``/``noise_kind``: the expert perceives the object's position
-    with that error at every step (see :func:`_noisy_perception`); ``replan=False``: the
-    expert plans once, at the start (open loop).
+    object, and the expert sizes its grip for it; otherwise for skin on the material);
+    ``object_noise_mm``/``noise_kind``: the expert perceives the object's position with that
+    error at every step (see :func:`_noisy_perception`); ``replan=False``: the expert plans
+    once, at the start (open loop).
     """
     obj = get_object(name)
     episodes = []
