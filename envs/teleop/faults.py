@@ -19,7 +19,8 @@ sample ``i`` of the stream (keypoints ``x_i``, (21, 3), world frame, metres), in
 4. **dropout**: with probability ``dropout`` the frame is lost (as when fewer than
    :data:`MIN_TRACKED` keypoints remain after the occlusion); the output is then the last
    output (``dropout_mode="hold"``) or its constant-velocity extrapolation from the last two
-   outputs (``"extrapolate"``, for at most :data:`MAX_EXTRAPOLATION_FRAMES` frames, then held).
+   outputs and their frame gap (``"extrapolate"``, for at most
+   :data:`MAX_EXTRAPOLATION_FRAMES` frames, then held).
 
 A lost frame is flagged (``dropped``) so the loop can count it.
 """
@@ -207,8 +208,9 @@ class FaultInjector:
         """Start a new episode (the generator keeps running)."""
         self._history: list[np.ndarray] = []
         self._delivered = 0
-        self._outputs: list[np.ndarray] = []  # last two outputs, for extrapolation
+        self._outputs: list[tuple[int, np.ndarray]] = []  # last two (frame, output)
         self._lost_run = 0
+        self._frame = -1
         self._occluder: tuple[np.ndarray, int] | None = None  # (centre, frames left)
         self.n_dropped = 0
         self.n_occluded_frames = 0
@@ -254,13 +256,14 @@ class FaultInjector:
             lost = True
         if np.count_nonzero(np.all(np.isfinite(x), axis=1)) < MIN_TRACKED:
             lost = True
+        self._frame += 1
         if lost:
             self.n_dropped += 1
             self._lost_run += 1
             x = self._replacement()
         else:
             self._lost_run = 0
-            self._outputs = [*self._outputs[-1:], x]
+            self._outputs = [*self._outputs[-1:], (self._frame, x)]
         if len(self._history) > cfg.latency_frames + cfg.jitter_frames + 2:
             drop = len(self._history) - (cfg.latency_frames + cfg.jitter_frames + 2)
             self._history = self._history[drop:]
@@ -270,13 +273,14 @@ class FaultInjector:
     def _replacement(self) -> np.ndarray:
         if not self._outputs:
             return np.full((21, 3), np.nan)
-        last = self._outputs[-1]
+        i_last, last = self._outputs[-1]
         if (
             self.config.dropout_mode == "extrapolate"
             and len(self._outputs) == 2
             and self._lost_run <= MAX_EXTRAPOLATION_FRAMES
         ):
-            return last + self._lost_run * (last - self._outputs[0])
+            i_prev, prev = self._outputs[0]
+            return last + (self._frame - i_last) * (last - prev) / (i_last - i_prev)
         return last.copy()
 
 

@@ -7,8 +7,8 @@
 - **slip** (mm): the largest slip of the grasped object in the palm frame during a hold
   (grasp tasks: ``info["slip_m"]``); NaN where the task has none or nothing was held.
 - **fingertip jitter** (mm): the RMS of the five physical fingertips' positions above
-  :data:`JITTER_CUTOFF_HZ` (:func:`high_frequency_rms_mm`: the linear trend removed, the
-  spectrum above the cutoff kept, averaged over tips and axes) — the shaking a user sees.
+  :data:`JITTER_CUTOFF_HZ` (:func:`high_frequency_rms_mm`: minus a zero-phase Butterworth
+  low-pass, averaged over tips and axes) — the shaking a user sees.
 - **lag** (s): the shift that best aligns the physical hand's keypoint velocities with the
   operator's (:func:`lag_frames`, normalized cross-correlation over 0 to
   :data:`MAX_LAG_S`), times the control period.
@@ -46,29 +46,33 @@ def high_frequency_rms_mm(
 ) -> float:
     """RMS of a trajectory's content above ``cutoff_hz``, mm, averaged over its channels.
 
+    The content above the cutoff is the trajectory minus its zero-phase low-pass (a 4th-order
+    Butterworth filter run forward and backward, ``scipy.signal.sosfiltfilt``), so slow
+    voluntary motion leaves nothing and the ends need no window.
+
     Args:
-        x_m: (T, ...) positions over time, metres (NaN samples: the channel is skipped).
+        x_m: (T, ...) positions over time, metres (channels with NaN are skipped).
         dt_s: sample period, seconds.
         cutoff_hz: frequencies above this count, Hz.
 
     Returns:
-        The RMS in mm (NaN for fewer than 8 samples).
+        The RMS in mm (NaN for fewer than 16 samples or a cutoff at or above Nyquist).
     """
+    from scipy.signal import butter, sosfiltfilt
+
     x = np.asarray(x_m, dtype=np.float64).reshape(len(x_m), -1)
     n = len(x)
-    if n < 8:
+    nyquist = 0.5 / dt_s
+    if n < 16 or cutoff_hz >= nyquist:
         return math.nan
     ok = np.all(np.isfinite(x), axis=0)
     if not ok.any():
         return math.nan
     x = x[:, ok]
-    t = np.arange(n)
-    # Remove the line through the ends, so the ends meet and the FFT sees no step.
-    x = x - (x[0] + (x[-1] - x[0]) * (t / (n - 1))[:, None])
-    spectrum = np.fft.rfft(x, axis=0)
-    freqs = np.fft.rfftfreq(n, dt_s)
-    spectrum[freqs <= cutoff_hz] = 0.0
-    high = np.fft.irfft(spectrum, n=n, axis=0)
+    sos = butter(4, cutoff_hz, fs=1.0 / dt_s, output="sos")
+    # Pad by three periods of the cutoff (odd extension) so the ends settle.
+    pad = min(n - 1, int(math.ceil(3.0 / (cutoff_hz * dt_s))))
+    high = x - sosfiltfilt(sos, x, axis=0, padlen=pad)
     return float(np.sqrt(np.mean(high**2)) * 1e3)
 
 
