@@ -550,9 +550,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="serve the WebXR page that streams a headset's hand",
         description="Serve a static WebXR page: in a headset's browser it reads "
         "the WebXR Hand Input joints and streams them over the "
-        "WebSocket; without a headset it replays a recorded file. "
-        "Received packets are counted (run 'teleop live' on "
-        "another port to drive the hand).",
+        "WebSocket of 'handsim teleop live --websocket PORT' (run it "
+        "beside); without a headset it replays a recorded file.",
     )
     p.add_argument(
         "--port", type=non_negative_int, default=8000, help="HTTP port of the page (default: 8000)"
