@@ -216,18 +216,28 @@ class _Capture:
         for a, b in self._objects:
             scene.data.qpos[b : b + 7] = task_data.qpos[a : a + 7]
         if pose is None:
-            result = self.retargeter(
-                keypoints,
-                initial=self._previous,
-                check_side=False,
-                initial_scale=self._scale,
-                report_clamped=False,
-            )
-            self._previous, self._scale = result.pose, result.scale
-            hand_pose = result.pose
+            try:
+                result = self.retargeter(
+                    keypoints,
+                    initial=self._previous,
+                    check_side=False,
+                    initial_scale=self._scale,
+                    report_clamped=False,
+                )
+            except InvalidKeypoints:  # too few tracked joints: the operator hand holds still
+                if self._previous is None:
+                    return
+                hand_pose = self._previous
+            else:
+                self._previous, self._scale = result.pose, result.scale
+                hand_pose = result.pose
         else:
             hand_pose = HandPose.from_vector(pose)
         scene.binding.set_pose(scene.data, hand_pose)
+
+    def reset(self) -> None:
+        """Start an episode: the operator hand's retargeting starts cold."""
+        self._previous, self._scale = None, None
 
     def render(self, rng: np.random.Generator) -> CaptureFrame:
         """Depth of the posed operator hand with the sensor model, and its truth."""
@@ -382,6 +392,7 @@ class TeleopLoop:
                 self._capture = _Capture(env, key[0], params.side, cfg)
                 self._capture_key = key
             capture = self._capture
+            capture.reset()
             faults_cfg = dataclasses.replace(faults_cfg, viewpoint_m=tuple(capture.camera_pos_m))
             self.estimator.reset()
         injector = FaultInjector(faults_cfg, rng)
