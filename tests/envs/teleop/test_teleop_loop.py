@@ -8,6 +8,7 @@ import pytest
 
 from handsim.envs.teleop import (
     FaultConfig,
+    InvalidStream,
     InvalidTeleopConfig,
     TeleopConfig,
     TeleopLoop,
@@ -86,6 +87,16 @@ def test_camera_mode_with_the_oracle_and_a_rollout(press_stream, tmp_path):
 
     video = render_rollout(path, tmp_path / "r.gif", every=10)
     assert video.stat().st_size > 1000
+
+    from handsim.envs.teleop.view import log_rollout_rerun
+
+    try:
+        import rerun  # noqa: F401
+    except ImportError:
+        with pytest.raises(InvalidStream, match="needs the optional 'rerun-sdk'"):
+            log_rollout_rerun(path, tmp_path / "r.rrd")
+    else:
+        assert log_rollout_rerun(path, tmp_path / "r.rrd").stat().st_size > 1000
 
 
 def test_camera_mode_with_a_keypoint_stream_poses_the_operator_hand_by_retargeting(press_stream):
