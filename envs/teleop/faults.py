@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -137,17 +136,6 @@ class FaultConfig:
             _number("occluder_distance_m", self.occluder_distance_m, 0.0, 10.0),
         )
         set_(self, "viewpoint_m", _vector("viewpoint_m", self.viewpoint_m, scale=1.0))
-
-    @property
-    def active(self) -> bool:
-        """Whether any fault is on."""
-        return self != FaultConfig(
-            viewpoint_m=self.viewpoint_m,
-            dropout_mode=self.dropout_mode,
-            occlusion_frames=self.occlusion_frames,
-            occluder_radius_m=self.occluder_radius_m,
-            occluder_distance_m=self.occluder_distance_m,
-        )
 
     def to_dict(self) -> dict[str, Any]:
         """The settings as plain JSON values."""
@@ -282,18 +270,3 @@ class FaultInjector:
             i_prev, prev = self._outputs[0]
             return last + (self._frame - i_last) * (last - prev) / (i_last - i_prev)
         return last.copy()
-
-
-def fault_grid(
-    noise_mm: Sequence[float] = (0.0,),
-    latency_frames: Sequence[int] = (0,),
-    dropout: Sequence[float] = (0.0,),
-    **fixed: Any,
-) -> list[FaultConfig]:
-    """Every combination of the given levels (the sweep's grid), other settings ``fixed``."""
-    return [
-        FaultConfig(noise_mm=n, latency_frames=lat, dropout=p, **fixed)
-        for n in noise_mm
-        for lat in latency_frames
-        for p in dropout
-    ]

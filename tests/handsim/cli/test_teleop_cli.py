@@ -80,6 +80,35 @@ def test_generate_replay_and_view(tmp_path, capsys):
     assert "success" in capsys.readouterr().out
 
 
+def test_replay_a_headset_recording_in_openxr_format(tmp_path, capsys):
+    """An OpenXR-26 file (y up, millimetres, the headset's own origin) replays and presses."""
+    import numpy as np
+
+    from handsim.envs.teleop import stream_from_expert
+    from handsim.hand.keypoints import to_format
+    from handsim.hand.kinematics import ForwardKinematics
+    from handsim.hand.model import hand_params
+    from handsim.hand.pose import HandPose
+
+    stream = stream_from_expert("handsim/Press-v0", 2, env_kwargs={"task": "button"})
+    points = ForwardKinematics(hand_params("medium")).points(HandPose.from_vector(stream.poses))
+    xr = to_format(points, "openxr26")
+    y_up = xr @ np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]]).T + [0.2, 1.1, -0.4]
+    frames = [
+        {"t": 0.011 * i, "keypoints": (1e3 * f).round(3).tolist(), "radii": [8.0] * 26}
+        for i, f in enumerate(y_up)
+    ]
+    path = tmp_path / "quest.json"
+    path.write_text(json.dumps({"format": "openxr26", "units": "mm", "frames": frames}))
+    out = tmp_path / "out"
+    assert (
+        main(["teleop", "replay", str(path), "--task", "press", "--seed", "2", "--out", str(out)])
+        == 0
+    )
+    metrics = json.loads((out / "teleop.json").read_text())
+    assert metrics["success"] and metrics["unintended_presses"] == 0
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
