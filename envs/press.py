@@ -324,8 +324,9 @@ class PressEnv(HandSimEnv):
     goal| / 0.07``), ``reward_unintended = -1`` per unintended press event and
     ``reward_success = 10`` at the step of success. Sparse: ``reward_success = 1`` then. The
     reward is the sum of the ``info["reward_*"]`` terms. ``info`` also has ``is_success``,
-    ``target``, ``button_depth_m`` (3,), ``pressed`` (3,), ``slider_m``, ``slider_goal_m``,
-    ``press_events`` and ``unintended_presses`` (counts so far).
+    ``target_index`` (0-2: a button, 3: the slider), ``button_depth_m`` (3,), ``pressed``
+    (3,), ``slider_m``, ``slider_goal_m``, ``press_events`` and ``unintended_presses`` (counts
+    so far).
 
     ## Starting State
     Open relaxed hand, palm down, 18 cm in front of the panel's button row (toward the user)
@@ -413,13 +414,9 @@ class PressEnv(HandSimEnv):
         wrist = np.array([self._panel_x, _PANEL_Y_M + _BUTTON_Y_M - 0.18, 0.12]) + jitter
         return HandPose(wrist, (0.0, math.pi, 0.0), GESTURES["relaxed"].angles)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start an episode (see the class docstring)."""
-        obs, info = super().reset(seed=seed, options=options)
+    def _begin_task(self) -> None:
         self._episode_start_s = float(self.scene.data.time)
         self._pressed[:] = self.button_depth_m() >= PRESS_THRESHOLD_M
-        info.update(self._task_info())
-        return obs, info
 
     # Panel state ---------------------------------------------------------------------------
 
@@ -453,15 +450,22 @@ class PressEnv(HandSimEnv):
 
     def _task_observation(self) -> dict[str, np.ndarray]:
         task = np.zeros(5)
-        index = N_BUTTONS if self.task_target == "slider" else int(self.task_target.split("_")[1])
-        task[index] = 1.0
+        task[self._target_index()] = 1.0
         task[4] = self.slider_goal_m
         return {"task": task, "panel": np.append(self.button_depth_m(), self.slider_m())}
+
+    def _target_index(self) -> int:
+        return N_BUTTONS if self.task_target == "slider" else int(self.task_target.split("_")[1])
+
+    def _reward_terms(self) -> tuple[str, ...]:
+        if self.config.reward_type == "dense":
+            return ("reward_reach", "reward_progress", "reward_unintended", "reward_success")
+        return ("reward_success",)
 
     def _task_info(self) -> dict[str, Any]:
         return {
             "is_success": bool(self.success),
-            "target": self.task_target,
+            "target_index": self._target_index(),
             "button_depth_m": self.button_depth_m(),
             "pressed": self._pressed.copy(),
             "slider_m": self.slider_m(),
