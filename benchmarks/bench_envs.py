@@ -387,6 +387,9 @@ def _peer(steps: int) -> dict:
             peer = peers[mode]
             with clocks[key].time():
                 _, _, terminated, truncated, _ = peer.step(peer.action_space.sample())
+                # Gymnasium's renderer makes its OpenGL context current only when made: with
+                # other contexts in the process it would draw into theirs (and cost nothing).
+                peer.unwrapped.mujoco_renderer._get_viewer(mode).make_context_current()
                 peer.render()
             if terminated or truncated:
                 peer.reset()

@@ -87,6 +87,7 @@ SILHOUETTE_TOLERANCE_PX = 0.1
 :class:`FrameRenderer`): it bounds the reused mask's difference from a fresh render to pixels whose
 centres lie within 0.1 pixel of the silhouette's edge."""
 
+_KERNEL_3X3 = np.ones((3, 3), np.uint8)
 _HIDDEN_GROUP = 5  # a geom group no camera renders
 # A neighbouring hand/object surface up to this far behind an object still counts as a
 # possible occluder (conservative: it only costs a silhouette render).
@@ -388,16 +389,17 @@ class FrameRenderer:
         # geom id -> object instance (-1: not an object); geom id -1 (background) -> the last.
         instance = np.where(labels >= OBJECT_LABEL_OFFSET, labels - OBJECT_LABEL_OFFSET, -1)
         self._geom_instance = np.append(instance, -1).astype(np.intp)
-        # geom id -> segmentation label; index -1 (background) -> 0.
-        self._label_lut = np.append(labels, 0).astype(np.int16)
+        self._geom_labels = labels.astype(np.int16)
         # Buffers reused by every frame (no image-sized allocation per frame but the Frame's).
         h, w = self.intrinsics.height, self.intrinsics.width
         self._depth_buffer = np.empty((h, w), dtype=np.float32)
-        self._geom_buffer = np.empty((h, w), dtype=np.int32)
         self._mask_buffer = np.empty((h, w), dtype=bool)
         self._far_buffer = np.empty((h, w), dtype=bool)
-        # instance -> (corners in the camera frame when rendered, silhouette); see _silhouettes.
-        self._silhouette_cache: dict[int, tuple[np.ndarray, _Mask]] = {}
+        # Each object's silhouette and its box corners in the camera frame when it was made
+        # (NaN: none yet); see _silhouettes.
+        self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
+        self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
+        self._K = _read_only(self.intrinsics.K)
 
     def close(self) -> None:
         """Free the renderer."""
@@ -426,25 +428,29 @@ class FrameRenderer:
         finally:
             groups[:] = saved
 
-    def _moved_px(self, before: np.ndarray, after: np.ndarray) -> float:
+    def _moved_px(self, before: np.ndarray, after: np.ndarray) -> np.ndarray | float:
         """Upper bound on how far any point of an object moved in the image, pixels.
 
-        ``before`` and ``after`` are the object's (8, 3) box corners in the camera frame. The
-        motion between them is rigid, so a point's displacement is an affine function of its
-        body-frame position and its length is largest at a corner: every point moved by at most
-        ``D`` = the largest corner displacement. A point ``(x, y, z)`` moved by ``(dx, dy, dz)``
-        moves in the image by ``fx * (dx - (x / z) dz) / z'`` along u (``z'``: its new depth),
-        so by at most ``fx * D * (1 + |x / z|) / z'``; ``|x / z|`` (a ratio of affine functions)
-        and ``z'`` take their extremes over the box at corners.
+        ``before`` and ``after`` are (..., 8, 3) box corners of objects in the camera frame (NaN
+        rows give NaN). The motion between them is rigid, so a point's displacement is an
+        affine function of its body-frame position and its length is largest at a corner: every
+        point moved by at most ``D`` = the largest corner displacement. A point ``(x, y, z)``
+        moved by ``(dx, dy, dz)`` moves in the image by ``fx * (dx - (x / z) dz) / z'`` along u
+        (``z'``: its new depth), so by at most ``fx * D * (1 + |x / z|) / z'``; ``|x / z|`` (a
+        ratio of affine functions) and ``z'`` take their extremes over the box at corners.
+        An object partly behind the camera gets ``inf``.
         """
-        if np.any(before[:, 2] <= 0.0) or np.any(after[:, 2] <= 0.0):
-            return np.inf
-        moved_m = float(np.sqrt(np.max(np.sum((after - before) ** 2, axis=1))))
-        if moved_m == 0.0:
-            return 0.0
-        slope = np.max(np.abs(before[:, :2] / before[:, 2:]), axis=0)
-        scale = max(self.intrinsics.fx * (1 + slope[0]), self.intrinsics.fy * (1 + slope[1]))
-        return scale * moved_m / float(np.min(after[:, 2]))
+        before, after = np.asarray(before), np.asarray(after)
+        moved_m = np.sqrt(np.max(np.sum((after - before) ** 2, axis=-1), axis=-1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = np.max(np.abs(before[..., :2] / before[..., 2:]), axis=-2)
+            scale = np.maximum(
+                self.intrinsics.fx * (1 + slope[..., 0]), self.intrinsics.fy * (1 + slope[..., 1])
+            )
+            bound = scale * moved_m / np.min(after[..., 2], axis=-1)
+        behind = np.any(before[..., 2] <= 0.0, axis=-1) | np.any(after[..., 2] <= 0.0, axis=-1)
+        bound = np.where(behind, np.inf, np.where(moved_m == 0.0, 0.0, bound))
+        return float(bound) if bound.ndim == 0 else bound
 
     def _silhouettes(
         self,
@@ -470,14 +476,13 @@ class FrameRenderer:
         """
         h, w = labels.shape
         masks: list[_Mask | None] = [None] * len(boxes)
-        kernel = np.ones((3, 3), np.uint8)
+        kernel = _KERNEL_3X3
         pending = []
+        # NaN (no silhouette yet) compares False.
+        kept = self._moved_px(self._silhouette_corners, corners_cam) <= self.silhouette_tolerance_px
         for k, (lo, hi) in enumerate(boxes):
-            cached = self._silhouette_cache.get(k)
-            if cached is not None and (
-                self._moved_px(cached[0], corners_cam[k]) <= self.silhouette_tolerance_px
-            ):
-                masks[k] = cached[1]
+            if kept[k]:
+                masks[k] = self._silhouette_masks[k]
                 continue
             # The box's pixels and a one-pixel ring around them (the object is inside the box).
             u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=1)
@@ -521,9 +526,10 @@ class FrameRenderer:
                 masks[k] = _Mask(ku0, kv0, seen[kv0 - v0 : kv1 - v0, ku0 - u0 : ku1 - u0] == k)
             pending = [k for k in pending if k not in group]
         for k, mask in enumerate(masks):
-            if self._silhouette_cache.get(k, (None, None))[1] is not mask:
+            if not kept[k]:
                 mask.pixels.setflags(write=False)
-                self._silhouette_cache[k] = (corners_cam[k].copy(), mask)
+                self._silhouette_masks[k] = mask
+                self._silhouette_corners[k] = corners_cam[k]
         return masks
 
     def _visibility(
@@ -582,22 +588,25 @@ class FrameRenderer:
         """
         scene, model, data = self.scene, self.scene.model, self.scene.data
         intr = self.intrinsics
-        depth_clean, geom_id = self.renderer.render(
-            data, out=(self._depth_buffer, self._geom_buffer)
+        labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
+        depth_clean, labels = self.renderer.render(
+            data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
         )
         # The camera's working range: nothing is measured outside it (the far clip plane of
         # the scene may serve a camera with a longer range).
-        # Background pixels (depth 0, geom -1) are nearer than `near` too; resetting them is
+        # Background pixels (depth 0, label 0) are nearer than `near` too; resetting them is
         # harmless and saves a pass.
         out_of_range = np.less(depth_clean, self._near_m, out=self._mask_buffer)
         if self._check_far:
             out_of_range |= np.greater(depth_clean, self._far_m, out=self._far_buffer)
         np.copyto(depth_clean, np.float32(0.0), where=out_of_range)
-        np.copyto(geom_id, -1, where=out_of_range)
-        labels = np.take(self._label_lut, geom_id)  # the Frame's own array
-        depth = self.sensor.apply(depth_clean, intr, rng)
-        if np.may_share_memory(depth, depth_clean):
-            depth = depth.copy()  # a sensor model that returned its input
+        np.copyto(labels, np.int16(0), where=out_of_range)
+        if type(self.sensor) is NoNoise:
+            depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
+        else:
+            depth = self.sensor.apply(depth_clean, intr, rng)
+            if np.may_share_memory(depth, depth_clean):
+                depth = depth.copy()  # a sensor model that returned its input
         T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
         R, t = T[:3, :3], T[:3, 3]  # noqa: N806
 
@@ -685,7 +694,7 @@ class FrameRenderer:
         hand = scene.hand.params
         return Frame(
             camera=self.camera_spec.name,
-            K=_read_only(intr.K),
+            K=self._K,
             T_cam_from_world=_read_only(T),
             depth=_owned_read_only(depth),
             depth_clean=_read_only(depth_clean) if keep_clean else None,

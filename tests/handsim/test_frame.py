@@ -383,7 +383,7 @@ def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
             with FrameRenderer(scene, "third_person", silhouette_tolerance_px=0.0) as fresh:
                 new = fresh.render(rng)
                 for k, (a, b) in enumerate(zip(kept.objects, new.objects, strict=True)):
-                    mask = reused._silhouette_cache[k][1]
+                    mask = reused._silhouette_masks[k]
                     cached = np.zeros(new.segmentation.shape, dtype=bool)
                     h, w = mask.pixels.shape
                     cached[mask.v0 : mask.v0 + h, mask.u0 : mask.u0 + w] = mask.pixels
@@ -399,7 +399,7 @@ def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
                     assert abs(a.px_count_all - b.px_count_all) <= differ.sum()
                     assert abs(a.px_count_visib - b.px_count_visib) <= differ.sum()
         moved = max(
-            reused._moved_px(reused._silhouette_cache[k][0], kept.objects[k].corners_cam)
+            reused._moved_px(reused._silhouette_corners[k], kept.objects[k].corners_cam)
             for k in range(len(adr))
         )
     assert moved > 0.0
