@@ -1,7 +1,28 @@
 """Benchmark: env step rates, vector-env scaling, the closed loop, and memory over 10^4 steps.
 
 Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--repeats 2]
-[--only {all,vector,obs_modes,rgb_array}] [--out FILE.json]``.
+[--only {all,vector,obs_modes,rgb_array}] [--limit] [--out FILE.json]``.
+
+``--limit`` runs only the ratios of "the step at the limit" (also printed at the end of a full
+run), each measured interleaved step by step in this run and timed in process CPU time (on a
+shared machine wall time mostly measures the other processes; MuJoCo and the software renderer
+run in this thread since ``import handsim`` sets ``LP_NUM_THREADS=0``; wall rates are in the
+JSON too):
+
+1. physics of a held grasp's control step against bare ``mj_step`` calls (``bench_grasp.py``);
+2. for each env, its labelled frame against MuJoCo's plain depth render (``mujoco.Renderer``)
+   of the same state, the silhouettes kept as the env keeps them;
+3. for each env, the step with its expert (the expert's decision + ``env.step``, and
+   ``env.step`` alone) against bare physics (``mj_step`` x frame skip on a copy of the state) +
+   the plain depth render; and, when ``gymnasium-robotics`` is installed, Grasp-v0 against the
+   peer ``HandManipulateBlock-v1`` stepping with a 320 x 240 RGB or depth render (MuJoCo 4's
+   enums need a small shim in its helpers, :func:`_shim_gymnasium_robotics`);
+4. Grasp-v0 step + 320 x 240 ``rgb_array`` render (``render_quality="fast"`` and ``"high"``)
+   against the depth step;
+5. ``EstimatorLoop`` with the oracle, feedback on against off.
+
+The JSON goes to ``benchmarks/results/bench_envs_limit.json`` (``bench_envs.json`` for a full
+run).
 
 Measured in one run (ICVL camera, 320x240 depth observation, default frame skip 10 = 50 Hz
 control, no sensor noise unless stated):
@@ -300,16 +321,18 @@ def _env_vs_limit(name: str, steps: int) -> dict:
     env.reset(seed=seed)
     expert = u.make_expert(np.random.default_rng(seed))
     raw = _Raw()
-    keys = ("env_step", "limit", "labelled_frame", "raw_render")
+    keys = ("env_step", "env_step_only", "limit", "labelled_frame", "raw_render")
     rng = np.random.default_rng(0)
     for i in range(steps + 1):
         if i <= 1:  # round 0 warms up every renderer
             clocks = {k: _Clock() for k in keys}
         raw.bind(env)
         raw.physics_and_render(clocks["limit"])
+        # env_step: the expert's decision and env.step; env_step_only: env.step alone.
         with clocks["env_step"].time():
             action = expert.act(u.expert_state()).vector
-            _, _, terminated, truncated, _ = env.step(action)
+            with clocks["env_step_only"].time():
+                _, _, terminated, truncated, _ = env.step(action)
         # The labelled frame of the state just reached (silhouettes kept as the env keeps them)
         # against MuJoCo's plain depth render of it.
         raw.render(clocks["raw_render"])
@@ -323,6 +346,7 @@ def _env_vs_limit(name: str, steps: int) -> dict:
     env.close()
     row = {k: c.rates() for k, c in clocks.items()}
     row["ratio_env_step_vs_limit"] = _ratio(clocks["env_step"], clocks["limit"])
+    row["ratio_env_step_only_vs_limit"] = _ratio(clocks["env_step_only"], clocks["limit"])
     row["ratio_labelled_vs_raw_render"] = _ratio(clocks["labelled_frame"], clocks["raw_render"])
     return row
 
@@ -514,8 +538,14 @@ def _limit_ratios(steps: int) -> dict:
             for n in envs
         },
         **{
-            f"3 {n} step / (raw depth render + physics) (target >= 0.7)": envs[n][
+            f"3 {n} expert + step / (raw depth render + physics) (target >= 0.7)": envs[n][
                 "ratio_env_step_vs_limit"
+            ]
+            for n in envs
+        },
+        **{
+            f"3 {n} env.step alone / (raw depth render + physics)": envs[n][
+                "ratio_env_step_only_vs_limit"
             ]
             for n in envs
         },
