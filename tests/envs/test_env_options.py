@@ -263,7 +263,7 @@ def test_viewer_frames_the_hand_and_the_objects(env_id, mode):
 
 
 def test_render_quality_high_adds_shadows_to_the_same_picture():
-    """ "high" draws the shadows "fast" leaves out: the same view, darker where shadowed."""
+    """With render_quality="high" shadows darken parts of the same picture "fast" draws."""
     images = {}
     for quality in ("fast", "high"):
         env = _make("handsim/Grasp-v0", render_mode="rgb_array", render_width=160,
