@@ -56,7 +56,6 @@ def test_the_core_is_grouped_by_part_of_the_world():
     assert flat <= {"__init__", "_validate", "errors", "estimator", "frame", "viz"}, flat
 
 
-
 def _imported_modules(path: Path) -> set[str]:
     names = set()
     for node in ast.walk(ast.parse(path.read_text())):
