@@ -459,7 +459,7 @@ SKIN_FRICTION: dict[str, float] = {
 
 Measured values: palmar skin on paper 0.27 dry and 0.42 moist, on smooth vinyl 0.53, on
 textured vinyl 0.50, on aluminium 0.38 (Buchholz, Frederick & Armstrong 1988, Ergonomics
-31(3):317-325); the finger pad sliding on aluminium 0.6 on average (Seo, Armstrong & Drinkaus
+31(3):317-325); the finger pad sliding on aluminium 0.6 on average (Seo et al.
 2009, Ergonomics 52(5):609-616; it falls as the normal force grows from 1 to 20 N). Cardboard
 takes moist paper (finger pads are kept moist by their sweat glands), metal the finger pad on
 aluminium (the digits, not the palm, carry the load), plastic smooth vinyl. Wood, foam and

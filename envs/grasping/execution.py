@@ -92,9 +92,9 @@ _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control 
 _GRIP_EASE = 0.9  # the grip scale falls by at most 10 % per control step...
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
 MIN_GRIP_FORCE_N = 1.0
-"""The least total grip force, newtons: for objects lighter than about 30 g people's grip-to-load
-ratio rises (Hiramatsu et al. 2015, PLoS ONE 10:e0124671), and finger forces below this are
-within the position actuators' own error."""
+"""The least total grip force, newtons: for objects lighter than about 30 g people's
+grip-to-load ratio rises (Hiramatsu, Kimura, Kadota, Ito & Kinoshita 2015, PLoS ONE), and
+finger forces below this are within the position actuators' own error."""
 _PRESSING_N = 0.2  # a finger pressing with less than this carries no share of the grip
 
 # Flexion joints of each digit and the keypoint on each joint's axis (its lever to the tip).
