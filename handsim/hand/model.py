@@ -17,7 +17,12 @@ crease centre; see :mod:`handsim.hand.pose`):
   land near 0.94 and the little fingertip near 0.80 of hand length [estimate]) and palmar by
   the MANO mean hand's metacarpal arch (``_MCP_PALMAR``).
 - MCP lateral spacing follows the MANO mean hand (24 : 23 : 17 mm), spread so the outer skin
-  edges of the palm span ``palm_breadth``.
+  edges of the palm span ``palm_breadth``. The middle finger's axis runs through the wrist
+  (Buchholz et al. 1992 place the middle CMC and MCP on the wrist's long axis; the MANO mean
+  hand's middle MCP is 3.4 mm from it), so the palm's centre lies ulnar of the wrist.
+- The thumb CMC (trapeziometacarpal joint centre) is 0.196 palm breadths radial and 0.073
+  hand lengths distal of the wrist, at the level of the finger CMCs (Buchholz et al. 1992, as
+  laid out in the hand model of Sancho-Bru et al.), and 11 mm palmar at 189 mm.
 - Flexion axes are tilted within the palm plane so that flexed fingers converge toward the
   thumb base (``_FLEX_TILT_DEG``; MyoHand's MCP axes fan out the same way).
 - Phalanx radii are MyoHand's skin capsules, scaled with hand length and ``thickness_scale``.
@@ -132,8 +137,10 @@ _RADII = {
     "little": (None, 0.0080, 0.0070, 0.0060),
 }
 _PALM_THICKNESS_RATIO = 0.143  # 27 mm at 189 mm (MANO palm box)
-# Thumb CMC in the hand frame at 189 mm (HandMorphometry; x as a fraction of palm breadth).
-_THUMB_CMC = (0.22, 0.010, 0.011)
+# Thumb CMC (trapeziometacarpal joint centre) in the hand frame: radial 0.196 palm breadth and
+# distal 0.073 hand length (Buchholz et al. 1992, the level of the finger CMCs), palmar 11 mm
+# at 189 mm (the trapezium sits palmar of the other carpal bones).
+_THUMB_CMC = (0.196, 0.073, 0.011 / _REF_HAND_LENGTH)
 # Thumb rest orientation: radial deviation from the hand axis, palmar tilt, pronation (deg).
 _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 
@@ -396,13 +403,14 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     zero = np.zeros(3)
     identity = np.array([1.0, 0.0, 0.0, 0.0])
 
-    # MCP positions on the arc.
+    # MCP positions on the arc; the middle finger's axis runs through the wrist.
     y_mcp_middle = (1.0 - sum(_BUCHHOLZ["middle"][1:])) * hl
     span = breadth - palm_t
+    x_palm = (_MCP_SPREAD_FRACTION["middle"] - 0.5) * span  # centre of the knuckle row
     mcp = {
         f: np.array(
             [
-                span / 2 - _MCP_SPREAD_FRACTION[f] * span,
+                (_MCP_SPREAD_FRACTION["middle"] - _MCP_SPREAD_FRACTION[f]) * span,
                 _MCP_ARC[f] * y_mcp_middle,
                 _scaled(_MCP_PALMAR[f], hl) * _REF_HAND_LENGTH,
             ]
@@ -416,7 +424,7 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     box_top = 0.8 * mcp["little"][1]
     palm_geoms.append(
         Box(
-            pos=np.array([0.0, box_top / 2, 0.0]),
+            pos=np.array([x_palm, box_top / 2, 0.0]),
             half_size=np.array([span / 2, box_top / 2, palm_t / 2]),
         )
     )
@@ -469,9 +477,7 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     # Thumb.
     rad_dev, palmar_tilt, pronation = _THUMB_REST_DEG
     thumb_rest = Rotation.from_euler("ZXY", [-rad_dev, palmar_tilt, pronation], degrees=True)
-    cmc = np.array(
-        [_THUMB_CMC[0] * breadth, _scaled(_THUMB_CMC[1], hl), _scaled(_THUMB_CMC[2], hl) * thick]
-    )
+    cmc = np.array([_THUMB_CMC[0] * breadth, _THUMB_CMC[1] * hl, _THUMB_CMC[2] * hl * thick])
     mc, pp, _, dp = _BUCHHOLZ["thumb"]
     r_mc, r_pp, _, r_dp = _RADII["thumb"]
     x_axis, palm_away = (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)

@@ -267,13 +267,15 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
             caps = _smin(caps, _sd_capsule(p, g.start, g.end, g.radius), 0.008 * scale)
         return np.minimum(d, caps)
 
+    # Across the palm, positions are taken from the centre of the knuckle row (the box's).
+    x_palm = float(box.pos[0])
     # Thenar eminence: from the sphere the thumb metacarpal turns in toward the palm centre.
-    thenar_end = np.array([0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
+    thenar_end = np.array([x_palm + 0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
     # Hypothenar eminence along the ulnar border, proximal two thirds of the palm.
     hyp_r = 0.75 * half_t
     hyp_z = half_t + 0.0008 * thick - hyp_r
-    hyp_a = np.array([-0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
-    hyp_b = np.array([-0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
+    hyp_a = np.array([x_palm - 0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
+    hyp_b = np.array([x_palm - 0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
     # Web spaces: ridges between neighbouring knuckles, palmar and distal of the MCP line.
     webs = []
     fingers = ("index", "middle", "ring", "little")
