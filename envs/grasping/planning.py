@@ -885,7 +885,6 @@ def _side_candidates(
     height = min(recipe.height_fraction * top, 0.14)
     band = points[np.abs(points[:, 2] - height) < 0.01]
     centre = 0.5 * (band.max(axis=0) + band.min(axis=0))
-    palm_x = float(_hand_geometry(params).fk.skeleton.bodies[0].geoms[0].pos[0])
 
     def builder(d: np.ndarray, span: float):
         def build(narrow: bool) -> GraspPlan | None:
@@ -895,12 +894,11 @@ def _side_candidates(
             x_dir = np.array([0.0, 0.0, 1.0 if params.side == "right" else -1.0])
             y_dir = np.cross(d, x_dir)
             rotation = Rotation.from_matrix(np.stack([x_dir, y_dir, d], axis=1))
-            # The object's axis sits over the bases of the proximal phalanges, across the
-            # palm's centre line (ulnar of the wrist's axis); the palm advances along d until
-            # it is about to touch the object.
+            # The object's axis sits over the bases of the proximal phalanges; the palm
+            # advances along d until it is about to touch the object.
             depth = float(-((band - centre) @ d).min())
             far = np.array([centre[0], centre[1], height]) - rotation.apply(
-                [palm_x, 0.4 * params.hand_length, depth + 0.06]
+                [0.0, 0.4 * params.hand_length, depth + 0.06]
             )
             advance = _advance_to_contact(checker, T, far, rotation, preshape, d, 0.08)
             if advance is None:

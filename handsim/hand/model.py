@@ -17,12 +17,11 @@ crease centre; see :mod:`handsim.hand.pose`):
   land near 0.94 and the little fingertip near 0.80 of hand length [estimate]) and palmar by
   the MANO mean hand's metacarpal arch (``_MCP_PALMAR``).
 - MCP lateral spacing follows the MANO mean hand (24 : 23 : 17 mm), spread so the outer skin
-  edges of the palm span ``palm_breadth``. The middle finger's axis runs through the wrist
-  (Buchholz et al. 1992 place the middle CMC and MCP on the wrist's long axis; the MANO mean
-  hand's middle MCP is 3.4 mm from it), so the palm's centre lies ulnar of the wrist.
-- The thumb CMC (trapeziometacarpal joint centre) is 0.196 palm breadths radial and 0.073
-  hand lengths distal of the wrist, at the level of the finger CMCs (Buchholz et al. 1992, as
-  laid out in the hand model of Sancho-Bru et al.), and 11 mm palmar at 189 mm.
+  edges of the palm span ``palm_breadth``.
+- The thumb CMC (trapeziometacarpal joint) is 0.196 palm breadths radial of the wrist
+  (Buchholz et al. 1992, as laid out in the hand model of Sancho-Bru et al.), 10 mm distal and
+  11 mm palmar at 189 mm: in the trapezium, a little proximal of the metacarpal bases (0.073
+  hand lengths), where the joint's flexion-extension axis lies (Hollister et al. 1992).
 - Flexion axes are tilted within the palm plane so that flexed fingers converge toward the
   thumb base (``_FLEX_TILT_DEG``; MyoHand's MCP axes fan out the same way).
 - Phalanx radii are MyoHand's skin capsules, scaled with hand length and ``thickness_scale``.
@@ -130,17 +129,17 @@ _FLEX_TILT_DEG = {
 }
 # Skin capsule radii at 189 mm (MyoHand; thumb from thumb breadth ~19-21 mm at the IP), metres.
 _RADII = {
-    "thumb": (0.0120, 0.0095, None, 0.0080),
+    "thumb": (0.0110, 0.0095, None, 0.0080),
     "index": (None, 0.0090, 0.0080, 0.0070),
     "middle": (None, 0.0090, 0.0080, 0.0070),
     "ring": (None, 0.0085, 0.0075, 0.0068),
     "little": (None, 0.0080, 0.0070, 0.0060),
 }
 _PALM_THICKNESS_RATIO = 0.143  # 27 mm at 189 mm (MANO palm box)
-# Thumb CMC (trapeziometacarpal joint centre) in the hand frame: radial 0.196 palm breadth and
-# distal 0.073 hand length (Buchholz et al. 1992, the level of the finger CMCs), palmar 11 mm
-# at 189 mm (the trapezium sits palmar of the other carpal bones).
-_THUMB_CMC = (0.196, 0.073, 0.011 / _REF_HAND_LENGTH)
+# Thumb CMC (trapeziometacarpal joint) in the hand frame: radial 0.196 palm breadth (Buchholz
+# et al. 1992); distal 10 mm and palmar 11 mm at 189 mm (in the trapezium, proximal of the
+# metacarpal bases at 0.073 hand length, where the joint's flexion axis lies).
+_THUMB_CMC = (0.196, 0.010 / _REF_HAND_LENGTH, 0.011 / _REF_HAND_LENGTH)
 # Thumb rest orientation: radial deviation from the hand axis, palmar tilt, pronation (deg).
 _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 
@@ -403,14 +402,13 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     zero = np.zeros(3)
     identity = np.array([1.0, 0.0, 0.0, 0.0])
 
-    # MCP positions on the arc; the middle finger's axis runs through the wrist.
+    # MCP positions on the arc.
     y_mcp_middle = (1.0 - sum(_BUCHHOLZ["middle"][1:])) * hl
     span = breadth - palm_t
-    x_palm = (_MCP_SPREAD_FRACTION["middle"] - 0.5) * span  # centre of the knuckle row
     mcp = {
         f: np.array(
             [
-                (_MCP_SPREAD_FRACTION["middle"] - _MCP_SPREAD_FRACTION[f]) * span,
+                span / 2 - _MCP_SPREAD_FRACTION[f] * span,
                 _MCP_ARC[f] * y_mcp_middle,
                 _scaled(_MCP_PALMAR[f], hl) * _REF_HAND_LENGTH,
             ]
@@ -424,7 +422,7 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     box_top = 0.8 * mcp["little"][1]
     palm_geoms.append(
         Box(
-            pos=np.array([x_palm, box_top / 2, 0.0]),
+            pos=np.array([0.0, box_top / 2, 0.0]),
             half_size=np.array([span / 2, box_top / 2, palm_t / 2]),
         )
     )

@@ -21,10 +21,10 @@ and why):
 =====================  ===========  =========================================================
 joint                  range (deg)  source
 =====================  ===========  =========================================================
-thumb_cmc_flex         -30 .. 55    MyoHand CMC flex (-44.7 .. 40.1) adapted to handsim's
-                                    thumb frame; extension to -30 holds the clinical radial
-                                    abduction of 60 deg between the first and second
-                                    metacarpals (Eaton; the thumb rests 30 deg radial)
+thumb_cmc_flex         -40 .. 55    MyoHand CMC flex (-44.7 .. 40.1) adapted to handsim's
+                                    thumb frame; at -40 the thumb and index metacarpals are
+                                    62 deg apart in the palm plane: the clinical radial
+                                    abduction of 60 deg (Eaton)
 thumb_cmc_abd          -15 .. 60    clinical palmar abduction 45 / radial abduction 60 (Eaton)
 thumb_mcp_flex         -10 .. 55    Eaton: MCP hyperextension 10 / flexion 55
 thumb_mcp_abd          -10 .. 10    manotorch thumb MCP spread +-10
@@ -87,7 +87,7 @@ NUM_DOF = 27
 
 _FINGER_ABD_DEG = {"index": (-15, 20), "middle": (-20, 20), "ring": (-20, 20), "little": (-45, 15)}
 _LIMITS_DEG: dict[str, tuple[float, float]] = {
-    "thumb_cmc_flex": (-30.0, 55.0),
+    "thumb_cmc_flex": (-40.0, 55.0),
     "thumb_cmc_abd": (-15.0, 60.0),
     "thumb_mcp_flex": (-10.0, 55.0),
     "thumb_mcp_abd": (-10.0, 10.0),

@@ -245,7 +245,9 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
     r_cmc = bodies[index["thumb_metacarpal"]].geoms[0].radius
     r_pp = {f: bodies[index[f"{f}_proximal"]].geoms[0].radius for f in mcp}
     breadth = params.breadth
-    rounding = 0.3 * half_t
+    # At most 5 mm: at the wrist end, where no metacarpal capsule covers the box's edges, a
+    # rounder edge would lie more than 2 mm inside the collision box.
+    rounding = min(0.3 * half_t, 0.005)
     scale = hl / 0.189
 
     def collision(p: np.ndarray) -> np.ndarray:
@@ -267,15 +269,13 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
             caps = _smin(caps, _sd_capsule(p, g.start, g.end, g.radius), 0.008 * scale)
         return np.minimum(d, caps)
 
-    # Across the palm, positions are taken from the centre of the knuckle row (the box's).
-    x_palm = float(box.pos[0])
     # Thenar eminence: from the sphere the thumb metacarpal turns in toward the palm centre.
-    thenar_end = np.array([x_palm + 0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
+    thenar_end = np.array([0.17 * breadth, 0.32 * mcp["middle"][1], half_t - 0.6 * r_cmc])
     # Hypothenar eminence along the ulnar border, proximal two thirds of the palm.
     hyp_r = 0.75 * half_t
     hyp_z = half_t + 0.0008 * thick - hyp_r
-    hyp_a = np.array([x_palm - 0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
-    hyp_b = np.array([x_palm - 0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
+    hyp_a = np.array([-0.24 * breadth, 0.28 * mcp["little"][1], hyp_z])
+    hyp_b = np.array([-0.31 * breadth, 0.62 * mcp["little"][1], hyp_z])
     # Web spaces: ridges between neighbouring knuckles, palmar and distal of the MCP line.
     webs = []
     fingers = ("index", "middle", "ring", "little")
@@ -557,12 +557,14 @@ def _vertex_normals(part: SkinPart) -> np.ndarray:
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
 
 
-def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
+def collision_gap_m(binding, data, parts: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
     """Distance from the skin to the collision surface where the hand touches things.
 
     Args:
         binding: the hand's binding in a compiled model (:meth:`Hand.bind`).
         data: its data after ``mj_forward`` (the pose to measure).
+        parts: measure only the skin of these hand parts (``"palm"``, ``"thumb"``, ...,
+            ``"little"``); default all.
 
     Returns:
         ``{"pads": ..., "palm": ...}``: (N,) absolute distances, metres, from each skin vertex
@@ -574,12 +576,15 @@ def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
         not follow them.
     """
     hand = binding.hand
+    parts_wanted = parts
     sdf = _collision_sdf(binding, data, forearm=False)
     frames = _world_from_body(binding, data)
     y_knuckles = max(b.pos[1] for b in hand.skeleton.bodies if b.name.endswith("_proximal"))
     out: dict[str, list[np.ndarray]] = {"pads": [], "palm": []}
     parts = build_skin(hand.params)
     for part in parts:
+        if parts_wanted is not None and hand.skeleton.bodies[part.body].part not in parts_wanted:
+            continue
         palmar = _vertex_normals(part)[:, 2] > 0.5
         if part.body == 0:
             y = part.vertices[:, 1]
@@ -593,7 +598,7 @@ def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
                 orot, ot = frames[other.body]
                 buried |= other.sdf((world - ot) @ orot) < -_BURIED_M
         out["palm" if part.body == 0 else "pads"].append(np.abs(sdf(world[~buried])))
-    return {k: np.concatenate(v) for k, v in out.items()}
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in out.items()}
 
 
 def joint_crease_depth_m(binding, data, samples: int = 400) -> np.ndarray:
