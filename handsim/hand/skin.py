@@ -53,6 +53,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from handsim.hand.lofting import loft_faces
+
 __all__ = ["SURFACES", "SkinPart", "build_skin", "round_cone_profile"]
 
 SURFACES: tuple[str, ...] = ("skin", "capsules")
@@ -151,7 +153,7 @@ def _elliptic_round_cone(
         axis=-1,
     ).reshape(-1, 3)
     vertices = np.concatenate([[[0.0, y[0], 0.0]], rings, [[0.0, y[-1], 0.0]]])
-    faces = _loft_faces(len(y) - 2, _AROUND)
+    faces = loft_faces(len(y) - 2, _AROUND)
 
     def sdf(p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
@@ -163,26 +165,6 @@ def _elliptic_round_cone(
         return _sd_round_cone(scaled, r0, r1, length)
 
     return vertices, faces, sdf
-
-
-def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
-    """Triangles of a closed loft: pole 0, ``n_rings`` rings of ``n_around``, last pole.
-
-    Winding is counter-clockwise seen from outside for rings ``(cos t, y, sin t)`` with ``y``
-    increasing from ring to ring (the tests check that every part's volume is positive).
-    """
-    j = np.arange(n_around)
-    jn = (j + 1) % n_around
-    faces = [np.stack([np.zeros(n_around, dtype=np.int64), 1 + j, 1 + jn], axis=1)]
-    for r in range(n_rings - 1):
-        a = 1 + r * n_around
-        b = a + n_around
-        faces.append(np.stack([a + j, b + jn, a + jn], axis=1))
-        faces.append(np.stack([a + j, b + j, b + jn], axis=1))
-    last = 1 + n_rings * n_around
-    a = 1 + (n_rings - 1) * n_around
-    faces.append(np.stack([np.full(n_around, last), a + jn, a + j], axis=1))
-    return np.concatenate(faces).astype(np.int32)
 
 
 # Signed-distance pieces of the palm -----------------------------------------------------------
