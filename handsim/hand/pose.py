@@ -32,7 +32,7 @@ thumb_ip_flex          -15 .. 80    Eaton: IP hyperextension 15 / flexion 80
 <finger>_mcp_flex      -20 .. 90    Lin et al. 2000 0 .. 90; hyperextension 20 (within the
                                     clinical 0 .. 45, Eaton)
 index_mcp_abd          -15 .. 20    GraspIt HumanHand20DOF index +-20; ulnar side Lin +-15
-middle_mcp_abd         -20 .. 20    clinical MCP abduction 20 deg; Shadow hand knuckle +-20
+middle_mcp_abd         -20 .. 20    Shadow hand knuckle +-20; goniometry norm 20 deg
 ring_mcp_abd           -20 .. 20    GraspIt HumanHand20DOF ring +-20; holds the widest
                                     middle-ring spread (14.3 +- 2.3 deg, Chatzioglou et al.
                                     2024) with the middle finger straight
