@@ -1052,8 +1052,8 @@ GESTURES: Mapping[str, Gesture] = types.MappingProxyType(
                 "pinch",
                 "thumb tip touching the index tip, other fingers loosely curled",
                 _deg(
-                    (18.3, 28.6, 8.4, -10.0, 10.3),
-                    (51.0, -1.8, 61.5, 42.1),
+                    (18.5, 27.9, 9.4, -9.4, 11.7),
+                    (50.5, -1.5, 62.6, 41.3),
                     (35, 0, 50, 33),
                     (45, 0, 60, 40),
                     (55, 0, 65, 43),
@@ -1063,8 +1063,8 @@ GESTURES: Mapping[str, Gesture] = types.MappingProxyType(
                 "ok",
                 "thumb and index tips touching in a circle, other fingers extended",
                 _deg(
-                    (16.3, 23.7, 9.9, -10.0, 18.0),
-                    (41.4, -3.4, 70.7, 48.9),
+                    (16.8, 23.1, 10.7, -9.7, 18.9),
+                    (41.4, -3.1, 70.5, 48.0),
                     (5, -3, 10, 7),
                     (8, -8, 12, 8),
                     (10, -18, 15, 10),
