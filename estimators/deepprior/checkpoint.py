@@ -25,6 +25,7 @@ __all__ = [
     "save_checkpoint",
     "load_checkpoint",
     "load_model",
+    "ship_weights",
 ]
 
 WEIGHTS_DIR = Path(__file__).parent / "weights"
@@ -49,7 +50,8 @@ def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
         path = WEIGHTS_DIR / f"{SHIPPED[text]}.pt"
         if not path.is_file():
             raise InvalidCheckpoint(
-                f"the shipped weights {text!r} are missing ({path}); reinstall handsim"
+                f"no shipped weights {text!r} in this installation ({path.name} is missing); "
+                f"train them with `handsim train {text} --data DIR --out RUN` and give RUN"
             )
         return path
     path = Path(text)
@@ -110,3 +112,29 @@ def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tup
         {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
     )
     return model.to(device).eval(), config
+
+
+def ship_weights(checkpoint: str | os.PathLike[str], name: str, *, half: bool = False) -> Path:
+    """Copy a checkpoint's model (only) into :data:`WEIGHTS_DIR` under a shipped name.
+
+    Args:
+        checkpoint: a checkpoint path or run folder (its ``best.pt``).
+        name: one of :data:`SHIPPED`.
+        half: store floating-point tensors as float16 (half the size; loaded as float32).
+
+    Returns:
+        The written ``.pt`` path (its ``.json`` is beside it).
+
+    Raises:
+        InvalidCheckpoint: for an unknown name or an unreadable checkpoint.
+    """
+    if name not in SHIPPED:
+        raise InvalidCheckpoint(f"name must be one of {', '.join(SHIPPED)}; received {name!r}")
+    state, config = load_checkpoint(checkpoint)
+    model = {
+        k: (v.half() if half and v.is_floating_point() else v).contiguous()
+        for k, v in state["model"].items()
+    }
+    path = WEIGHTS_DIR / f"{SHIPPED[name]}.pt"
+    save_checkpoint(path, {"model": model}, {**config, "source": Path(str(checkpoint)).name})
+    return path

@@ -22,7 +22,7 @@ from handsim.errors import HandSimError
 
 from .preprocess import CROP_SIZE, CUBE_M, MIDDLE_MCP, AugmentParams, augment, sample_augmentation
 
-__all__ = ["FrameSet", "load_frames", "CropDataset", "InvalidTrainingData"]
+__all__ = ["FrameSet", "load_frames", "env_frames", "CropDataset", "InvalidTrainingData"]
 
 
 class InvalidTrainingData(HandSimError, ValueError):
@@ -200,3 +200,70 @@ class CropDataset:
 
         x, y = self.sample(int(i))
         return torch.from_numpy(x), torch.from_numpy(y)
+
+
+def env_frames(
+    env_id: str = "handsim/Grasp-v0",
+    *,
+    episodes: int = 3,
+    every: int = 5,
+    seed: int = 0,
+    sensor: str = "structured_light",
+) -> FrameSet:
+    """Frames of an env's scripted expert (acting on the truth), every ``every``-th step.
+
+    The frames an estimator sees inside the closed loop (e.g. hand-object frames of
+    ``handsim/Grasp-v0`` from its third-person camera, the table in view), for offline
+    evaluation.
+
+    Args:
+        env_id: a registered handsim env id with ``make_expert``.
+        episodes: episodes (seeds ``seed ... seed + episodes - 1``).
+        every: keep every this many steps.
+        seed: first seed.
+        sensor: depth sensor model.
+
+    Returns:
+        The frames (depth stored in 0.1 mm units). ``occlusion`` is the frame's hand occlusion
+        ratio where it was computed, else the fraction of keypoints that are not visible.
+    """
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401 (registers the ids)
+
+    scale_m = 1e-4
+    parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length")}
+    env = gym.make(env_id, obs_mode="depth", sensor=sensor)
+    try:
+        for episode in range(episodes):
+            obs, info = env.reset(seed=seed + episode)
+            expert = env.unwrapped.make_expert(np.random.default_rng(seed + episode))
+            step, done = 0, False
+            while not done:
+                frame = info.get("frame")
+                if frame is not None and step % every == 0:
+                    depth = np.rint(np.asarray(obs["depth"], np.float64) / scale_m)
+                    parts["depth"].append(np.clip(depth, 0, 65535).astype(np.uint16))
+                    parts["K"].append(np.asarray(frame.K, np.float64))
+                    parts["kp"].append(np.asarray(frame.keypoints_cam, np.float64))
+                    ratio = frame.hand_occlusion_ratio
+                    if ratio is None or not np.isfinite(ratio):  # not computed: keypoints
+                        ratio = 1.0 - float(np.mean(frame.visible))
+                    parts["occ"].append(float(ratio))
+                    parts["length"].append(float(frame.hand_length_m))
+                action = expert.act(env.unwrapped.expert_state()).vector
+                obs, _, terminated, truncated, info = env.step(action)
+                step += 1
+                done = terminated or truncated
+    finally:
+        env.close()
+    n = len(parts["K"])
+    return FrameSet(
+        depth_units=np.stack(parts["depth"]),
+        depth_scale_m=np.full(n, scale_m),
+        K=np.stack(parts["K"]),
+        keypoints_cam=np.stack(parts["kp"]),
+        occlusion=np.asarray(parts["occ"]),
+        hand_length_m=np.asarray(parts["length"]),
+        sensor=np.array([sensor] * n),
+    )

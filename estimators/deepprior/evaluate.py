@@ -24,7 +24,7 @@ import numpy as np
 from handsim import metrics
 from handsim.hand.keypoints import KEYPOINT_NAMES
 
-from .data import load_frames
+from .data import FrameSet, load_frames
 from .preprocess import MIDDLE_MCP, PlaneRemovedLocalizer
 
 __all__ = ["OCCLUSION_EDGES", "evaluate"]
@@ -45,7 +45,7 @@ def _stats(errors_mm: np.ndarray) -> dict[str, Any]:
 
 def evaluate(
     estimator: str | os.PathLike[str],
-    data: Sequence[str | os.PathLike[str]],
+    data: Sequence[str | os.PathLike[str]] | FrameSet,
     out: str | os.PathLike[str],
     *,
     split: str = "test",
@@ -58,7 +58,7 @@ def evaluate(
 
     Args:
         estimator: ``"deepprior++"``, ``"deepprior"`` or a checkpoint path / run folder.
-        data: dataset folders.
+        data: dataset folders, or frames in memory (e.g. :func:`~.data.env_frames`).
         out: output folder.
         split: ``train``, ``val``, ``test`` or ``all``.
         localizer: localizer checkpoint, or ``None`` for the plane-removed centre of mass.
@@ -80,7 +80,12 @@ def evaluate(
     from .estimator import DeepPriorEstimator
 
     est = DeepPriorEstimator(estimator, localizer=localizer, threads=threads or None)
-    frames = load_frames(data, split, max_frames=max_frames or None)
+    if isinstance(data, FrameSet):
+        frames = data
+        data_names = ["(frames in memory)"]
+    else:
+        frames = load_frames(data, split, max_frames=max_frames or None)
+        data_names = [str(d) for d in data]
     n = len(frames)
     pred = np.full((n, 21, 3), np.nan)
     loc_err = {
@@ -123,7 +128,7 @@ def evaluate(
     by_sensor = {str(s): _stats(frame_mean[frames.sensor == s]) for s in np.unique(frames.sensor)}
     result: dict[str, Any] = {
         "estimator": repr(est),
-        "data": [str(d) for d in data],
+        "data": data_names,
         "split": split,
         "n_frames": n,
         "n_missed": int((~found).sum()),

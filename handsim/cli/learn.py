@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from handsim.cli._args import non_negative_int, positive_int, strict_json
+from handsim.errors import HandSimError
 
 __all__ = ["add_parser"]
 
@@ -62,8 +63,6 @@ def _train(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     if args.device == "cuda" and not torch.cuda.is_available():
-        from handsim.errors import HandSimError
-
         raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
     metrics = train(
         args.data,
@@ -92,9 +91,16 @@ def _train(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     from handsim.estimators.deepprior.evaluate import evaluate
 
+    data = args.data
+    if args.env is not None:
+        from handsim.estimators.deepprior.data import env_frames
+
+        data = env_frames(args.env, episodes=args.env_episodes, every=args.every, seed=args.seed)
+    elif not data:
+        raise HandSimError("handsim evaluate needs --data DIR ... or --env ID")
     report = evaluate(
         args.estimator,
-        args.data,
+        data,
         args.out,
         split=args.split,
         localizer=None if args.localizer == "none" else args.localizer,
@@ -103,6 +109,10 @@ def _evaluate(args: argparse.Namespace) -> int:
         threads=args.threads,
     )
     keys = ("estimator", "n_frames", "n_missed", "mean_error_mm", "auc_f_tau", "localization_mm")
+    report = {
+        **report,
+        "localization_mm": {k: v["mean_mm"] for k, v in report["localization_mm"].items()},
+    }
     print(strict_json({k: report[k] for k in keys if k in report}))
     return 0
 
@@ -213,8 +223,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="CKPT|deepprior|deepprior++",
         help="shipped weights by name, a checkpoint NAME.pt or a run folder",
     )
+    ev.add_argument("--data", nargs="+", type=Path, metavar="DIR", help="dataset folders")
     ev.add_argument(
-        "--data", nargs="+", required=True, type=Path, metavar="DIR", help="dataset folders"
+        "--env",
+        default=None,
+        metavar="ID",
+        help="instead of --data: frames of this env's scripted expert, e.g. handsim/Grasp-v0 "
+        "(hand-object frames with the table in view)",
+    )
+    ev.add_argument(
+        "--env-episodes", type=positive_int, default=3, help="episodes of --env (default: 3)"
+    )
+    ev.add_argument(
+        "--every", type=positive_int, default=5, help="keep every N-th step of --env (default: 5)"
+    )
+    ev.add_argument(
+        "--seed", type=non_negative_int, default=0, help="first seed of --env (default: 0)"
     )
     ev.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
     ev.add_argument(
