@@ -242,13 +242,24 @@ def train(
     ckpt_config = {"model": model_config, "cube_m": config.cube_m, "kind": config.kind}
     flags = {"rotation": config.rotation, "scale": config.scale, "translation": config.translation}
 
+    def cached_centers(frames: FrameSet, split: str, checkpoint: str | None) -> np.ndarray:
+        # Localizing every frame takes minutes on a CPU: a resumed run reads them back.
+        path = out / f"centers_{split}.npy"
+        if path.is_file():
+            centers = np.load(path)
+            if centers.shape == (len(frames), 3):
+                return centers
+        centers, _ = localizer_centers(frames, checkpoint)
+        np.save(path, centers)
+        return centers
+
     if config.kind == "localizer":
-        centers, _ = localizer_centers(train_frames, None)
-        val_centers, _ = localizer_centers(val_frames, None)
+        centers = cached_centers(train_frames, "train", None)
+        val_centers = cached_centers(val_frames, "val", None)
         target = "localizer"
     elif config.localizer:
-        centers, _ = localizer_centers(train_frames, config.localizer)
-        val_centers, _ = localizer_centers(val_frames, config.localizer)
+        centers = cached_centers(train_frames, "train", config.localizer)
+        val_centers = cached_centers(val_frames, "val", config.localizer)
         target = "pose"
     else:
         centers = val_centers = None
