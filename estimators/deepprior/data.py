@@ -141,6 +141,10 @@ class CropDataset:
         rotation, scale, translation: the augmentations to draw (all off for evaluation).
         offset_sigma_m: standard deviation of the centre offset, metres.
         seed: augmentation seed.
+        alt_centers: (N, 3) other crop centres, drawn instead of ``centers`` with probability
+            ``alt_fraction`` per sample and epoch (the localizer learns from both its start,
+            the centre of mass, and from near its goal, so that it can be iterated).
+        alt_fraction: probability of ``alt_centers``.
     """
 
     def __init__(
@@ -156,8 +160,12 @@ class CropDataset:
         translation: bool = False,
         offset_sigma_m: float = 0.005,
         seed: int = 0,
+        alt_centers: np.ndarray | None = None,
+        alt_fraction: float = 0.5,
     ) -> None:
         self.frames = frames
+        self.alt_centers = None if alt_centers is None else np.asarray(alt_centers)
+        self.alt_fraction = float(alt_fraction)
         self.centers = (
             frames.keypoints_cam[:, MIDDLE_MCP] if centers is None else np.asarray(centers)
         )
@@ -180,11 +188,15 @@ class CropDataset:
     def sample(self, i: int) -> tuple[np.ndarray, np.ndarray]:
         """``(crop (1, S, S) float32, target float32)`` of frame ``i``."""
         f = self.frames
+        center = self.centers[i]
+        if self.alt_centers is not None:
+            if np.random.default_rng([self.seed, self.epoch, i, 1]).random() < self.alt_fraction:
+                center = self.alt_centers[i]
         crop, labels, _, _ = augment(
             f.depth(i),
             f.K[i],
             f.keypoints_cam[i],
-            self.centers[i],
+            center,
             self.params(i),
             cube_m=self.cube_m,
             size=self.size,

@@ -272,6 +272,8 @@ def train(
         size=config.size,
         offset_sigma_m=config.offset_sigma_m,
         seed=config.seed,
+        # The localizer also starts near the MCP half of the time, so it can be iterated.
+        alt_centers=train_frames.keypoints_cam[:, MIDDLE_MCP] if target == "localizer" else None,
         **flags,
     )
     val_set = CropDataset(

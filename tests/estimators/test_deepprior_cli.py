@@ -74,6 +74,19 @@ def test_crop_dataset_is_deterministic_per_epoch(tiny_data):
     assert not np.array_equal(ds.sample(0)[1], y0)
 
 
+def test_crop_dataset_alt_centers_are_drawn_with_their_probability(tiny_data):
+    """alt_fraction 1 always crops at the alternative centres, 0 never."""
+    frames = load_frames(tiny_data, "all")
+    mcp = frames.keypoints_cam[:, 9]
+    far = mcp + [0.05, 0.0, 0.0]
+    at_mcp = CropDataset(frames, mcp, size=32)
+    always = CropDataset(frames, far, size=32, alt_centers=mcp, alt_fraction=1.0)
+    never = CropDataset(frames, far, size=32, alt_centers=mcp, alt_fraction=0.0)
+    for i in range(3):
+        np.testing.assert_array_equal(always.sample(i)[0], at_mcp.sample(i)[0])
+        assert not np.array_equal(never.sample(i)[1], at_mcp.sample(i)[1])
+
+
 def test_cli_train_and_evaluate_write_metrics(tiny_data, tmp_path, capsys):
     """`handsim train` then `handsim evaluate` on its run folder: metrics.json and plots."""
     run = tmp_path / "run"
