@@ -165,8 +165,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default="oracle",
         metavar="NAME|MODULE:CLASS[:KWARGS]",
         help=choice_help("estimator", ESTIMATORS, "%(default)s")
-        + ", or a user estimator module:Class[:kwargs-json] (a module path or a .py file; the "
-        "kwargs a JSON object), checked against handsim.estimator.Estimator",
+        + ", a learned estimator's checkpoint (NAME.pt or a handsim train run folder), or a "
+        "user estimator module:Class[:kwargs-json] (a module path or a .py file; the kwargs a "
+        "JSON object), checked against handsim.estimator.Estimator",
     )
     loop.add_argument(
         "--noise-mm",
