@@ -115,18 +115,15 @@ def main() -> None:
         lambda d, k, c: P.crop_depth(d, P.crop_matrix(c, k), c[2]), found, repeat=5
     )
     shipped_pp = WEIGHTS_DIR / "deepprior_pp.json"
-    pp_width = (
-        json.loads(shipped_pp.read_text())["model"].get("width", 1.0)
-        if (shipped_pp.is_file())
-        else 1.0
-    )
+    pp_width = 0.25
+    if shipped_pp.is_file():
+        pp_width = json.loads(shipped_pp.read_text())["model"].get("width", 1.0)
+    pp = {"arch": "resnet", "size": 128, "fc": 1024, "prior_dim": 30}
     configs = {
         "deepprior": {"arch": "deep", "size": 128, "fc": 1024, "prior_dim": 30},
-        "deepprior++ (width 1)": {"arch": "resnet", "size": 128, "fc": 1024, "prior_dim": 30},
-        f"deepprior++ (shipped, width {pp_width})": {
-            "arch": "resnet", "size": 128, "fc": 1024, "prior_dim": 30, "width": pp_width,
-        },
-    }  # fmt: skip
+        "deepprior++ (width 1)": pp,
+        f"deepprior++ (width {pp_width}, as shipped)": {**pp, "width": pp_width},
+    }
     ratios = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name, config in configs.items():
