@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +45,7 @@ __all__ = [
 SPLITS = ("train", "val", "test", "all")
 """Splits: episodes are assigned by a hash of (folder seed, episode) with fractions 80/10/10."""
 _SPLIT_FRACTIONS = (0.8, 0.1, 0.1)
+_RUN_GAP = 4  # frames a run of reads may skip (filtered-out frames are read and dropped)
 
 
 class InvalidDatasetQuery(HandSimError, ValueError):
@@ -189,27 +190,91 @@ class HandSimDataset:
         shard, frame = self._index[self._check_index(i)]
         return self._sample(self._readers[shard][int(frame)], None)
 
+    def _runs(self, indices: Sequence[int]) -> Iterator[tuple[dict[str, np.ndarray], np.ndarray]]:
+        """Read ``indices`` in runs of nearby frames of one shard, in order.
+
+        Yields ``(block, rows)``: the block's arrays and the rows of it that are the next
+        samples. A run goes on while the next sample is a later frame of the same shard at
+        most :data:`_RUN_GAP` frames on (filtered-out frames in between are read and dropped).
+        """
+        rows = self._index[[self._check_index(i) for i in indices]]
+        k, n = 0, len(rows)
+        while k < n:
+            shard, first = rows[k]
+            end = k + 1
+            while (
+                end < n
+                and rows[end, 0] == shard
+                and 0 < rows[end, 1] - rows[end - 1, 1] <= _RUN_GAP
+            ):
+                end += 1
+            last = rows[end - 1, 1]
+            block = self._readers[shard].read_block(int(first), int(last) + 1)
+            yield block, rows[k:end, 1] - first
+            k = end
+
     def __getitems__(self, indices: Sequence[int]) -> list[dict[str, Any]]:
         """Samples ``indices``: what ``DataLoader`` asks for one batch.
 
         Runs of consecutive frames of a shard are read at once
         (:meth:`~handsim.data.shards.ShardReader.read_block`).
         """
-        rows = self._index[[self._check_index(i) for i in indices]]
-        samples: list[dict[str, Any] | None] = [None] * len(rows)
-        for shard in np.unique(rows[:, 0]):
-            where = np.flatnonzero(rows[:, 0] == shard)
-            frames = rows[where, 1]
-            lo, hi = int(frames.min()), int(frames.max()) + 1
-            reader = self._readers[shard]
-            if hi - lo <= 2 * len(where):  # dense enough: one block read
-                block = reader.read_block(lo, hi)
-                for k, frame in zip(where, frames, strict=True):
-                    samples[k] = self._sample(block, int(frame) - lo)
-            else:
-                for k, frame in zip(where, frames, strict=True):
-                    samples[k] = self._sample(reader[int(frame)], None)
-        return samples  # type: ignore[return-value]
+        return [
+            self._sample(block, int(row)) for block, rows in self._runs(indices) for row in rows
+        ]
+
+    def batch(self, indices: Sequence[int]) -> dict[str, Any]:
+        """Samples ``indices`` as one batch: a dict of stacked tensors, like ``default_collate``.
+
+        The collate-free path of :meth:`loader`: one tensor per key per batch, made from the
+        block reads directly (no per-sample tensors to stack). The transform, if any, is
+        applied to every sample (then they are collated as usual).
+        """
+        import torch
+
+        if self.transform is not None:
+            return torch.utils.data.default_collate(self.__getitems__(indices))
+        parts: dict[str, list[np.ndarray]] = {}
+        for block, rows in self._runs(indices):
+            for key in self.keys if self.keys is not None else block:
+                parts.setdefault(key, []).append(block[key][rows])
+        out = {}
+        for key, arrays in parts.items():
+            array = arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+            if key in ("depth", "depth_clean") or array.ndim == 1:
+                array = array[:, None]  # a scalar label is (1,) per sample, as in __getitem__
+            elif key == "segmentation":
+                array = array.astype(np.int64)
+            out[key] = torch.from_numpy(np.ascontiguousarray(array))
+        return out
+
+    def loader(
+        self,
+        batch_size: int,
+        *,
+        num_workers: int = 0,
+        shuffle: bool = True,
+        block_size: int = 8,
+        seed: int = 0,
+        **kwargs: Any,
+    ):
+        """A ``DataLoader`` of batches made by :meth:`batch` from a :class:`BlockBatchSampler`.
+
+        The fastest way to read: batches of random blocks of consecutive frames, each batch
+        read and turned into tensors in one call in a worker (no per-sample collation).
+        ``kwargs`` go to ``torch.utils.data.DataLoader`` (e.g. ``persistent_workers=True``,
+        ``pin_memory=True``).
+        """
+        import torch
+
+        sampler = self.batch_sampler(batch_size, block_size=block_size, shuffle=shuffle, seed=seed)
+        return torch.utils.data.DataLoader(
+            _Batches(self),
+            sampler=sampler,
+            batch_size=None,
+            num_workers=num_workers,
+            **kwargs,
+        )
 
     def batch_sampler(
         self, batch_size: int, *, block_size: int = 8, shuffle: bool = True, seed: int = 0
@@ -218,6 +283,19 @@ class HandSimDataset:
         return BlockBatchSampler(
             len(self), batch_size, block_size=block_size, shuffle=shuffle, seed=seed
         )
+
+
+class _Batches:
+    """A map-style view whose item ``[indices]`` is the batch :meth:`HandSimDataset.batch`."""
+
+    def __init__(self, dataset: HandSimDataset) -> None:
+        self.dataset = dataset
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, indices: Sequence[int]) -> dict[str, Any]:
+        return self.dataset.batch(indices)
 
 
 class BlockBatchSampler:

@@ -111,3 +111,19 @@ def test_batched_reads_equal_single_reads_and_block_batches_cover_every_sample(d
         HandSimDataset(dataset_folder, keys=("dpeth",))
     with pytest.raises(InvalidDatasetQuery, match="batch_size must be an integer >= 1"):
         data.batch_sampler(0)
+
+
+def test_the_loader_batches_equal_collated_samples(dataset_folder):
+    """dataset.loader(): collate-free batches equal default_collate of the samples."""
+    data = HandSimDataset(dataset_folder, keys=("depth", "segmentation", "keypoints_px", "step"))
+    batches = list(data.loader(4, block_size=2, seed=3, num_workers=2))
+    order = list(data.batch_sampler(4, block_size=2, seed=3))
+    assert len(batches) == len(order) == 2
+    for batch, indices in zip(batches, order, strict=True):
+        expected = torch.utils.data.default_collate([data[i] for i in indices])
+        assert batch.keys() == expected.keys()
+        for key in expected:
+            assert batch[key].dtype == expected[key].dtype
+            np.testing.assert_array_equal(batch[key].numpy(), expected[key].numpy(), err_msg=key)
+    with_transform = HandSimDataset(dataset_folder, transform=lambda s: {"ep": s["episode"]})
+    assert with_transform.batch([0, 5])["ep"].shape == (2, 1)
