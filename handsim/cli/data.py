@@ -165,7 +165,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--ray",
         metavar="ADDRESS",
         help="run one Ray task per shard: 'local' (a local Ray instance) or the address of a "
-        "running cluster ('auto', 'ray://HOST:10001'); needs pip install 'handsim[ray]'",
+        "running cluster ('auto', 'ray://HOST:10001'), instead of --workers; needs pip install "
+        "'handsim[ray]'",
     )
     gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
     gen.set_defaults(func=_generate)

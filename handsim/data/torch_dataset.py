@@ -45,6 +45,7 @@ __all__ = [
 SPLITS = ("train", "val", "test", "all")
 """Splits: episodes are assigned by a hash of (folder seed, episode) with fractions 80/10/10."""
 _SPLIT_FRACTIONS = (0.8, 0.1, 0.1)
+_IMAGES = ("depth", "segmentation", "depth_clean")
 _RUN_GAP = 4  # frames a run of reads may skip (filtered-out frames are read and dropped)
 
 
@@ -122,6 +123,8 @@ class HandSimDataset:
                 )
             keys = tuple(keys)
         self.keys = keys
+        # Images to read: only those kept (decompressing an image is most of a read).
+        self._images = None if keys is None else tuple(k for k in _IMAGES if k in keys)
         self._readers: list[ShardReader] = []
         index = []
         for folder in folders:
@@ -209,7 +212,7 @@ class HandSimDataset:
             ):
                 end += 1
             last = rows[end - 1, 1]
-            block = self._readers[shard].read_block(int(first), int(last) + 1)
+            block = self._readers[shard].read_block(int(first), int(last) + 1, self._images)
             yield block, rows[k:end, 1] - first
             k = end
 
@@ -236,8 +239,9 @@ class HandSimDataset:
             return torch.utils.data.default_collate(self.__getitems__(indices))
         parts: dict[str, list[np.ndarray]] = {}
         for block, rows in self._runs(indices):
+            whole = len(rows) == len(block["valid"])  # rows are then 0..n-1: no copy
             for key in self.keys if self.keys is not None else block:
-                parts.setdefault(key, []).append(block[key][rows])
+                parts.setdefault(key, []).append(block[key] if whole else block[key][rows])
         out = {}
         for key, arrays in parts.items():
             array = arrays[0] if len(arrays) == 1 else np.concatenate(arrays)

@@ -200,3 +200,10 @@ def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
         ShardReader(run / "shard-00003.h5").labels("keypoints_cam"),
         ShardReader(tmp_path / "clean" / "shard-00003.h5").labels("keypoints_cam"),
     )
+
+
+def test_ray_without_ray_installed_says_how_to_get_it(tmp_path, monkeypatch):
+    """generate(ray=...) without Ray names the extra to install."""
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(GenerationError, match=r"pip install 'handsim\[ray\]'"):
+        generate(GenerationConfig.from_mapping(TINY), tmp_path, ray="local")

@@ -79,3 +79,16 @@ def test_a_ray_task_killed_mid_shard_is_rerun_and_its_shard_is_identical(tmp_pat
     assert manifest.shards == reference.shards
     assert file_sha256(out / "shard-00000.h5") == reference.shards[0].sha256
     assert not list(out.glob(f"*{PARTIAL_SUFFIX}")) and check_dataset(out)["ok"]
+
+
+def test_the_cli_runs_on_ray(tmp_path, local_ray, capsys):
+    """`handsim generate --ray local` makes the same dataset (joining the running instance)."""
+    import json
+
+    from handsim.cli import main
+
+    (tmp_path / "c.json").write_text(json.dumps({**TINY, "frames": 2}))
+    args = ["generate", "--config", str(tmp_path / "c.json"), "--out", str(tmp_path / "d")]
+    assert main([*args, "--ray", "local"]) == 0
+    assert json.loads(capsys.readouterr().out)["frames"] == 2
+    assert check_dataset(tmp_path / "d")["ok"]
