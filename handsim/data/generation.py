@@ -636,9 +636,18 @@ def _closing(source: FrameSource) -> Iterator[FrameSource]:
 
 
 def generate_shard(
-    config: GenerationConfig, index: int, folder: str | os.PathLike[str]
+    config: GenerationConfig,
+    index: int,
+    folder: str | os.PathLike[str],
+    on_frame: Callable[[], None] | None = None,
 ) -> ShardInfo:
     """Make shard ``index`` of a dataset (from ``default_rng([seed, index])`` alone).
+
+    Args:
+        config: what to generate.
+        index: the shard's index.
+        folder: the dataset folder.
+        on_frame: called after every frame written (progress).
 
     Returns:
         The complete shard's record.
@@ -665,6 +674,8 @@ def generate_shard(
             got = 0
             for step, arrays in enumerate(source.episode(rng, accept, n)):
                 writer.append(arrays, episode=index * 1_000_000 + episode, step=step)
+                if on_frame is not None:
+                    on_frame()
                 got += 1
             done += got
             episode += 1
@@ -793,14 +804,19 @@ def generate(
             depth_scale_mm=float(config.depth_scale_mm),
             image_shape=shape,
         )
-    if manifest.config != config.to_json():
-        changed = sorted(
-            k for k in config.to_json() if manifest.config.get(k) != config.to_json()[k]
-        )
+    stored = manifest.config
+    try:
+        # Fields added since the dataset was made take their defaults.
+        stored = GenerationConfig.from_mapping(manifest.config).to_json()
+    except (InvalidGenerationConfig, TypeError):
+        pass
+    if stored != config.to_json():
+        changed = sorted(k for k in config.to_json() if stored.get(k) != config.to_json()[k])
         raise InvalidGenerationConfig(
             f"{folder} holds a dataset made with another config (fields differ: "
             f"{', '.join(changed)}); resume with the same config or use another folder"
         )
+    manifest.config = config.to_json()
     manifest.seeds = [config.seed] * config.num_shards
     for index, record in list(manifest.shards.items()):
         if check_shard(folder / record.name, record):
@@ -815,7 +831,15 @@ def generate(
     if ray is not None:
         results: Iterator = _ray_results(jobs, ray)
     elif workers == 1 or len(jobs) <= 1:
-        results = map(_worker, jobs)
+        # In this process: progress frame by frame (workers report whole shards).
+        counted = [done]
+
+        def on_frame() -> None:
+            counted[0] += 1
+            if progress is not None:
+                progress(counted[0], config.frames)
+
+        results = ((i, generate_shard(config, i, folder, on_frame)) for _, i, folder in jobs)
     else:
         # Spawned workers get fresh GL contexts; a worker that dies breaks the pool (an
         # error), where multiprocessing.Pool would replace it and wait forever.
