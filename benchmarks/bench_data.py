@@ -107,6 +107,26 @@ def _read_fps(folder: Path, mode: str, seconds: float = 10.0) -> float:
     return n / (time.perf_counter() - start)
 
 
+def _read_cpu_rate(folder: Path, labels_only: bool, passes: int = 3) -> float:
+    """Samples per CPU-second of ``dataset.batch`` in this process, on one thread.
+
+    What one DataLoader worker can make on a core of its own, whatever the machine's load.
+    """
+    import torch
+
+    from handsim.data.arrays import LABEL_SCHEMA
+    from handsim.data.torch_dataset import HandSimDataset
+
+    torch.set_num_threads(1)
+    data = HandSimDataset(folder, keys=("depth", *LABEL_SCHEMA) if labels_only else None)
+    batches = list(data.batch_sampler(32)) * passes
+    data.batch(batches[0])  # open the shards, read the labels
+    start = time.process_time()
+    for indices in batches:
+        data.batch(indices)
+    return sum(map(len, batches)) / (time.process_time() - start)
+
+
 def _peak_rss_mib(frames: int, out: Path) -> float:
     """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB."""
     code = (
@@ -166,6 +186,8 @@ def main() -> None:
         if part in ("all", "read"):
             for mode in ("shuffle", "blocks", "loader", "loader_labels"):
                 results[f"read_fps_2_workers_{mode}"] = _read_fps(tmp / "w1", mode)
+            results["read_samples_per_cpu_s_all"] = _read_cpu_rate(tmp / "w1", False)
+            results["read_samples_per_cpu_s_labels"] = _read_cpu_rate(tmp / "w1", True)
         if part == "all":
             results["generate_rollouts_1_worker_fps"] = _generate(
                 args.rollout_frames, 1, tmp / "r1", preset="grasp-rollouts"
