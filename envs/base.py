@@ -5,7 +5,8 @@
 hand or the object list changes; object placements and camera poses are written into the
 compiled model), steps MuJoCo ``frame_skip`` times per action, renders one labelled
 :class:`~handsim.frame.Frame` per step and splits it: images into the observation, labels into
-``info["frame"]`` (the Frame without its images).
+``info["labels"]`` (the Frame's label arrays, :func:`~handsim.data.arrays.frame_to_arrays`).
+The Frame itself is :attr:`HandSimEnv.frame`.
 
 Control (``control_mode``):
 
@@ -41,6 +42,7 @@ methods.
 
 from __future__ import annotations
 
+import abc
 import contextlib
 import dataclasses
 import os
@@ -54,6 +56,7 @@ import numpy as np
 from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
+from handsim.data.arrays import empty_label_arrays, frame_to_arrays
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
 from handsim.hand.model import (
@@ -258,7 +261,7 @@ class EnvConfig:
         frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
         render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or (only with a display)
             ``"human"``.
-        labels: render and label a :class:`~handsim.frame.Frame` every step (``info["frame"]``);
+        labels: render and label a :class:`~handsim.frame.Frame` every step (``info["labels"]``);
             default ``True`` for modes with images, ``False`` for ``"state"`` and
             ``"privileged_state"`` (nothing is rendered then).
         width: observation image width, pixels (default: the camera preset's); images are
@@ -371,8 +374,16 @@ class EnvConfig:
         )
 
 
-def _without_images(frame: Frame) -> Frame:
+def without_images(frame: Frame) -> Frame:
+    """The Frame's labels alone (its images dropped)."""
     return dataclasses.replace(frame, depth=None, depth_clean=None, segmentation=None)
+
+
+def _plain(value: Any) -> Any:
+    """A NumPy scalar as the Python scalar of its kind (infos keep one type per key)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 class PhysicsDiverged(HandSimError, RuntimeError):
@@ -607,7 +618,7 @@ def depth_colormap(depth_m: np.ndarray, near_m: float, far_m: float) -> np.ndarr
     return np.ascontiguousarray(rgb)
 
 
-class HandSimEnv(gym.Env):
+class HandSimEnv(gym.Env, abc.ABC):
     """Base of handsim's envs (not registered itself); see the module docstring.
 
     Observation keys by ``obs_mode``:
@@ -627,9 +638,15 @@ class HandSimEnv(gym.Env):
       instance.
     - each task's own keys (its goal or target).
 
-    ``info["frame"]`` is the :class:`~handsim.frame.Frame` of the step without its images (the
-    labels) when ``labels`` is on, else ``None`` (then no label work is done, and in the state
-    modes nothing is rendered). :attr:`obs_intrinsics` are the intrinsics of the observation
+    ``info`` has the same keys, Python types and array shapes at reset, at every step and on a
+    diverged step (so Minari's ``DataCollector(record_infos=True)`` records it):
+    ``time_s``, ``target_pose`` (27,), ``physics_diverged``, every ``reward_*`` term of the
+    ``reward_type`` (0 at reset and on divergence), the task's keys and, when ``labels`` is on,
+    ``labels``: the step's :class:`~handsim.frame.Frame` as arrays
+    (:data:`~handsim.data.arrays.LABEL_SCHEMA`; the invalid fill with ``valid = False`` on a
+    diverged step). The Frame itself (with its images) is :attr:`frame` (``None`` without
+    labels or after a divergence); with ``labels`` off no label work is done, and in the state
+    modes nothing is rendered. :attr:`obs_intrinsics` are the intrinsics of the observation
     images (the frame's ``K`` is at the sensor resolution).
 
     Subclasses implement :meth:`_episode_objects`, :meth:`_reset_task`, :meth:`_task_reward`
@@ -718,13 +735,24 @@ class HandSimEnv(gym.Env):
         """Objects of this episode with their placements."""
         return ()
 
+    @abc.abstractmethod
     def _reset_task(self, rng: np.random.Generator) -> HandPose:
         """Draw the task (goal, target) for the new scene; return the hand's start pose."""
-        raise NotImplementedError
 
+    def _begin_task(self) -> None:
+        """Start the task's bookkeeping once the scene has settled (before the first frame)."""
+
+    @abc.abstractmethod
+    def _reward_terms(self) -> tuple[str, ...]:
+        """Names of the ``reward_*`` terms under this ``reward_type``."""
+
+    @abc.abstractmethod
+    def _task_info(self) -> dict[str, Any]:
+        """The task's ``info`` entries: the same keys and Python types at every step."""
+
+    @abc.abstractmethod
     def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
-        """``(reward terms, terminated, extra info)`` after a step."""
-        raise NotImplementedError
+        """``(reward terms, terminated, task info)`` after a step."""
 
     def _task_observation_space(self) -> dict[str, spaces.Space]:
         return {}
@@ -813,7 +841,7 @@ class HandSimEnv(gym.Env):
         """Start an episode: draw the scene and the task from the env's generator.
 
         Returns:
-            ``(observation, info)``; ``info["frame"]`` holds the ground-truth labels (``None``
+            ``(observation, info)``; ``info["labels"]`` holds the ground-truth labels (absent
             with ``labels=False``).
         """
         super().reset(seed=seed)
@@ -826,8 +854,10 @@ class HandSimEnv(gym.Env):
         self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep)))
         self.elapsed_steps = 0
         self._frame_viewer()
+        self._begin_task()
         obs = self._observe()
-        return obs, self._info({})
+        terms = dict.fromkeys(self._reward_terms(), 0.0)
+        return obs, self._info(terms, self._task_info())
 
     def _check_action(self, action: object) -> np.ndarray:
         expected = (
@@ -889,13 +919,16 @@ class HandSimEnv(gym.Env):
         diverged = self.driver.step(self.config.frame_skip)
         self.elapsed_steps += 1
         if diverged:
+            # Same keys and types as any step: the labels are the invalid fill.
+            self.frame = None
             obs = {k: v.copy() for k, v in self._last_obs.items()}
-            info = {"physics_diverged": True, "frame": None, "is_success": False}
-            return obs, 0.0, False, True, info
+            terms = dict.fromkeys(self._reward_terms(), 0.0)
+            task = {**self._last_task_info, "is_success": False}
+            return obs, 0.0, False, True, self._info(terms, task, diverged=True)
         obs = self._observe()
-        terms, terminated, extra = self._task_reward()
+        terms, terminated, task = self._task_reward()
         reward = float(sum(terms.values()))
-        return obs, reward, terminated, False, self._info({**terms, **extra})
+        return obs, reward, terminated, False, self._info(terms, task)
 
     def _image(self, image: np.ndarray) -> np.ndarray:
         if self._resize is not None:
@@ -953,14 +986,22 @@ class HandSimEnv(gym.Env):
             present[k] = 1
         return {"object_poses": poses, "object_present": present}
 
-    def _info(self, extra: dict[str, Any]) -> dict[str, Any]:
-        return {
-            "frame": _without_images(self.frame) if self.frame is not None else None,
+    def _info(
+        self, terms: dict[str, float], task: dict[str, Any], *, diverged: bool = False
+    ) -> dict[str, Any]:
+        self._last_task_info = task
+        info: dict[str, Any] = {
             "time_s": float(self.scene.data.time),
             "target_pose": self.target.vector.copy(),
-            "physics_diverged": False,
-            **extra,
+            "physics_diverged": diverged,
+            **{k: float(v) for k, v in terms.items()},
+            **{k: _plain(v) for k, v in task.items()},
         }
+        if self.config.labels:
+            info["labels"] = (
+                frame_to_arrays(self.frame) if self.frame is not None else empty_label_arrays()
+            )
+        return info
 
     # State round trip ---------------------------------------------------------------------
 

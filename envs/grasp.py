@@ -55,7 +55,7 @@ class GraspEnv(HandSimEnv):
     :class:`~handsim.envs.base.HandSimEnv`) and ``target_label``:
     (1,) int16 in [8, 13], the segmentation label of the object to lift (8 + its instance).
     Except in ``"privileged_state"``, the object poses and every other label are in
-    ``info["frame"]`` only.
+    ``info["labels"]`` only.
 
     ## Rewards
     Dense (``reward_type="dense"``), the sum of:
@@ -94,8 +94,10 @@ class GraspEnv(HandSimEnv):
       the datasets take that form, so the channel axis is an option rather than a new version.
       Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
       and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
-      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
-      ``labels=True``.
+      declared only with a display; in the state modes there are no labels unless
+      ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
+      reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
+      ``info["frame"]``; the Frame is ``env.unwrapped.frame``.
     """
 
     max_objects = 1
@@ -142,14 +144,10 @@ class GraspEnv(HandSimEnv):
         T[:3, 3] = data.xpos[body]
         return T
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Start an episode (see the class docstring)."""
-        obs, info = super().reset(seed=seed, options=options)
+    def _begin_task(self) -> None:
         rest_height = self._object_pose(self.target_instance)[2, 3]
         self.tracker = LiftTracker(rest_height)
         self._episode_start_s = float(self.scene.data.time)
-        info.update(self._task_info())
-        return obs, info
 
     # Observation, reward ---------------------------------------------------------------------
 
@@ -186,6 +184,11 @@ class GraspEnv(HandSimEnv):
             "n_contact_parts": self._contact_parts(),
             "target_instance": self.target_instance,
         }
+
+    def _reward_terms(self) -> tuple[str, ...]:
+        if self.config.reward_type == "dense":
+            return ("reward_reach", "reward_contact", "reward_lift", "reward_success")
+        return ("reward_success",)
 
     def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
         scene, data = self.scene, self.scene.data
@@ -284,8 +287,10 @@ class GraspClutterEnv(GraspEnv):
       the datasets take that form, so the channel axis is an option rather than a new version.
       Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
       and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
-      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
-      ``labels=True``.
+      declared only with a display; in the state modes there are no labels unless
+      ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
+      reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
+      ``info["frame"]``; the Frame is ``env.unwrapped.frame``.
     """
 
     max_objects = 6

@@ -46,7 +46,7 @@ class HandPoseEnv(HandSimEnv):
     ``Dict``: ``depth`` / ``segmentation`` / ``proprio`` by ``obs_mode`` (see
     :class:`~handsim.envs.base.HandSimEnv`; ``"privileged_state"`` equals ``"state"`` here: there
     are no objects) and ``goal``: (27,) float64 goal pose vector
-    (world frame). Labels (keypoints, visibility, ...) are in ``info["frame"]``, never in the
+    (world frame). Labels (keypoints, visibility, ...) are in ``info["labels"]``, never in the
     observation.
 
     ## Rewards
@@ -82,8 +82,10 @@ class HandPoseEnv(HandSimEnv):
       the datasets take that form, so the channel axis is an option rather than a new version.
       Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
       and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
-      declared only with a display; in the state modes ``info["frame"]`` is ``None`` unless
-      ``labels=True``.
+      declared only with a display; in the state modes there are no labels unless
+      ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
+      reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
+      ``info["frame"]``; the Frame is ``env.unwrapped.frame``.
     """
 
     use_table = False
@@ -129,13 +131,21 @@ class HandPoseEnv(HandSimEnv):
         keypoints = self.scene.binding.keypoints(self.scene.data)
         return float(np.linalg.norm(keypoints - self._goal_keypoints, axis=1).mean())
 
-    def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
-        d = self.keypoint_distance_m()
-        success = d < self.success_distance_m
-        terms = {"reward_success": float(success)}
+    def _reward_terms(self) -> tuple[str, ...]:
         if self.config.reward_type == "dense":
-            terms["reward_distance"] = -10.0 * d
-        return terms, False, {"keypoint_distance_m": d, "is_success": bool(success)}
+            return ("reward_success", "reward_distance")
+        return ("reward_success",)
+
+    def _task_info(self) -> dict[str, Any]:
+        d = self.keypoint_distance_m()
+        return {"keypoint_distance_m": d, "is_success": bool(d < self.success_distance_m)}
+
+    def _task_reward(self) -> tuple[dict[str, float], bool, dict[str, Any]]:
+        info = self._task_info()
+        terms = {"reward_success": float(info["is_success"])}
+        if self.config.reward_type == "dense":
+            terms["reward_distance"] = -10.0 * info["keypoint_distance_m"]
+        return terms, False, info
 
     # Experts -----------------------------------------------------------------------------
 

@@ -9,7 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from handsim.envs.base import HandSimEnv, InvalidEnvConfig
+from handsim.envs.base import HandSimEnv, InvalidEnvConfig, without_images
 from handsim.estimator import (
     Estimate,
     Estimator,
@@ -92,6 +92,8 @@ class EstimatorLoop(gym.Wrapper):
     :class:`~handsim.estimator.PrivilegedEstimator` (an oracle) first gets the step's
     ground-truth frame through ``observe_truth``. ``info`` then holds:
 
+    - ``"frame"``: the :class:`~handsim.frame.Frame` the estimate is scored against, without its
+      images (``None`` on a diverged step);
     - ``"estimate"``: the :class:`~handsim.estimator.Estimate`;
     - ``"estimate_errors"``: :func:`~handsim.estimator.estimate_errors` of it (mm; NaN when not
       computable, e.g. an invalid estimate);
@@ -149,7 +151,8 @@ class EstimatorLoop(gym.Wrapper):
         self._perceived: dict[str, Any] | None = None
 
     def _estimate(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        frame: Frame = info["frame"]
+        frame: Frame | None = self.unwrapped.frame
+        info["frame"] = None if frame is None else without_images(frame)
         if frame is None:  # diverged step: nothing was rendered
             return
         if self._privileged:

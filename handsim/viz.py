@@ -341,7 +341,7 @@ def draw_estimate(
     Args:
         depth_m: (H, W) or (1, H, W) depth of the frame's camera (the resolution of
             ``frame.K``), float metres or uint16 millimetres; e.g. an env's ``obs["depth"]``
-            (``info["frame"]`` carries no images).
+            (an env's Frame is ``env.unwrapped.frame``).
         frame: the ground truth of the same view.
         estimate: an :class:`~handsim.estimator.Estimate` (camera frame), or ``None``.
         near_m: near end of the colour map, metres (default: from the image).
@@ -401,7 +401,8 @@ def draw_frame_panels(
         (H, 2 W + :data:`SCALE_BAR_WIDTH`, 3) uint8 BGR image.
 
     Raises:
-        InvalidImageInput: for a frame without images (e.g. an env's ``info["frame"]``).
+        InvalidImageInput: for a frame without images (e.g. an ``EstimatorLoop``'s
+            ``info["frame"]``).
     """
     if frame.depth is None or frame.segmentation is None:
         raise InvalidImageInput(

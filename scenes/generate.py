@@ -140,7 +140,9 @@ def _hand_files(out: pathlib.Path) -> list[pathlib.Path]:
     written = []
     for side in _SIDES:
         hand = Hand(HandParams(side=side))
-        written.append(_write(out / "hand" / f"{side}_hand.xml", hand.to_xml()))
+        path = hand.save(out / "hand" / f"{side}_hand.xml")
+        written.append(path)
+        written += sorted((out / "hand" / "assets").glob(f"{hand.prefix}*.obj"))
         keys = _keyframes_xml(hand, hand.compile())
         written.append(_write(out / "hand" / f"keyframes_{side}.xml", keys))
         spec = mujoco.MjSpec()
@@ -315,7 +317,8 @@ _HAND_README = f"""# hand
 
 The default (medium, 189 mm) handsim hand, both sides.
 
-- `right_hand.xml`, `left_hand.xml`: the hand alone, `Hand(HandParams(side=...)).to_xml()`;
+- `right_hand.xml`, `left_hand.xml`: the hand alone, `Hand(HandParams(side=...)).save(...)`,
+  its skin meshes in `assets/` (OBJ, one per hand segment and side);
 - `keyframes_right.xml`, `keyframes_left.xml`: one keyframe per gesture of
   `handsim.hand.pose_sources.GESTURES` (load one in the viewer's Simulation panel);
 - `scene_right.xml`, `scene_left.xml`: the hand and its keyframes, palm up 10 cm above a
@@ -331,8 +334,8 @@ Derivation:
 1. `Hand(HandParams(side=side))` builds the parametric hand with `mujoco.MjSpec`
    (segment lengths from Buchholz et al. 1992, joint limits and gains in
    `handsim/hand/model.py`).
-2. `Hand.to_xml()` attaches it to an empty spec with the `rh_`/`lh_` prefix and writes it at
-   full precision.
+2. `Hand.save()` attaches it to an empty spec with the `rh_`/`lh_` prefix and writes it at
+   full precision, the skin meshes as OBJ under `assets/` (`handsim.world.mjcf.save_spec`).
 3. Keyframes: `HandBinding.set_pose` of each gesture; `qpos`, `ctrl` and the mocap pose are
    copied from the resulting `MjData`.
 4. Regenerate with `{_REGENERATE} --parts hand`.

@@ -7,6 +7,8 @@
 - ``handsim dataset info DIR [--plot]``: frames, shards, sizes, occlusion histogram; with
   ``--plot`` a contact sheet of random frames and histogram PNGs.
 - ``handsim export hand-labels|bop DIR OUT``: the formats other tools read.
+- ``handsim export minari ENV_ID OUT [--episodes N]``: expert rollouts of an env recorded with
+  Minari (observations, actions, rewards, labels in ``infos``).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from handsim.cli._args import choice_help, non_negative_int, positive_int, progr
 
 __all__ = ["add_parser", "EXPORTS"]
 
-EXPORTS = ("hand-labels", "bop")
+EXPORTS = ("hand-labels", "bop", "minari")
 """Export formats of ``handsim export``."""
 
 
@@ -134,8 +136,46 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
 def _export(args: argparse.Namespace) -> int:
     from handsim.data.export import export_bop, export_hand_labels
 
+    if args.format == "minari":
+        return _export_minari(args)
     run = export_hand_labels if args.format == "hand-labels" else export_bop
     print(strict_json({"format": args.format, "out": str(args.out), **run(args.dir, args.out)}))
+    return 0
+
+
+def _export_minari(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401  (registers the ids)
+    from handsim.envs.recording import record_minari
+
+    env_id = str(args.dir)
+    if env_id not in gym.registry or not env_id.startswith("handsim/"):
+        ids = sorted(k for k in gym.registry if k.startswith("handsim/"))
+        args.parser.error(
+            f"export minari records expert rollouts of an env: SOURCE must be one of "
+            f"{', '.join(ids)}; received {env_id!r}"
+        )
+    max_steps = gym.spec(env_id).max_episode_steps or 0
+    bar = progress_bar(args.episodes * max_steps, f"minari {env_id}", "step")
+    last = [0]
+
+    def progress(steps: int) -> None:
+        bar.update(steps - last[0])
+        last[0] = steps
+
+    try:
+        result = record_minari(
+            env_id,
+            episodes=args.episodes,
+            dataset_id=args.dataset_id,
+            out_dir=args.out,
+            seed=args.seed,
+            progress=progress,
+        )
+    finally:
+        bar.close()
+    print(strict_json({"format": "minari", "out": str(args.out), **result}))
     return 0
 
 
@@ -190,12 +230,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
     export = sub.add_parser(
         "export",
-        help="export a dataset to hand labels (JSON lines + PNG) or BOP",
-        description="Export a dataset folder into a new folder in a format other tools read.",
+        help="export a dataset to hand labels (JSON lines + PNG) or BOP, or record Minari",
+        description="Export a dataset folder into a new folder in a format other tools read "
+        "(hand-labels, bop), or record expert rollouts of an env as a Minari dataset (minari: "
+        "SOURCE is an env id such as handsim/Grasp-v0; load it with "
+        "MINARI_DATASETS_PATH=OUT and minari.load_dataset(ID)).",
     )
     export.add_argument(
         "format", choices=EXPORTS, metavar="FORMAT", help=choice_help("format", EXPORTS)
     )
-    export.add_argument("dir", type=Path, help="dataset folder")
+    export.add_argument(
+        "dir", metavar="SOURCE", help="dataset folder (hand-labels, bop) or env id (minari)"
+    )
     export.add_argument("out", type=Path, help="output folder (new or empty)")
-    export.set_defaults(func=_export)
+    export.add_argument(
+        "--episodes", type=positive_int, default=10, help="minari: episodes to record (10)"
+    )
+    export.add_argument(
+        "--dataset-id", default=None, help="minari: dataset id (default handsim/<env>-expert-v0)"
+    )
+    export.add_argument(
+        "--seed", type=non_negative_int, default=0, help="minari: seed of the first episode"
+    )
+    export.set_defaults(func=_export, parser=export)

@@ -2,11 +2,14 @@
 
 One schema serves env ``info``, dataset shards and exports: the same keys, shapes and dtypes at
 reset, at every step and on a diverged step (then filled with :func:`empty_label_arrays` and
-``valid = False``). Shapes do not depend on how many objects or contacts a frame has: objects
-are padded to :data:`MAX_OBJECTS` slots (``object_valid`` marks the used ones) and contacts to
-:data:`MAX_CONTACTS` (``contact_count`` says how many are used; extra contacts are dropped,
-strongest normal force kept). Images (depth, segmentation) are not labels: they are added only
-with ``images=True``.
+``valid = False``). Unused entries are filled, never NaN (so two equal frames give equal arrays
+and Gymnasium's and Minari's checks can compare them): floats 0, integers -1, booleans False,
+``hand_occlusion_ratio`` -1 when it was not computed. The only NaN is a pixel of a keypoint
+behind the camera (``keypoints_px``; ``in_frame`` is False there). Shapes do not depend on how
+many objects or contacts a frame has: objects are padded to :data:`MAX_OBJECTS` slots
+(``object_valid`` marks the used ones) and contacts to :data:`MAX_CONTACTS` (``contact_count``
+says how many are used; extra contacts are dropped, strongest normal force kept). Images
+(depth, segmentation) are not labels: they are added only with ``images=True``.
 
 ===========================  ==========  =======  ======  ======================================
 key                          shape       dtype    unit    meaning
@@ -22,7 +25,7 @@ key                          shape       dtype    unit    meaning
 ``hand_pose``                (27,)       float64  m, rad  27-DoF pose, world frame
 ``hand_length_m``            ()          float64  m       wrist crease to middle fingertip
 ``is_left``                  ()          bool             left hand
-``hand_occlusion_ratio``     ()          float64          NaN unless it was computed
+``hand_occlusion_ratio``     ()          float64          -1 unless it was computed
 ``object_valid``             (N,)        bool             slot holds an object
 ``object_ycbv_id``           (N,)        int16            YCB-Video id, -1 imported or empty
 ``object_T_cam_from_obj``    (N, 4, 4)   float64  m       object pose, camera frame
@@ -109,13 +112,14 @@ class InvalidLabelArrays(HandSimError, ValueError):
 def empty_label_arrays() -> dict[str, np.ndarray]:
     """Label arrays of no frame (``valid = False``): the fill of a diverged step.
 
-    Floats are NaN (the pose and the transforms too), booleans False, integers -1 except the
-    counts (0), so a reader that ignores ``valid`` cannot mistake them for a measurement.
+    Floats are 0 (the pose and the transforms too: a zero matrix is no transform), booleans
+    False, integers -1 except the counts (0), ``hand_occlusion_ratio`` -1. Readers check
+    ``valid`` (and ``object_valid``, ``contact_count`` for the slots).
     """
     out = {}
     for key, (shape, dtype, _) in LABEL_SCHEMA.items():
         if dtype.kind == "f":
-            out[key] = np.full(shape, np.nan, dtype)
+            out[key] = np.zeros(shape, dtype)
         elif dtype.kind == "b":
             out[key] = np.zeros(shape, dtype)
         else:
@@ -123,6 +127,7 @@ def empty_label_arrays() -> dict[str, np.ndarray]:
     out["contact_count"] = np.zeros((), np.int16)
     out["object_px_count_all"][:] = 0
     out["object_px_count_visib"][:] = 0
+    out["hand_occlusion_ratio"][()] = -1.0
     return out
 
 
@@ -279,6 +284,6 @@ def arrays_to_frame(
         hand_length_m=float(arrays["hand_length_m"]),
         handedness="left" if bool(arrays["is_left"]) else "right",
         objects=tuple(objects),
-        hand_occlusion_ratio=None if np.isnan(ratio) else ratio,
+        hand_occlusion_ratio=None if not ratio >= 0 else ratio,  # -1 (or NaN: old shards)
         contacts=contacts,
     )

@@ -132,7 +132,7 @@ def export_hand_labels(
                     "in_frame": [bool(v) for v in a["in_frame"]],
                     "visible": [bool(v) for v in a["visible"]],
                     "occluder": [OCCLUDER_NAMES.get(int(o), int(o)) for o in a["occluder"]],
-                    "hand_occlusion_ratio": None if np.isnan(ratio) else round(ratio, 6),
+                    "hand_occlusion_ratio": round(ratio, 6) if ratio >= 0 else None,
                     "objects": objects,
                     "formats": formats,
                     "episode": int(a["episode"]),

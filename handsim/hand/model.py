@@ -843,22 +843,34 @@ class Hand:
         # handsim.world imports this module; import its writer here to avoid a cycle.
         from handsim.world.mjcf import spec_to_xml
 
+        return spec_to_xml(self._xml_spec())
+
+    def _xml_spec(self) -> mujoco.MjSpec:
         scene = mujoco.MjSpec()
         scene.modelname = f"{self.prefix}hand"
         scene.comment = _xml_naming_comment(self)
         self.attach_to(scene)
-        return spec_to_xml(scene)
+        return scene
 
-    def save(self, path: str | os.PathLike[str]) -> pathlib.Path:
-        """Write :meth:`to_xml` to ``path`` (parent folders are created); return the path.
+    def save(self, path: str | os.PathLike[str], *, assets_dir: str = "assets") -> pathlib.Path:
+        """Write the hand as ``path`` plus its skin meshes as OBJ files in ``<assets_dir>/``.
 
-        Open it with ``python -m mujoco.viewer --mjcf <path>`` (no floor: include it from a
-        scene, as ``scenes/hand/scene_right.xml`` does).
+        The layout of MuJoCo Menagerie: the XML references ``<assets_dir>/<mesh>.obj`` beside
+        it and compiles to the same model as :meth:`to_xml` (which inlines the meshes). Open
+        it with ``python -m mujoco.viewer --mjcf <path>`` (no floor: include it from a scene,
+        as ``scenes/hand/scene_right.xml`` does). Parent folders are created.
+
+        Args:
+            path: the XML file to write.
+            assets_dir: mesh folder, relative to the XML file's folder (shared by both sides:
+                mesh names carry the side's prefix).
+
+        Returns:
+            The path of the XML file.
         """
-        path = pathlib.Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(self.to_xml(), encoding="utf-8")
-        return path
+        from handsim.world.mjcf import save_spec
+
+        return save_spec(self._xml_spec(), path, assets_dir=assets_dir)
 
     def bind(self, model: mujoco.MjModel) -> HandBinding:
         """Resolve this hand's names in a compiled model.

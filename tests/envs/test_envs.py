@@ -6,6 +6,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import handsim.envs
+from handsim.data.arrays import LABEL_SCHEMA, empty_label_arrays
 from handsim.envs.base import OBS_MODES, WORKSPACE_M, InvalidEnvConfig
 from handsim.envs.hand_pose import HandPoseEnv
 from handsim.hand.pose import JOINT_LIMITS
@@ -24,12 +25,16 @@ def _rollout(env_id, seed, steps=8, **kwargs):
     env = _make(env_id, **kwargs)
     obs, info = env.reset(seed=seed)
     env.action_space.seed(seed)
-    out = [(obs, None, info["frame"])]
+    out = [(obs, None, info["labels"])]
     for _ in range(steps):
         obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
-        out.append((obs, reward, info["frame"]))
+        out.append((obs, reward, info["labels"]))
     env.close()
     return out
+
+
+def _same_labels(a, b):
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k], equal_nan=True) for k in a)
 
 
 def test_every_id_is_registered():
@@ -56,7 +61,7 @@ def test_same_seed_gives_identical_rollouts(env_id):
         for key in obs_a:
             np.testing.assert_array_equal(obs_a[key], obs_b[key])
         assert reward_a == reward_b
-        assert frame_a == frame_b
+        assert _same_labels(frame_a, frame_b)
     c = _rollout(env_id, 4, steps=0, sensor="structured_light")
     assert not np.array_equal(a[0][0]["depth"], c[0][0]["depth"])
 
@@ -83,8 +88,8 @@ def test_observations_do_not_share_memory_and_labels_stay_out(env_id):
     obs1, *_ = env.step(env.action_space.sample())
     for key in obs0:
         assert not np.shares_memory(obs0[key], obs1[key])
-    assert "frame" not in obs0 and info["frame"].keypoints_cam.shape == (21, 3)
-    assert info["frame"].depth is None  # the labels travel without the images
+    assert "labels" not in obs0 and info["labels"]["keypoints_cam"].shape == (21, 3)
+    assert not {"depth", "segmentation"} & info["labels"].keys()  # no images in the labels
     env.close()
 
 
@@ -144,6 +149,45 @@ def test_physics_divergence_truncates_with_a_flag(env_id):
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
     assert truncated and not terminated and info["physics_diverged"]
     assert all(np.all(np.isfinite(v)) for v in obs.values())
+    env.close()
+
+
+def _structure(info):
+    """Keys and value types of an info, nested (what Minari's DataCollector requires equal)."""
+    return {
+        k: _structure(v) if isinstance(v, dict) else (type(v), getattr(v, "shape", None),
+                                                      getattr(v, "dtype", None))
+        for k, v in info.items()
+    }  # fmt: skip
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("reward_type", ["dense", "sparse"])
+def test_info_has_one_structure_at_reset_step_and_divergence(env_id, reward_type):
+    """One info structure at reset, every step and a diverged step.
+
+    Same keys, types, shapes and dtypes; the labels follow LABEL_SCHEMA and are never NaN-filled
+    (Gymnasium's and Minari's checks compare them).
+    """
+    env = _make(env_id, reward_type=reward_type)
+    _, info = env.reset(seed=0)
+    reference = _structure(info)
+    assert set(info["labels"]) == set(LABEL_SCHEMA) and bool(info["labels"]["valid"])
+    terms = [k for k in info if k.startswith("reward_")]
+    assert terms and all(info[k] == 0.0 for k in terms)
+    _, reward, *_, info = env.step(env.action_space.sample())
+    assert _structure(info) == reference
+    assert reward == pytest.approx(sum(info[k] for k in terms))
+    labels = info["labels"]
+    assert not np.isnan(labels["object_T_cam_from_obj"]).any()
+    assert not np.isnan(labels["contact_pos_cam"]).any()
+    env.unwrapped.scene.data.qvel[:] = 1e30
+    *_, truncated, info = env.step(env.action_space.sample())
+    assert truncated and info["physics_diverged"] and not info["is_success"]
+    assert _structure(info) == reference
+    assert not bool(info["labels"]["valid"]) and env.unwrapped.frame is None
+    for key, value in empty_label_arrays().items():
+        np.testing.assert_array_equal(info["labels"][key], value)
     env.close()
 
 
@@ -237,8 +281,8 @@ def test_random_viewpoint_and_hand_size_range_are_seeded():
     _, a = env.reset(seed=7)
     _, b = env.reset(seed=8)
     _, c = env.reset(seed=7)
-    assert a["frame"] == c["frame"]
-    assert not np.array_equal(a["frame"].T_cam_from_world, b["frame"].T_cam_from_world)
+    assert _same_labels(a["labels"], c["labels"])
+    assert not np.array_equal(a["labels"]["T_cam_from_world"], b["labels"]["T_cam_from_world"])
     env.close()
 
 

@@ -103,17 +103,15 @@ def test_every_folder_has_its_required_files() -> None:
 
 
 def test_assets_folders_hold_exactly_the_meshes_the_xml_uses() -> None:
-    """No missing and no stray mesh files."""
-    for xml in sorted(SCENES.rglob("*.xml")):
-        text = xml.read_text()
-        used = set(re.findall(r'<mesh [^>]*file="([^"]+)"', text))
-        assets = xml.parent / "assets"
-        if used:
-            assert all(u.startswith("assets/") for u in used), xml
-            on_disk = {f"assets/{p.name}" for p in assets.iterdir()}
-            owners = [x for x in xml.parent.glob("*.xml") if 'file="assets/' in x.read_text()]
-            assert len(owners) == 1, f"{assets} is shared by {owners}"
-            assert used == on_disk, xml
+    """No missing and no stray mesh files; no mesh file written by two models."""
+    for assets in sorted(SCENES.rglob("assets")):
+        used: list[str] = []
+        for xml in sorted(assets.parent.glob("*.xml")):
+            files = re.findall(r'<mesh [^>]*file="([^"]+)"', xml.read_text())
+            assert all(u.startswith("assets/") for u in files), xml
+            used += files
+        assert len(used) == len(set(used)), f"a mesh in {assets} is used by two models"
+        assert set(used) == {f"assets/{p.name}" for p in assets.iterdir()}, assets
 
 
 def test_package_data_covers_every_committed_file() -> None:

@@ -99,11 +99,28 @@ def test_empty_arrays_are_the_fill_of_an_invalid_step():
     arrays = empty_label_arrays()
     check_label_arrays(arrays)
     assert not arrays["valid"]
-    assert np.isnan(arrays["keypoints_cam"]).all() and np.isnan(arrays["hand_pose"]).all()
+    assert not any(np.isnan(v).any() for v in arrays.values() if v.dtype.kind == "f")
+    assert not arrays["keypoints_cam"].any() and not arrays["T_cam_from_world"].any()
+    assert arrays["hand_occlusion_ratio"] == -1.0
     assert not arrays["visible"].any() and not arrays["object_valid"].any()
     assert arrays["contact_count"] == 0
     with pytest.raises(InvalidLabelArrays, match="fill of an invalid"):
         arrays_to_frame(arrays)
+
+
+def test_unused_slots_are_filled_not_nan(frames):
+    """Only a keypoint behind the camera may give NaN; equal frames give equal arrays."""
+    for frame in frames:
+        arrays = frame.to_arrays()
+        for key, value in arrays.items():
+            if key != "keypoints_px" and value.dtype.kind == "f":
+                assert not np.isnan(value).any(), key
+        assert (
+            np.isnan(arrays["keypoints_px"]).any(axis=1).tolist()
+            == (frame.keypoints_cam[:, 2] <= 0).tolist()
+        )
+        if frame.hand_occlusion_ratio is None:
+            assert arrays["hand_occlusion_ratio"] == -1.0
 
 
 def test_schema_errors_say_what_is_wrong(frames):

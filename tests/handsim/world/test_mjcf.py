@@ -102,14 +102,17 @@ def test_hand_to_xml_compiles_to_the_same_model(side: str) -> None:
 
 
 def test_hand_save_writes_a_file_that_compiles(tmp_path) -> None:
-    """Hand.save writes to_xml to the path and nothing else."""
+    """Hand.save writes the XML and one OBJ per skin mesh; it compiles to the same model."""
     hand = Hand(HandParams(side="left", hand_length=0.16))
     path = hand.save(tmp_path / "sub" / "left_hand.xml")
     assert path == tmp_path / "sub" / "left_hand.xml"
-    assert path.read_text() == hand.to_xml()
-    assert list(tmp_path.joinpath("sub").iterdir()) == [path]  # no assets for the hand
+    model = hand.compile()
+    meshes = {f"{model.mesh(i).name}.obj" for i in range(model.nmesh)}
+    assert {p.name for p in (tmp_path / "sub" / "assets").iterdir()} == meshes
+    assert 'file="assets/lh_' in path.read_text() and "vertex=" not in path.read_text()
     loaded = mujoco.MjModel.from_xml_path(str(path))
-    assert_same_model(hand.compile(), loaded)
+    assert_same_model(model, loaded)
+    assert_same_model(model, mujoco.MjModel.from_xml_string(hand.to_xml()))
 
 
 def test_hand_to_xml_documents_names_and_is_deterministic() -> None:

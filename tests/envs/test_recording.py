@@ -1,0 +1,68 @@
+"""Expert rollouts recorded with Minari itself, loaded back with ``minari.load_dataset``."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from handsim.data.arrays import LABEL_SCHEMA
+from handsim.envs.recording import default_dataset_id, record_minari
+from handsim.errors import HandSimError
+
+minari = pytest.importorskip("minari")
+pytest.importorskip("jax")  # Minari's DataCollector
+
+
+def test_default_dataset_id_follows_minari_naming():
+    """Env ids map to Minari's namespace/name-vN ids; other ids are refused."""
+    assert default_dataset_id("handsim/GraspClutter-v0") == "handsim/grasp-clutter-expert-v0"
+    with pytest.raises(HandSimError, match="registered handsim id such as 'handsim/Grasp-v0'"):
+        default_dataset_id("CartPole-v1")
+
+
+def test_grasp_rollouts_load_back_with_labels_in_infos(tmp_path, monkeypatch):
+    """Observations, actions, rewards and every label array of every step survive the trip.
+
+    The reward is the sum of the recorded reward terms.
+    """
+    result = record_minari(
+        "handsim/Grasp-v0",
+        episodes=2,
+        out_dir=tmp_path,
+        env_kwargs={"objects": ("tomato_soup_can",)},
+        max_episode_steps=12,
+    )
+    assert result["episodes"] == 2 and result["steps"] == 24
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    dataset = minari.load_dataset(result["dataset_id"])
+    assert dataset.total_episodes == 2
+    for episode in dataset.iterate_episodes():
+        n = len(episode.actions)
+        assert n == 12 and episode.observations["depth"].shape == (n + 1, 240, 320)
+        labels = episode.infos["labels"]
+        assert set(labels) == set(LABEL_SCHEMA)
+        for key, (shape, dtype, _) in LABEL_SCHEMA.items():
+            assert labels[key].shape == (n + 1, *shape) and labels[key].dtype == dtype, key
+        assert labels["valid"].all()
+        terms = [k for k in episode.infos if k.startswith("reward_")]
+        total = sum(episode.infos[k][1:] for k in terms)
+        np.testing.assert_allclose(episode.rewards, total)
+    with pytest.raises(HandSimError, match="already exists"):
+        record_minari("handsim/Grasp-v0", episodes=1, out_dir=tmp_path)
+
+
+def test_cli_export_minari_refuses_a_folder_and_records_an_env(tmp_path):
+    """A folder is a one-line usage error (exit 2); an env id records and prints strict JSON."""
+    cmd = [sys.executable, "-m", "handsim.cli.main", "export", "minari"]
+    bad = subprocess.run([*cmd, str(tmp_path), str(tmp_path / "m")], capture_output=True, text=True)
+    assert bad.returncode == 2 and "SOURCE must be one of handsim/Grasp-v0" in bad.stderr
+    ok = subprocess.run(
+        [*cmd, "handsim/HandPose-v0", str(tmp_path / "m"), "--episodes", "1"],
+        capture_output=True,
+        text=True,
+    )
+    assert ok.returncode == 0, ok.stderr
+    report = json.loads(ok.stdout)
+    assert report["dataset_id"] == "handsim/hand-pose-expert-v0" and report["episodes"] == 1
