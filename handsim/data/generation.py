@@ -6,12 +6,16 @@ from a *source*; the built-in ``"kinematic"`` source poses the hand without phys
 (:class:`KinematicSource`): every episode draws a hand (size, side), objects on the table and a
 pose source, and every frame of the episode a pose, a wrist placement near an object and a
 camera viewpoint around the hand. Frames where the hand enters an object or the table by more
-than :data:`MAX_PENETRATION_M` are redrawn.
+than :data:`MAX_PENETRATION_M` are redrawn. The ``"rollout"`` source
+(:mod:`handsim.envs.rollouts`, found by name in :data:`SOURCES`) labels env episodes driven by
+their experts, with physical contact.
 
 Reproducibility: shard ``i`` is made from ``numpy.random.default_rng([seed, i])`` alone, so a
 shard is the same whichever worker makes it and whenever; a rerun of the same command skips
 the complete shards listed in the manifest, deletes partial files and writes the missing
 shards identically. A run killed at any moment (even SIGKILL) loses only shards in progress.
+Shards are made in this process, in spawned worker processes (``workers``) or as Ray tasks
+(``ray``), one shard per task, with the same result.
 
 Occlusion control: ``occlusion_range`` keeps frames whose hand occlusion ratio lies in the
 range; ``occlusion_buckets`` fills buckets of the ratio to fractions of every shard. Both
