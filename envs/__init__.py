@@ -13,6 +13,7 @@ id                        task                                                ep
 handsim/HandPose-v0       the hand alone reaches a goal hand pose             150 (3 s)
 handsim/Grasp-v0          grasp one object on a table, lift 10 cm, hold 2 s   400 (8 s)
 handsim/GraspClutter-v0   the same for a named target among 3-6 objects       400 (8 s)
+handsim/Press-v0          press a push button or move a slider on a panel     250 (5 s)
 ========================  ==================================================  =============
 
 Episode lengths are at the default ``frame_skip=10`` (50 Hz control).
@@ -30,7 +31,12 @@ Scripted experts through ``gym.make``'s wrappers: ``env.get_wrapper_attr("make_e
 
 from gymnasium.envs.registration import register
 
-ENV_IDS: tuple[str, ...] = ("handsim/HandPose-v0", "handsim/Grasp-v0", "handsim/GraspClutter-v0")
+ENV_IDS: tuple[str, ...] = (
+    "handsim/HandPose-v0",
+    "handsim/Grasp-v0",
+    "handsim/GraspClutter-v0",
+    "handsim/Press-v0",
+)
 """Every registered id."""
 
 register(
@@ -47,4 +53,9 @@ register(
     id="handsim/GraspClutter-v0",
     entry_point="handsim.envs.grasp:GraspClutterEnv",
     max_episode_steps=400,
+)
+register(
+    id="handsim/Press-v0",
+    entry_point="handsim.envs.press:PressEnv",
+    max_episode_steps=250,
 )

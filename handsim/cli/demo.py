@@ -13,6 +13,9 @@ Writes to the output folder:
 - ``frame_panels.png``: the first of those frames as depth (colour map with a scale bar in
   metres) beside its segmentation with the skeleton (:func:`handsim.viz.draw_frame_panels`).
 
+``handsim demo`` also writes ``teleop/``: a small teleoperation sweep on ``Press-v0`` (noise 0
+and 10 mm x latency 0 and 3 frames; :mod:`handsim.envs.teleop.sweep`) with its table and plots.
+
 Progress bars (rate, ETA) go to stderr; ``summary.json`` is strict JSON (``null``, never ``NaN``).
 
 Runs headless (``MUJOCO_GL=egl``) with nothing downloaded.
@@ -275,6 +278,25 @@ def _demo_closed_loop(out: Path, episodes: int, progress: bool = False) -> dict:
     return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
 
 
+def _demo_teleop(out: Path, episodes: int, progress: bool = False) -> dict:
+    """A small teleop sweep on Press-v0: noise 0 and 10 mm x latency 0 and 3 frames, direct."""
+    from handsim.envs.teleop.sweep import run_sweep, write_sweep
+
+    with progress_bar(4 * episodes, "demo: teleop sweep", "episode", enabled=progress) as bar:
+        report = run_sweep(
+            "handsim/Press-v0",
+            noise_mm=(0.0, 10.0),
+            latency_frames=(0, 3),
+            dropout=(0.0,),
+            filters=("none",),
+            episodes=episodes,
+            env_kwargs={"task": "button"},
+            progress=bar.update,
+        )
+    paths = write_sweep(report, out / "teleop")
+    return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
+
+
 def _demo_dataset(folder: Path, frames: int, *, progress: bool) -> dict:
     """A small occlusion-heavy dataset (the preset, noisy depth) and its occlusion histogram."""
     from handsim.data.generation import PRESETS, GenerationConfig, generate
@@ -330,6 +352,29 @@ def _run(args: argparse.Namespace) -> int:
                 f"{mode['f_tau_auc']:.3f}"
             )
         lines.append(f"closed-loop plots: {loop['paths']['f_tau']}, {loop['paths']['success']}")
+    if args.teleop_episodes > 0:
+        teleop = _demo_teleop(out, args.teleop_episodes, progress=not args.quiet)
+        summary["teleop"] = {
+            "rows": [
+                {k: v for k, v in row.items() if k != "episodes_detail"}
+                for row in teleop["report"]["rows"]
+            ],
+            "paths": teleop["paths"],
+        }
+        lines.append(
+            f"teleop sweep, handsim/Press-v0 (press a button), direct mode, "
+            f"{args.teleop_episodes} episode(s) per point:"
+        )
+        for row in teleop["report"]["rows"]:
+            lines.append(
+                f"  noise {row['noise_mm']:4.1f} mm, latency {row['latency_frames']} frames: "
+                f"success {100 * row['success_rate']:5.1f} %, fingertip jitter "
+                f"{row['jitter_mm']:.2f} mm, lag {row['lag_s']:.2f} s"
+            )
+        lines.append(
+            f"teleop plots: {teleop['paths']['success_vs_noise']}, "
+            f"{teleop['paths']['jitter_vs_noise']}"
+        )
     if args.dataset_frames > 0:
         dataset = _demo_dataset(out / "dataset", args.dataset_frames, progress=not args.quiet)
         summary["dataset"] = dataset
@@ -355,7 +400,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="play gestures with hands of three sizes and both sides; write a contact sheet",
         description="Build hands of three sizes and both sides, play a gesture sequence under "
         "physics, render labelled noisy depth frames of a hand among objects, run the oracle "
-        "estimator in the loop of handsim/Grasp-v0 with feedback off and on, generate a small "
+        "estimator in the loop of handsim/Grasp-v0 with feedback off and on, run a small teleop "
+        "sweep on handsim/Press-v0, generate a small "
         "occlusion-heavy dataset, and write the contact sheets, plots, the dataset and a summary "
         "to the output folder.",
     )
@@ -368,6 +414,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=non_negative_int,
         default=3,
         help="episodes per feedback mode of the Grasp-v0 closed loop; 0 skips it (default: 3)",
+    )
+    demo.add_argument(
+        "--teleop-episodes",
+        type=non_negative_int,
+        default=1,
+        help="episodes per point of the Press-v0 teleop sweep (noise 0 and 10 mm x latency 0 "
+        "and 3 frames); 0 skips it (default: 1)",
     )
     demo.add_argument(
         "--dataset-frames",

@@ -104,7 +104,7 @@ def test_cli_help_lists_the_subcommands():
     out = subprocess.run(
         [sys.executable, "-m", "handsim.cli", "--help"], capture_output=True, text=True, check=True
     )
-    for command in ("demo", "closed-loop", "info"):
+    for command in ("demo", "closed-loop", "info", "teleop", "view"):
         assert command in out.stdout
 
 

@@ -58,4 +58,15 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
     assert dataset["frames"] == 4 and sum(dataset["occlusion_histogram"]["counts"]) == 4
     assert (out / "dataset" / "manifest.json").exists()
     assert "occlusion-heavy dataset: 4 frames" in captured.out
+    # The teleop sweep: 2 noise levels x 2 latencies, its table and plot.
+    rows = summary["teleop"]["rows"]
+    assert [(r["noise_mm"], r["latency_frames"]) for r in rows] == [
+        (0.0, 0),
+        (0.0, 3),
+        (10.0, 0),
+        (10.0, 3),
+    ]
+    assert rows[0]["success_rate"] == 1.0
+    assert (out / "teleop" / "success_vs_noise.png").exists()
+    assert "teleop sweep, handsim/Press-v0" in captured.out
     assert "hand occlusion ratio" in captured.out

@@ -1,0 +1,650 @@
+"""The teleoperation loop: an operator stream drives the physical hand through a tracker.
+
+Per control step of the task env (``obs_mode="state"``: the task itself renders nothing):
+
+1. **operator**: the stream's next frame (file or generated stream resampled to the control
+   rate, or the newest live packet) gives the operator's keypoints, world frame.
+2. **capture** (``mode="camera"``): the operator hand, a render-only hand in a capture scene of
+   its own (the task's objects mirrored into it every step, so they occlude it; nothing in it
+   collides with the task), is posed from the stream (27-DoF poses directly; keypoint streams
+   are first retargeted onto it) and rendered by the capture camera with the sensor model
+   (:class:`~handsim.frame.FrameRenderer`, 320 x 240 ICVL by default).
+3. **estimator** (``mode="camera"``): any :class:`~handsim.estimator.Estimator` estimates the
+   keypoints from that depth (a :class:`~handsim.estimator.PrivilegedEstimator` such as the
+   oracle first receives the frame's truth); the estimate goes to the world frame. In
+   ``mode="direct"`` steps 2-3 are skipped: a headset already reports joints.
+4. **faults** (:class:`~handsim.envs.teleop.faults.FaultInjector`): noise, bias, latency,
+   jitter, occlusion, dropout (held or extrapolated).
+5. **filter** (:mod:`~handsim.envs.teleop.filters`): One Euro, exponential or none.
+6. **retarget** (:class:`~handsim.hand.retarget.Retargeter`, warm-started, partial keypoints,
+   floating scale) onto the physical hand; the pose is the env's action (``"pose"`` control).
+7. **physics**: the env steps; contacts give the interpenetration.
+
+:meth:`TeleopLoop.run` returns a :class:`TeleopEpisode` with the metrics of
+:mod:`handsim.envs.teleop.metrics`, the mean time of every stage, and (``record=True``) the
+arrays that :func:`write_rollout` saves for ``handsim view``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+import time
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from handsim.envs.teleop import metrics as tm
+from handsim.envs.teleop.faults import FaultConfig, FaultInjector
+from handsim.envs.teleop.filters import FILTERS, make_filter
+from handsim.envs.teleop.streams import InvalidStream, OperatorStream
+from handsim.errors import HandSimError, InvalidKeypoints
+from handsim.estimator import Estimate, Estimator, PrivilegedEstimator
+from handsim.hand.model import hand_params
+from handsim.hand.pose import HandPose
+from handsim.hand.retarget import Retargeter
+
+__all__ = [
+    "MODES",
+    "ANCHORS",
+    "STAGES",
+    "TeleopConfig",
+    "TeleopEpisode",
+    "TeleopLoop",
+    "InvalidTeleopConfig",
+    "write_rollout",
+    "read_rollout",
+    "ROLLOUT_VERSION",
+]
+
+MODES: tuple[str, ...] = ("direct", "camera")
+"""``direct``: the stream's keypoints are the tracking; ``camera``: capture + estimator."""
+ANCHORS: tuple[str, ...] = ("none", "start")
+"""``start``: move the stream so its first wrist is at the physical hand's start wrist."""
+STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
+"""The timed stages of a step."""
+ROLLOUT_VERSION = 1
+
+
+class InvalidTeleopConfig(HandSimError, ValueError):
+    """A teleop setting is invalid."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TeleopConfig:
+    """Settings of the loop.
+
+    Attributes:
+        mode: one of :data:`MODES`.
+        faults: tracking faults.
+        filter: one of :data:`~handsim.envs.teleop.filters.FILTERS`.
+        filter_params: the filter's parameters (e.g. ``{"min_cutoff_hz": 1.0, "beta": 10.0}``).
+        anchor: one of :data:`ANCHORS`.
+        sensor: the capture camera's sensor model (``camera`` mode): ``none``,
+            ``structured_light`` or ``tof``.
+        camera: the capture camera preset (``camera`` mode).
+        record: keep the per-step arrays for :func:`write_rollout`.
+        seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
+    """
+
+    mode: str = "direct"
+    faults: FaultConfig = dataclasses.field(default_factory=FaultConfig)
+    filter: str = "none"
+    filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
+    anchor: str = "none"
+    sensor: str = "none"
+    camera: str = "icvl"
+    record: bool = False
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name, valid in (
+            ("mode", MODES),
+            ("filter", FILTERS),
+            ("anchor", ANCHORS),
+            ("sensor", ("none", "structured_light", "tof")),
+        ):
+            if getattr(self, name) not in valid:
+                raise InvalidTeleopConfig(
+                    f"{name}={getattr(self, name)!r} is not valid; choose one of {', '.join(valid)}"
+                )
+        if not isinstance(self.faults, FaultConfig):
+            raise InvalidTeleopConfig(
+                f"faults must be a FaultConfig; received {type(self.faults).__name__}"
+            )
+        make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
+
+    def label(self) -> str:
+        """A short description (plot legends, tables)."""
+        f = self.faults
+        return (
+            f"{self.mode}, noise {f.noise_mm:g} mm, latency {f.latency_frames}, dropout "
+            f"{f.dropout:g}, filter {self.filter}"
+        )
+
+
+@dataclasses.dataclass
+class TeleopEpisode:
+    """One episode's outcome.
+
+    Attributes:
+        metrics: the figures of :mod:`handsim.envs.teleop.metrics` (``success``,
+            ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
+            ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
+            ``unintended_presses``, ``tracking_error_mm``, ``steps``, ``dropped_frames``,
+            ``steps_per_s``) and ``stage_ms`` (mean milliseconds per stage).
+        arrays: per-step arrays when recorded (see :func:`write_rollout`), else empty.
+    """
+
+    metrics: dict[str, Any]
+    arrays: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+
+
+def _world_from_cam(T_cam_from_world: np.ndarray, points_cam: np.ndarray) -> np.ndarray:  # noqa: N803
+    R, t = T_cam_from_world[:3, :3], T_cam_from_world[:3, 3]  # noqa: N806
+    return (points_cam - t) @ R
+
+
+@dataclasses.dataclass(frozen=True)
+class CaptureFrame:
+    """One capture of the operator hand: what an estimator (and an oracle) receives.
+
+    Attributes:
+        depth: (H, W) float32 depth with the sensor model, metres, 0 = no measurement.
+        K: (3, 3) intrinsics.
+        T_cam_from_world: (4, 4) the capture camera's extrinsics.
+        keypoints_cam: (21, 3) the operator hand's true keypoints, camera frame, metres.
+        objects: empty (the oracle's object truths; the teleop loop estimates the hand only).
+    """
+
+    depth: np.ndarray
+    K: np.ndarray  # noqa: N815
+    T_cam_from_world: np.ndarray  # noqa: N815
+    keypoints_cam: np.ndarray
+    objects: tuple = ()
+
+
+class _Capture:
+    """The capture scene: a render-only operator hand (and the task's objects) and a camera."""
+
+    def __init__(self, env: Any, operator_length_m: float, side: str, config: TeleopConfig):
+        from handsim.world.camera import T_cam_from_world, camera_preset
+        from handsim.world.render import DepthRenderer
+        from handsim.world.scene import Scene, SceneSpec, third_person_camera
+        from handsim.world.sensors import sensor_model
+
+        base = env.unwrapped
+        placements = tuple(getattr(base.scene.spec, "objects", ()))
+        camera = third_person_camera(camera_preset(config.camera), name="camera")
+        self.scene = Scene(
+            SceneSpec(
+                hand=hand_params(operator_length_m, side),
+                objects=placements,
+                cameras=(camera,),
+                table=True,
+            )
+        )
+        self.intrinsics = camera.intrinsics
+        self.renderer = DepthRenderer(self.scene.model, "camera", self.intrinsics)
+        self.sensor = sensor_model(config.sensor)
+        self.K = self.intrinsics.K.copy()
+        mujoco.mj_forward(self.scene.model, self.scene.data)
+        self.T_cam_from_world = T_cam_from_world(self.scene.data, self.renderer.camera_id)
+        self._range = tuple(np.float32(r) for r in self.intrinsics.range_m)
+        self.retargeter = Retargeter(self.scene.hand.params)
+        self.camera_pos_m = np.asarray(camera.pos_m, dtype=np.float64)
+        # Mirrored objects: (qpos address in the task, qpos address here).
+        self._objects = []
+        for (body, _), (body2, _) in zip(base.scene.objects, self.scene.objects, strict=True):
+            m1, m2 = base.scene.model, self.scene.model
+            self._objects.append(
+                (
+                    int(m1.jnt_qposadr[m1.body(body).jntadr[0]]),
+                    int(m2.jnt_qposadr[m2.body(body2).jntadr[0]]),
+                )
+            )
+        self._previous: HandPose | None = None
+        self._scale: float | None = None
+
+    def pose_operator(self, pose: np.ndarray | None, keypoints: np.ndarray, task_data: Any) -> None:
+        scene = self.scene
+        for a, b in self._objects:
+            scene.data.qpos[b : b + 7] = task_data.qpos[a : a + 7]
+        if pose is None:
+            try:
+                result = self.retargeter(
+                    keypoints,
+                    initial=self._previous,
+                    check_side=False,
+                    initial_scale=self._scale,
+                    report_clamped=False,
+                )
+            except InvalidKeypoints:  # too few tracked joints: the operator hand holds still
+                if self._previous is None:
+                    return
+                hand_pose = self._previous
+            else:
+                self._previous, self._scale = result.pose, result.scale
+                hand_pose = result.pose
+        else:
+            hand_pose = HandPose.from_vector(pose)
+        scene.binding.set_pose(scene.data, hand_pose)
+
+    def reset(self) -> None:
+        """Start an episode: the operator hand's retargeting starts cold."""
+        self._previous, self._scale = None, None
+
+    def render(self, rng: np.random.Generator) -> CaptureFrame:
+        """Depth of the posed operator hand with the sensor model, and its truth."""
+        depth, _ = self.renderer.render(self.scene.data)
+        near, far = self._range
+        depth[(depth < near) | (depth > far)] = 0.0
+        depth = self.sensor.apply(depth, self.intrinsics, rng)
+        T = self.T_cam_from_world  # noqa: N806
+        kp = self.scene.binding.keypoints(self.scene.data) @ T[:3, :3].T + T[:3, 3]
+        return CaptureFrame(depth, self.K, T, kp)
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+class TeleopLoop:
+    """Runs teleoperation episodes of one task env (see the module docstring).
+
+    Args:
+        env_id: a registered handsim id with ``"pose"`` control (e.g. ``handsim/Grasp-v0``,
+            ``handsim/Press-v0``).
+        config: the loop's settings.
+        estimator: the estimator of ``camera`` mode (e.g.
+            :class:`~handsim.estimators.oracle.OracleEstimator`); unused in ``direct`` mode.
+        env_kwargs: more keyword arguments of ``gym.make`` (``obs_mode`` is ``"state"``).
+
+    Raises:
+        InvalidTeleopConfig: camera mode without an estimator, or an estimator that does not
+            satisfy the protocol.
+    """
+
+    def __init__(
+        self,
+        env_id: str = "handsim/Grasp-v0",
+        config: TeleopConfig | None = None,
+        *,
+        estimator: Estimator | None = None,
+        env_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        import handsim.envs  # noqa: F401 (registers the ids)
+
+        self.config = config if config is not None else TeleopConfig()
+        if self.config.mode == "camera":
+            if estimator is None:
+                raise InvalidTeleopConfig(
+                    "mode='camera' needs an estimator (e.g. handsim.estimators.oracle."
+                    "OracleEstimator()); use mode='direct' to skip the camera"
+                )
+            if not isinstance(estimator, Estimator):
+                raise InvalidTeleopConfig(
+                    f"estimator must satisfy handsim.estimator.Estimator "
+                    f"(predict, predict_batch, reset); received "
+                    f"{type(estimator).__name__}"
+                )
+        self.estimator = estimator
+        self.env_id = env_id
+        self.env_kwargs = {**(env_kwargs or {}), "obs_mode": "state", "control_mode": "pose"}
+        self.env = gym.make(env_id, **self.env_kwargs)
+        self._capture: _Capture | None = None
+        self._capture_key: tuple | None = None
+
+    def close(self) -> None:
+        """Free the env and the capture renderer."""
+        if self._capture is not None:
+            self._capture.close()
+            self._capture = None
+        self.env.close()
+
+    def __enter__(self) -> TeleopLoop:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def control_dt(self) -> float:
+        """The env's control period, seconds (the stream is resampled to its rate)."""
+        return float(self.env.unwrapped.control_dt)
+
+    def run(
+        self,
+        stream: OperatorStream | Callable[[int], np.ndarray | None],
+        seed: int = 0,
+        *,
+        max_steps: int | None = None,
+        realtime: bool = False,
+        stop_at_success: bool = True,
+    ) -> TeleopEpisode:
+        """Run one episode driven by ``stream``.
+
+        Args:
+            stream: an :class:`OperatorStream` (resampled to the control rate here), or a
+                function ``step -> (21, 3) keypoints or None`` (live: the newest packet;
+                ``None``: nothing received yet, the hand holds still).
+            seed: the env's episode seed (use the seed the stream was generated on).
+            max_steps: stop after this many steps (default: the env's episode limit, or the
+                stream's length if longer; after a stream's last frame the operator holds
+                still).
+            realtime: pace the steps at the control rate (live streams).
+            stop_at_success: end the episode at the task's success (the env terminates).
+
+        Returns:
+            The episode's metrics (and arrays with ``config.record``).
+        """
+        cfg = self.config
+        env, base = self.env, self.env.unwrapped
+        _, info = env.reset(seed=seed)
+        dt = self.control_dt
+        limit = (env.spec.max_episode_steps if env.spec is not None else None) or 1000
+        frames: Callable[[int], tuple[np.ndarray | None, np.ndarray | None]]
+        if isinstance(stream, OperatorStream):
+            s = stream.resample(1.0 / dt)
+            if cfg.anchor == "start":
+                start = base.scene.binding.keypoints(base.scene.data)[0]
+                s = s.translated(start - s.first_wrist_m())
+            n_frames = len(s)
+            # After the stream's end the operator holds still (its last frame).
+            steps = max_steps or max(limit, n_frames - 1)
+
+            def frames(i: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+                k = min(i, n_frames - 1)
+                return s.keypoints_world[k], (None if s.poses is None else s.poses[k])
+
+            operator_length = s.hand_length_m
+        else:
+            steps = max_steps or limit
+            anchor_offset: list[np.ndarray] = []
+
+            def frames(i: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+                kp = stream(i)
+                if kp is None:
+                    return None, None
+                kp = np.asarray(kp, dtype=np.float64)
+                if cfg.anchor == "start":
+                    if not anchor_offset and np.all(np.isfinite(kp[0])):
+                        start = base.scene.binding.keypoints(base.scene.data)[0]
+                        anchor_offset.append(start - kp[0])
+                    if anchor_offset:
+                        kp = kp + anchor_offset[0]
+                return kp, None
+
+            operator_length = None
+        params = base.scene.hand.params
+        rng = np.random.default_rng(cfg.seed + seed)
+        faults_cfg = cfg.faults
+        capture = None
+        if cfg.mode == "camera":
+            key = (operator_length or params.hand_length, params.side, id(base.scene))
+            if self._capture is None or self._capture_key != key:
+                if self._capture is not None:
+                    self._capture.close()
+                self._capture = _Capture(env, key[0], params.side, cfg)
+                self._capture_key = key
+            capture = self._capture
+            capture.reset()
+            faults_cfg = dataclasses.replace(faults_cfg, viewpoint_m=tuple(capture.camera_pos_m))
+            self.estimator.reset()
+        injector = FaultInjector(faults_cfg, rng)
+        smoother = make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params)
+        retargeter = Retargeter(params)
+        hand_geoms = tm.hand_geom_mask(
+            base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
+        )
+        times = dict.fromkeys(STAGES, 0.0)
+        previous: HandPose | None = None
+        scale: float | None = None
+        rec: dict[str, list[Any]] = {
+            k: []
+            for k in (
+                "operator",
+                "tracked",
+                "physical",
+                "dropped",
+                "penetration",
+                "touching",
+                "success",
+                "estimate_cam",
+                "truth_cam",
+                "depth_mm",
+                "qpos",
+                "mocap_pos",
+                "mocap_quat",
+                "slip",
+                "retarget_error",
+            )
+        }
+        record = cfg.record
+        data = base.scene.data
+        first_success = None
+        unintended = math.nan
+        n_done = 0
+        start_wall = time.perf_counter()
+        target = base.scene.binding.pose(data).vector
+        terminated = truncated = False
+        for i in range(1, steps + 1):
+            tick = time.perf_counter()
+            operator_kp, operator_pose = frames(i)
+            if operator_kp is None:
+                tracked, dropped = None, True
+            else:
+                if capture is not None:
+                    capture.pose_operator(operator_pose, operator_kp, data)
+                    frame = capture.render(rng)
+                    t1 = time.perf_counter()
+                    times["capture"] += t1 - tick
+                    if isinstance(self.estimator, PrivilegedEstimator):
+                        self.estimator.observe_truth(frame)
+                    estimate = self.estimator.predict(frame.depth, frame.K)
+                    t2 = time.perf_counter()
+                    times["estimator"] += t2 - t1
+                    measured = _estimate_world(estimate, frame.T_cam_from_world)
+                    if record:
+                        rec["truth_cam"].append(frame.keypoints_cam.copy())
+                        rec["estimate_cam"].append(
+                            estimate.keypoints_cam
+                            if estimate.valid and estimate.keypoints_cam is not None
+                            else np.full((21, 3), np.nan)
+                        )
+                        rec["depth_mm"].append(
+                            np.minimum(np.rint(frame.depth * 1e3), 65535).astype(np.uint16)
+                        )
+                        if i == 1:
+                            rec["K"] = frame.K.copy()
+                            rec["T_cam_from_world"] = frame.T_cam_from_world.copy()
+                    tick = t2
+                else:
+                    measured = operator_kp
+                tracked, dropped = injector(measured)
+                t3 = time.perf_counter()
+                times["faults"] += t3 - tick
+                tracked = smoother(tracked)
+                t4 = time.perf_counter()
+                times["filter"] += t4 - t3
+                present = np.all(np.isfinite(tracked), axis=1)
+                if present.sum() >= 4:
+                    try:
+                        result = retargeter(
+                            tracked,
+                            initial=previous,
+                            initial_scale=scale,
+                            check_side=False,
+                            report_clamped=False,
+                        )
+                    except InvalidKeypoints:
+                        result = None
+                    if result is not None:
+                        previous, scale = result.pose, result.scale
+                        target = result.pose.vector
+                        if record:
+                            rec["retarget_error"].append(result.keypoint_error_m)
+                times["retarget"] += time.perf_counter() - t4
+            t5 = time.perf_counter()
+            _, _, terminated, truncated, info = env.step(target)
+            times["physics"] += time.perf_counter() - t5
+            n_done = i
+            penetration, touching = tm.hand_penetration_m(data, hand_geoms)
+            physical = base.scene.binding.keypoints(data)
+            rec["operator"].append(
+                operator_kp if operator_kp is not None else np.full((21, 3), np.nan)
+            )
+            rec["tracked"].append(tracked if tracked is not None else np.full((21, 3), np.nan))
+            rec["physical"].append(physical)
+            rec["dropped"].append(dropped)
+            rec["penetration"].append(penetration)
+            rec["touching"].append(touching)
+            rec["success"].append(bool(info.get("is_success", False)))
+            rec["slip"].append(float(info.get("slip_m", math.nan)))
+            if record:
+                rec["qpos"].append(data.qpos.copy())
+                rec["mocap_pos"].append(data.mocap_pos.copy())
+                rec["mocap_quat"].append(data.mocap_quat.copy())
+            if "unintended_presses" in info:
+                unintended = float(info["unintended_presses"])
+            if first_success is None and rec["success"][-1]:
+                first_success = i
+            if realtime:
+                wait = start_wall + i * dt - time.perf_counter()
+                if wait > 0:
+                    time.sleep(wait)
+            if (terminated and stop_at_success) or truncated:
+                break
+        wall = time.perf_counter() - start_wall
+        operator = np.array(rec["operator"])
+        physical = np.array(rec["physical"])
+        penetration = np.array(rec["penetration"])
+        touching = np.array(rec["touching"], dtype=bool)
+        slip = np.array(rec["slip"])
+        tips = list(tm.FINGERTIPS)
+        pts = [0, *tips]
+        dists = np.linalg.norm(physical - operator, axis=-1)
+        metrics = {
+            "env_id": self.env_id,
+            "seed": seed,
+            "config": {**dataclasses.asdict(cfg), "faults": cfg.faults.to_dict()},
+            "estimator": repr(self.estimator) if cfg.mode == "camera" else None,
+            "success": bool(first_success is not None),
+            "time_to_success_s": first_success * dt if first_success is not None else math.nan,
+            "penetration_max_mm": float(penetration.max() * 1e3) if n_done else math.nan,
+            "penetration_mean_mm": (
+                float(penetration[touching].mean() * 1e3) if touching.any() else 0.0
+            ),
+            "slip_max_mm": (float(np.nanmax(slip) * 1e3) if np.isfinite(slip).any() else math.nan),
+            "jitter_mm": tm.high_frequency_rms_mm(physical[:, tips], dt),
+            "operator_jitter_mm": tm.high_frequency_rms_mm(operator[:, tips], dt),
+            "lag_s": (
+                tm.lag_frames(operator[:, pts], physical[:, pts], int(round(tm.MAX_LAG_S / dt)))
+                * dt
+                if n_done > 8
+                else math.nan
+            ),
+            "unintended_presses": unintended,
+            "tracking_error_mm": (
+                float(np.nanmean(dists) * 1e3) if np.isfinite(dists).any() else math.nan
+            ),
+            "steps": n_done,
+            "control_dt_s": dt,
+            "dropped_frames": int(np.sum(rec["dropped"])),
+            "physics_diverged": bool(info.get("physics_diverged", False)),
+            "steps_per_s": n_done / wall if wall > 0 else math.nan,
+            "stage_ms": {k: (v / n_done * 1e3 if n_done else math.nan) for k, v in times.items()},
+        }
+        arrays: dict[str, np.ndarray] = {}
+        if record:
+            arrays = {
+                "operator_world": operator,
+                "tracked_world": np.array(rec["tracked"]),
+                "physical_world": physical,
+                "dropped": np.array(rec["dropped"], dtype=bool),
+                "penetration_m": penetration,
+                "success": np.array(rec["success"], dtype=bool),
+                "qpos": np.array(rec["qpos"]),
+                "mocap_pos": np.array(rec["mocap_pos"]),
+                "mocap_quat": np.array(rec["mocap_quat"]),
+            }
+            if rec["depth_mm"]:
+                arrays.update(
+                    depth_mm=np.array(rec["depth_mm"]),
+                    truth_cam=np.array(rec["truth_cam"]),
+                    estimate_cam=np.array(rec["estimate_cam"]),
+                    K=rec["K"],
+                    T_cam_from_world=rec["T_cam_from_world"],
+                )
+        return TeleopEpisode(metrics, arrays)
+
+
+def _estimate_world(estimate: Estimate, T_cam_from_world: np.ndarray) -> np.ndarray:  # noqa: N803
+    if not estimate.valid or estimate.keypoints_cam is None:
+        return np.full((21, 3), np.nan)
+    return _world_from_cam(np.asarray(T_cam_from_world), np.asarray(estimate.keypoints_cam))
+
+
+def write_rollout(
+    path: str | pathlib.Path, episode: TeleopEpisode, loop: TeleopLoop
+) -> pathlib.Path:
+    """Save a recorded episode for ``handsim view`` (compressed NPZ).
+
+    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics);
+    ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
+    state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
+    3) metres, world frame; ``dropped``, ``success`` (T,) bool; ``penetration_m`` (T,); and in
+    camera mode ``depth_mm`` (T, H, W) uint16 capture depth in mm, ``truth_cam`` and
+    ``estimate_cam`` (T, 21, 3) metres in the capture camera frame, ``K`` (3, 3) and
+    ``T_cam_from_world`` (4, 4).
+
+    Raises:
+        InvalidTeleopConfig: if the episode was not recorded (``TeleopConfig(record=True)``).
+    """
+    if not episode.arrays:
+        raise InvalidTeleopConfig(
+            "the episode has no arrays: run it with TeleopConfig(record=True)"
+        )
+    from handsim.envs.closed_loop import to_strict_json
+
+    p = pathlib.Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "version": ROLLOUT_VERSION,
+        "env_id": loop.env_id,
+        "env_kwargs": loop.env_kwargs,
+        "seed": episode.metrics["seed"],
+        "control_dt_s": episode.metrics["control_dt_s"],
+        "metrics": episode.metrics,
+    }
+    np.savez_compressed(p, meta=np.array(json.dumps(to_strict_json(meta))), **episode.arrays)
+    return p
+
+
+def read_rollout(path: str | pathlib.Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a rollout of :func:`write_rollout`: ``(meta, arrays)``.
+
+    Raises:
+        InvalidStream: for a missing file or one that is not a handsim rollout.
+    """
+    p = pathlib.Path(path)
+    if not p.is_file():
+        raise InvalidStream(f"rollout {str(p)!r} does not exist")
+    try:
+        with np.load(p, allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        meta = json.loads(str(arrays.pop("meta")))
+    except (OSError, ValueError, KeyError) as err:
+        raise InvalidStream(
+            f"{p} is not a handsim rollout (written by 'handsim teleop replay --rollout'): {err}"
+        ) from None
+    if meta.get("version") != ROLLOUT_VERSION or "qpos" not in arrays:
+        raise InvalidStream(
+            f"{p}: rollout version {meta.get('version')!r} is not "
+            f"{ROLLOUT_VERSION}, or it has no 'qpos'"
+        )
+    return meta, arrays

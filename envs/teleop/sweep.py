@@ -1,0 +1,241 @@
+"""Degradation sweeps: the task under a grid of tracking faults and filters.
+
+:func:`run_sweep` replays the same operator streams (one per seed: the task's scripted
+expert, :func:`~handsim.envs.teleop.streams.stream_from_expert`, unless streams are given)
+through :class:`~handsim.envs.teleop.loop.TeleopLoop` for every combination of noise level,
+latency, dropout rate and filter, and returns one row per grid point with the mean metrics
+over the episodes. :func:`write_sweep` saves the table as CSV and JSON and plots success and
+fingertip jitter against each degradation.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import itertools
+import json
+import math
+import pathlib
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from handsim.envs.teleop.faults import FaultConfig
+from handsim.envs.teleop.loop import InvalidTeleopConfig, TeleopConfig, TeleopLoop
+from handsim.envs.teleop.streams import OperatorStream, stream_from_expert
+from handsim.estimator import Estimator
+
+__all__ = ["run_sweep", "write_sweep", "SWEEP_COLUMNS"]
+
+SWEEP_COLUMNS: tuple[str, ...] = (
+    "noise_mm",
+    "latency_frames",
+    "dropout",
+    "filter",
+    "episodes",
+    "success_rate",
+    "time_to_success_s",
+    "penetration_max_mm",
+    "penetration_mean_mm",
+    "slip_max_mm",
+    "jitter_mm",
+    "lag_s",
+    "unintended_presses",
+    "tracking_error_mm",
+    "steps_per_s",
+)
+"""Columns of the sweep table (means over the episodes of a grid point; NaN-aware)."""
+
+_MEANS = SWEEP_COLUMNS[6:]
+
+
+def run_sweep(
+    env_id: str = "handsim/Grasp-v0",
+    *,
+    noise_mm: Sequence[float] = (0.0, 5.0, 10.0),
+    latency_frames: Sequence[int] = (0, 3),
+    dropout: Sequence[float] = (0.0, 0.1),
+    filters: Sequence[str] = ("none", "one_euro"),
+    episodes: int = 2,
+    seed: int = 0,
+    mode: str = "direct",
+    estimator_factory: Callable[[], Estimator] | None = None,
+    base_faults: FaultConfig | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+    streams: Sequence[OperatorStream] | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
+    """Run the grid and return the table.
+
+    Args:
+        env_id: the task (``handsim/Grasp-v0``, ``handsim/Press-v0``, ...).
+        noise_mm: keypoint noise levels, mm.
+        latency_frames: latencies, frames.
+        dropout: dropout rates, in [0, 1].
+        filters: filter names.
+        episodes: episodes per grid point (seeds ``seed ... seed + episodes - 1``).
+        seed: first seed.
+        mode: ``direct`` or ``camera``.
+        estimator_factory: builds the estimator of ``camera`` mode.
+        base_faults: the other fault settings (bias, jitter, occlusion, dropout mode).
+        env_kwargs: keyword arguments of ``gym.make``.
+        streams: one operator stream per episode (default: the expert's, per seed).
+        progress: called with 1 after every episode.
+
+    Returns:
+        ``{"env_id", "mode", "episodes", "seed", "grid", "rows"}``; each row has the
+        :data:`SWEEP_COLUMNS` and ``episodes_detail`` (per-episode metrics).
+    """
+    if not isinstance(episodes, int) or episodes < 1:
+        raise InvalidTeleopConfig(f"episodes must be an int >= 1; received {episodes!r}")
+    if streams is not None and len(streams) != episodes:
+        raise InvalidTeleopConfig(
+            f"streams must hold one stream per episode ({episodes}); received {len(streams)}"
+        )
+    base = base_faults or FaultConfig()
+    seeds = [seed + k for k in range(episodes)]
+    if streams is None:
+        streams = [stream_from_expert(env_id, s, env_kwargs=env_kwargs) for s in seeds]
+    rows = []
+    loops: dict[str, TeleopLoop] = {}
+    try:
+        for n, lat, p, filt in itertools.product(noise_mm, latency_frames, dropout, filters):
+            faults = dataclasses.replace(base, noise_mm=n, latency_frames=lat, dropout=p)
+            config = TeleopConfig(mode=mode, faults=faults, filter=filt, seed=seed)
+            if filt not in loops:
+                loops[filt] = TeleopLoop(
+                    env_id,
+                    config,
+                    estimator=estimator_factory() if estimator_factory else None,
+                    env_kwargs=env_kwargs,
+                )
+            loop = loops[filt]
+            loop.config = config
+            details = []
+            for s, stream in zip(seeds, streams, strict=True):
+                details.append(loop.run(stream, s).metrics)
+                if progress is not None:
+                    progress(1)
+            row: dict[str, Any] = {
+                "noise_mm": float(n),
+                "latency_frames": int(lat),
+                "dropout": float(p),
+                "filter": filt,
+                "episodes": len(details),
+                "success_rate": float(np.mean([d["success"] for d in details])),
+            }
+            for key in _MEANS:
+                values = np.array([d[key] for d in details], dtype=np.float64)
+                row[key] = float(np.nanmean(values)) if np.isfinite(values).any() else math.nan
+            row["episodes_detail"] = details
+            rows.append(row)
+    finally:
+        for loop in loops.values():
+            loop.close()
+    return {
+        "env_id": env_id,
+        "mode": mode,
+        "episodes": episodes,
+        "seed": seed,
+        "grid": {
+            "noise_mm": list(map(float, noise_mm)),
+            "latency_frames": list(map(int, latency_frames)),
+            "dropout": list(map(float, dropout)),
+            "filters": list(filters),
+        },
+        "base_faults": base.to_dict(),
+        "rows": rows,
+    }
+
+
+def write_sweep(report: dict[str, Any], out_dir: str | pathlib.Path) -> dict[str, pathlib.Path]:
+    """Write ``sweep.csv``, ``sweep.json`` and the plots into ``out_dir``.
+
+    Plots (PNG): ``success_vs_noise.png`` and ``jitter_vs_noise.png`` (one line per latency,
+    dropout and filter), ``success_vs_latency.png`` and ``success_vs_dropout.png`` (one line
+    per filter, at the lowest other degradations).
+
+    Returns:
+        The written paths by kind.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from handsim.envs.closed_loop import to_strict_json
+
+    out = pathlib.Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"csv": out / "sweep.csv", "json": out / "sweep.json"}
+    with paths["csv"].open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(SWEEP_COLUMNS))
+        writer.writeheader()
+        for row in report["rows"]:
+            writer.writerow({k: row[k] for k in SWEEP_COLUMNS})
+    paths["json"].write_text(json.dumps(to_strict_json(report), indent=2, allow_nan=False))
+    rows = report["rows"]
+    title = f"{report['env_id']}, {report['mode']} mode, {report['episodes']} episode(s) per point"
+
+    def lines(
+        ax: Any, x_key: str, y_key: str, group: tuple[str, ...], scale: float = 1.0, data=None
+    ) -> None:
+        data = rows if data is None else data
+        keys = sorted({tuple(r[g] for g in group) for r in data}, key=str)
+        for key in keys:
+            pts = sorted((r[x_key], r[y_key]) for r in data if tuple(r[g] for g in group) == key)
+            if not pts:
+                continue
+            x, y = zip(*pts, strict=True)
+            label = ", ".join(
+                f"{g.replace('_frames', '')} {v}" for g, v in zip(group, key, strict=True)
+            )
+            ax.plot(x, np.array(y, dtype=float) * scale, marker="o", label=label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+        ax.set_title(title, fontsize=8)
+
+    def save(fig: Any, kind: str) -> None:
+        paths[kind] = out / f"{kind}.png"
+        fig.tight_layout()
+        fig.savefig(paths[kind], dpi=100)
+        plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    lines(ax, "noise_mm", "success_rate", ("latency_frames", "dropout", "filter"), 100.0)
+    ax.set_xlabel("Keypoint noise / mm (std per axis)")
+    ax.set_ylabel("Task success / %")
+    ax.set_ylim(-5, 105)
+    save(fig, "success_vs_noise")
+    fig, ax = plt.subplots(figsize=(6, 4))
+    lines(ax, "noise_mm", "jitter_mm", ("latency_frames", "dropout", "filter"))
+    ax.set_xlabel("Keypoint noise / mm (std per axis)")
+    ax.set_ylabel("Fingertip jitter / mm (RMS above 5 Hz)")
+    ax.set_ylim(bottom=0)
+    save(fig, "jitter_vs_noise")
+    low_n = min(r["noise_mm"] for r in rows)
+    low_p = min(r["dropout"] for r in rows)
+    low_l = min(r["latency_frames"] for r in rows)
+    for x_key, fixed, kind, label in (
+        (
+            "latency_frames",
+            {"noise_mm": low_n, "dropout": low_p},
+            "success_vs_latency",
+            "Latency / frames",
+        ),
+        (
+            "dropout",
+            {"noise_mm": low_n, "latency_frames": low_l},
+            "success_vs_dropout",
+            "Dropped frames / fraction",
+        ),
+    ):
+        fig, ax = plt.subplots(figsize=(6, 4))
+        subset = [r for r in rows if all(r[k] == v for k, v in fixed.items())]
+        lines(ax, x_key, "success_rate", ("filter",), 100.0, data=subset)
+        ax.set_xlabel(label)
+        ax.set_ylabel("Task success / %")
+        ax.set_ylim(-5, 105)
+        save(fig, kind)
+    return paths

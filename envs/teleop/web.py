@@ -1,0 +1,145 @@
+"""The WebXR bridge of ``handsim teleop serve``: one static page that streams a tracked hand.
+
+The page (``web/index.html``, no external scripts) opens a WebSocket to the teleop loop
+(``handsim teleop live --websocket PORT``) and
+
+- in a headset's browser, after "Enter VR", reads the 25 WebXR Hand Input joints of the chosen
+  hand (``?hand=right``, default) every XR frame and sends them as ``webxr25`` packets
+  (``up_axis`` ``"y"``, metres, with joint radii);
+- without a headset (or with the "Replay recording" button) replays the file given to
+  ``serve --replay`` at its own rate, as ``handsim21`` packets.
+
+:func:`make_server` serves ``/`` (the page), ``/config.json`` (``{"ws_port", "has_replay"}``)
+and ``/replay.json`` (the recording: ``{"fps", "hand", "frames": [{"t", "keypoints"}]}``,
+world frame). The page connects to ``ws://<the page's host>:<ws_port>`` (``?ws=PORT``
+overrides). WebXR needs a secure context: on a Quest over USB, ``adb reverse tcp:8000
+tcp:8000`` and ``adb reverse tcp:8765 tcp:8765`` make both ports the headset's localhost, so
+nothing is exposed to the network.
+"""
+
+from __future__ import annotations
+
+import http.server
+import importlib.resources
+import json
+import math
+import pathlib
+import threading
+import time
+import warnings
+from typing import Any
+
+from handsim.envs.teleop.live import LOCAL_HOSTS
+from handsim.envs.teleop.streams import InvalidStream, load_stream
+
+__all__ = ["make_server", "serve", "page_html"]
+
+
+def page_html() -> bytes:
+    """The page's HTML."""
+    return importlib.resources.files("handsim.envs.teleop").joinpath("web/index.html").read_bytes()
+
+
+def _replay_doc(path: pathlib.Path) -> dict[str, Any]:
+    stream = load_stream(path)
+    dt = float(stream.times_s[1] - stream.times_s[0]) if len(stream) > 1 else 1 / 50
+    frames = [
+        {
+            "t": float(t),
+            "keypoints": [
+                None if not all(map(math.isfinite, p)) else [round(float(v), 6) for v in p]
+                for p in kp
+            ],
+        }
+        for t, kp in zip(stream.times_s - stream.times_s[0], stream.keypoints_world, strict=True)
+    ]
+    return {"fps": 1.0 / dt, "hand": stream.side, "frames": frames}
+
+
+def make_server(
+    http_port: int = 8000,
+    ws_port: int = 8765,
+    *,
+    host: str = "127.0.0.1",
+    replay: str | pathlib.Path | None = None,
+) -> http.server.ThreadingHTTPServer:
+    """An HTTP server of the page (not started: call ``serve_forever`` in a thread).
+
+    Args:
+        http_port: the page's port (0: a free one, read ``server.server_address``).
+        ws_port: the WebSocket port the page streams to.
+        host: address to bind (default ``127.0.0.1``; others warn).
+        replay: a stream file the page replays without a headset.
+
+    Raises:
+        InvalidStream: for an unreadable replay file or a port that cannot be bound.
+    """
+    if host not in LOCAL_HOSTS:
+        warnings.warn(
+            f"the WebXR page is served on {host}, reachable from the network",
+            UserWarning,
+            stacklevel=2,
+        )
+    page = page_html()
+    replay_bytes = json.dumps(_replay_doc(pathlib.Path(replay))).encode() if replay else None
+    config = json.dumps({"ws_port": int(ws_port), "has_replay": replay is not None}).encode()
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:  # noqa: N802 (the http.server name)
+            path = self.path.split("?", 1)[0]
+            routes = {
+                "/": (page, "text/html; charset=utf-8"),
+                "/index.html": (page, "text/html; charset=utf-8"),
+                "/config.json": (config, "application/json"),
+            }
+            if replay_bytes is not None:
+                routes["/replay.json"] = (replay_bytes, "application/json")
+            if path not in routes:
+                self.send_error(404, "not found")
+                return
+            body, kind = routes[path]
+            self.send_response(200)
+            self.send_header("Content-Type", kind)
+            self.send_header("Content-Length", str(len(body)))
+            self.send_header("Cache-Control", "no-store")
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002
+            pass  # quiet: the loop's own output matters
+
+    try:
+        return http.server.ThreadingHTTPServer((host, http_port), Handler)
+    except OSError as err:
+        raise InvalidStream(f"cannot serve http://{host}:{http_port}: {err}") from None
+
+
+def serve(
+    http_port: int = 8000,
+    ws_port: int = 8765,
+    *,
+    host: str = "127.0.0.1",
+    replay: str | pathlib.Path | None = None,
+    duration_s: float = 0.0,
+) -> int:
+    """Serve the page until Ctrl-C (or ``duration_s`` seconds); returns the exit status."""
+    server = make_server(http_port, ws_port, host=host, replay=replay)
+    port = server.server_address[1]
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    print(
+        f"WebXR page: http://{host}:{port}/ (streams to ws://{host}:{ws_port}; run "
+        f"'handsim teleop live --websocket {ws_port}' to drive the hand)"
+    )
+    try:
+        if duration_s > 0:
+            time.sleep(duration_s)
+        else:
+            while True:
+                time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.shutdown()
+        server.server_close()
+    return 0

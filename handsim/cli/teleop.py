@@ -1,0 +1,586 @@
+"""``handsim teleop``: drive the physical hand from operator streams, with tracking faults.
+
+Sub-commands:
+
+- ``replay FILE``: a stream file (NPZ / JSON; OpenXR, WebXR, MediaPipe, keypoints or poses)
+  through the loop; prints the metrics, writes ``teleop.json`` and, with ``--rollout``, a
+  rollout for ``handsim view``.
+- ``live --udp PORT | --websocket PORT``: live JSON packets through the loop, in real time.
+- ``sweep``: noise x latency x dropout x filter grid -> ``sweep.csv``, ``sweep.json``, plots.
+- ``generate OUT``: write a task's scripted-expert episode as a stream file (a sample to replay).
+- ``send FILE --udp PORT | --websocket PORT``: send a stream file as live packets.
+- ``serve``: the WebXR page (a headset's browser streams its hand joints to ``live``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+from typing import Any
+
+from handsim.cli._args import (
+    choice_help,
+    non_negative_float,
+    non_negative_int,
+    positive_int,
+    probability,
+    progress_bar,
+    strict_json,
+)
+
+__all__ = ["add_parser", "TASKS"]
+
+TASKS: dict[str, str] = {"grasp": "handsim/Grasp-v0", "press": "handsim/Press-v0"}
+"""Short task names of ``--task`` (a full registered id also works)."""
+_MODES = ("direct", "camera")
+_FILTERS = ("none", "one_euro", "ema")
+_ANCHORS = ("none", "start")
+_SENSORS = ("none", "structured_light", "tof")
+_DROPOUT_MODES = ("hold", "extrapolate")
+
+
+def _task(text: str) -> str:
+    if text in TASKS:
+        return TASKS[text]
+    import handsim.envs
+
+    if text in handsim.envs.ENV_IDS:
+        return text
+    raise argparse.ArgumentTypeError(
+        f"unknown task {text!r}; one of {', '.join(TASKS)} or a registered id "
+        f"({', '.join(handsim.envs.ENV_IDS)})"
+    )
+
+
+def _list(kind: Any, what: str) -> Any:
+    def parse(text: str) -> list:
+        try:
+            return [kind(v) for v in text.split(",") if v.strip()]
+        except argparse.ArgumentTypeError as err:
+            raise argparse.ArgumentTypeError(f"{what}: {err}") from None
+
+    return parse
+
+
+def _filter_name(text: str) -> str:
+    if text not in _FILTERS:
+        raise argparse.ArgumentTypeError(f"unknown filter {text!r}; one of {', '.join(_FILTERS)}")
+    return text
+
+
+def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None:
+    p.add_argument(
+        "--task",
+        type=_task,
+        default="handsim/Grasp-v0",
+        help="the task: grasp, press or a registered id (default: grasp)",
+    )
+    p.add_argument(
+        "--mode",
+        choices=_MODES,
+        default="direct",
+        help=choice_help(
+            "direct: the stream's joints are the tracking; camera: capture camera + estimator",
+            _MODES,
+            "direct",
+        ),
+    )
+    from handsim.cli.closed_loop import estimator_arg
+
+    p.add_argument(
+        "--estimator",
+        type=estimator_arg,
+        default="oracle",
+        help="camera mode's estimator: oracle (truth) or module:Class[:kwargs-json] "
+        "(default: oracle)",
+    )
+    p.add_argument(
+        "--sensor",
+        choices=_SENSORS,
+        default="none",
+        help=choice_help("capture camera's sensor model", _SENSORS, "none"),
+    )
+    if not grid:
+        p.add_argument(
+            "--noise-mm",
+            type=non_negative_float,
+            default=0.0,
+            help="Gaussian keypoint noise, std per axis, mm (default: 0)",
+        )
+        p.add_argument(
+            "--latency",
+            type=non_negative_int,
+            default=0,
+            help="latency, frames at the control rate (default: 0)",
+        )
+        p.add_argument(
+            "--dropout",
+            type=probability,
+            default=0.0,
+            help="probability that a frame is lost, [0, 1] (default: 0)",
+        )
+        p.add_argument(
+            "--filter",
+            type=_filter_name,
+            default="none",
+            help=choice_help("smoothing", _FILTERS, "none"),
+        )
+    p.add_argument(
+        "--bias-mm",
+        type=float,
+        nargs=3,
+        default=(0.0, 0.0, 0.0),
+        metavar=("X", "Y", "Z"),
+        help="constant keypoint offset, world, mm",
+    )
+    p.add_argument(
+        "--dropout-mode",
+        choices=_DROPOUT_MODES,
+        default="hold",
+        help=choice_help("lost frames are", _DROPOUT_MODES, "hold"),
+    )
+    p.add_argument(
+        "--jitter",
+        type=non_negative_int,
+        default=0,
+        help="largest extra random delay per frame, frames (default: 0)",
+    )
+    p.add_argument(
+        "--occlusion-rate",
+        type=probability,
+        default=0.0,
+        help="probability per frame that an occluder hides part of the hand (default: 0)",
+    )
+    p.add_argument(
+        "--min-cutoff-hz",
+        type=non_negative_float,
+        default=1.0,
+        help="One Euro filter: cutoff at rest, Hz (default: 1.0)",
+    )
+    p.add_argument(
+        "--beta",
+        type=non_negative_float,
+        default=10.0,
+        help="One Euro filter: cutoff increase per m/s of speed (default: 10)",
+    )
+    p.add_argument(
+        "--alpha",
+        type=probability,
+        default=0.5,
+        help="ema filter: weight of the new sample, (0, 1] (default: 0.5)",
+    )
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        help="episode seed (the scene) and fault seed (default: 0)",
+    )
+
+
+def _faults(args: argparse.Namespace, **levels: Any) -> Any:
+    from handsim.envs.teleop import FaultConfig
+
+    return FaultConfig(
+        noise_mm=levels.get("noise_mm", getattr(args, "noise_mm", 0.0)),
+        latency_frames=levels.get("latency_frames", getattr(args, "latency", 0)),
+        dropout=levels.get("dropout", getattr(args, "dropout", 0.0)),
+        bias_mm=tuple(args.bias_mm),
+        dropout_mode=args.dropout_mode,
+        jitter_frames=args.jitter,
+        occlusion_rate=args.occlusion_rate,
+    )
+
+
+def _filter_params(name: str, args: argparse.Namespace) -> dict[str, float]:
+    if name == "one_euro":
+        return {"min_cutoff_hz": args.min_cutoff_hz, "beta": args.beta}
+    if name == "ema":
+        return {"alpha": args.alpha}
+    return {}
+
+
+def _estimator(args: argparse.Namespace) -> Any:
+    if args.mode != "camera":
+        return None
+    from handsim.cli.closed_loop import EstimatorSpec
+
+    if isinstance(args.estimator, EstimatorSpec):
+        return args.estimator.make()
+    if args.estimator == "oracle":
+        from handsim.estimators import OracleEstimator
+
+        return OracleEstimator(rng=args.seed)
+    from handsim.estimators import CenterOfMassLocalizer
+
+    return CenterOfMassLocalizer()
+
+
+def _config(args: argparse.Namespace, record: bool = False) -> Any:
+    from handsim.envs.teleop import TeleopConfig
+
+    return TeleopConfig(
+        mode=args.mode,
+        faults=_faults(args),
+        filter=args.filter,
+        filter_params=_filter_params(args.filter, args),
+        anchor=args.anchor,
+        sensor=args.sensor,
+        record=record,
+        seed=args.seed,
+    )
+
+
+def _print_metrics(metrics: dict[str, Any]) -> None:
+    keys = (
+        "success",
+        "time_to_success_s",
+        "penetration_max_mm",
+        "penetration_mean_mm",
+        "slip_max_mm",
+        "jitter_mm",
+        "lag_s",
+        "unintended_presses",
+        "tracking_error_mm",
+        "steps",
+        "dropped_frames",
+        "steps_per_s",
+    )
+    for k in keys:
+        v = metrics[k]
+        print(f"  {k:22s} {v:.3f}" if isinstance(v, float) else f"  {k:22s} {v}")
+    stages = ", ".join(f"{k} {v:.2f}" for k, v in metrics["stage_ms"].items())
+    print(f"  {'stage_ms':22s} {stages}")
+
+
+def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, Any]) -> int:
+    from handsim.envs.teleop import write_rollout
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "teleop.json").write_text(strict_json({**episode.metrics, **extra}))
+    print(f"{episode.metrics['env_id']} ({loop.config.label()}):")
+    _print_metrics(episode.metrics)
+    if args.rollout:
+        path = write_rollout(args.rollout, episode, loop)
+        print(f"rollout: {path} (play it with: handsim view {path})")
+    print(f"metrics: {out / 'teleop.json'}")
+    return 0
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop import TeleopLoop, load_stream
+
+    stream = load_stream(args.file)
+    config = _config(args, record=bool(args.rollout))
+    env_kwargs = {"handedness": stream.side}
+    with TeleopLoop(args.task, config, estimator=_estimator(args), env_kwargs=env_kwargs) as loop:
+        episode = loop.run(stream, args.seed, max_steps=args.max_steps)
+        return _finish(args, loop, episode, {"stream": str(args.file)})
+
+
+def _live(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver
+
+    if args.udp is not None:
+        receiver = UdpReceiver(args.udp, host=args.host)
+    else:
+        receiver = WebSocketReceiver(args.websocket, host=args.host)
+    config = _config(args, record=bool(args.rollout))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        receiver.start()
+    for w in caught:
+        print(f"handsim: warning: {w.message}", file=sys.stderr)
+    proto = "udp" if args.udp is not None else "websocket"
+    try:
+        with TeleopLoop(args.task, config, estimator=_estimator(args)) as loop:
+            loop.env.reset(seed=args.seed)  # build the scene before the operator starts
+            print(
+                f"listening on {proto}://{args.host}:{receiver.port} for {args.duration:g} s",
+                file=sys.stderr,
+            )
+            if args.wait > 0 and not receiver.wait_for(1, args.wait):
+                print(
+                    f"handsim: no valid packet in {args.wait:g} s; counters {receiver.counters}",
+                    file=sys.stderr,
+                )
+                return 1
+
+            def newest(_: int) -> Any:
+                frame = receiver.latest()
+                return None if frame is None else frame.keypoints_world
+
+            steps = max(1, int(round(args.duration / loop.control_dt)))
+            episode = loop.run(
+                newest, args.seed, max_steps=steps, realtime=True, stop_at_success=False
+            )
+            return _finish(args, loop, episode, {"packets": dict(receiver.counters)})
+    finally:
+        receiver.close()
+        print(f"packets: {receiver.counters}", file=sys.stderr)
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop import FaultConfig
+    from handsim.envs.teleop.sweep import run_sweep, write_sweep
+
+    base = _faults(args, noise_mm=0.0, latency_frames=0, dropout=0.0)
+    n_points = len(args.noise_mm) * len(args.latency) * len(args.dropout) * len(args.filters)
+    total = n_points * args.episodes
+    factory = (lambda: _estimator(args)) if args.mode == "camera" else None
+    with progress_bar(total, "teleop sweep", "episode", enabled=not args.quiet) as bar:
+        report = run_sweep(
+            args.task,
+            noise_mm=args.noise_mm,
+            latency_frames=args.latency,
+            dropout=args.dropout,
+            filters=args.filters,
+            episodes=args.episodes,
+            seed=args.seed,
+            mode=args.mode,
+            estimator_factory=factory,
+            base_faults=base if isinstance(base, FaultConfig) else None,
+            progress=bar.update,
+        )
+    paths = write_sweep(report, args.out)
+    print(
+        f"{'noise_mm':>8} {'latency':>7} {'dropout':>7} {'filter':>9} {'success':>7} "
+        f"{'jitter_mm':>9} {'lag_s':>6} {'pen_max_mm':>10}"
+    )
+    for r in report["rows"]:
+        print(
+            f"{r['noise_mm']:8.1f} {r['latency_frames']:7d} {r['dropout']:7.2f} "
+            f"{r['filter']:>9} {100 * r['success_rate']:6.0f}% {r['jitter_mm']:9.2f} "
+            f"{r['lag_s']:6.2f} {r['penetration_max_mm']:10.2f}"
+        )
+    for kind, path in paths.items():
+        print(f"{kind}: {path}")
+    return 0
+
+
+def _generate(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop import save_stream, stream_from_expert
+
+    stream = stream_from_expert(args.task, args.seed)
+    path = save_stream(stream, args.out)
+    print(f"{path}: {len(stream)} frames, {stream.duration_s:.2f} s, {stream.source}")
+    return 0
+
+
+def _send(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop import load_stream
+    from handsim.envs.teleop.sender import send_stream
+
+    stream = load_stream(args.file)
+    protocol, port = ("udp", args.udp) if args.udp is not None else ("websocket", args.websocket)
+    n = send_stream(stream, port, protocol=protocol, host=args.host, speed=args.speed)
+    print(f"sent {n} packets to {protocol}://{args.host}:{port}")
+    return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from handsim.envs.teleop.web import serve
+
+    return serve(
+        http_port=args.port,
+        ws_port=args.websocket,
+        host=args.host,
+        replay=args.replay,
+        duration_s=args.duration,
+        out=args.out,
+    )
+
+
+def _port_group(p: argparse.ArgumentParser, required: bool = True) -> None:
+    group = p.add_mutually_exclusive_group(required=required)
+    group.add_argument("--udp", type=non_negative_int, metavar="PORT", help="UDP port")
+    group.add_argument(
+        "--websocket",
+        type=non_negative_int,
+        metavar="PORT",
+        help="WebSocket port (needs handsim[teleop])",
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address (default: 127.0.0.1; any other address is reachable from "
+        "the network and gives a warning)",
+    )
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``handsim teleop`` and its sub-commands."""
+    teleop = sub.add_parser(
+        "teleop",
+        help="drive the physical hand from tracked pose streams, with tracking faults",
+        description=__doc__.split("\n\n")[0].split(": ", 1)[1],
+    )
+    cmds = teleop.add_subparsers(dest="teleop_command", metavar="SUBCOMMAND", required=True)
+
+    p = cmds.add_parser(
+        "replay",
+        help="replay a stream file through the loop",
+        description="Replay a stream file (NPZ or JSON: keypoints in any "
+        "supported format, OpenXR 26 / WebXR 25 joints, MediaPipe "
+        "world landmarks, or 27-DoF poses) through the teleop "
+        "loop and print the metrics.",
+    )
+    p.add_argument("file", type=Path, help="stream file (.json or .npz; see docs/teleop.md)")
+    _add_loop_options(p)
+    p.add_argument(
+        "--anchor",
+        choices=_ANCHORS,
+        default="start",
+        help=choice_help(
+            "move the stream so its first wrist is at the hand's start", _ANCHORS, "start"
+        ),
+    )
+    p.add_argument(
+        "--max-steps",
+        type=positive_int,
+        default=None,
+        help="stop after this many steps (default: the episode limit)",
+    )
+    p.add_argument("--out", default="teleop_out", help="output folder (default: teleop_out)")
+    p.add_argument(
+        "--rollout", default=None, help="also write the rollout (.npz) for 'handsim view'"
+    )
+    p.set_defaults(func=_replay)
+
+    p = cmds.add_parser(
+        "live",
+        help="drive the hand from live UDP / WebSocket packets",
+        description="Receive live JSON packets (docs/teleop.md) and run the "
+        "loop in real time for --duration seconds.",
+    )
+    _port_group(p)
+    _add_loop_options(p)
+    p.add_argument(
+        "--anchor",
+        choices=_ANCHORS,
+        default="start",
+        help=choice_help(
+            "move the stream so its first wrist is at the hand's start", _ANCHORS, "start"
+        ),
+    )
+    p.add_argument(
+        "--duration", type=non_negative_float, default=10.0, help="seconds to run (default: 10)"
+    )
+    p.add_argument(
+        "--wait",
+        type=non_negative_float,
+        default=30.0,
+        help="seconds to wait for the first valid packet (0: do not wait; default: 30)",
+    )
+    p.add_argument("--out", default="teleop_out", help="output folder (default: teleop_out)")
+    p.add_argument("--rollout", default=None, help="also write the rollout (.npz)")
+    p.set_defaults(func=_live)
+
+    p = cmds.add_parser(
+        "sweep",
+        help="degradation grid -> CSV, JSON and plots",
+        description="Replay the task's scripted-expert streams under every "
+        "combination of noise, latency, dropout and filter; write "
+        "sweep.csv, sweep.json and plots of success and jitter.",
+    )
+    _add_loop_options(p, grid=True)
+    p.add_argument(
+        "--noise-mm",
+        type=_list(non_negative_float, "--noise-mm"),
+        default=[0.0, 5.0, 10.0],
+        help="noise levels, mm, comma-separated (default: 0,5,10)",
+    )
+    p.add_argument(
+        "--latency",
+        type=_list(non_negative_int, "--latency"),
+        default=[0, 3],
+        help="latencies, frames, comma-separated (default: 0,3)",
+    )
+    p.add_argument(
+        "--dropout",
+        type=_list(probability, "--dropout"),
+        default=[0.0, 0.1],
+        help="dropout rates, comma-separated (default: 0,0.1)",
+    )
+    p.add_argument(
+        "--filters",
+        type=_list(_filter_name, "--filters"),
+        default=["none", "one_euro"],
+        help=f"filters, comma-separated, of {', '.join(_FILTERS)} (default: none,one_euro)",
+    )
+    p.add_argument(
+        "--episodes", type=positive_int, default=2, help="episodes per grid point (default: 2)"
+    )
+    p.add_argument("--out", default="teleop_sweep", help="output folder (default: teleop_sweep)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_sweep)
+
+    p = cmds.add_parser(
+        "generate",
+        help="write a scripted-expert episode as a stream file",
+        description="Run the task's scripted expert and write its commands as "
+        "a pose27 stream file (.json or .npz) to replay.",
+    )
+    p.add_argument("out", type=Path, help="output file (.json or .npz)")
+    p.add_argument(
+        "--task",
+        type=_task,
+        default="handsim/Grasp-v0",
+        help="grasp, press or a registered id (default: grasp)",
+    )
+    p.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: 0)")
+    p.set_defaults(func=_generate)
+
+    p = cmds.add_parser(
+        "send",
+        help="send a stream file as live packets (a test sender)",
+        description="Send a stream file's frames as live JSON packets at its own rate.",
+    )
+    p.add_argument("file", type=Path, help="stream file (.json or .npz)")
+    _port_group(p)
+    p.add_argument(
+        "--speed", type=non_negative_float, default=1.0, help="playback speed factor (default: 1)"
+    )
+    p.set_defaults(func=_send)
+
+    p = cmds.add_parser(
+        "serve",
+        help="serve the WebXR page that streams a headset's hand",
+        description="Serve a static WebXR page: in a headset's browser it reads "
+        "the WebXR Hand Input joints and streams them over the "
+        "WebSocket of 'handsim teleop live --websocket PORT' (run it "
+        "beside); without a headset it replays a recorded file.",
+    )
+    p.add_argument(
+        "--port", type=non_negative_int, default=8000, help="HTTP port of the page (default: 8000)"
+    )
+    p.add_argument(
+        "--websocket",
+        type=non_negative_int,
+        default=8765,
+        help="WebSocket port the page streams to (default: 8765)",
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address (default: 127.0.0.1; others warn: a headset on the network "
+        "needs the machine's address)",
+    )
+    p.add_argument(
+        "--replay",
+        type=Path,
+        default=None,
+        help="stream file the page replays when no headset is present",
+    )
+    p.add_argument(
+        "--duration",
+        type=non_negative_float,
+        default=0.0,
+        help="stop after this many seconds (0: until Ctrl-C)",
+    )
+    p.add_argument(
+        "--out", default=None, help="write the received packets as a stream file (.json or .npz)"
+    )
+    p.set_defaults(func=_serve)
