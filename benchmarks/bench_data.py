@@ -3,7 +3,9 @@
 Measured in one run, on this machine:
 
 - kinematic generation (preset ``hand-only``, 320 x 240, all labels) with 1 and 2 workers, and
-  their ratio (long enough that the workers' start-up, about 3 s, is a small part);
+  their ratio (long enough that the workers' start-up, about 3 s, is a small part), and their
+  frames per CPU-second (the workers' start-up included): on a loaded machine the wall-clock
+  ratio says how many free cores there were, the CPU ratio what 2 workers cost per frame;
 - Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - the same scene's plain MuJoCo depth render rate (``mujoco.Renderer`` with depth on), and the
   ratio of generation with one worker to it;
@@ -19,7 +21,7 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--only all|read|memory]``; writes
+[--memory-frames 1000] [--only all|read|memory|workers]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -40,14 +42,25 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 
+_CPU_S: dict[str, float] = {}
+"""CPU seconds of the last :func:`_generate` run (this process and its reaped workers)."""
+
+
+def _cpu_s() -> float:
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)  # pool workers, once joined
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def _generate(frames: int, workers: int, out: Path, preset: str = "hand-only") -> float:
     from handsim.data.generation import PRESETS, GenerationConfig, generate
 
     config = GenerationConfig.from_mapping(
         PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8)
     )
-    start = time.perf_counter()
+    cpu, start = _cpu_s(), time.perf_counter()
     generate(config, out, workers=workers)
+    _CPU_S["last"] = _cpu_s() - cpu
     return frames / (time.perf_counter() - start)
 
 
@@ -152,7 +165,10 @@ def main() -> None:
     )
     parser.add_argument("--memory", action="store_true", help="also compare peak RSS (slow)")
     parser.add_argument(
-        "--only", choices=("all", "read", "memory"), default="all", help="run one part only"
+        "--only",
+        choices=("all", "read", "memory", "workers"),
+        default="all",
+        help="run one part only",
     )
     parser.add_argument(
         "--memory-frames", type=int, default=1000, help="M of the M vs 10 M memory runs"
@@ -164,13 +180,22 @@ def main() -> None:
     part = args.only
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        if part in ("all", "read"):
+        if part in ("all", "read", "workers"):
             results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
-        if part == "all":
+            results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
+        if part in ("all", "workers"):
             results["generate_2_workers_fps"] = _generate(args.frames, 2, tmp / "w2")
+            results["generate_2_workers_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
             results["workers_2_over_1"] = (
                 results["generate_2_workers_fps"] / results["generate_1_worker_fps"]
             )
+            # CPU per frame of 2 workers (start-up included) against 1: with two free cores,
+            # 2 workers would run at about 2x this of 1 worker's rate.
+            results["workers_2_cpu_efficiency"] = (
+                results["generate_2_workers_frames_per_cpu_s"]
+                / results["generate_1_worker_frames_per_cpu_s"]
+            )
+        if part == "all":
             results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
             results["generate_over_plain_render"] = (
                 results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
