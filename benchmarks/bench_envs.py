@@ -1,7 +1,28 @@
 """Benchmark: env step rates, vector-env scaling, the closed loop, and memory over 10^4 steps.
 
 Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--repeats 2]
-[--only {all,vector,obs_modes,rgb_array}] [--out FILE.json]``.
+[--only {all,vector,obs_modes,rgb_array}] [--limit] [--out FILE.json]``.
+
+``--limit`` runs only the ratios of "the step at the limit" (also printed at the end of a full
+run), each measured interleaved step by step in this run and timed in process CPU time (on a
+shared machine wall time mostly measures the other processes; MuJoCo and the software renderer
+run in this thread since ``import handsim`` sets ``LP_NUM_THREADS=0``; wall rates are in the
+JSON too):
+
+1. physics of a held grasp's control step against bare ``mj_step`` calls (``bench_grasp.py``);
+2. for each env, its labelled frame against MuJoCo's plain depth render (``mujoco.Renderer``)
+   of the same state, the silhouettes kept as the env keeps them;
+3. for each env, the step with its expert (the expert's decision + ``env.step``, and
+   ``env.step`` alone) against bare physics (``mj_step`` x frame skip on a copy of the state) +
+   the plain depth render; and, when ``gymnasium-robotics`` is installed, Grasp-v0 against the
+   peer ``HandManipulateBlock-v1`` stepping with a 320 x 240 RGB or depth render (MuJoCo 4's
+   enums need a small shim in its helpers, :func:`_shim_gymnasium_robotics`);
+4. Grasp-v0 step + 320 x 240 ``rgb_array`` render (``render_quality="fast"`` and ``"high"``)
+   against the depth step;
+5. ``EstimatorLoop`` with the oracle, feedback on against off.
+
+The JSON goes to ``benchmarks/results/bench_envs_limit.json`` (``bench_envs.json`` for a full
+run).
 
 Measured in one run (ICVL camera, 320x240 depth observation, default frame skip 10 = 50 Hz
 control, no sensor noise unless stated):
@@ -29,13 +50,18 @@ control, no sensor noise unless stated):
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
+import sys
 import time
+import types
+from collections.abc import Iterator
 from pathlib import Path
 
 import gymnasium as gym
+import mujoco
 import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
@@ -201,6 +227,356 @@ def _memory(steps: int) -> dict:
             "growth_mib": after - before}  # fmt: skip
 
 
+# --- The step at the limit (issue 11): every ratio from one run -------------------------------
+
+_ENVS = {
+    "HandPose-v0": {},
+    "Grasp-v0": {"objects": "005_tomato_soup_can"},
+    "GraspClutter-v0": {"num_objects": 4},
+}
+
+
+class _Clock:
+    """Process CPU time and wall time of timed blocks.
+
+    CPU time is what a task costs on a shared machine: MuJoCo and software GL run in this
+    thread (``LP_NUM_THREADS=0``).
+    """
+
+    def __init__(self) -> None:
+        self.cpu_s = 0.0
+        self.wall_s = 0.0
+        self.n = 0
+
+    @contextlib.contextmanager
+    def time(self) -> Iterator[None]:
+        cpu, wall = time.process_time(), time.perf_counter()
+        yield
+        self.cpu_s += time.process_time() - cpu
+        self.wall_s += time.perf_counter() - wall
+        self.n += 1
+
+    def rates(self) -> dict:
+        return {
+            "per_cpu_s": self.n / max(self.cpu_s, 1e-12),
+            "per_wall_s": self.n / max(self.wall_s, 1e-12),
+        }
+
+
+def _ratio(a: _Clock, b: _Clock) -> float:
+    """Rate of ``a`` over rate of ``b``, in CPU time."""
+    return a.rates()["per_cpu_s"] / b.rates()["per_cpu_s"]
+
+
+class _Raw:
+    """The cost an env step cannot go below.
+
+    MuJoCo's plain depth render (``mujoco.Renderer``) of the env's camera, and bare physics
+    (``mj_step`` x frame skip) on a scratch copy of the env's state.
+    """
+
+    def __init__(self) -> None:
+        self.model = None
+
+    def bind(self, env: gym.Env) -> None:
+        u = env.unwrapped
+        if self.model is u.scene.model:
+            return
+        self.close()
+        self.model, self.data = u.scene.model, u.scene.data
+        self.scratch = mujoco.MjData(self.model)
+        intr = u.frame_renderer.intrinsics
+        self.renderer = mujoco.Renderer(self.model, intr.height, intr.width)
+        self.renderer.enable_depth_rendering()
+        self.frame_skip = u.config.frame_skip
+        self.renderer.update_scene(self.data, camera="camera")
+        self.renderer.render()  # the first draw uploads the meshes
+
+    def physics_and_render(self, clock: _Clock) -> None:
+        mujoco.mj_copyData(self.scratch, self.model, self.data)
+        with clock.time():
+            mujoco.mj_step(self.model, self.scratch, nstep=self.frame_skip)
+            self.renderer.update_scene(self.scratch, camera="camera")
+            self.renderer.render()
+
+    def render(self, clock: _Clock) -> None:
+        with clock.time():
+            self.renderer.update_scene(self.data, camera="camera")
+            self.renderer.render()
+
+    def close(self) -> None:
+        if self.model is not None:
+            self.renderer.close()
+            self.model = None
+
+
+def _env_vs_limit(name: str, steps: int) -> dict:
+    """Env step with its expert against bare physics + raw depth render of the same state.
+
+    Also the labelled frame against the raw render of the same state; interleaved step by step.
+    """
+    env = gym.make(f"handsim/{name}", **_ENVS[name])
+    u = env.unwrapped
+    seed = 0
+    env.reset(seed=seed)
+    expert = u.make_expert(np.random.default_rng(seed))
+    raw = _Raw()
+    keys = ("env_step", "env_step_only", "limit", "labelled_frame", "raw_render")
+    rng = np.random.default_rng(0)
+    for i in range(steps + 1):
+        if i <= 1:  # round 0 warms up every renderer
+            clocks = {k: _Clock() for k in keys}
+        raw.bind(env)
+        raw.physics_and_render(clocks["limit"])
+        # env_step: the expert's decision and env.step; env_step_only: env.step alone.
+        with clocks["env_step"].time():
+            action = expert.act(u.expert_state()).vector
+            with clocks["env_step_only"].time():
+                _, _, terminated, truncated, _ = env.step(action)
+        # The labelled frame of the state just reached (silhouettes kept as the env keeps them)
+        # against MuJoCo's plain depth render of it.
+        raw.render(clocks["raw_render"])
+        with clocks["labelled_frame"].time():
+            u.frame_renderer.render(rng)
+        if terminated or truncated:
+            seed += 1
+            env.reset(seed=seed)
+            expert = u.make_expert(np.random.default_rng(seed))
+    raw.close()
+    env.close()
+    row = {k: c.rates() for k, c in clocks.items()}
+    row["ratio_env_step_vs_limit"] = _ratio(clocks["env_step"], clocks["limit"])
+    row["ratio_env_step_only_vs_limit"] = _ratio(clocks["env_step_only"], clocks["limit"])
+    row["ratio_labelled_vs_raw_render"] = _ratio(clocks["labelled_frame"], clocks["raw_render"])
+    return row
+
+
+def _shim_gymnasium_robotics() -> None:
+    """Give gymnasium-robotics' helpers plain-int joint types (benchmark only).
+
+    gymnasium-robotics 1.4 tests ``joint_type in (mjtJoint..., ...)``, which MuJoCo 4's enums
+    fail (``==`` holds, ``in`` does not).
+    """
+    from gymnasium_robotics.utils import mujoco_utils
+
+    shim = types.ModuleType("mujoco_int_joint_types")
+    shim.__dict__.update(mujoco.__dict__)
+    shim.mjtJoint = types.SimpleNamespace(  # type: ignore[attr-defined]
+        **{
+            k: int(getattr(mujoco.mjtJoint, k))
+            for k in dir(mujoco.mjtJoint)
+            if k.startswith("mjJNT")
+        }
+    )
+    mujoco_utils.mujoco = shim
+
+
+def _peer(steps: int) -> dict:
+    """Grasp-v0 (expert) against Gymnasium-Robotics' HandManipulateBlock-v1.
+
+    The peer steps (random actions) and renders 320 x 240 RGB or depth; interleaved step by step.
+    """
+    try:
+        import gymnasium_robotics
+    except ImportError:
+        return {"installed": False, "note": "pip install gymnasium-robotics to compare"}
+    _shim_gymnasium_robotics()
+    gym.register_envs(gymnasium_robotics)
+    peers = {
+        mode: gym.make(
+            "HandManipulateBlock-v1", render_mode=mode, width=320, height=240,
+            disable_env_checker=True,  # it declares no depth_array, but renders it
+        )
+        for mode in ("rgb_array", "depth_array")
+    }  # fmt: skip
+    for peer in peers.values():
+        peer.reset(seed=0)
+        peer.action_space.seed(0)
+    grasp = gym.make("handsim/Grasp-v0", **_ENVS["Grasp-v0"])
+    u = grasp.unwrapped
+    seed = 0
+    grasp.reset(seed=seed)
+    expert = u.make_expert(np.random.default_rng(seed))
+    clocks = {k: _Clock() for k in ("Grasp-v0", "peer_rgb", "peer_depth")}
+    for i in range(steps + 1):
+        if i == 1:
+            clocks = {k: _Clock() for k in clocks}
+        with clocks["Grasp-v0"].time():
+            _, _, terminated, truncated, _ = grasp.step(expert.act(u.expert_state()).vector)
+        if terminated or truncated:
+            seed += 1
+            grasp.reset(seed=seed)
+            expert = u.make_expert(np.random.default_rng(seed))
+        for mode, key in (("rgb_array", "peer_rgb"), ("depth_array", "peer_depth")):
+            peer = peers[mode]
+            with clocks[key].time():
+                _, _, terminated, truncated, _ = peer.step(peer.action_space.sample())
+                # Gymnasium's renderer makes its OpenGL context current only when made: with
+                # other contexts in the process it would draw into theirs (and cost nothing).
+                peer.unwrapped.mujoco_renderer._get_viewer(mode).make_context_current()
+                peer.render()
+            if terminated or truncated:
+                peer.reset()
+    for env in (grasp, *peers.values()):
+        env.close()
+    return {
+        "installed": True,
+        "gymnasium_robotics": getattr(gymnasium_robotics, "__version__", "?"),
+        **{k: c.rates() for k, c in clocks.items()},
+        "ratio_grasp_vs_peer_rgb": _ratio(clocks["Grasp-v0"], clocks["peer_rgb"]),
+        "ratio_grasp_vs_peer_depth": _ratio(clocks["Grasp-v0"], clocks["peer_depth"]),
+    }
+
+
+def _rgb_vs_depth(steps: int) -> dict:
+    """Grasp-v0 step + 320 x 240 ``rgb_array`` render against the depth step.
+
+    Both render qualities; the same random actions; interleaved step by step.
+    """
+    grasp = {"objects": "005_tomato_soup_can", "render_width": 320, "render_height": 240}
+    envs = {
+        "depth_step": gym.make("handsim/Grasp-v0", **grasp),
+        "rgb_array_step": gym.make("handsim/Grasp-v0", render_mode="rgb_array", **grasp),
+        "rgb_array_step_high": gym.make(
+            "handsim/Grasp-v0", render_mode="rgb_array", render_quality="high", **grasp
+        ),
+    }
+    for env in envs.values():
+        env.reset(seed=0)
+    space = envs["depth_step"].action_space
+    space.seed(0)
+    clocks = {k: _Clock() for k in envs}
+    for i in range(steps + 1):
+        if i == 1:
+            clocks = {k: _Clock() for k in clocks}
+        action = space.sample()
+        for key, env in envs.items():
+            with clocks[key].time():
+                _, _, terminated, truncated, _ = env.step(action)
+                env.render()
+            if terminated or truncated:
+                env.reset()
+    for env in envs.values():
+        env.close()
+    return {
+        **{k: c.rates() for k, c in clocks.items()},
+        "ratio_rgb_array_vs_depth": _ratio(clocks["rgb_array_step"], clocks["depth_step"]),
+        "ratio_rgb_array_high_vs_depth": _ratio(
+            clocks["rgb_array_step_high"], clocks["depth_step"]
+        ),
+    }
+
+
+def _closed_loop(steps: int) -> dict:
+    """Grasp-v0 in ``EstimatorLoop`` with the oracle, feedback on against off, interleaved."""
+    loops = {
+        key: EstimatorLoop(
+            gym.make("handsim/Grasp-v0", objects="005_tomato_soup_can"),
+            OracleEstimator(noise_mm=10.0, object_noise_mm=10.0, rng=0),
+            feedback=feedback,
+        )
+        for key, feedback in (("feedback_off", False), ("feedback_on", True))
+    }
+    experts, seeds = {}, {}
+    for key, loop in loops.items():
+        seeds[key] = 0
+        loop.reset(seed=0)
+        experts[key] = loop.make_expert(np.random.default_rng(0))
+    clocks = {k: _Clock() for k in loops}
+    for i in range(steps + 1):
+        if i == 1:
+            clocks = {k: _Clock() for k in clocks}
+        for key, loop in loops.items():
+            with clocks[key].time():
+                action = experts[key].act(loop.expert_state()).vector
+                _, _, terminated, truncated, _ = loop.step(action)
+            if terminated or truncated:
+                seeds[key] += 1
+                loop.reset(seed=seeds[key])
+                experts[key] = loop.make_expert(np.random.default_rng(seeds[key]))
+    for loop in loops.values():
+        loop.close()
+    return {
+        **{k: c.rates() for k, c in clocks.items()},
+        "ratio_feedback_on_vs_off": _ratio(clocks["feedback_on"], clocks["feedback_off"]),
+    }
+
+
+def _physics(control_steps: int) -> dict:
+    """Physics of a held grasp's control step against bare ``mj_step`` (bench_grasp.py)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from bench_grasp import bench_physics
+
+    out = bench_physics(["005_tomato_soup_can"], control_steps=control_steps, repeats=3)
+    return {"ratio_driver_vs_bare_mj_step": out["median_ratio"], **out}
+
+
+def _limit_ratios(steps: int) -> dict:
+    """Every ratio of issue 11 (items 1-5), measured in this run."""
+    results: dict = {}
+    print("item 1: physics of a control step vs bare mj_step ...", flush=True)
+    results["physics"] = _physics(max(steps // 2, 20))
+    results["envs"] = {}
+    for name in _ENVS:
+        print(f"items 2-3: {name} step vs raw depth render + physics ...", flush=True)
+        results["envs"][name] = _env_vs_limit(name, steps)
+    print("item 3: Grasp-v0 vs HandManipulateBlock-v1 ...", flush=True)
+    results["peer"] = _peer(steps)
+    print("item 4: rgb_array step vs depth step ...", flush=True)
+    results["rgb_array_vs_depth"] = _rgb_vs_depth(steps)
+    print("item 5: closed loop, feedback on vs off ...", flush=True)
+    results["closed_loop_ratio"] = _closed_loop(steps)
+    envs = results["envs"]
+    results["summary"] = {
+        "1 physics / bare mj_step (target >= 0.85)": results["physics"][
+            "ratio_driver_vs_bare_mj_step"
+        ],
+        **{
+            f"2 {n} labelled frame / raw depth render (target >= 0.8)": envs[n][
+                "ratio_labelled_vs_raw_render"
+            ]
+            for n in envs
+        },
+        **{
+            f"3 {n} expert + step / (raw depth render + physics) (target >= 0.7)": envs[n][
+                "ratio_env_step_vs_limit"
+            ]
+            for n in envs
+        },
+        **{
+            f"3 {n} env.step alone / (raw depth render + physics)": envs[n][
+                "ratio_env_step_only_vs_limit"
+            ]
+            for n in envs
+        },
+        **(
+            {
+                "3 Grasp-v0 / peer step + RGB (target >= 4)": results["peer"][
+                    "ratio_grasp_vs_peer_rgb"
+                ],
+                "3 Grasp-v0 / peer step + depth (target >= 1.5)": results["peer"][
+                    "ratio_grasp_vs_peer_depth"
+                ],
+            }
+            if results["peer"]["installed"]
+            else {}
+        ),
+        "4 rgb_array step / depth step (target >= 0.5)": results["rgb_array_vs_depth"][
+            "ratio_rgb_array_vs_depth"
+        ],
+        "5 closed loop feedback on / off (target >= 0.8)": results["closed_loop_ratio"][
+            "ratio_feedback_on_vs_off"
+        ],
+    }
+    return results
+
+
+def _print_summary(summary: dict) -> None:
+    print("\nratios (rates in process CPU time, measured interleaved in this run):")
+    for key, value in summary.items():
+        print(f"  {key:<70} {value:6.2f}")
+
+
 def main() -> None:
     """Run every measurement, print it, write JSON."""
     parser = argparse.ArgumentParser(description=__doc__)
@@ -211,6 +587,11 @@ def main() -> None:
     )
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument(
+        "--limit",
+        action="store_true",
+        help="only the ratios of issue 11 (step at the limit, labels, peer, RGB, closed loop)",
+    )
+    parser.add_argument(
         "--only",
         choices=["all", "vector", "obs_modes", "rgb_array"],
         default="all",
@@ -218,9 +599,14 @@ def main() -> None:
     )
     args = parser.parse_args()
     if args.out is None:
-        suffix = "" if args.only == "all" else f"_{args.only}"
+        suffix = "_limit" if args.limit else "" if args.only == "all" else f"_{args.only}"
         args.out = f"benchmarks/results/bench_envs{suffix}.json"
     results: dict = {"cpu_count": os.cpu_count(), "load_avg_1min_start": os.getloadavg()[0]}
+    if args.limit:
+        results["limit"] = _limit_ratios(args.steps)
+        _write(results, args.out)
+        _print_summary(results["limit"]["summary"])
+        return
     if args.only != "all":
         runs = {
             "vector": lambda: {"make_vec_fork_2_vs_1": _make_vec_2_vs_1(args)},
@@ -260,7 +646,9 @@ def main() -> None:
     results["obs_modes"] = _obs_modes(args.steps, args.repeats)
     results["rgb_array"] = _rgb_array(args.steps, args.repeats)
     results["memory"] = _memory(args.memory_steps)
+    results["limit"] = _limit_ratios(args.steps)
     _write(results, args.out)
+    _print_summary(results["limit"]["summary"])
 
 
 def _make_vec_2_vs_1(args: argparse.Namespace) -> dict:

@@ -10,7 +10,8 @@ For 320x240 (ICVL) and 640x480 (NYU Carmine) it measures, in one run on one scen
   segmentation + keypoint visibility + object poses, corners and visib_fract + contacts);
 - ``labelled_noisy``: the same with the structured-light model;
 - ``labelled_occlusion``: the same plus the hand occlusion ratio (one more render);
-- ``labelled_moving``: ``labelled`` with every object also moved by 0.1 mm each frame, so no
+- ``labelled_moving``: ``labelled`` with every object also moved by 5 mm each frame (far more
+  than the silhouette tolerance, ``handsim.frame.SILHOUETTE_TOLERANCE_PX``), so no
   object silhouette can be reused (the worst case: new viewpoint or moving objects).
 
 The hand moves between frames (a different gesture each frame). In the other variants the
@@ -74,7 +75,7 @@ def _rate(fn, scene: Scene, poses: list, move_objects: bool = False) -> float:
         start = time.perf_counter()
         for i, pose in enumerate(poses):
             if move_objects:
-                scene.data.qpos[x_adr] += 1e-4 if i % 2 else -1e-4
+                scene.data.qpos[x_adr] += 5e-3 if i % 2 else -5e-3
             scene.binding.set_pose(scene.data, pose)  # also runs mj_forward
             fn()
         best = max(best, len(poses) / (time.perf_counter() - start))

@@ -109,6 +109,7 @@ __all__ = [
     "InvalidAction",
     "IMAGE_SIZE_RANGE",
     "RENDER_SIZE_RANGE",
+    "RENDER_QUALITIES",
     "depth_colormap",
     "scaled_intrinsics",
 ]
@@ -127,6 +128,10 @@ IMAGE_SIZE_RANGE: tuple[int, int] = (8, 2048)
 """Valid observation image ``width`` / ``height``, pixels (inclusive)."""
 RENDER_SIZE_RANGE: tuple[int, int] = (16, 4096)
 """Valid ``render_width`` / ``render_height``, pixels (inclusive)."""
+RENDER_QUALITIES: tuple[str, ...] = ("fast", "high")
+"""``render_quality`` values: ``"fast"`` draws no shadows (a shadow pass more than doubles the
+cost of a software-rendered colour image); ``"high"`` lets one light cast shadows, with a shadow
+map about half the image size."""
 _HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 CONTROL_MODES: tuple[str, ...] = ("pose", "delta")
 """Absolute 27-DoF pose targets, or normalized deltas of the current target."""
@@ -273,6 +278,8 @@ class EnvConfig:
             (what Stable-Baselines3's CNN policies take) instead of ``(H, W)``.
         render_width: width of ``render()`` images, pixels.
         render_height: height of ``render()`` images, pixels.
+        render_quality: ``"fast"`` (default: no shadow pass, the cheapest colour image) or
+            ``"high"`` (one light casts shadows, for pictures); see :data:`RENDER_QUALITIES`.
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
     :mod:`handsim.envs`).
@@ -296,6 +303,7 @@ class EnvConfig:
     channel_axis: bool = False
     render_width: int = 480
     render_height: int = 360
+    render_quality: str = "fast"
 
     @classmethod
     def from_kwargs(
@@ -320,6 +328,7 @@ class EnvConfig:
         channel_axis: object = False,
         render_width: object = 480,
         render_height: object = 360,
+        render_quality: object = "fast",
     ) -> EnvConfig:
         """Validate the keyword arguments of an env (each error lists the valid values)."""
         if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
@@ -371,6 +380,7 @@ class EnvConfig:
             channel_axis=_bool(channel_axis, "channel_axis"),
             render_width=_size(render_width, "render_width", RENDER_SIZE_RANGE),
             render_height=_size(render_height, "render_height", RENDER_SIZE_RANGE),
+            render_quality=_choice(render_quality, "render_quality", RENDER_QUALITIES),
         )
 
 
@@ -1101,8 +1111,9 @@ class HandSimEnv(gym.Env, abc.ABC):
         depth sensor.
 
         Returns:
-            ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image (one light
-            casts shadows, with a shadow map about half the image size; no reflections);
+            ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image (no
+            reflections; no shadows with ``render_quality="fast"``, the default; with
+            ``"high"`` one light casts shadows, with a shadow map about half the image size);
             ``depth_array``: the same shape, uint8 colour-mapped depth (:func:`depth_colormap`:
             near red, far blue, no surface black); ``human``: ``None`` (updates the viewer
             window).
@@ -1122,16 +1133,21 @@ class HandSimEnv(gym.Env, abc.ABC):
             w, h = self.config.render_width, self.config.render_height
             model.vis.global_.offwidth = max(model.vis.global_.offwidth, w)
             model.vis.global_.offheight = max(model.vis.global_.offheight, h)
-            # Cheap shadows (software GL pays per pixel and per pass): one shadow-casting
-            # light, a shadow map about half the image size (MuJoCo's default is 4096), no
-            # reflection pass. The depth sensor's renderer draws no shadows.
-            model.vis.quality.shadowsize = int(
-                np.clip(2 ** int(np.ceil(np.log2(max(w, h)))) // 2, 256, 2048)
-            )
-            for light in range(model.nlight):
-                model.light_castshadow[light] = model.light(light).name == _SHADOW_LIGHT
+            shadows = self.render_mode == "rgb_array" and self.config.render_quality == "high"
+            if shadows:
+                # Cheap shadows (software GL pays per pixel and per pass): one shadow-casting
+                # light, a shadow map about half the image size (MuJoCo's default is 4096).
+                model.vis.quality.shadowsize = int(
+                    np.clip(2 ** int(np.ceil(np.log2(max(w, h)))) // 2, 256, 2048)
+                )
+                for light in range(model.nlight):
+                    model.light_castshadow[light] = model.light(light).name == _SHADOW_LIGHT
             self._rgb_renderer = mujoco.Renderer(model, h, w)
-            self._rgb_renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            # No reflection pass; the shadow pass only for high-quality colour (depth needs no
+            # lighting). The depth sensor's renderer draws neither.
+            flags = self._rgb_renderer.scene.flags
+            flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
             if self.render_mode == "depth_array":
                 self._rgb_renderer.enable_depth_rendering()
         with self.viewer_clip_planes():

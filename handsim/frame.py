@@ -31,7 +31,12 @@ Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the cam
 ``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
 nothing else in the scene) that is visible in the full render (pixels where the full render sees
 the object). Unoccluded objects need no extra render (see ``FrameRenderer._silhouettes``);
-the others share one silhouette render when their projected boxes do not overlap. The hand
+the others share one silhouette render when their projected boxes do not overlap. A silhouette
+is reused while the object has moved by at most ``silhouette_tolerance_px`` in the image
+(:data:`SILHOUETTE_TOLERANCE_PX`, 0.1 pixel) since it was made: objects resting in clutter, which
+jitter by tens of micrometres a step, then cost no render, and the counts differ from a fresh
+render at most by the mask's boundary pixels whose centres the edge crossed (exact counts:
+``silhouette_tolerance_px=0``). The hand
 occlusion ratio is ``1 - visible hand pixels / hand pixels with every
 object hidden``; it needs one more render and is computed on request.
 
@@ -42,6 +47,7 @@ object instance, position in the camera frame, normal force in newtons).
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import cv2
 import mujoco
@@ -64,6 +70,7 @@ __all__ = [
     "OCCLUDER_SELF",
     "OCCLUDER_SCENE",
     "VISIBILITY_TOLERANCE_M",
+    "SILHOUETTE_TOLERANCE_PX",
 ]
 
 OCCLUDER_NONE = -1
@@ -75,6 +82,12 @@ OCCLUDER_SCENE = -3
 VISIBILITY_TOLERANCE_M = 0.005
 """Allowance beyond the skin radius for a surface in front of a keypoint, metres."""
 
+SILHOUETTE_TOLERANCE_PX = 0.1
+"""Default image motion, pixels, below which an object's silhouette is reused (see
+:class:`FrameRenderer`): it bounds the reused mask's difference from a fresh render to pixels whose
+centres lie within 0.1 pixel of the silhouette's edge."""
+
+_KERNEL_3X3 = np.ones((3, 3), np.uint8)
 _HIDDEN_GROUP = 5  # a geom group no camera renders
 # A neighbouring hand/object surface up to this far behind an object still counts as a
 # possible occluder (conservative: it only costs a silhouette render).
@@ -193,6 +206,40 @@ class Frame:
         return arrays_to_frame(arrays, camera=camera)
 
 
+class _Mask(NamedTuple):
+    """A binary mask stored as the crop ``pixels`` whose top-left pixel is ``(u0, v0)``."""
+
+    u0: int
+    v0: int
+    pixels: np.ndarray
+
+    def count(self) -> int:
+        """Pixels in the mask."""
+        return int(np.count_nonzero(self.pixels))
+
+    def count_where(self, labels: np.ndarray, label: int) -> int:
+        """Pixels of the mask where the (H, W) image ``labels`` equals ``label``."""
+        h, w = self.pixels.shape
+        crop = labels[self.v0 : self.v0 + h, self.u0 : self.u0 + w]
+        return int(np.count_nonzero(self.pixels & (crop == label)))
+
+
+def _pixel_box(
+    lo: np.ndarray, hi: np.ndarray, width: int, height: int, margin: int
+) -> tuple[int, int, int, int]:
+    """Pixel box ``(u0, v0, u1, v1)``, end exclusive, of the pixel centres in ``[lo, hi]``.
+
+    ``lo`` and ``hi`` are (2,) pixel coordinates ``(u, v)`` (may be infinite); the box is widened
+    by ``margin`` pixels and clipped to the image.
+    """
+    size = np.array([width, height])
+    lo = np.floor(np.clip(lo, -1 - margin, size + margin)).astype(int) - margin
+    hi = np.ceil(np.clip(hi, -1 - margin, size + margin)).astype(int) + margin + 1
+    u0, v0 = np.clip(lo, 0, size)
+    u1, v1 = np.clip(hi, 0, size)
+    return int(u0), int(v0), int(u1), int(v1)
+
+
 def _keypoint_radii(scene: Scene) -> np.ndarray:
     """Largest collision radius of the segments that meet at each keypoint, metres."""
     skeleton = scene.hand.skeleton
@@ -262,6 +309,12 @@ def _read_only(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _owned_read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` itself, made read-only: for arrays made for one Frame and shared with nothing."""
+    array.setflags(write=False)
+    return array
+
+
 class FrameRenderer:
     """Renders labelled frames of one scene from one camera.
 
@@ -269,13 +322,23 @@ class FrameRenderer:
         scene: a scene with a hand.
         camera: name of one of the scene's cameras.
         sensor: depth noise model (default: none).
+        silhouette_tolerance_px: image motion, pixels in [0, 0.5), up to which an object's
+            silhouette is reused (module docstring); 0 re-renders whenever the object's pose
+            relative to the camera changed at all.
 
     Raises:
-        InvalidScene: for an unknown camera.
+        InvalidScene: for an unknown camera or a bad ``silhouette_tolerance_px``.
         UnknownName: if the scene has no hand.
     """
 
-    def __init__(self, scene: Scene, camera: str, sensor: SensorModel | None = None) -> None:
+    def __init__(
+        self,
+        scene: Scene,
+        camera: str,
+        sensor: SensorModel | None = None,
+        *,
+        silhouette_tolerance_px: float = SILHOUETTE_TOLERANCE_PX,
+    ) -> None:
         if not isinstance(scene, Scene):
             raise InvalidScene(f"scene must be a Scene; received {type(scene).__name__}")
         if not isinstance(camera, str):
@@ -287,6 +350,17 @@ class FrameRenderer:
             )
         if scene.hand is None:
             raise UnknownName("a FrameRenderer needs a scene with a hand; SceneSpec(hand=None)")
+        tolerance = silhouette_tolerance_px
+        if (
+            isinstance(tolerance, bool)
+            or not isinstance(tolerance, (int, float, np.integer, np.floating))
+            or not 0.0 <= tolerance < 0.5
+        ):
+            raise InvalidScene(
+                f"silhouette_tolerance_px must be a number in [0, 0.5) pixels; received "
+                f"{tolerance!r}"
+            )
+        self.silhouette_tolerance_px = float(tolerance)
         self.scene = scene
         self.camera_spec = scene.camera(camera)
         self.intrinsics = self.camera_spec.intrinsics
@@ -303,11 +377,29 @@ class FrameRenderer:
             np.nonzero(scene.geom_labels == OBJECT_LABEL_OFFSET + k)[0]
             for k in range(len(scene.objects))
         ]
-        self._object_bodies = [model.body(body).id for body, _ in scene.objects]
+        self._object_bodies = np.array(
+            [model.body(body).id for body, _ in scene.objects], dtype=np.intp
+        )
+        # (n, 8, 3) box corners of each object in its body frame, metres.
+        self._object_corners = np.array([obj.corners_m for _, obj in scene.objects]).reshape(
+            -1, 8, 3
+        )
         labels = scene.geom_labels
         self._is_hand_geom = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
-        # instance -> (pose key, silhouette mask); see _silhouettes.
-        self._silhouette_cache: dict[int, tuple[bytes, np.ndarray]] = {}
+        # geom id -> object instance (-1: not an object); geom id -1 (background) -> the last.
+        instance = np.where(labels >= OBJECT_LABEL_OFFSET, labels - OBJECT_LABEL_OFFSET, -1)
+        self._geom_instance = np.append(instance, -1).astype(np.intp)
+        self._geom_labels = labels.astype(np.int16)
+        # Buffers reused by every frame (no image-sized allocation per frame but the Frame's).
+        h, w = self.intrinsics.height, self.intrinsics.width
+        self._depth_buffer = np.empty((h, w), dtype=np.float32)
+        self._mask_buffer = np.empty((h, w), dtype=bool)
+        self._far_buffer = np.empty((h, w), dtype=bool)
+        # Each object's silhouette and its box corners in the camera frame when it was made
+        # (NaN: none yet); see _silhouettes.
+        self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
+        self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
+        self._K = _read_only(self.intrinsics.K)
 
     def close(self) -> None:
         """Free the renderer."""
@@ -336,54 +428,82 @@ class FrameRenderer:
         finally:
             groups[:] = saved
 
+    def _moved_px(self, before: np.ndarray, after: np.ndarray) -> np.ndarray | float:
+        """Upper bound on how far any point of an object moved in the image, pixels.
+
+        ``before`` and ``after`` are (..., 8, 3) box corners of objects in the camera frame (NaN
+        rows give NaN). The motion between them is rigid, so a point's displacement is an
+        affine function of its body-frame position and its length is largest at a corner: every
+        point moved by at most ``D`` = the largest corner displacement. A point ``(x, y, z)``
+        moved by ``(dx, dy, dz)`` moves in the image by ``fx * (dx - (x / z) dz) / z'`` along u
+        (``z'``: its new depth), so by at most ``fx * D * (1 + |x / z|) / z'``; ``|x / z|`` (a
+        ratio of affine functions) and ``z'`` take their extremes over the box at corners.
+        An object partly behind the camera gets ``inf``.
+        """
+        before, after = np.asarray(before), np.asarray(after)
+        moved_m = np.sqrt(np.max(np.sum((after - before) ** 2, axis=-1), axis=-1))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            slope = np.max(np.abs(before[..., :2] / before[..., 2:]), axis=-2)
+            scale = np.maximum(
+                self.intrinsics.fx * (1 + slope[..., 0]), self.intrinsics.fy * (1 + slope[..., 1])
+            )
+            bound = scale * moved_m / np.min(after[..., 2], axis=-1)
+        behind = np.any(before[..., 2] <= 0.0, axis=-1) | np.any(after[..., 2] <= 0.0, axis=-1)
+        bound = np.where(behind, np.inf, np.where(moved_m == 0.0, 0.0, bound))
+        return float(bound) if bound.ndim == 0 else bound
+
     def _silhouettes(
         self,
         data: mujoco.MjData,
         labels: np.ndarray,
         depth_m: np.ndarray,
+        corners_cam: np.ndarray,
         boxes: list[tuple[np.ndarray, np.ndarray]],
-    ) -> list[np.ndarray]:
-        """Silhouette mask of each object rendered alone (BOP's ``mask``).
+    ) -> list[_Mask]:
+        """Silhouette mask of each object rendered alone (BOP's ``mask``), as image crops.
 
-        An object whose visible region nowhere borders a nearer hand or other object is not
-        occluded (its silhouette is connected, so a hidden part would border its occluder):
-        its silhouette is its visible region, with no render. The others are rendered alone;
-        objects whose projected boxes do not overlap share one render. A silhouette depends only
-        on the object's and the camera's poses, so it is reused while both are unchanged (bit
-        for bit): objects at rest under a moving hand cost no render.
+        A silhouette depends only on the object's pose relative to the camera. It is reused
+        while no point of the object has moved by more than ``silhouette_tolerance_px`` in the
+        image since it was made (:meth:`_moved_px`): a pixel of a rendered mask changes only
+        when the silhouette's edge crosses its centre, so the reused mask differs from a fresh
+        render only in pixels whose centres lie within the tolerance of the edge (the mask's
+        boundary pixels). Objects resting under a moving hand, which still move by tens of
+        micrometres a step, then cost no render. Otherwise, an object whose visible region
+        nowhere borders a nearer hand or other object is not occluded (its silhouette is
+        connected, so a hidden part would border its occluder): its silhouette is its visible
+        region, with no render. The others are rendered alone; objects whose projected boxes
+        do not overlap share one render, of their boxes' pixels only.
         """
         h, w = labels.shape
-        masks: list[np.ndarray | None] = [None] * len(boxes)
-        cam = self.renderer.camera_id
-        camera_key = data.cam_xpos[cam].tobytes() + data.cam_xmat[cam].tobytes()
-        keys = [
-            camera_key + data.xpos[b].tobytes() + data.xmat[b].tobytes()
-            for b in self._object_bodies
-        ]
-        kernel = np.ones((3, 3), np.uint8)
+        masks: list[_Mask | None] = [None] * len(boxes)
+        kernel = _KERNEL_3X3
         pending = []
+        # NaN (no silhouette yet) compares False.
+        kept = self._moved_px(self._silhouette_corners, corners_cam) <= self.silhouette_tolerance_px
         for k, (lo, hi) in enumerate(boxes):
-            cached = self._silhouette_cache.get(k)
-            if cached is not None and cached[0] == keys[k]:
-                masks[k] = cached[1]
+            if kept[k]:
+                masks[k] = self._silhouette_masks[k]
                 continue
-            own = labels == OBJECT_LABEL_OFFSET + k
-            in_image = np.all(hi >= 0) and hi[0] >= 0 and lo[0] < w and lo[1] < h
+            # The box's pixels and a one-pixel ring around them (the object is inside the box).
+            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=1)
+            if u1 <= u0 or v1 <= v0:
+                masks[k] = _Mask(0, 0, np.zeros((0, 0), dtype=bool))
+                continue
+            crop_labels = labels[v0:v1, u0:u1]
+            own = crop_labels == OBJECT_LABEL_OFFSET + k
             if not own.any():
-                if in_image:
-                    pending.append(k)  # fully hidden, or too small to see
-                else:
-                    masks[k] = own
+                pending.append(k)  # fully hidden, or too small to see
                 continue
-            ring = cv2.dilate(own.astype(np.uint8), kernel).astype(bool) & ~own
-            foreign = ring & (labels >= _PALM_LABEL)
+            ring = cv2.dilate(own.view(np.uint8), kernel).view(bool) & ~own
+            foreign = ring & (crop_labels >= _PALM_LABEL)
             if foreign.any():
                 # Depth of the neighbouring object pixels at each ring pixel.
-                near = cv2.dilate(np.where(own, depth_m, 0.0).astype(np.float32), kernel)
-                if np.any(depth_m[foreign] < near[foreign] + _OCCLUSION_MARGIN_M):
+                crop_depth = depth_m[v0:v1, u0:u1]
+                near = cv2.dilate(np.where(own, crop_depth, np.float32(0.0)), kernel)
+                if np.any(crop_depth[foreign] < near[foreign] + _OCCLUSION_MARGIN_M):
                     pending.append(k)
                     continue
-            masks[k] = own
+            masks[k] = _Mask(u0, v0, own)
         while pending:
             group, taken = [], []
             for k in pending:
@@ -394,21 +514,22 @@ class FrameRenderer:
             # Read only the group's projected box (the corner boxes enclose the objects).
             lo = np.min([boxes[k][0] for k in group], axis=0)
             hi = np.max([boxes[k][1] for k in group], axis=0)
-            u0, v0 = np.floor(np.clip(lo, 0, [w, h])).astype(int)
-            u1, v1 = np.ceil(np.clip(hi + 1, 0, [w, h])).astype(int)
+            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=0)
             geom_ids = self._render_only(
                 data, np.concatenate([self._object_geoms[k] for k in group]), (u0, v0, u1, v1)
             )
-            seen = np.full((h, w), -1, dtype=np.int32)
-            seen[v0:v1, u0:u1] = np.where(
-                geom_ids >= 0, self.scene.geom_labels[np.maximum(geom_ids, 0)], -1
-            )
+            seen = self._geom_instance[geom_ids]
             for k in group:
-                masks[k] = seen == OBJECT_LABEL_OFFSET + k
+                ku0, kv0, ku1, kv1 = _pixel_box(*boxes[k], w, h, margin=0)
+                ku0, kv0 = max(ku0, u0), max(kv0, v0)
+                ku1, kv1 = max(min(ku1, u1), ku0), max(min(kv1, v1), kv0)
+                masks[k] = _Mask(ku0, kv0, seen[kv0 - v0 : kv1 - v0, ku0 - u0 : ku1 - u0] == k)
             pending = [k for k in pending if k not in group]
         for k, mask in enumerate(masks):
-            mask.setflags(write=False)
-            self._silhouette_cache[k] = (keys[k], mask)
+            if not kept[k]:
+                mask.pixels.setflags(write=False)
+                self._silhouette_masks[k] = mask
+                self._silhouette_corners[k] = corners_cam[k]
         return masks
 
     def _visibility(
@@ -467,19 +588,25 @@ class FrameRenderer:
         """
         scene, model, data = self.scene, self.scene.model, self.scene.data
         intr = self.intrinsics
-        depth_clean, geom_id = self.renderer.render(data)
+        labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
+        depth_clean, labels = self.renderer.render(
+            data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
+        )
         # The camera's working range: nothing is measured outside it (the far clip plane of
         # the scene may serve a camera with a longer range).
-        # Background pixels (depth 0, geom -1) are nearer than `near` too; resetting them is
+        # Background pixels (depth 0, label 0) are nearer than `near` too; resetting them is
         # harmless and saves a pass.
-        out_of_range = depth_clean < self._near_m
+        out_of_range = np.less(depth_clean, self._near_m, out=self._mask_buffer)
         if self._check_far:
-            out_of_range |= depth_clean > self._far_m
-        if out_of_range.any():
-            depth_clean[out_of_range] = 0.0
-            geom_id[out_of_range] = -1
-        labels = scene.segment(geom_id)
-        depth = self.sensor.apply(depth_clean, intr, rng)
+            out_of_range |= np.greater(depth_clean, self._far_m, out=self._far_buffer)
+        np.copyto(depth_clean, np.float32(0.0), where=out_of_range)
+        np.copyto(labels, np.int16(0), where=out_of_range)
+        if type(self.sensor) is NoNoise:
+            depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
+        else:
+            depth = self.sensor.apply(depth_clean, intr, rng)
+            if np.may_share_memory(depth, depth_clean):
+                depth = depth.copy()  # a sensor model that returned its input
         T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
         R, t = T[:3, :3], T[:3, 3]  # noqa: N806
 
@@ -493,33 +620,37 @@ class FrameRenderer:
         row = np.rint(kp_px[:, 1])
         in_frame = (z > 0) & (col >= 0) & (col < intr.width) & (row >= 0) & (row < intr.height)
         visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
-        # Objects.
-        poses, boxes = [], []
-        for body, obj in scene.objects:
-            T_world_obj = np.eye(4)  # noqa: N806
-            T_world_obj[:3, :3] = data.body(body).xmat.reshape(3, 3)
-            T_world_obj[:3, 3] = data.body(body).xpos
-            T_cam_obj = T @ T_world_obj  # noqa: N806
-            corners = obj.corners_m @ T_cam_obj[:3, :3].T + T_cam_obj[:3, 3]
-            poses.append((T_cam_obj, corners))
-            if np.all(corners[:, 2] > 1e-3):
-                uv = intr.project(corners)
-                boxes.append((uv.min(axis=0), uv.max(axis=0)))
+        # Objects, all at once: (n, 4, 4) poses and (n, 8, 3) box corners in the camera frame.
+        n = len(scene.objects)
+        bodies = self._object_bodies
+        T_cam_obj = np.zeros((n, 4, 4))  # noqa: N806
+        T_cam_obj[:, :3, :3] = R @ data.xmat[bodies].reshape(n, 3, 3)
+        T_cam_obj[:, :3, 3] = data.xpos[bodies] @ R.T + t
+        T_cam_obj[:, 3, 3] = 1.0
+        corners_cam = (
+            np.einsum("nij,nkj->nki", T_cam_obj[:, :3, :3], self._object_corners)
+            + T_cam_obj[:, None, :3, 3]
+        )
+        boxes = []
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = intr.project(corners_cam)  # (n, 8, 2)
+        for k in range(n):
+            if np.all(corners_cam[k, :, 2] > 1e-3):
+                boxes.append((uv[k].min(axis=0), uv[k].max(axis=0)))
             else:  # partly behind the camera: its image extent is unbounded
                 boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
-        silhouettes = self._silhouettes(data, labels, depth_clean, boxes)
+        silhouettes = self._silhouettes(data, labels, depth_clean, corners_cam, boxes)
         objects = []
         for k, (_, obj) in enumerate(scene.objects):
-            T_cam_obj, corners = poses[k]  # noqa: N806
-            px_all = int(np.count_nonzero(silhouettes[k]))
-            px_visib = int(np.count_nonzero(silhouettes[k] & (labels == OBJECT_LABEL_OFFSET + k)))
+            px_all = silhouettes[k].count()
+            px_visib = silhouettes[k].count_where(labels, OBJECT_LABEL_OFFSET + k)
             objects.append(
                 ObjectLabel(
                     instance=k,
                     name=obj.name,
                     ycbv_id=obj.ycbv_id,
-                    T_cam_from_obj=_read_only(T_cam_obj),
-                    corners_cam=_read_only(corners),
+                    T_cam_from_obj=_owned_read_only(T_cam_obj[k].copy()),
+                    corners_cam=_owned_read_only(corners_cam[k].copy()),
                     visib_fract=px_visib / px_all if px_all else 0.0,
                     px_count_all=px_all,
                     px_count_visib=px_visib,
@@ -537,31 +668,37 @@ class FrameRenderer:
             occlusion_ratio = 1.0 - visible_px / hand_px if hand_px else 0.0
 
         contacts = []
-        body_instance = {b: k for k, b in enumerate(self._object_bodies)}
-        force = np.zeros(6)
-        for i in range(data.ncon):
-            c = data.contact[i]
-            for hand_geom, other in ((c.geom1, c.geom2), (c.geom2, c.geom1)):
-                instance = body_instance.get(int(model.geom_bodyid[other]))
-                if self._is_hand_geom[hand_geom] and instance is not None:
-                    mujoco.mj_contactForce(model, data, i, force)
-                    contacts.append(
-                        Contact(
-                            hand_part=int(scene.geom_labels[hand_geom]),
-                            instance=instance,
-                            pos_cam=_read_only(R @ c.pos + t),
-                            normal_force_n=float(force[0]),
+        ncon = data.ncon
+        if ncon and n:
+            pairs = data.contact.geom[:ncon]  # (ncon, 2) geom ids
+            hand_first = self._is_hand_geom[pairs[:, 0]] & (self._geom_instance[pairs[:, 1]] >= 0)
+            hand_second = self._is_hand_geom[pairs[:, 1]] & (self._geom_instance[pairs[:, 0]] >= 0)
+            force = np.zeros(6)
+            for i in np.flatnonzero(hand_first | hand_second):
+                pos_cam = R @ data.contact.pos[i] + t
+                for hand_geom, other, hit in (
+                    (pairs[i, 0], pairs[i, 1], hand_first[i]),
+                    (pairs[i, 1], pairs[i, 0], hand_second[i]),
+                ):
+                    if hit:
+                        mujoco.mj_contactForce(model, data, int(i), force)
+                        contacts.append(
+                            Contact(
+                                hand_part=int(scene.geom_labels[hand_geom]),
+                                instance=int(self._geom_instance[other]),
+                                pos_cam=_owned_read_only(pos_cam.copy()),
+                                normal_force_n=float(force[0]),
+                            )
                         )
-                    )
 
         hand = scene.hand.params
         return Frame(
             camera=self.camera_spec.name,
-            K=_read_only(intr.K),
+            K=self._K,
             T_cam_from_world=_read_only(T),
-            depth=_read_only(depth),
+            depth=_owned_read_only(depth),
             depth_clean=_read_only(depth_clean) if keep_clean else None,
-            segmentation=_read_only(labels),
+            segmentation=_owned_read_only(labels),
             keypoints_cam=_read_only(kp_cam),
             keypoints_px=_read_only(kp_px),
             in_frame=_read_only(in_frame),

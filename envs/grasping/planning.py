@@ -86,6 +86,9 @@ class GraspPlanningError(HandSimError, RuntimeError):
 # State ----------------------------------------------------------------------------------------
 
 
+_EYE3 = np.eye(3)
+
+
 def _check_transform(T: object, name: str) -> np.ndarray:
     array = np.array(T, dtype=np.float64)
     if array.shape != (4, 4) or not np.all(np.isfinite(array)):
@@ -94,7 +97,9 @@ def _check_transform(T: object, name: str) -> np.ndarray:
             f"{np.shape(T)} {'with NaN/Inf' if array.shape == (4, 4) else ''}".rstrip()
         )
     rot = array[:3, :3]
-    if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-5) or np.linalg.det(rot) < 0:
+    # np.allclose(rot.T @ rot, I, atol=1e-5) and a positive determinant, without their overhead.
+    orthonormal = np.all(np.abs(rot.T @ rot - _EYE3) <= 1e-5 + 1e-5 * _EYE3)
+    if not orthonormal or np.linalg.det(rot) < 0:
         raise InvalidGraspState(f"{name}[:3, :3] must be a rotation matrix; received {rot}")
     return array
 

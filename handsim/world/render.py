@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 
+import cv2
 import mujoco
 import numpy as np
 from mujoco import gl_context
@@ -25,6 +26,8 @@ __all__ = ["DepthRenderer", "RENDERED_GEOM_GROUPS", "RenderError"]
 
 RENDERED_GEOM_GROUPS: tuple[int, ...] = (0, 1, 2)
 """Geom groups a depth camera sees."""
+
+_OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
 
 class RenderError(HandSimError, RuntimeError):
@@ -103,6 +106,10 @@ class DepthRenderer:
         self._rect = mujoco.MjrRect(0, 0, w, h)
         self._rgb = np.empty((h, w, 3), dtype=np.uint8)
         self._zbuffer = np.empty((h, w), dtype=np.float32)
+        self._background = np.empty((h, w), dtype=bool)
+        self._lut = np.empty(256, dtype=np.int32)  # segmentation colour index -> geom id
+        self._lut_key: tuple | None = None
+        self._red: np.ndarray | None = None
         extent = model.stat.extent
         near = np.float32(model.vis.map.znear * extent)
         far = np.float32(model.vis.map.zfar * extent)
@@ -121,42 +128,117 @@ class DepthRenderer:
         )  # fmt: skip
         mujoco.mjr_render(self._rect, self._scene, self._context)
 
-    def _geom_ids(self, rgb_bottom_up: np.ndarray) -> np.ndarray:
+    def _segment_lut(self) -> np.ndarray:
+        """Geom id of each segmentation colour index (``segid + 1``; 0 = background -> -1).
+
+        ``mjv_updateScene`` adds the visible geoms in model order, so the table changes only
+        with what decides visibility (geom groups, transparency, materials) or the number of
+        scene geoms: it is rebuilt then (reading the scene's geoms costs about 40 us a frame),
+        and also when the scene's first or last geom is not the one the table says.
+        """
+        model, scene = self.model, self._scene
+        ngeom = scene.ngeom
+        key = (
+            ngeom,
+            model.geom_group.tobytes(),
+            model.geom_rgba[:, 3].tobytes(),
+            model.geom_matid.tobytes(),
+            model.mat_rgba[:, 3].tobytes(),
+        )
+        lut = self._lut
+        if key == self._lut_key and ngeom:
+            geoms = scene.geoms
+            ends = (geoms[0], geoms[ngeom - 1])
+            if all(lut[g.segid + 1] == (g.objid if g.objtype == _OBJ_GEOM else -1) for g in ends):
+                return lut
+        if len(lut) < ngeom + 1:
+            lut = self._lut = np.empty(ngeom + 1, dtype=np.int32)
+        lut.fill(-1)
+        for g in scene.geoms[:ngeom]:
+            if g.segid >= 0 and g.objtype == _OBJ_GEOM:
+                lut[g.segid + 1] = g.objid
+        self._lut_key = key
+        return lut
+
+    def _colour_index(self, rgb_bottom_up: np.ndarray) -> np.ndarray:
+        """Top-down (H, W) segmentation colour index: uint8 below 255 scene geoms, else int32."""
         # The offscreen buffer is bottom-up.
         rgb = rgb_bottom_up[::-1]
-        ngeom = self._scene.ngeom
-        lut = np.full(max(ngeom + 1, 256), -1, dtype=np.int32)
-        for g in self._scene.geoms[:ngeom]:
-            if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
-                lut[g.segid + 1] = g.objid
-        if ngeom < 255:
-            # Segmentation colour = segid + 1 in the red byte; one uint8 gather suffices.
-            return lut[rgb[..., 0]]
-        segid = (
+        if self._scene.ngeom < 255:
+            # Segmentation colour = segid + 1 in the red byte.
+            if self._red is None or self._red.shape != rgb.shape[:2]:
+                self._red = np.empty(rgb.shape[:2], dtype=np.uint8)
+            np.copyto(self._red, rgb[..., 0])
+            return self._red
+        return (
             rgb[..., 0].astype(np.int32)
             | (rgb[..., 1].astype(np.int32) << 8)
             | (rgb[..., 2].astype(np.int32) << 16)
-        )  # 0 = background
-        return lut[np.minimum(segid, len(lut) - 1)]
+        )
 
-    def render(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    def _geom_ids(
+        self,
+        rgb_bottom_up: np.ndarray,
+        out: np.ndarray | None = None,
+        geom_values: np.ndarray | None = None,
+        fill: int = -1,
+    ) -> np.ndarray:
+        lut = self._segment_lut()
+        if geom_values is not None:
+            values = np.append(geom_values, fill).astype(geom_values.dtype)
+            lut = values[lut]  # geom id -1 -> the appended fill value
+        index = self._colour_index(rgb_bottom_up)
+        if index.dtype == np.uint8:
+            # A 256-entry table in OpenCV: a third of the cost of numpy's take.
+            table = np.full(256, fill, dtype=lut.dtype)
+            table[: len(lut)] = lut
+            if out is None:
+                return cv2.LUT(index, table)
+            cv2.LUT(index, table, dst=out)
+            return out
+        return np.take(lut, np.minimum(index, len(lut) - 1), out=out)
+
+    def render(
+        self,
+        data: mujoco.MjData,
+        out: tuple[np.ndarray, np.ndarray] | None = None,
+        *,
+        geom_values: np.ndarray | None = None,
+        fill: int = -1,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Render the current state.
 
         Args:
             data: simulation data (positions up to date, e.g. after ``mj_forward``).
+            out: ``(depth_m, geom_id)`` arrays to write into ((H, W) float32 and (H, W) int32,
+                or ``geom_values``' dtype; C-contiguous), e.g. buffers reused every frame;
+                default: new arrays.
+            geom_values: (ngeom,) integer values (e.g. segmentation labels) to give instead of
+                geom ids: the second image is ``geom_values[geom id]``, ``fill`` on background.
+            fill: the second image's value on background (no geom), with ``geom_values``.
 
         Returns:
             ``(depth_m, geom_id)``: (H, W) float32 depth along the optical axis, metres, 0 where
-            no geom is seen; (H, W) int32 geom id, -1 for background.
+            no geom is seen; (H, W) int32 geom id, -1 for background, or the ``geom_values``
+            image (``out`` when given).
         """
         self._draw(data)
         mujoco.mjr_readPixels(self._rgb, self._zbuffer, self._rect, self._context)
-        geom_id = self._geom_ids(self._rgb)
+        if out is None:
+            dtype = np.int32 if geom_values is None else geom_values.dtype
+            out = (np.empty_like(self._zbuffer), np.empty(self._zbuffer.shape, dtype=dtype))
+        depth_m, ids = out
+        self._geom_ids(self._rgb, out=ids, geom_values=geom_values, fill=fill)
         # float32 is enough: the relative rounding error is ~1e-7 (0.2 um at 1.5 m).
-        depth_m = self._zbuffer[::-1] + self._c
+        np.add(self._zbuffer[::-1], self._c, out=depth_m)
         np.divide(self._d, depth_m, out=depth_m)
-        depth_m[geom_id < 0] = 0.0
-        return depth_m, geom_id
+        background = self._background
+        if self._scene.ngeom < 255:
+            np.equal(self._red, 0, out=background)  # colour index 0: no geom
+        else:
+            np.less(self._geom_ids(self._rgb), 0, out=background)
+        np.copyto(depth_m, np.float32(0.0), where=background)
+        return depth_m, ids
 
     def render_segmentation(
         self, data: mujoco.MjData, region: tuple[int, int, int, int] | None = None

@@ -178,6 +178,7 @@ def test_uint16_mm_depth_and_channel_axis():
         ({"height": True}, r"height must be an integer .*received True"),
         ({"render_width": 5}, r"render_width must be an integer .*\[16, 4096\]; received 5"),
         ({"render_height": None}, r"render_height must be an integer"),
+        ({"render_quality": "best"}, r"render_quality='best' is not valid; choose one of fast, "),
         ({"depth_format": "mm"}, r"depth_format='mm' is not valid; choose one of float32_m, "),
         ({"channel_axis": "yes"}, r"channel_axis must be True or False; received 'yes'"),
         ({"labels": 1}, r"labels must be True or False; received 1"),
@@ -259,6 +260,21 @@ def test_viewer_frames_the_hand_and_the_objects(env_id, mode):
     for k in range(len(base.scene.objects)):
         assert OBJECT_LABEL_OFFSET + k in labels
     env.close()
+
+
+def test_render_quality_high_adds_shadows_to_the_same_picture():
+    """With render_quality="high" shadows darken parts of the same picture "fast" draws."""
+    images = {}
+    for quality in ("fast", "high"):
+        env = _make("handsim/Grasp-v0", render_mode="rgb_array", render_width=160,
+                    render_height=120, render_quality=quality)  # fmt: skip
+        env.reset(seed=5)
+        images[quality] = env.render().astype(np.int16)
+        env.close()
+    darker = images["fast"] - images["high"]
+    assert np.count_nonzero(darker.sum(axis=-1) > 30) > 50  # shadowed pixels
+    assert np.count_nonzero(darker.sum(axis=-1) < -30) == 0  # shadows only darken
+    assert np.median(np.abs(darker)) == 0  # elsewhere the same picture
 
 
 @pytest.mark.parametrize("mode", ["rgb_array", "depth_array"])

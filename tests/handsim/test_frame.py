@@ -319,3 +319,98 @@ def test_a_keypoint_is_visible_only_on_its_own_part():
                 depth = frame.depth[rows, cols]
                 near = np.abs(depth - frame.keypoints_cam[k, 2]) < 0.03
                 assert np.any(own & near & (depth > 0)), KEYPOINT_NAMES[k]
+
+
+def _clutter_scene(seed: int):
+    from handsim.world.scene import sample_placements, third_person_camera
+
+    rng = np.random.default_rng(seed)
+    names = ("005_tomato_soup_can", "003_cracker_box", "025_mug", "011_banana")
+    placements = sample_placements(rng, names)
+    return Scene(SceneSpec(objects=placements, cameras=(third_person_camera(ICVL),)))
+
+
+def test_silhouette_motion_bound_holds_for_every_model_point():
+    """_moved_px bounds the image motion of every model point of a rigidly moved object."""
+    from scipy.spatial.transform import Rotation
+
+    scene = _clutter_scene(3)
+    rng = np.random.default_rng(0)
+    with FrameRenderer(scene, "third_person") as renderer:
+        frame = renderer.render(rng)
+        for label, (_, obj) in zip(frame.objects, scene.objects, strict=True):
+            T = label.T_cam_from_obj
+            points = np.asarray(obj.model_points_m)
+            for step_m in (1e-5, 1e-4, 3e-3):
+                dR = Rotation.from_rotvec(rng.normal(size=3) * step_m * 5).as_matrix()
+                dt = rng.normal(size=3) * step_m
+                T2 = T.copy()
+                T2[:3, :3] = dR @ T[:3, :3]
+                T2[:3, 3] = T[:3, 3] + dt
+                before = obj.corners_m @ T[:3, :3].T + T[:3, 3]
+                after = obj.corners_m @ T2[:3, :3].T + T2[:3, 3]
+                bound = renderer._moved_px(before, after)
+                moved = ICVL.project(points @ T2[:3, :3].T + T2[:3, 3]) - ICVL.project(
+                    points @ T[:3, :3].T + T[:3, 3]
+                )
+                assert np.max(np.abs(moved)) <= bound * (1 + 1e-9)
+                assert bound < 10 * np.max(np.abs(moved)) + 1e-12  # not uselessly loose
+
+
+def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
+    """Objects moved by less than the tolerance keep their masks, with no render.
+
+    A kept mask matches a fresh render of the object alone except at boundary pixels, and the
+    counts differ by no more than the differing pixels.
+    """
+    import cv2
+    import mujoco
+
+    scene = _clutter_scene(4)
+    rng = np.random.default_rng(0)
+    model, data = scene.model, scene.data
+    with FrameRenderer(scene, "third_person") as reused:
+        reused.render(rng)
+        renders = []
+        original = reused.renderer.render_segmentation
+        reused.renderer.render_segmentation = lambda *a, **k: renders.append(1) or original(*a, **k)
+        adr = [model.jnt_qposadr[model.body(b).jntadr[0]] for b, _ in scene.objects]
+        for _ in range(5):
+            for a in adr:  # tens of micrometres, as resting objects jitter
+                data.qpos[a : a + 3] += rng.normal(size=3) * 2e-5
+            mujoco.mj_forward(model, data)
+            kept = reused.render(rng)
+            with FrameRenderer(scene, "third_person", silhouette_tolerance_px=0.0) as fresh:
+                new = fresh.render(rng)
+                for k, (a, b) in enumerate(zip(kept.objects, new.objects, strict=True)):
+                    mask = reused._silhouette_masks[k]
+                    cached = np.zeros(new.segmentation.shape, dtype=bool)
+                    h, w = mask.pixels.shape
+                    cached[mask.v0 : mask.v0 + h, mask.u0 : mask.u0 + w] = mask.pixels
+                    alone = fresh._render_only(data, fresh._object_geoms[k])
+                    truth = (alone >= 0) & (scene.geom_labels[np.maximum(alone, 0)] == 8 + k)
+                    assert truth.sum() == b.px_count_all
+                    kernel = np.ones((3, 3), np.uint8)
+                    grown = cv2.dilate(truth.view(np.uint8), kernel).view(bool)
+                    shrunk = cv2.erode(truth.view(np.uint8), kernel).view(bool)
+                    boundary = grown & ~shrunk
+                    differ = cached ^ truth
+                    assert not (differ & ~boundary).any()
+                    assert abs(a.px_count_all - b.px_count_all) <= differ.sum()
+                    assert abs(a.px_count_visib - b.px_count_visib) <= differ.sum()
+        moved = max(
+            reused._moved_px(reused._silhouette_corners[k], kept.objects[k].corners_cam)
+            for k in range(len(adr))
+        )
+    assert moved > 0.0
+    assert not renders  # every silhouette was reused
+
+
+def test_silhouette_tolerance_is_checked():
+    """A tolerance outside [0, 0.5) pixels is refused, naming the argument."""
+    from handsim.world.scene import InvalidScene
+
+    scene = Scene(SceneSpec())
+    for bad in (-0.1, 0.5, "0.1", True, float("nan")):
+        with pytest.raises(InvalidScene, match="silhouette_tolerance_px"):
+            FrameRenderer(scene, "third_person", silhouette_tolerance_px=bad)

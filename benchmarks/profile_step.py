@@ -1,0 +1,121 @@
+"""Where an env step's time goes: process CPU time per part, and cProfile's top functions.
+
+Run: ``python benchmarks/profile_step.py [--env Grasp-v0] [--steps 300] [--cprofile]``.
+
+The env steps with its expert (as in ``bench_envs.py --limit``). Each part is timed by wrapping
+the function that does it (process CPU time, nested parts subtracted):
+
+- ``GL draw + read``: the depth/segmentation draw and ``mjr_readPixels`` (``DepthRenderer``'s
+  draw and read, silhouette renders included);
+- ``depth + label images``: the rest of ``DepthRenderer.render`` (depth from the z-buffer,
+  segmentation labels from the colour index);
+- ``labels (keypoints, objects, contacts)``: the rest of ``FrameRenderer.render``;
+- ``physics``: ``HandDriver.step`` (``mj_step`` x frame skip, ``mj_forward``, checks);
+- ``expert``: the expert's state and decision;
+- ``env (other)``: the rest of ``env.step`` (action, reward, observation, info).
+
+``--cprofile`` also prints cProfile's top functions by own time (CPU clock).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import functools
+import pstats
+import time
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import handsim.envs  # noqa: F401 (registers the ids)
+from handsim.envs.base import HandDriver
+from handsim.frame import FrameRenderer
+from handsim.world.render import DepthRenderer
+
+_ENVS = {
+    "HandPose-v0": {},
+    "Grasp-v0": {"objects": "005_tomato_soup_can"},
+    "GraspClutter-v0": {"num_objects": 4},
+}
+
+
+class _Timers:
+    """Process CPU time per part, exclusive of the parts nested in it."""
+
+    def __init__(self) -> None:
+        self.total: dict[str, float] = {}
+        self._stack: list[list] = []
+
+    def wrap(self, owner: object, name: str, part: str) -> None:
+        original = getattr(owner, name)
+
+        @functools.wraps(original)
+        def timed(*args: object, **kwargs: object) -> object:
+            self._stack.append([part, time.process_time(), 0.0])
+            try:
+                return original(*args, **kwargs)
+            finally:
+                _, start, nested = self._stack.pop()
+                spent = time.process_time() - start
+                self.total[part] = self.total.get(part, 0.0) + spent - nested
+                if self._stack:
+                    self._stack[-1][2] += spent
+
+        setattr(owner, name, timed)
+
+
+def main() -> None:
+    """Step the env with its expert, print the parts' shares and (optionally) cProfile's."""
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--env", default="Grasp-v0", choices=tuple(_ENVS))
+    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--cprofile", action="store_true")
+    args = parser.parse_args()
+    timers = _Timers()
+    for owner, name in ((DepthRenderer, "_draw"), (mujoco, "mjr_readPixels")):
+        timers.wrap(owner, name, "GL draw + read")
+    timers.wrap(DepthRenderer, "render", "depth + label images")
+    timers.wrap(FrameRenderer, "render", "labels (keypoints, objects, contacts)")
+    timers.wrap(HandDriver, "step", "physics")
+    env = gym.make(f"handsim/{args.env}", **_ENVS[args.env])
+    u = env.unwrapped
+    seed = 0
+    env.reset(seed=seed)
+    expert = u.make_expert(np.random.default_rng(seed))
+    env.step(expert.act(u.expert_state()).vector)  # warm-up
+    timers.total.clear()
+    expert_s = step_s = 0.0
+    profile = cProfile.Profile(time.process_time) if args.cprofile else None
+    if profile is not None:
+        profile.enable()
+    for _ in range(args.steps):
+        start = time.process_time()
+        action = expert.act(u.expert_state()).vector
+        middle = time.process_time()
+        _, _, terminated, truncated, _ = env.step(action)
+        end = time.process_time()
+        expert_s += middle - start
+        step_s += end - middle
+        if terminated or truncated:
+            seed += 1
+            env.reset(seed=seed)
+            expert = u.make_expert(np.random.default_rng(seed))
+    if profile is not None:
+        profile.disable()
+    parts = dict(timers.total)
+    parts["expert"] = expert_s
+    parts["env (other)"] = step_s - sum(timers.total.values())
+    total = expert_s + step_s
+    print(f"{args.env}: {1e3 * total / args.steps:.2f} ms CPU per step with the expert")
+    print(f"{'part':<40} {'ms/step':>8} {'share':>6}")
+    for part, spent in sorted(parts.items(), key=lambda kv: -kv[1]):
+        print(f"{part:<40} {1e3 * spent / args.steps:8.2f} {100 * spent / total:5.0f}%")
+    if profile is not None:
+        pstats.Stats(profile).sort_stats("tottime").print_stats(20)
+    env.close()
+
+
+if __name__ == "__main__":
+    main()
