@@ -18,6 +18,10 @@ crease centre; see :mod:`handsim.hand.pose`):
   the MANO mean hand's metacarpal arch (``_MCP_PALMAR``).
 - MCP lateral spacing follows the MANO mean hand (24 : 23 : 17 mm), spread so the outer skin
   edges of the palm span ``palm_breadth``.
+- The thumb CMC (trapeziometacarpal joint) is 0.196 palm breadths radial of the wrist
+  (Buchholz et al. 1992, as laid out in the hand model of Sancho-Bru et al.), 10 mm distal and
+  11 mm palmar at 189 mm: in the trapezium, a little proximal of the metacarpal bases (0.073
+  hand lengths), where the joint's flexion-extension axis lies (Hollister et al. 1992).
 - Flexion axes are tilted within the palm plane so that flexed fingers converge toward the
   thumb base (``_FLEX_TILT_DEG``; MyoHand's MCP axes fan out the same way).
 - Phalanx radii are MyoHand's skin capsules, scaled with hand length and ``thickness_scale``.
@@ -125,15 +129,17 @@ _FLEX_TILT_DEG = {
 }
 # Skin capsule radii at 189 mm (MyoHand; thumb from thumb breadth ~19-21 mm at the IP), metres.
 _RADII = {
-    "thumb": (0.0120, 0.0095, None, 0.0080),
+    "thumb": (0.0110, 0.0095, None, 0.0080),
     "index": (None, 0.0090, 0.0080, 0.0070),
     "middle": (None, 0.0090, 0.0080, 0.0070),
     "ring": (None, 0.0085, 0.0075, 0.0068),
     "little": (None, 0.0080, 0.0070, 0.0060),
 }
 _PALM_THICKNESS_RATIO = 0.143  # 27 mm at 189 mm (MANO palm box)
-# Thumb CMC in the hand frame at 189 mm (HandMorphometry; x as a fraction of palm breadth).
-_THUMB_CMC = (0.22, 0.010, 0.011)
+# Thumb CMC (trapeziometacarpal joint) in the hand frame: radial 0.196 palm breadth (Buchholz
+# et al. 1992); distal 10 mm and palmar 11 mm at 189 mm (in the trapezium, proximal of the
+# metacarpal bases at 0.073 hand length, where the joint's flexion axis lies).
+_THUMB_CMC = (0.196, 0.010 / _REF_HAND_LENGTH, 0.011 / _REF_HAND_LENGTH)
 # Thumb rest orientation: radial deviation from the hand axis, palmar tilt, pronation (deg).
 _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 
@@ -469,9 +475,7 @@ def _right_skeleton(params: HandParams) -> Skeleton:
     # Thumb.
     rad_dev, palmar_tilt, pronation = _THUMB_REST_DEG
     thumb_rest = Rotation.from_euler("ZXY", [-rad_dev, palmar_tilt, pronation], degrees=True)
-    cmc = np.array(
-        [_THUMB_CMC[0] * breadth, _scaled(_THUMB_CMC[1], hl), _scaled(_THUMB_CMC[2], hl) * thick]
-    )
+    cmc = np.array([_THUMB_CMC[0] * breadth, _THUMB_CMC[1] * hl, _THUMB_CMC[2] * hl * thick])
     mc, pp, _, dp = _BUCHHOLZ["thumb"]
     r_mc, r_pp, _, r_dp = _RADII["thumb"]
     x_axis, palm_away = (1.0, 0.0, 0.0), (0.0, 0.0, -1.0)

@@ -15,14 +15,16 @@ Sign conventions: flexion is positive (toward the palm); finger MCP abduction is
 the thumb (radial) for every finger; thumb CMC/MCP abduction is positive away from the palm
 (palmar abduction).
 
-Joint limits, in degrees, with their sources:
+Joint limits, in degrees, with their sources (``docs/hand.md`` has the table with what changed
+and why):
 
 =====================  ===========  =========================================================
 joint                  range (deg)  source
 =====================  ===========  =========================================================
-thumb_cmc_flex         -20 .. 55    MyoHand CMC flex (-44.7 .. 40.1) and clinical CMC ROM,
-                                    adapted to handsim's thumb frame so that the thumb tip
-                                    reaches every fingertip (tested)
+thumb_cmc_flex         -40 .. 55    MyoHand CMC flex (-44.7 .. 40.1) adapted to handsim's
+                                    thumb frame; at -40 the thumb and index metacarpals are
+                                    62 deg apart in the palm plane: the clinical radial
+                                    abduction of 60 deg (Eaton)
 thumb_cmc_abd          -15 .. 60    clinical palmar abduction 45 / radial abduction 60 (Eaton)
 thumb_mcp_flex         -10 .. 55    Eaton: MCP hyperextension 10 / flexion 55
 thumb_mcp_abd          -10 .. 10    manotorch thumb MCP spread +-10
@@ -30,10 +32,14 @@ thumb_ip_flex          -15 .. 80    Eaton: IP hyperextension 15 / flexion 80
 <finger>_mcp_flex      -20 .. 90    Lin et al. 2000 0 .. 90; hyperextension 20 (within the
                                     clinical 0 .. 45, Eaton)
 index_mcp_abd          -15 .. 20    GraspIt HumanHand20DOF index +-20; ulnar side Lin +-15
-middle_mcp_abd         -10 .. 10    GraspIt HumanHand20DOF middle +-10
-ring_mcp_abd           -15 .. 15    Lin et al. 2000 +-15
-little_mcp_abd         -30 .. 15    GraspIt HumanHand20DOF little +-30 (ulnar); radial side
-                                    limited by the ring finger
+middle_mcp_abd         -20 .. 20    Shadow hand knuckle +-20; goniometry norm 20 deg
+ring_mcp_abd           -20 .. 20    GraspIt HumanHand20DOF ring +-20; holds the widest
+                                    middle-ring spread (14.3 +- 2.3 deg, Chatzioglou et al.
+                                    2024) with the middle finger straight
+little_mcp_abd         -45 .. 15    ulnar: the mean widest ring-little spread (32.1 deg,
+                                    Chatzioglou et al. 2024) beyond the ring's own ulnar
+                                    deviation; MANO (D-Grasp) +-45.8; radial side limited by
+                                    the ring finger
 <finger>_pip_flex        0 .. 110   Lin et al. 2000
 <finger>_dip_flex        0 .. 90    Lin et al. 2000
 =====================  ===========  =========================================================
@@ -79,9 +85,9 @@ JOINT_NAMES: tuple[str, ...] = tuple(f"thumb_{j}" for j in _THUMB_JOINTS) + tupl
 NUM_ANGLES = 21
 NUM_DOF = 27
 
-_FINGER_ABD_DEG = {"index": (-15, 20), "middle": (-10, 10), "ring": (-15, 15), "little": (-30, 15)}
+_FINGER_ABD_DEG = {"index": (-15, 20), "middle": (-20, 20), "ring": (-20, 20), "little": (-45, 15)}
 _LIMITS_DEG: dict[str, tuple[float, float]] = {
-    "thumb_cmc_flex": (-20.0, 55.0),
+    "thumb_cmc_flex": (-40.0, 55.0),
     "thumb_cmc_abd": (-15.0, 60.0),
     "thumb_mcp_flex": (-10.0, 55.0),
     "thumb_mcp_abd": (-10.0, 10.0),

@@ -53,6 +53,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from handsim.hand.lofting import loft_faces
+
 __all__ = ["SURFACES", "SkinPart", "build_skin", "round_cone_profile"]
 
 SURFACES: tuple[str, ...] = ("skin", "capsules")
@@ -151,7 +153,7 @@ def _elliptic_round_cone(
         axis=-1,
     ).reshape(-1, 3)
     vertices = np.concatenate([[[0.0, y[0], 0.0]], rings, [[0.0, y[-1], 0.0]]])
-    faces = _loft_faces(len(y) - 2, _AROUND)
+    faces = loft_faces(len(y) - 2, _AROUND)
 
     def sdf(p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
@@ -163,26 +165,6 @@ def _elliptic_round_cone(
         return _sd_round_cone(scaled, r0, r1, length)
 
     return vertices, faces, sdf
-
-
-def _loft_faces(n_rings: int, n_around: int) -> np.ndarray:
-    """Triangles of a closed loft: pole 0, ``n_rings`` rings of ``n_around``, last pole.
-
-    Winding is counter-clockwise seen from outside for rings ``(cos t, y, sin t)`` with ``y``
-    increasing from ring to ring (the tests check that every part's volume is positive).
-    """
-    j = np.arange(n_around)
-    jn = (j + 1) % n_around
-    faces = [np.stack([np.zeros(n_around, dtype=np.int64), 1 + j, 1 + jn], axis=1)]
-    for r in range(n_rings - 1):
-        a = 1 + r * n_around
-        b = a + n_around
-        faces.append(np.stack([a + j, b + jn, a + jn], axis=1))
-        faces.append(np.stack([a + j, b + j, b + jn], axis=1))
-    last = 1 + n_rings * n_around
-    a = 1 + (n_rings - 1) * n_around
-    faces.append(np.stack([np.full(n_around, last), a + jn, a + j], axis=1))
-    return np.concatenate(faces).astype(np.int32)
 
 
 # Signed-distance pieces of the palm -----------------------------------------------------------
@@ -245,7 +227,9 @@ def _palm_sdf(skeleton) -> tuple[Sdf, np.ndarray, np.ndarray]:
     r_cmc = bodies[index["thumb_metacarpal"]].geoms[0].radius
     r_pp = {f: bodies[index[f"{f}_proximal"]].geoms[0].radius for f in mcp}
     breadth = params.breadth
-    rounding = 0.3 * half_t
+    # At most 5 mm: at the wrist end, where no metacarpal capsule covers the box's edges, a
+    # rounder edge would lie more than 2 mm inside the collision box.
+    rounding = min(0.3 * half_t, 0.005)
     scale = hl / 0.189
 
     def collision(p: np.ndarray) -> np.ndarray:
@@ -432,7 +416,7 @@ def _segment_kind(name: str) -> str:
     return name.split("_", 1)[1]
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
 def _right_parts(params) -> tuple[SkinPart, ...]:
     from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
 
@@ -488,7 +472,7 @@ def _mirror(part: SkinPart) -> SkinPart:
     )
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
 def build_skin(params) -> tuple[SkinPart, ...]:
     """The skin of a hand, one part per body (cached per parameters).
 
@@ -555,12 +539,14 @@ def _vertex_normals(part: SkinPart) -> np.ndarray:
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-30)
 
 
-def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
+def collision_gap_m(binding, data, parts: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
     """Distance from the skin to the collision surface where the hand touches things.
 
     Args:
         binding: the hand's binding in a compiled model (:meth:`Hand.bind`).
         data: its data after ``mj_forward`` (the pose to measure).
+        parts: measure only the skin of these hand parts (``"palm"``, ``"thumb"``, ...,
+            ``"little"``); default all.
 
     Returns:
         ``{"pads": ..., "palm": ...}``: (N,) absolute distances, metres, from each skin vertex
@@ -572,12 +558,15 @@ def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
         not follow them.
     """
     hand = binding.hand
+    parts_wanted = parts
     sdf = _collision_sdf(binding, data, forearm=False)
     frames = _world_from_body(binding, data)
     y_knuckles = max(b.pos[1] for b in hand.skeleton.bodies if b.name.endswith("_proximal"))
     out: dict[str, list[np.ndarray]] = {"pads": [], "palm": []}
     parts = build_skin(hand.params)
     for part in parts:
+        if parts_wanted is not None and hand.skeleton.bodies[part.body].part not in parts_wanted:
+            continue
         palmar = _vertex_normals(part)[:, 2] > 0.5
         if part.body == 0:
             y = part.vertices[:, 1]
@@ -591,7 +580,7 @@ def collision_gap_m(binding, data) -> dict[str, np.ndarray]:
                 orot, ot = frames[other.body]
                 buried |= other.sdf((world - ot) @ orot) < -_BURIED_M
         out["palm" if part.body == 0 else "pads"].append(np.abs(sdf(world[~buried])))
-    return {k: np.concatenate(v) for k, v in out.items()}
+    return {k: np.concatenate(v) if v else np.zeros(0) for k, v in out.items()}
 
 
 def joint_crease_depth_m(binding, data, samples: int = 400) -> np.ndarray:

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 import trimesh
 
+from handsim.hand.lofting import loft_faces
 from handsim.world.objects import _MM
 
 __all__ = []
@@ -49,18 +50,7 @@ def _loft(centers: np.ndarray, u: np.ndarray, v: np.ndarray, n_around: int) -> t
     )
     n_rings = len(centers) - 2
     vertices = np.concatenate([centers[:1], rings.reshape(-1, 3), centers[-1:]])
-    j = np.arange(n_around)
-    jn = (j + 1) % n_around
-    faces = [np.stack([np.zeros(n_around, dtype=np.int64), 1 + jn, 1 + j], axis=1)]
-    for r in range(n_rings - 1):
-        a = 1 + r * n_around
-        b = a + n_around
-        faces.append(np.stack([a + j, a + jn, b + jn], axis=1))
-        faces.append(np.stack([a + j, b + jn, b + j], axis=1))
-    last = 1 + n_rings * n_around
-    a = 1 + (n_rings - 1) * n_around
-    faces.append(np.stack([np.full(n_around, last), a + j, a + jn], axis=1))
-    mesh = trimesh.Trimesh(vertices, np.concatenate(faces), process=False)
+    mesh = trimesh.Trimesh(vertices, loft_faces(n_rings, n_around), process=False)
     if mesh.volume < 0:
         mesh.invert()
     return mesh

@@ -147,25 +147,60 @@ def test_skin_follows_the_collision_surface_on_pads_and_palm(name):
     assert gap["palm"].max() < 2e-3
 
 
+# The far corner of the parameter range: the longest, broadest and thickest hand.
+_LARGEST = HandParams(hand_length=0.235, palm_breadth=0.55 * 0.235, thickness_scale=1.4)
+
+
 @pytest.mark.parametrize(
     "params",
     [
         HandParams(hand_length=0.14, palm_breadth=0.35 * 0.14, thickness_scale=0.7),
         HandParams(hand_length=0.235, palm_breadth=0.55 * 0.235, thickness_scale=1.2),
+        HandParams(hand_length=0.235, thickness_scale=1.4),
+        _LARGEST,
         HandParams(side="left", forearm=False),
     ],
 )
 def test_skin_follows_the_collision_surface_for_extreme_hands(params):
-    """The 2 mm bound holds for small and large hands too (flat hand).
-
-    Not at the far corner (0.235 m and thickness x1.4): a joint's skin radius is the mean of
-    its neighbours' capsule radii, and the thumb's metacarpal and proximal capsules then
-    differ by 4.4 mm, so its skin sits 2.2 mm inside them at the MCP.
-    """
+    """The 2 mm bound holds for small and large hands too (flat hand), the thumb included."""
     binding, data = _posed(params)
     binding.set_pose(data, HandPose.neutral())
     gap = collision_gap_m(binding, data)
     assert gap["pads"].max() < 2e-3 and gap["palm"].max() < 2e-3
+    thumb = collision_gap_m(binding, data, parts=("thumb",))
+    assert len(thumb["pads"]) > 100 and thumb["pads"].max() < 2e-3
+
+
+@pytest.mark.parametrize("name", ["fist", "pinch", "ok"])
+def test_thumb_skin_follows_the_collision_surface_on_the_largest_hand(name):
+    """On the largest, thickest hand the thumb's pads stay within 2 mm in contact gestures.
+
+    Measured: the thumb's pads at most 1.94 mm (the fingertip pad, 12 % wider than deep),
+    the palm at most 1.8 mm.
+    """
+    binding, data = _posed(_LARGEST)
+    binding.set_pose(data, gesture(name))
+    gap = collision_gap_m(binding, data)
+    assert gap["pads"].max() < 2e-3 and gap["palm"].max() < 2e-3
+    assert collision_gap_m(binding, data, parts=("thumb",))["pads"].max() < 2e-3
+
+
+def test_largest_hand_has_no_gap_and_keeps_the_thumb_volume():
+    """The joint and volume checks hold on the largest, thickest hand too (thumb included)."""
+    binding, data = _posed(_LARGEST)
+    worst = 0.0
+    for pose in _random_poses(8, seed=1):
+        binding.set_pose(data, pose)
+        worst = max(worst, joint_crease_depth_m(binding, data).max())
+    assert worst < 5e-4
+    flex = [i for i, n in enumerate(JOINT_NAMES) if n.startswith("thumb") and "flex" in n]
+    volumes = []
+    for t in (0.0, 1.0):
+        angles = np.zeros(len(JOINT_NAMES))
+        angles[flex] = JOINT_LIMITS[flex, 0] + t * (JOINT_LIMITS[flex, 1] - JOINT_LIMITS[flex, 0])
+        binding.set_pose(data, HandPose.neutral().replace(angles=angles))
+        volumes.append(digit_volume_m3(binding, data, "thumb", samples=100_000))
+    assert abs(volumes[1] / volumes[0] - 1.0) < 0.10
 
 
 def test_segmentation_shows_every_hand_part_on_the_skin():
