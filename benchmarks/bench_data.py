@@ -3,16 +3,26 @@
 Measured in one run, on this machine:
 
 - kinematic generation (preset ``hand-only``, 320 x 240, all labels) with 1 and 2 workers, and
-  their ratio;
+  their ratio (long enough that the workers' start-up, about 3 s, is a small part), and their
+  frames per CPU-second (the workers' start-up included): on a loaded machine the wall-clock
+  ratio says how many free cores there were, the CPU ratio what 2 workers cost per frame;
+- Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - the same scene's plain MuJoCo depth render rate (``mujoco.Renderer`` with depth on), and the
   ratio of generation with one worker to it;
 - bytes per stored frame against raw float32 depth + labels;
 - read rate of :class:`~handsim.data.torch_dataset.HandSimDataset` through a ``DataLoader``
-  with 2 workers;
-- peak RSS of generation runs of N and 10 N frames (``--memory``).
+  with 2 workers and batches of 32: a plain shuffle, the block batch sampler
+  (``dataset.batch_sampler(32)``), and ``dataset.loader(32)`` with every key and with depth
+  plus every label (see ``_read_fps``);
+- peak RSS (``resource.getrusage`` in a child process) of generation runs of M and 10 M frames
+  (``--memory``, M = ``--memory-frames``).
 
-Usage: ``python benchmarks/bench_data.py [--frames 400] [--memory]``; writes
-``benchmarks/results/bench_data.json``.
+The machine may be shared: compare the ratios, each measured in one run; the load average is
+recorded with them.
+
+Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
+[--memory-frames 1000] [--only all|read|memory|workers]``; writes
+``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
 from __future__ import annotations
@@ -32,14 +42,25 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 
+_CPU_S: dict[str, float] = {}
+"""CPU seconds of the last :func:`_generate` run (this process and its reaped workers)."""
+
+
+def _cpu_s() -> float:
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)  # pool workers, once joined
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
 def _generate(frames: int, workers: int, out: Path, preset: str = "hand-only") -> float:
     from handsim.data.generation import PRESETS, GenerationConfig, generate
 
     config = GenerationConfig.from_mapping(
         PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8)
     )
-    start = time.perf_counter()
+    cpu, start = _cpu_s(), time.perf_counter()
     generate(config, out, workers=workers)
+    _CPU_S["last"] = _cpu_s() - cpu
     return frames / (time.perf_counter() - start)
 
 
@@ -66,15 +87,30 @@ def _plain_render_fps(frames: int) -> float:
     return fps
 
 
-def _read_fps(folder: Path, seconds: float = 10.0) -> float:
+def _read_fps(folder: Path, mode: str, seconds: float = 10.0) -> float:
+    """Samples/s of a DataLoader with 2 persistent workers and batches of 32.
+
+    Modes: ``shuffle`` (every key, plain shuffled sampler, default collate), ``blocks`` (every
+    key, the block batch sampler), ``loader`` (every key, ``dataset.loader``: batches read and
+    made in one call) and ``loader_labels`` (``dataset.loader`` with depth and every label,
+    no segmentation image).
+    """
     import torch
 
+    from handsim.data.arrays import LABEL_SCHEMA
     from handsim.data.torch_dataset import HandSimDataset
 
-    data = HandSimDataset(folder)
-    loader = torch.utils.data.DataLoader(
-        data, batch_size=32, shuffle=True, num_workers=2, persistent_workers=True
-    )
+    common = {"num_workers": 2, "persistent_workers": True}
+    if mode == "loader_labels":
+        data = HandSimDataset(folder, keys=("depth", *LABEL_SCHEMA))
+    else:
+        data = HandSimDataset(folder)
+    if mode == "shuffle":
+        loader = torch.utils.data.DataLoader(data, batch_size=32, shuffle=True, **common)
+    elif mode == "blocks":
+        loader = torch.utils.data.DataLoader(data, batch_sampler=data.batch_sampler(32), **common)
+    else:
+        loader = data.loader(32, **common)
     for _ in loader:  # warm-up: worker start-up and each worker's first shard reads
         pass
     n, start = 0, time.perf_counter()
@@ -84,7 +120,28 @@ def _read_fps(folder: Path, seconds: float = 10.0) -> float:
     return n / (time.perf_counter() - start)
 
 
+def _read_cpu_rate(folder: Path, labels_only: bool, passes: int = 3) -> float:
+    """Samples per CPU-second of ``dataset.batch`` in this process, on one thread.
+
+    What one DataLoader worker can make on a core of its own, whatever the machine's load.
+    """
+    import torch
+
+    from handsim.data.arrays import LABEL_SCHEMA
+    from handsim.data.torch_dataset import HandSimDataset
+
+    torch.set_num_threads(1)
+    data = HandSimDataset(folder, keys=("depth", *LABEL_SCHEMA) if labels_only else None)
+    batches = list(data.batch_sampler(32)) * passes
+    data.batch(batches[0])  # open the shards, read the labels
+    start = time.process_time()
+    for indices in batches:
+        data.batch(indices)
+    return sum(map(len, batches)) / (time.process_time() - start)
+
+
 def _peak_rss_mib(frames: int, out: Path) -> float:
+    """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB."""
     code = (
         "import resource, sys\n"
         "from handsim.data.generation import PRESETS, GenerationConfig, generate\n"
@@ -102,40 +159,76 @@ def _peak_rss_mib(frames: int, out: Path) -> float:
 def main() -> None:
     """Run the benchmark and write its JSON."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=400, help="frames per generation run")
+    parser.add_argument("--frames", type=int, default=800, help="frames per generation run")
+    parser.add_argument(
+        "--rollout-frames", type=int, default=120, help="frames of the Grasp rollout run"
+    )
     parser.add_argument("--memory", action="store_true", help="also compare peak RSS (slow)")
+    parser.add_argument(
+        "--only",
+        choices=("all", "read", "memory", "workers"),
+        default="all",
+        help="run one part only",
+    )
+    parser.add_argument(
+        "--memory-frames", type=int, default=1000, help="M of the M vs 10 M memory runs"
+    )
     args = parser.parse_args()
     from handsim.data.manifest import Manifest
 
-    results: dict[str, float] = {}
+    results: dict[str, float] = {"load_average_1min_start": os.getloadavg()[0]}
+    part = args.only
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
-        results["generate_2_workers_fps"] = _generate(args.frames, 2, tmp / "w2")
-        results["workers_2_over_1"] = (
-            results["generate_2_workers_fps"] / results["generate_1_worker_fps"]
-        )
-        results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
-        results["generate_over_plain_render"] = (
-            results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
-        )
-        manifest = Manifest.read(tmp / "w1")
-        stored = sum(s.bytes for s in manifest.shards.values()) / manifest.frames
-        h, w = manifest.image_shape
-        from handsim.data.arrays import empty_label_arrays
+        if part in ("all", "read", "workers"):
+            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+            results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
+        if part in ("all", "workers"):
+            results["generate_2_workers_fps"] = _generate(args.frames, 2, tmp / "w2")
+            results["generate_2_workers_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
+            results["workers_2_over_1"] = (
+                results["generate_2_workers_fps"] / results["generate_1_worker_fps"]
+            )
+            # CPU per frame of 2 workers (start-up included) against 1: with two free cores,
+            # 2 workers would run at about 2x this of 1 worker's rate.
+            results["workers_2_cpu_efficiency"] = (
+                results["generate_2_workers_frames_per_cpu_s"]
+                / results["generate_1_worker_frames_per_cpu_s"]
+            )
+        if part == "all":
+            results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
+            results["generate_over_plain_render"] = (
+                results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
+            )
+            manifest = Manifest.read(tmp / "w1")
+            stored = sum(s.bytes for s in manifest.shards.values()) / manifest.frames
+            h, w = manifest.image_shape
+            from handsim.data.arrays import empty_label_arrays
 
-        raw = 4 * h * w + sum(a.nbytes for a in empty_label_arrays().values())
-        results["bytes_per_frame"] = stored
-        results["bytes_per_frame_over_raw"] = stored / raw
-        results["read_fps_2_workers"] = _read_fps(tmp / "w1")
-        if args.memory:
-            results["peak_rss_mib_n"] = _peak_rss_mib(args.frames, tmp / "m1")
-            results["peak_rss_mib_10n"] = _peak_rss_mib(10 * args.frames, tmp / "m10")
-            results["peak_rss_10n_over_n"] = results["peak_rss_mib_10n"] / results["peak_rss_mib_n"]
+            raw = 4 * h * w + sum(a.nbytes for a in empty_label_arrays().values())
+            results["bytes_per_frame"] = stored
+            results["bytes_per_frame_over_raw"] = stored / raw
+        if part in ("all", "read"):
+            for mode in ("shuffle", "blocks", "loader", "loader_labels"):
+                results[f"read_fps_2_workers_{mode}"] = _read_fps(tmp / "w1", mode)
+            results["read_samples_per_cpu_s_all"] = _read_cpu_rate(tmp / "w1", False)
+            results["read_samples_per_cpu_s_labels"] = _read_cpu_rate(tmp / "w1", True)
+        if part == "all":
+            results["generate_rollouts_1_worker_fps"] = _generate(
+                args.rollout_frames, 1, tmp / "r1", preset="grasp-rollouts"
+            )
+        if args.memory or part == "memory":
+            m = args.memory_frames
+            results["memory_frames_m"] = m
+            results["peak_rss_mib_m"] = _peak_rss_mib(m, tmp / "m1")
+            results["peak_rss_mib_10m"] = _peak_rss_mib(10 * m, tmp / "m10")
+            results["peak_rss_10m_over_m"] = results["peak_rss_mib_10m"] / results["peak_rss_mib_m"]
     results["parent_peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    results["load_average_1min_end"] = os.getloadavg()[0]
     for key, value in results.items():
         print(f"{key:<32} {value:12.3f}")
-    out = Path(__file__).parent / "results" / "bench_data.json"
+    name = "bench_data.json" if part == "all" else f"bench_data_{part}.json"
+    out = Path(__file__).parent / "results" / name
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"frames": args.frames, **results}, indent=2) + "\n")
     print(f"written {out}")

@@ -7,7 +7,10 @@ from typing import Any
 
 __all__ = [
     "CenterOfMassLocalizer",
+    "DeepPriorEstimator",
     "OracleEstimator",
+    "PlaneRemovedLocalizer",
+    "RefinedLocalizer",
 ]
 
 # Public name -> submodule; a name is imported on first access, so this package stays free of
@@ -15,6 +18,9 @@ __all__ = [
 _LAZY_NAMES = {
     "CenterOfMassLocalizer": "handsim.estimators.com",
     "OracleEstimator": "handsim.estimators.oracle",
+    "DeepPriorEstimator": "handsim.estimators.deepprior.estimator",
+    "PlaneRemovedLocalizer": "handsim.estimators.deepprior.preprocess",
+    "RefinedLocalizer": "handsim.estimators.deepprior.estimator",
 }
 
 

@@ -2,7 +2,8 @@
 
 - ``.. handsim-submodules:: PACKAGE``: one section with ``automodule`` per public submodule of
   the package (found by ``pkgutil``, so a new module is documented without editing a page), in
-  the order of the ``:order:`` option, then alphabetically.
+  the order of the ``:order:`` option, then alphabetically; modules named in
+  ``:docstring-only:`` (facades that re-export) show their docstring without members.
 - ``.. handsim-exports::``: a table of the names that ``import handsim`` re-exports, each linked
   to the module that defines it (generated from ``handsim.__all__``, so it never goes stale).
 - Links from a Markdown page to a file or folder of the repo outside ``docs/`` (``../README.md``,
@@ -66,7 +67,7 @@ class HandsimSubmodules(SphinxDirective):
     """Sections with ``automodule`` for every public submodule of a package."""
 
     required_arguments = 1
-    option_spec = {"order": str.split, "exclude": str.split}
+    option_spec = {"order": str.split, "exclude": str.split, "docstring-only": str.split}
 
     def run(self) -> list[nodes.Node]:
         """Emit the sections as RST and parse them in place."""
@@ -82,11 +83,13 @@ class HandsimSubmodules(SphinxDirective):
         if unknown:
             raise self.error(f"handsim-submodules: no such modules in {package}: {unknown}")
         lines: list[str] = []
+        facades = {f"{package}.{name}" for name in self.options.get("docstring-only", [])}
         for module in order + sorted(set(found) - set(order)):
             title = f"``{module}``"
             lines += [title, "-" * len(title), "", f".. automodule:: {module}"]
-            # A package's docstring only: its members are re-exports, documented where defined.
-            if not found[module]:
+            # A package's (or a facade's) docstring only: its members are re-exports,
+            # documented where defined.
+            if not found[module] and module not in facades:
                 lines += ["   :members:", "   :show-inheritance:"]
             lines.append("")
         container = nodes.section()

@@ -22,17 +22,28 @@ __all__ = ["ESTIMATORS", "add_parser", "estimator_arg"]
 
 
 ESTIMATORS = tuple(BUILTIN_ESTIMATORS)
-"""Built-in estimators of ``handsim closed-loop``: the noisy oracle and the centre-of-mass
-localizer; ``--estimator`` also takes ``module:Class[:kwargs-json]``."""
+"""Built-in estimators of ``handsim closed-loop``: the noisy oracle, the centre-of-mass
+localizer and the shipped DeepPrior++ / DeepPrior; ``--estimator`` also takes a learned
+estimator's checkpoint (``NAME.pt`` or a ``handsim train`` run folder) and
+``module:Class[:kwargs-json]``."""
+
+
+def _is_checkpoint(text: str) -> bool:
+    """A learned estimator's checkpoint: ``NAME.pt`` or a training run folder."""
+    from pathlib import Path
+
+    path = Path(text)
+    return (path.suffix == ".pt" and path.is_file()) or (path / "best.pt").is_file()
 
 
 def estimator_arg(text: str) -> str | EstimatorSpec:
-    """``--estimator``: a built-in name, or a user estimator loaded and checked now."""
-    if text in BUILTIN_ESTIMATORS:
+    """``--estimator``: a built-in name, a checkpoint, or a user estimator loaded now."""
+    if text in BUILTIN_ESTIMATORS or _is_checkpoint(text):
         return text
     if ":" not in text:
         raise argparse.ArgumentTypeError(
-            f"unknown estimator {text!r}; give one of {', '.join(BUILTIN_ESTIMATORS)} or "
+            f"unknown estimator {text!r}; give one of {', '.join(BUILTIN_ESTIMATORS)}, a "
+            "learned estimator's checkpoint (NAME.pt or a handsim train run folder) or "
             "module:Class[:kwargs-json]"
         )
     try:
@@ -62,9 +73,15 @@ def _factory(args: argparse.Namespace) -> tuple[Any, dict[str, Any]]:
             )
 
         return make_estimator, {"name": "oracle"}
-    from handsim.estimators import CenterOfMassLocalizer
+    if args.estimator == "com":
+        from handsim.estimators import CenterOfMassLocalizer
 
-    return CenterOfMassLocalizer, {"name": "com"}
+        return CenterOfMassLocalizer, {"name": "com"}
+    from handsim.estimators import DeepPriorEstimator
+
+    checkpoint = args.estimator
+    DeepPriorEstimator(checkpoint)  # fail now, with the reason, not inside the loop
+    return lambda: DeepPriorEstimator(checkpoint), {"name": "learned", "checkpoint": checkpoint}
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -148,8 +165,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default="oracle",
         metavar="NAME|MODULE:CLASS[:KWARGS]",
         help=choice_help("estimator", ESTIMATORS, "%(default)s")
-        + ", or a user estimator module:Class[:kwargs-json] (a module path or a .py file; the "
-        "kwargs a JSON object), checked against handsim.estimator.Estimator",
+        + ", a learned estimator's checkpoint (NAME.pt or a handsim train run folder), or a "
+        "user estimator module:Class[:kwargs-json] (a module path or a .py file; the kwargs a "
+        "JSON object), checked against handsim.estimator.Estimator",
     )
     loop.add_argument(
         "--noise-mm",

@@ -1,7 +1,8 @@
 """``handsim generate``, ``handsim dataset check|info`` and ``handsim export``: datasets.
 
-- ``handsim generate --preset NAME | --config FILE [--frames N] [--workers N] [--seed S] --out
-  DIR``: make (or resume) a dataset; the same command again resumes a killed run.
+- ``handsim generate --preset NAME | --config FILE [--frames N] [--workers N | --ray ADDRESS]
+  [--seed S] --out DIR``: make (or resume) a dataset; the same command again resumes a killed
+  run.
 - ``handsim dataset check DIR``: name every truncated, corrupt or missing shard (exit 1 if any).
 - ``handsim dataset info DIR [--plot]``: frames, shards, sizes, occlusion histogram; with
   ``--plot`` a contact sheet of random frames and histogram PNGs.
@@ -44,7 +45,7 @@ def _generate(args: argparse.Namespace) -> int:
         last[0] = done
 
     try:
-        manifest = generate(config, args.out, workers=args.workers, progress=progress)
+        manifest = generate(config, args.out, workers=args.workers, progress=progress, ray=args.ray)
     finally:
         bar.close()
     hist = manifest.occlusion_histogram or {}
@@ -199,6 +200,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     gen.add_argument("--seed", type=non_negative_int, help="base seed (overrides the config)")
     gen.add_argument(
         "--workers", type=positive_int, default=1, help="worker processes (default: 1)"
+    )
+    gen.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run one Ray task per shard: 'local' (a local Ray instance) or the address of a "
+        "running cluster ('auto', 'ray://HOST:10001'), instead of --workers; needs pip install "
+        "'handsim[ray]'",
     )
     gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
     gen.set_defaults(func=_generate)

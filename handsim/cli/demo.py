@@ -278,6 +278,30 @@ def _demo_closed_loop(out: Path, episodes: int, progress: bool = False) -> dict:
     return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
 
 
+def _demo_learned_loop(out: Path, episodes: int, progress: bool = False) -> dict:
+    """The shipped DeepPrior++ (with the refined localizer) in the loop of Grasp-v0."""
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401 (registers the ids)
+    from handsim.envs.closed_loop import evaluate_closed_loop, write_report
+    from handsim.estimators import DeepPriorEstimator
+
+    env_id = "handsim/Grasp-v0"
+    total = 2 * episodes * (gym.spec(env_id).max_episode_steps or 0)
+    with progress_bar(total, "demo: closed loop, DeepPrior++", "step", enabled=progress) as bar:
+        report = evaluate_closed_loop(
+            env_id,
+            lambda: DeepPriorEstimator("deepprior++", threads=1),
+            episodes=episodes,
+            env_kwargs={"objects": list(DEMO_GRASP_OBJECTS), "sensor": "structured_light"},
+            progress=bar.update,
+            media_dir=out / "closed_loop_deepprior++",
+        )
+    report["estimator"] = {"name": "deepprior++", **report["estimator"]}
+    paths = write_report(report, out / "closed_loop_deepprior++")
+    return {"report": report, "paths": {k: str(v) for k, v in paths.items()}}
+
+
 def _demo_teleop(out: Path, episodes: int, progress: bool = False) -> dict:
     """A small teleop sweep on Press-v0: noise 0 and 10 mm x latency 0 and 3 frames, direct."""
     from handsim.envs.teleop.sweep import run_sweep, write_sweep
@@ -352,6 +376,29 @@ def _run(args: argparse.Namespace) -> int:
                 f"{mode['f_tau_auc']:.3f}"
             )
         lines.append(f"closed-loop plots: {loop['paths']['f_tau']}, {loop['paths']['success']}")
+    if args.learned_episodes > 0:
+        loop = _demo_learned_loop(out, args.learned_episodes, progress=not args.quiet)
+        summary["closed_loop_deepprior++"] = {
+            name: {
+                "success_rate": mode["success_rate"],
+                "kp_mean_mm": mode["kp_mean_mm"],
+                "f_tau_auc": mode["f_tau_auc"],
+                "estimator_time_mean_s": mode["estimator_time_mean_s"],
+            }
+            for name, mode in loop["report"]["modes"].items()
+        }
+        summary["closed_loop_deepprior++"]["paths"] = loop["paths"]
+        lines.append(
+            f"closed loop, handsim/Grasp-v0, shipped DeepPrior++ (learned, from the depth image), "
+            f"{args.learned_episodes} episode(s) per mode:"
+        )
+        for name, mode in loop["report"]["modes"].items():
+            lines.append(
+                f"  {name.replace('_', ' '):<13} success {100 * mode['success_rate']:5.1f} %, "
+                f"mean keypoint error {mode['kp_mean_mm']:.1f} mm, F(tau) AUC "
+                f"{mode['f_tau_auc']:.3f}, {1000 * mode['estimator_time_mean_s']:.0f} ms/frame"
+            )
+        lines.append(f"DeepPrior++ closed-loop plots: {loop['paths']['f_tau']}")
     if args.teleop_episodes > 0:
         teleop = _demo_teleop(out, args.teleop_episodes, progress=not args.quiet)
         summary["teleop"] = {
@@ -400,8 +447,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="play gestures with hands of three sizes and both sides; write a contact sheet",
         description="Build hands of three sizes and both sides, play a gesture sequence under "
         "physics, render labelled noisy depth frames of a hand among objects, run the oracle "
-        "estimator in the loop of handsim/Grasp-v0 with feedback off and on, run a small teleop "
-        "sweep on handsim/Press-v0, generate a small "
+        "estimator and the shipped DeepPrior++ in the loop of handsim/Grasp-v0 with feedback "
+        "off and on, run a small teleop sweep on handsim/Press-v0, generate a small "
         "occlusion-heavy dataset, and write the contact sheets, plots, the dataset and a summary "
         "to the output folder.",
     )
@@ -414,6 +461,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=non_negative_int,
         default=3,
         help="episodes per feedback mode of the Grasp-v0 closed loop; 0 skips it (default: 3)",
+    )
+    demo.add_argument(
+        "--learned-episodes",
+        type=non_negative_int,
+        default=1,
+        help="episodes per feedback mode of the shipped DeepPrior++ in the Grasp-v0 closed "
+        "loop; 0 skips it (default: 1)",
     )
     demo.add_argument(
         "--teleop-episodes",

@@ -6,12 +6,16 @@ from a *source*; the built-in ``"kinematic"`` source poses the hand without phys
 (:class:`KinematicSource`): every episode draws a hand (size, side), objects on the table and a
 pose source, and every frame of the episode a pose, a wrist placement near an object and a
 camera viewpoint around the hand. Frames where the hand enters an object or the table by more
-than :data:`MAX_PENETRATION_M` are redrawn.
+than :data:`MAX_PENETRATION_M` are redrawn. The ``"rollout"`` source
+(:mod:`handsim.envs.rollouts`, found by name in :data:`SOURCES`) labels env episodes driven by
+their experts, with physical contact.
 
 Reproducibility: shard ``i`` is made from ``numpy.random.default_rng([seed, i])`` alone, so a
 shard is the same whichever worker makes it and whenever; a rerun of the same command skips
 the complete shards listed in the manifest, deletes partial files and writes the missing
 shards identically. A run killed at any moment (even SIGKILL) loses only shards in progress.
+Shards are made in this process, in spawned worker processes (``workers``) or as Ray tasks
+(``ray``), one shard per task, with the same result.
 
 Occlusion control: ``occlusion_range`` keeps frames whose hand occlusion ratio lies in the
 range; ``occlusion_buckets`` fills buckets of the ratio to fractions of every shard. Both
@@ -20,7 +24,9 @@ redraw a frame until it is accepted (at most :data:`MAX_TRIES_PER_FRAME` draws).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import importlib
 import json
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -28,7 +34,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -53,7 +59,7 @@ from handsim.hand.pose_sources import (
     sample_synergy,
     sample_uniform,
 )
-from handsim.world.camera import CAMERA_PRESETS, camera_preset
+from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
 from handsim.world.scene import (
     CameraSpec,
@@ -71,12 +77,18 @@ __all__ = [
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
     "MAX_EMPTY_EPISODES",
+    "MIN_KEYPOINTS_IN_FRAME",
+    "SOURCES",
+    "FrameSource",
+    "register_source",
+    "make_source",
     "InvalidGenerationConfig",
     "GenerationError",
     "GenerationConfig",
     "KinematicSource",
     "generate",
     "generate_shard",
+    "RAY_MAX_RETRIES",
 ]
 
 POSE_SOURCES = ("gesture", "grasp", "synergy", "uniform")
@@ -90,6 +102,8 @@ MAX_PENETRATION_M = 0.004
 """Deepest hand-object or hand-table overlap a kinematic frame may have, metres."""
 MAX_TRIES_PER_FRAME = 200
 """Draws per frame before an episode ends early (its scene cannot give an accepted frame)."""
+MIN_KEYPOINTS_IN_FRAME = 15
+"""Fewest of the 21 keypoints inside the image for a frame to be kept."""
 MAX_EMPTY_EPISODES = 5
 """Episodes in a row without an accepted frame before generation stops with a clear error."""
 
@@ -100,6 +114,67 @@ class InvalidGenerationConfig(HandSimError, ValueError):
 
 class GenerationError(HandSimError, RuntimeError):
     """Generation cannot go on (e.g. an occlusion range no frame reaches)."""
+
+
+SOURCES: dict[str, str] = {
+    "kinematic": "handsim.data.generation:KinematicSource",
+    "rollout": "handsim.envs.rollouts:RolloutSource",
+}
+"""Frame sources by name -> ``"module:class"`` of a :class:`FrameSource`, imported when used
+(so the core does not import the envs; spawned and Ray workers import the module by name).
+Add one with :func:`register_source`."""
+
+
+class FrameSource(Protocol):
+    """What :func:`generate_shard` needs of a frame source.
+
+    A source is made per shard from the config (``cls(config)``) and closed after it.
+    """
+
+    intrinsics: CameraIntrinsics
+
+    @classmethod
+    def check_config(cls, config: GenerationConfig) -> None:
+        """Raise :class:`InvalidGenerationConfig` for a field this source cannot honour."""
+
+    def episode(
+        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+    ) -> Iterator[dict[str, np.ndarray]]:
+        """Yield the arrays (images included) of up to ``frames`` accepted frames."""
+
+    def close(self) -> None:
+        """Free what the source holds (renderers, envs)."""
+
+
+def register_source(name: str, spec: str) -> None:
+    """Register a frame source under ``name`` as ``"module:class"`` (imported when used).
+
+    Register it in every process that generates (e.g. at import of the module that defines
+    it); the built-in ones need no registration.
+
+    Raises:
+        InvalidGenerationConfig: for a spec not of the form ``"module:class"``.
+    """
+    if not isinstance(name, str) or not name or not isinstance(spec, str) or spec.count(":") != 1:
+        raise InvalidGenerationConfig(
+            f"register_source needs a name and a 'module:class' spec; received {name!r}, {spec!r}"
+        )
+    SOURCES[name] = spec
+
+
+def _source_class(name: str) -> type:
+    module, _, attr = SOURCES[name].partition(":")
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError) as err:
+        raise InvalidGenerationConfig(
+            f"source {name!r} ({SOURCES[name]}) cannot be imported: {err}"
+        ) from err
+
+
+def make_source(config: GenerationConfig) -> FrameSource:
+    """The frame source of a config (``config.source``), made for one shard."""
+    return _source_class(config.source)(config)
 
 
 def _pair(name: str, value: object, lo: float, hi: float, integer: bool = False) -> tuple:
@@ -161,6 +236,11 @@ class GenerationConfig:
         occlusion_buckets: ``(edges, fractions)``: bucket edges of the occlusion ratio and the
             fraction of every shard each bucket must fill (``None``: no stratification).
         depth_scale_mm: stored depth unit, millimetres.
+        source: where frames come from (:data:`SOURCES`): ``"kinematic"`` (posed hands, no
+            physics) or ``"rollout"`` (an env driven by its expert, with physical contact).
+        env_id: the env of the rollout source (``handsim/Grasp-v0``,
+            ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
+        frame_stride: rollout source: env steps between kept frames (1 = every step).
     """
 
     frames: int = 1000
@@ -180,8 +260,25 @@ class GenerationConfig:
     occlusion_range: tuple[float, float] = (0.0, 1.0)
     occlusion_buckets: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     depth_scale_mm: float = DEFAULT_DEPTH_SCALE_MM
+    source: str = "kinematic"
+    env_id: str | None = None
+    frame_stride: int = 1
 
     def __post_init__(self) -> None:
+        _choice("source", self.source, tuple(SOURCES))
+        _int("frame_stride", self.frame_stride, 1, 10_000)
+        if (
+            isinstance(self.depth_scale_mm, bool)
+            or not isinstance(self.depth_scale_mm, (int, float))
+            or not 0.001 <= self.depth_scale_mm <= 10.0
+        ):
+            raise InvalidGenerationConfig(
+                f"depth_scale_mm must be a number in [0.001, 10]; received {self.depth_scale_mm!r}"
+            )
+        if self.env_id is not None and not isinstance(self.env_id, str):
+            raise InvalidGenerationConfig(
+                f"env_id must be an env id such as 'handsim/Grasp-v0'; received {self.env_id!r}"
+            )
         _int("frames", self.frames, 1, 10**9)
         _int("frames_per_shard", self.frames_per_shard, 1, 100_000)
         _int("frames_per_episode", self.frames_per_episode, 1, 10_000)
@@ -225,6 +322,16 @@ class GenerationConfig:
                 raise InvalidGenerationConfig(
                     f"occlusion_buckets fractions must be >= 0 and sum to 1; received {fractions}"
                 )
+        if self.source != "kinematic":
+            # The source checks its own fields (e.g. the env id and the viewpoints it has).
+            _source_class(self.source).check_config(self)
+            return
+        if self.env_id is not None or self.frame_stride != 1:
+            raise InvalidGenerationConfig(
+                "env_id and frame_stride are fields of the 'rollout' source; set source: rollout "
+                f"or remove them (received env_id={self.env_id!r}, "
+                f"frame_stride={self.frame_stride!r})"
+            )
         if hi == 0 and (self.occlusion_range[0] > 0 or self.occlusion_buckets is not None):
             raise InvalidGenerationConfig(
                 "frames without objects have a hand occlusion ratio of 0: occlusion_range and "
@@ -233,14 +340,6 @@ class GenerationConfig:
         if "through_object" in self.viewpoints and hi == 0:
             raise InvalidGenerationConfig(
                 "viewpoint 'through_object' needs objects: raise num_objects_range above 0"
-            )
-        if (
-            isinstance(self.depth_scale_mm, bool)
-            or not isinstance(self.depth_scale_mm, (int, float))
-            or not 0.001 <= self.depth_scale_mm <= 10.0
-        ):
-            raise InvalidGenerationConfig(
-                f"depth_scale_mm must be a number in [0.001, 10]; received {self.depth_scale_mm!r}"
             )
 
     def _tuple_of(self, name: str, valid: Sequence[str]) -> None:
@@ -335,9 +434,19 @@ PRESETS: dict[str, dict[str, Any]] = {
         "distance_range_m": (0.4, 0.7),
         "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
     },
+    "grasp-rollouts": {
+        "source": "rollout",
+        "env_id": "handsim/Grasp-v0",
+        "num_objects_range": (1, 1),
+        "viewpoints": ("third_person", "egocentric", "random"),
+        "frames_per_episode": 60,
+        "frame_stride": 5,
+    },
 }
-"""Named configs: hand alone, hand among objects, and objects between camera and hand with
-the occlusion ratio stratified in four buckets from 0.1 to 0.95."""
+"""Named configs: hand alone, hand among objects, objects between camera and hand with the
+occlusion ratio stratified in four buckets from 0.1 to 0.95 (kinematic), and Grasp-v0 rollouts
+of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical
+contact)."""
 
 
 class KinematicSource:
@@ -351,6 +460,13 @@ class KinematicSource:
         self.config = config
         self.intrinsics = camera_preset(config.camera)
         self.sensor = sensor_model(config.sensor)
+
+    @classmethod
+    def check_config(cls, config: GenerationConfig) -> None:
+        """Every field is checked by :class:`GenerationConfig` itself."""
+
+    def close(self) -> None:
+        """Nothing is held between episodes."""
 
     def _scene(self, rng: np.random.Generator) -> Scene:
         c = self.config
@@ -480,7 +596,7 @@ class KinematicSource:
                         rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
                     )
                     ratio = frame.hand_occlusion_ratio or 0.0
-                    if frame.in_frame.sum() >= 15 and accept(ratio):
+                    if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
                         arrays = frame_to_arrays(frame, images=True)
                         arrays["hand_occlusion_ratio"][()] = ratio
                         yield arrays
@@ -515,10 +631,27 @@ class _Acceptor:
         return True
 
 
+@contextlib.contextmanager
+def _closing(source: FrameSource) -> Iterator[FrameSource]:
+    try:
+        yield source
+    finally:
+        source.close()
+
+
 def generate_shard(
-    config: GenerationConfig, index: int, folder: str | os.PathLike[str]
+    config: GenerationConfig,
+    index: int,
+    folder: str | os.PathLike[str],
+    on_frame: Callable[[], None] | None = None,
 ) -> ShardInfo:
     """Make shard ``index`` of a dataset (from ``default_rng([seed, index])`` alone).
+
+    Args:
+        config: what to generate.
+        index: the shard's index.
+        folder: the dataset folder.
+        on_frame: called after every frame written (progress).
 
     Returns:
         The complete shard's record.
@@ -526,22 +659,27 @@ def generate_shard(
     folder = Path(folder)
     frames = config.shard_frames(index)
     rng = np.random.default_rng([config.seed, index])
-    source = KinematicSource(config)
+    source = make_source(config)
     accept = _Acceptor(config, frames)
     shape = (source.intrinsics.height, source.intrinsics.width)
     path = folder / Manifest.shard_name(index)
-    with ShardWriter(
-        path,
-        image_shape=shape,
-        depth_scale_mm=config.depth_scale_mm,
-        paired_clean=config.paired_clean,
-    ) as writer:
+    with (
+        _closing(source),
+        ShardWriter(
+            path,
+            image_shape=shape,
+            depth_scale_mm=config.depth_scale_mm,
+            paired_clean=config.paired_clean,
+        ) as writer,
+    ):
         done, episode, empty = 0, 0, 0
         while done < frames:
             n = min(config.frames_per_episode, frames - done)
             got = 0
             for step, arrays in enumerate(source.episode(rng, accept, n)):
                 writer.append(arrays, episode=index * 1_000_000 + episode, step=step)
+                if on_frame is not None:
+                    on_frame()
                 got += 1
             done += got
             episode += 1
@@ -563,6 +701,53 @@ def _worker(args: tuple[dict, int, str]) -> tuple[int, ShardInfo]:
     return index, generate_shard(config, index, folder)
 
 
+RAY_MAX_RETRIES = 3
+"""Times Ray reruns a shard task whose worker died (the rerun writes the same shard)."""
+
+
+def _ray_results(
+    jobs: list[tuple[dict, int, str]], address: str
+) -> Iterator[tuple[int, ShardInfo]]:
+    """Run one Ray task per shard; yield ``(index, record)`` as tasks complete."""
+    try:
+        import ray
+    except ImportError as err:
+        raise GenerationError(
+            "--ray needs Ray: pip install 'handsim[ray]' (or pip install ray)"
+        ) from err
+    if not isinstance(address, str) or not address:
+        raise InvalidGenerationConfig(
+            f"ray must be 'local' or a cluster address such as 'auto' or 'ray://host:10001'; "
+            f"received {address!r}"
+        )
+    if not ray.is_initialized():
+        env = {k: os.environ[k] for k in ("MUJOCO_GL", "PYOPENGL_PLATFORM") if k in os.environ}
+        ray.init(
+            address=None if address == "local" else address,
+            include_dashboard=False,
+            runtime_env={"env_vars": env} if env else None,
+            log_to_driver=False,
+        )
+    # Retries cover dead workers (SIGKILL, lost node), not errors of the config: those stop.
+    task = ray.remote(num_cpus=1, max_retries=RAY_MAX_RETRIES)(_worker)
+    pending = [task.remote(job) for job in jobs]
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            try:
+                yield ray.get(done[0])
+            except ray.exceptions.RayTaskError as err:
+                raise err.as_instanceof_cause() from None
+            except ray.exceptions.RayError as err:
+                raise GenerationError(
+                    f"a Ray shard task failed {RAY_MAX_RETRIES + 1} times ({err}); the complete "
+                    "shards are kept, rerun the same command to resume"
+                ) from err
+    finally:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+
+
 def _histogram(folder: Path, manifest: Manifest, edges: Sequence[float]) -> dict[str, list]:
     from handsim.data.shards import ShardReader
 
@@ -581,14 +766,20 @@ def generate(
     *,
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    ray: str | None = None,
 ) -> Manifest:
     """Generate (or resume) a dataset in ``out``.
 
     Args:
         config: what to generate.
         out: the dataset folder (created; an existing one must hold the same config).
-        workers: worker processes (spawned; each makes whole shards).
+        workers: worker processes (spawned; each makes whole shards). Ignored with ``ray``.
         progress: called with (frames done, frames total) after every completed shard.
+        ray: run one Ray task per shard instead (needs ``pip install handsim[ray]``):
+            ``"local"`` starts a local Ray instance (or uses the one this process already
+            joined), any other value is the address of a running cluster (``"auto"``,
+            ``"ray://host:10001"``, ...). ``out`` must be a folder every node sees. A task
+            that dies is retried (:data:`RAY_MAX_RETRIES` times) and writes the same shard.
 
     Returns:
         The final manifest (also written to ``out/manifest.json``).
@@ -617,14 +808,19 @@ def generate(
             depth_scale_mm=float(config.depth_scale_mm),
             image_shape=shape,
         )
-    if manifest.config != config.to_json():
-        changed = sorted(
-            k for k in config.to_json() if manifest.config.get(k) != config.to_json()[k]
-        )
+    stored = manifest.config
+    try:
+        # Fields added since the dataset was made take their defaults.
+        stored = GenerationConfig.from_mapping(manifest.config).to_json()
+    except (InvalidGenerationConfig, TypeError):
+        pass
+    if stored != config.to_json():
+        changed = sorted(k for k in config.to_json() if stored.get(k) != config.to_json()[k])
         raise InvalidGenerationConfig(
             f"{folder} holds a dataset made with another config (fields differ: "
             f"{', '.join(changed)}); resume with the same config or use another folder"
         )
+    manifest.config = config.to_json()
     manifest.seeds = [config.seed] * config.num_shards
     for index, record in list(manifest.shards.items()):
         if check_shard(folder / record.name, record):
@@ -636,8 +832,18 @@ def generate(
         progress(done, config.frames)
     jobs = [(config.to_json(), i, str(folder)) for i in todo]
     pool = None
-    if workers == 1 or len(jobs) <= 1:
-        results: Iterator = map(_worker, jobs)
+    if ray is not None:
+        results: Iterator = _ray_results(jobs, ray)
+    elif workers == 1 or len(jobs) <= 1:
+        # In this process: progress frame by frame (workers report whole shards).
+        counted = [done]
+
+        def on_frame() -> None:
+            counted[0] += 1
+            if progress is not None:
+                progress(counted[0], config.frames)
+
+        results = ((i, generate_shard(config, i, folder, on_frame)) for _, i, folder in jobs)
     else:
         # Spawned workers get fresh GL contexts; a worker that dies breaks the pool (an
         # error), where multiprocessing.Pool would replace it and wait forever.

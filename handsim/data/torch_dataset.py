@@ -10,13 +10,20 @@ sample is made, never by importing handsim.
 A sample is a dict of tensors: ``depth`` (1, H, W) float32 metres (0 = no measurement),
 ``segmentation`` (H, W) int64, every label of :data:`~handsim.data.arrays.LABEL_SCHEMA` as a
 tensor, ``episode`` and ``step``; the transform (if any) receives and returns that dict.
+``keys=`` keeps only the named entries (less to read, convert and collate).
+
+Throughput: ``DataLoader`` fetches a batch with one :meth:`HandSimDataset.__getitems__` call,
+which reads each run of consecutive frames of a shard at once. Pass
+``batch_sampler=dataset.batch_sampler(batch_size)`` (:class:`BlockBatchSampler`): batches made
+of a few random blocks of consecutive frames, in a new random order every epoch, so that most
+reads are whole blocks (a plain shuffled sampler reads frame by frame).
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,11 +34,19 @@ from handsim.data.shards import ShardReader
 from handsim.errors import HandSimError
 from handsim.world.registry import OBJECTS
 
-__all__ = ["SPLITS", "InvalidDatasetQuery", "HandSimDataset", "split_of_episode"]
+__all__ = [
+    "SPLITS",
+    "InvalidDatasetQuery",
+    "HandSimDataset",
+    "BlockBatchSampler",
+    "split_of_episode",
+]
 
 SPLITS = ("train", "val", "test", "all")
 """Splits: episodes are assigned by a hash of (folder seed, episode) with fractions 80/10/10."""
 _SPLIT_FRACTIONS = (0.8, 0.1, 0.1)
+_IMAGES = ("depth", "segmentation", "depth_clean")
+_RUN_GAP = 4  # frames a run of reads may skip (filtered-out frames are read and dropped)
 
 
 class InvalidDatasetQuery(HandSimError, ValueError):
@@ -57,6 +72,8 @@ class HandSimDataset:
         objects: keep frames that show at least one of these objects (names).
         sensors: keep folders generated with one of these sensor models.
         transform: called on every sample dict.
+        keys: keep only these entries of a sample (e.g. ``("depth", "keypoints_px",
+            "visible")``); ``None`` keeps all.
 
     Raises:
         InvalidDatasetQuery: for a folder that is not a dataset, or a bad split or filter.
@@ -71,6 +88,7 @@ class HandSimDataset:
         objects: Sequence[str] | None = None,
         sensors: Sequence[str] | None = None,
         transform: Callable[[dict[str, Any]], dict[str, Any]] | None = None,
+        keys: Sequence[str] | None = None,
     ) -> None:
         if isinstance(folders, (str, os.PathLike)):
             folders = [folders]
@@ -95,6 +113,18 @@ class HandSimDataset:
         if transform is not None and not callable(transform):
             raise InvalidDatasetQuery(f"transform must be callable; received {transform!r}")
         self.transform = transform
+        if keys is not None:
+            from handsim.data.arrays import LABEL_SCHEMA
+
+            valid = (*LABEL_SCHEMA, "depth", "segmentation", "depth_clean", "episode", "step")
+            if isinstance(keys, str) or not all(k in valid for k in keys):
+                raise InvalidDatasetQuery(
+                    f"keys must be a list drawn from {', '.join(valid)}; received {keys!r}"
+                )
+            keys = tuple(keys)
+        self.keys = keys
+        # Images to read: only those kept (decompressing an image is most of a read).
+        self._images = None if keys is None else tuple(k for k in _IMAGES if k in keys)
         self._readers: list[ShardReader] = []
         index = []
         for folder in folders:
@@ -141,19 +171,179 @@ class HandSimDataset:
     def __len__(self) -> int:
         return len(self._index)
 
-    def __getitem__(self, i: int) -> dict[str, Any]:
-        import torch
-
+    def _check_index(self, i: object) -> int:
         if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < len(self):
             raise IndexError(f"sample {i!r} is out of range: the dataset has {len(self)}")
-        shard, frame = self._index[i]
-        arrays = self._readers[shard][int(frame)]
+        return int(i)
+
+    def _sample(self, arrays: dict[str, np.ndarray], row: int | None) -> dict[str, Any]:
+        import torch
+
         sample = {}
-        for key, value in arrays.items():
-            array = np.asarray(value)
-            if key == "depth":
+        for key in self.keys if self.keys is not None else arrays:
+            array = arrays[key] if row is None else arrays[key][row]
+            if key in ("depth", "depth_clean"):
                 array = array[None]
             elif key == "segmentation":
                 array = array.astype(np.int64)
             sample[key] = torch.from_numpy(np.ascontiguousarray(array))
         return self.transform(sample) if self.transform is not None else sample
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        shard, frame = self._index[self._check_index(i)]
+        return self._sample(self._readers[shard][int(frame)], None)
+
+    def _runs(self, indices: Sequence[int]) -> Iterator[tuple[dict[str, np.ndarray], np.ndarray]]:
+        """Read ``indices`` in runs of nearby frames of one shard, in order.
+
+        Yields ``(block, rows)``: the block's arrays and the rows of it that are the next
+        samples. A run goes on while the next sample is a later frame of the same shard at
+        most :data:`_RUN_GAP` frames on (filtered-out frames in between are read and dropped).
+        """
+        rows = self._index[[self._check_index(i) for i in indices]]
+        k, n = 0, len(rows)
+        while k < n:
+            shard, first = rows[k]
+            end = k + 1
+            while (
+                end < n
+                and rows[end, 0] == shard
+                and 0 < rows[end, 1] - rows[end - 1, 1] <= _RUN_GAP
+            ):
+                end += 1
+            last = rows[end - 1, 1]
+            block = self._readers[shard].read_block(int(first), int(last) + 1, self._images)
+            yield block, rows[k:end, 1] - first
+            k = end
+
+    def __getitems__(self, indices: Sequence[int]) -> list[dict[str, Any]]:
+        """Samples ``indices``: what ``DataLoader`` asks for one batch.
+
+        Runs of consecutive frames of a shard are read at once
+        (:meth:`~handsim.data.shards.ShardReader.read_block`).
+        """
+        return [
+            self._sample(block, int(row)) for block, rows in self._runs(indices) for row in rows
+        ]
+
+    def batch(self, indices: Sequence[int]) -> dict[str, Any]:
+        """Samples ``indices`` as one batch: a dict of stacked tensors, like ``default_collate``.
+
+        The collate-free path of :meth:`loader`: one tensor per key per batch, made from the
+        block reads directly (no per-sample tensors to stack). The transform, if any, is
+        applied to every sample (then they are collated as usual).
+        """
+        import torch
+
+        if self.transform is not None:
+            return torch.utils.data.default_collate(self.__getitems__(indices))
+        parts: dict[str, list[np.ndarray]] = {}
+        for block, rows in self._runs(indices):
+            whole = len(rows) == len(block["valid"])  # rows are then 0..n-1: no copy
+            for key in self.keys if self.keys is not None else block:
+                parts.setdefault(key, []).append(block[key] if whole else block[key][rows])
+        out = {}
+        for key, arrays in parts.items():
+            array = arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+            if key in ("depth", "depth_clean") or array.ndim == 1:
+                array = array[:, None]  # a scalar label is (1,) per sample, as in __getitem__
+            elif key == "segmentation":
+                array = array.astype(np.int64)
+            out[key] = torch.from_numpy(np.ascontiguousarray(array))
+        return out
+
+    def loader(
+        self,
+        batch_size: int,
+        *,
+        num_workers: int = 0,
+        shuffle: bool = True,
+        block_size: int = 8,
+        seed: int = 0,
+        **kwargs: Any,
+    ):
+        """A ``DataLoader`` of batches made by :meth:`batch` from a :class:`BlockBatchSampler`.
+
+        The fastest way to read: batches of random blocks of consecutive frames, each batch
+        read and turned into tensors in one call in a worker (no per-sample collation).
+        ``kwargs`` go to ``torch.utils.data.DataLoader`` (e.g. ``persistent_workers=True``,
+        ``pin_memory=True``).
+        """
+        import torch
+
+        sampler = self.batch_sampler(batch_size, block_size=block_size, shuffle=shuffle, seed=seed)
+        return torch.utils.data.DataLoader(
+            _Batches(self),
+            sampler=sampler,
+            batch_size=None,
+            num_workers=num_workers,
+            **kwargs,
+        )
+
+    def batch_sampler(
+        self, batch_size: int, *, block_size: int = 8, shuffle: bool = True, seed: int = 0
+    ) -> BlockBatchSampler:
+        """A :class:`BlockBatchSampler` over this dataset (``DataLoader(batch_sampler=...)``)."""
+        return BlockBatchSampler(
+            len(self), batch_size, block_size=block_size, shuffle=shuffle, seed=seed
+        )
+
+
+class _Batches:
+    """A map-style view whose item ``[indices]`` is the batch :meth:`HandSimDataset.batch`."""
+
+    def __init__(self, dataset: HandSimDataset) -> None:
+        self.dataset = dataset
+
+    def __len__(self) -> int:
+        return len(self.dataset)
+
+    def __getitem__(self, indices: Sequence[int]) -> dict[str, Any]:
+        return self.dataset.batch(indices)
+
+
+class BlockBatchSampler:
+    """Batches of random blocks of consecutive samples: fast reads, still shuffled.
+
+    The samples ``0..n-1`` are cut into blocks of ``block_size`` consecutive indices (frames of
+    one shard stay together); every epoch the blocks are shuffled and joined into batches of
+    ``batch_size`` (a batch holds ``batch_size / block_size`` random blocks), so each shard is
+    read a block at a time. Every sample appears once per epoch.
+
+    Args:
+        n: number of samples.
+        batch_size: samples per batch (the last batch may be smaller).
+        block_size: consecutive samples per block (1 = a plain shuffle).
+        shuffle: shuffle the blocks every epoch (``False``: in order).
+        seed: seed of the first epoch's order (epoch ``e`` uses ``(seed, e)``).
+
+    Raises:
+        InvalidDatasetQuery: for a non-positive size.
+    """
+
+    def __init__(
+        self, n: int, batch_size: int, *, block_size: int = 8, shuffle: bool = True, seed: int = 0
+    ) -> None:
+        for name, value, low in (
+            ("n", n, 0),
+            ("batch_size", batch_size, 1),
+            ("block_size", block_size, 1),
+        ):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise InvalidDatasetQuery(f"{name} must be an integer >= {low}; received {value!r}")
+        self.n, self.batch_size, self.block_size = int(n), int(batch_size), int(block_size)
+        self.shuffle, self.seed, self.epoch = bool(shuffle), int(seed), 0
+
+    def __len__(self) -> int:
+        return -(-self.n // self.batch_size)
+
+    def __iter__(self):
+        starts = np.arange(0, self.n, self.block_size)
+        if self.shuffle:
+            np.random.default_rng([self.seed, self.epoch]).shuffle(starts)
+        self.epoch += 1
+        order = np.concatenate(
+            [np.arange(s, min(s + self.block_size, self.n)) for s in starts] or [np.zeros(0, int)]
+        )
+        for b in range(0, self.n, self.batch_size):
+            yield order[b : b + self.batch_size].tolist()

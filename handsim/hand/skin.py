@@ -416,7 +416,7 @@ def _segment_kind(name: str) -> str:
     return name.split("_", 1)[1]
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
 def _right_parts(params) -> tuple[SkinPart, ...]:
     from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
 
@@ -472,7 +472,7 @@ def _mirror(part: SkinPart) -> SkinPart:
     )
 
 
-@functools.lru_cache(maxsize=16)
+@functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
 def build_skin(params) -> tuple[SkinPart, ...]:
     """The skin of a hand, one part per body (cached per parameters).
 

@@ -38,6 +38,7 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
 
     out = tmp_path / "demo"
     args = ["--size", "32", "--closed-loop-episodes", "1", "--dataset-frames", "4"]
+    args += ["--learned-episodes", "1"]
     assert main(["demo", "--out", str(out), *args]) == 0
     text = (out / "summary.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
@@ -53,6 +54,11 @@ def test_demo_command_adds_the_closed_loop(tmp_path, capsys):
         assert bar in captured.err  # tqdm progress bars with rate and ETA
     assert "<" in captured.err and "/s" in captured.err
     assert (out / "closed_loop" / "worst_frame_feedback_off.png").exists()
+    # The shipped DeepPrior++ in the same loop: keypoints from the depth image alone.
+    learned = summary["closed_loop_deepprior++"]
+    assert set(learned) == {"feedback_off", "feedback_on", "paths"}
+    assert 0 < learned["feedback_off"]["kp_mean_mm"] < 200
+    assert "shipped DeepPrior++" in captured.out
     # The occlusion-heavy dataset: complete, and its histogram printed.
     dataset = summary["dataset"]
     assert dataset["frames"] == 4 and sum(dataset["occlusion_histogram"]["counts"]) == 4

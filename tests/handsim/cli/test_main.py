@@ -71,7 +71,7 @@ def test_help_lists_valid_values(capsys):
         (["closed-loop", "--dropout", "1.5"], r"--dropout: expected a number in \[0, 1\]"),
         (["closed-loop", "--noise-mm", "nan"], "--noise-mm: expected a finite number >= 0"),
         (["closed-loop", "--noise-mm", "-1"], "--noise-mm: expected a finite number >= 0"),
-        (["closed-loop", "--estimator", "deepprior"], "unknown estimator 'deepprior'; give one"),
+        (["closed-loop", "--estimator", "deepprior3"], "unknown estimator .deepprior3.; give one"),
         (["demo", "--size", "0"], "--size: expected an integer >= 1"),
         (["demo", "--closed-loop-episodes", "-1"], "expected an integer >= 0"),
         (["teleport"], "invalid choice: 'teleport'"),

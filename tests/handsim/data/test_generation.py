@@ -200,3 +200,22 @@ def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
         ShardReader(run / "shard-00003.h5").labels("keypoints_cam"),
         ShardReader(tmp_path / "clean" / "shard-00003.h5").labels("keypoints_cam"),
     )
+
+
+def test_ray_without_ray_installed_says_how_to_get_it(tmp_path, monkeypatch):
+    """generate(ray=...) without Ray names the extra to install."""
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(GenerationError, match=r"pip install 'handsim\[ray\]'"):
+        generate(GenerationConfig.from_mapping(TINY), tmp_path, ray="local")
+
+
+def test_a_dataset_made_before_new_config_fields_resumes(tmp_path):
+    """A manifest without later fields (e.g. source) resumes: missing fields take defaults."""
+    config = GenerationConfig.from_mapping(TINY, frames=2)
+    made = generate(config, tmp_path)
+    doc = json.loads((tmp_path / "manifest.json").read_text())
+    for key in ("source", "env_id", "frame_stride"):
+        del doc["config"][key]
+    (tmp_path / "manifest.json").write_text(json.dumps(doc))
+    assert generate(config, tmp_path).shards == made.shards
+    assert Manifest.read(tmp_path).config == config.to_json()

@@ -76,3 +76,54 @@ def test_bad_queries_say_what_is_valid(dataset_folder, tmp_path):
         HandSimDataset(dataset_folder, occlusion_range=(0.5, 0.1))
     with pytest.raises(InvalidDatasetQuery, match="has no manifest.json"):
         HandSimDataset(tmp_path)
+
+
+def test_batched_reads_equal_single_reads_and_block_batches_cover_every_sample(dataset_folder):
+    """__getitems__ (DataLoader's batch fetch) gives data[i] for each i, whatever the order."""
+    data = HandSimDataset(dataset_folder)
+    for indices in ([0, 1, 2, 3, 4, 5], [5, 0, 3], [4]):
+        for batched, i in zip(data.__getitems__(indices), indices, strict=True):
+            single = data[i]
+            assert batched.keys() == single.keys()
+            for key in single:
+                np.testing.assert_array_equal(
+                    batched[key].numpy(), single[key].numpy(), err_msg=key
+                )
+    sampler = data.batch_sampler(4, block_size=2, seed=1)
+    epochs = [list(sampler), list(sampler)]
+    assert len(sampler) == 2 and all(len(e) == 2 for e in epochs)
+    for batches in epochs:
+        assert sorted(i for b in batches for i in b) == list(range(6))
+        assert all(b[k + 1] == b[k] + 1 for b in batches for k in range(0, len(b) - 1, 2))
+    loader = torch.utils.data.DataLoader(
+        HandSimDataset(dataset_folder, keys=("depth", "keypoints_px", "episode")),
+        batch_sampler=data.batch_sampler(4),
+        num_workers=2,
+    )
+    batches = list(loader)
+    assert {k for b in batches for k in b} == {"depth", "keypoints_px", "episode"}
+    assert sum(len(b["depth"]) for b in batches) == 6 and batches[0]["depth"].shape[1:] == (
+        1,
+        240,
+        320,
+    )
+    with pytest.raises(InvalidDatasetQuery, match="keys must be a list drawn from"):
+        HandSimDataset(dataset_folder, keys=("dpeth",))
+    with pytest.raises(InvalidDatasetQuery, match="batch_size must be an integer >= 1"):
+        data.batch_sampler(0)
+
+
+def test_the_loader_batches_equal_collated_samples(dataset_folder):
+    """dataset.loader(): collate-free batches equal default_collate of the samples."""
+    data = HandSimDataset(dataset_folder, keys=("depth", "segmentation", "keypoints_px", "step"))
+    batches = list(data.loader(4, block_size=2, seed=3, num_workers=2))
+    order = list(data.batch_sampler(4, block_size=2, seed=3))
+    assert len(batches) == len(order) == 2
+    for batch, indices in zip(batches, order, strict=True):
+        expected = torch.utils.data.default_collate([data[i] for i in indices])
+        assert batch.keys() == expected.keys()
+        for key in expected:
+            assert batch[key].dtype == expected[key].dtype
+            np.testing.assert_array_equal(batch[key].numpy(), expected[key].numpy(), err_msg=key)
+    with_transform = HandSimDataset(dataset_folder, transform=lambda s: {"ep": s["episode"]})
+    assert with_transform.batch([0, 5])["ep"].shape == (2, 1)

@@ -1,0 +1,143 @@
+"""Learned estimators on one CPU core at batch 1, preprocessing included: frames/s.
+
+Measured in one run, on this machine, with ``torch.set_num_threads(1)`` (and OpenCV's
+``cv2.setNumThreads(1)``), on hand-only structured-light frames (320 x 240):
+
+- preprocessing alone: RANSAC plane removal + nearest-blob centre of mass; the refined
+  localizer (3 iterations of the 64 x 64 CNN); the 128 x 128 crop;
+- the whole pipeline (``DeepPriorEstimator.predict``: checks, localization, refinement, crop,
+  network, inverse normalization) for DeepPrior (deep network with the prior) and for
+  DeepPrior++ at the paper's width and at the shipped width (``weights/deepprior_pp.json``);
+- each against its target (DeepPrior >= 500 frames/s, DeepPrior++ >= 60 frames/s) as a ratio.
+
+Speed does not depend on the weights: networks without shipped weights are timed with random
+ones of the same config. The machine's load average is recorded (a shared machine is slower).
+
+Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100]``; without
+``--data`` it generates 60 hand-only frames in a temporary folder. Writes
+``benchmarks/results/bench_estimators.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+TARGET_FPS = {"deepprior": 500.0, "deepprior++": 60.0}
+
+
+def _frames(data: str | None, n: int):
+    from handsim.estimators.deepprior.data import load_frames
+
+    if data is None:
+        from handsim.data.generation import GenerationConfig, generate
+
+        tmp = tempfile.mkdtemp(prefix="bench_estimators_")
+        config = GenerationConfig(
+            frames=60,
+            frames_per_shard=60,
+            frames_per_episode=10,
+            num_objects_range=(0, 0),
+            viewpoints=("third_person",),
+            sensor="structured_light",
+        )
+        generate(config, tmp)
+        data = tmp
+    frames = load_frames(data, "all", max_frames=n)
+    return [frames.depth(i) for i in range(len(frames))], list(frames.K)
+
+
+def _rate(fn, items, repeat: int = 2) -> float:
+    fn(*items[0])  # warm-up
+    start = time.perf_counter()
+    for _ in range(repeat):
+        for item in items:
+            fn(*item)
+    return repeat * len(items) / (time.perf_counter() - start)
+
+
+def _estimator(config: dict, folder: Path):
+    """A DeepPriorEstimator of a model config (random weights of that config)."""
+    import torch
+
+    from handsim.estimators.deepprior.checkpoint import save_checkpoint
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+    from handsim.estimators.deepprior.models import build_model
+
+    torch.manual_seed(0)
+    path = folder / f"{config['arch']}_{config.get('width', 1)}.pt"
+    save_checkpoint(
+        path, {"model": build_model(config).state_dict()}, {"model": config, "cube_m": 0.25}
+    )
+    return DeepPriorEstimator(path)
+
+
+def main() -> None:
+    """Run the benchmark and write the JSON."""
+    import cv2
+    import torch
+
+    from handsim.estimators.deepprior import preprocess as P
+    from handsim.estimators.deepprior.checkpoint import WEIGHTS_DIR
+    from handsim.estimators.deepprior.estimator import RefinedLocalizer
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--data", default=None, help="a hand-only dataset folder")
+    parser.add_argument("--frames", type=int, default=100)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    depths, Ks = _frames(args.data, args.frames)  # noqa: N806
+    items = list(zip(depths, Ks, strict=True))
+    base = P.PlaneRemovedLocalizer()
+    loc = RefinedLocalizer("localizer")
+    centers = [base.localize(d, k) for d, k in items]
+    found = [(d, k, c) for (d, k), c in zip(items, centers, strict=True) if c is not None]
+    results: dict = {
+        "frames": len(items),
+        "frames_with_blob": len(found),
+        "torch_threads": torch.get_num_threads(),
+        "opencv_threads": cv2.getNumThreads(),
+        "load_average_1min": os.getloadavg()[0],
+        "cpu_count": os.cpu_count(),
+        "fps": {},
+    }
+    fps = results["fps"]
+    fps["plane_removed_com"] = _rate(base.localize, items)
+    fps["refine_3_iterations"] = _rate(loc.refine, found)
+    fps["crop_128"] = _rate(
+        lambda d, k, c: P.crop_depth(d, P.crop_matrix(c, k), c[2]), found, repeat=5
+    )
+    shipped_pp = WEIGHTS_DIR / "deepprior_pp.json"
+    pp_width = 0.25
+    if shipped_pp.is_file():
+        pp_width = json.loads(shipped_pp.read_text())["model"].get("width", 1.0)
+    pp = {"arch": "resnet", "size": 128, "fc": 1024, "prior_dim": 30}
+    configs = {
+        "deepprior": {"arch": "deep", "size": 128, "fc": 1024, "prior_dim": 30},
+        "deepprior++ (width 1)": pp,
+        f"deepprior++ (width {pp_width}, as shipped)": {**pp, "width": pp_width},
+    }
+    ratios = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, config in configs.items():
+            est = _estimator(config, Path(tmp))
+            fps[f"pipeline {name}"] = _rate(est.predict, items)
+            target = TARGET_FPS["deepprior++" if name.startswith("deepprior++") else "deepprior"]
+            ratios[name] = fps[f"pipeline {name}"] / target
+    results["ratio_to_target"] = ratios
+    results["targets_fps"] = TARGET_FPS
+    out = Path(__file__).parent / "results" / "bench_estimators.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    print(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,140 @@
+"""Checkpoints: a torch state dict (``.pt``) next to a small JSON config (``.json``).
+
+A checkpoint ``NAME.pt`` holds ``{"model": state_dict, ...}`` (training adds the optimizer,
+the epoch and the best validation error) and is read with ``torch.load(weights_only=True)``:
+only tensors and plain containers, never pickled code. ``NAME.json`` holds the network config
+(:func:`~handsim.estimators.deepprior.models.build_model`) and the preprocessing (cube, crop
+size). Shipped weights live in ``weights/`` of this package and are named by
+:data:`SHIPPED` (``deepprior``, ``deepprior++``, ``localizer``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from handsim.errors import HandSimError
+
+__all__ = [
+    "WEIGHTS_DIR",
+    "SHIPPED",
+    "InvalidCheckpoint",
+    "resolve_checkpoint",
+    "save_checkpoint",
+    "load_checkpoint",
+    "load_model",
+    "ship_weights",
+]
+
+WEIGHTS_DIR = Path(__file__).parent / "weights"
+"""Folder of the shipped weights."""
+
+SHIPPED = {"deepprior": "deepprior", "deepprior++": "deepprior_pp", "localizer": "localizer"}
+"""Shipped weights by name -> file stem in :data:`WEIGHTS_DIR`."""
+
+
+class InvalidCheckpoint(HandSimError, ValueError):
+    """A checkpoint name or path cannot be loaded; the message says what is valid."""
+
+
+def resolve_checkpoint(name_or_path: str | os.PathLike[str]) -> Path:
+    """The ``.pt`` path of a shipped name or of a checkpoint path (``.pt`` optional).
+
+    Raises:
+        InvalidCheckpoint: if neither a shipped name nor an existing ``.pt`` + ``.json`` pair.
+    """
+    text = str(name_or_path)
+    if text in SHIPPED:
+        path = WEIGHTS_DIR / f"{SHIPPED[text]}.pt"
+        if not path.is_file():
+            raise InvalidCheckpoint(
+                f"no shipped weights {text!r} in this installation ({path.name} is missing); "
+                f"train them with `handsim train {text} --data DIR --out RUN` and give RUN"
+            )
+        return path
+    path = Path(text)
+    if path.is_dir():
+        path = path / "best.pt"
+    if path.suffix != ".pt":
+        path = path.with_suffix(".pt")
+    if not path.is_file() or not path.with_suffix(".json").is_file():
+        raise InvalidCheckpoint(
+            f"checkpoint {text!r} not found: give a shipped name ({', '.join(SHIPPED)}), a "
+            "training folder (its best.pt is used) or a NAME.pt with its NAME.json beside it"
+        )
+    return path
+
+
+def save_checkpoint(path: str | os.PathLike[str], state: dict[str, Any], config: dict) -> None:
+    """Write ``state`` to ``path`` (atomically) and ``config`` to the ``.json`` beside it."""
+    import torch
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".pt.tmp")
+    torch.save(state, tmp)
+    os.replace(tmp, path)
+    tmp_json = path.with_suffix(".json.tmp")
+    tmp_json.write_text(json.dumps(config, indent=2, sort_keys=True) + "\n")
+    os.replace(tmp_json, path.with_suffix(".json"))
+
+
+def load_checkpoint(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any], dict]:
+    """``(state, config)`` of a checkpoint, read with ``weights_only=True``.
+
+    Raises:
+        InvalidCheckpoint: for a missing or unreadable checkpoint.
+    """
+    import torch
+
+    path = resolve_checkpoint(name_or_path)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        config = json.loads(path.with_suffix(".json").read_text())
+    except Exception as err:  # torch and json raise many types; name the file
+        raise InvalidCheckpoint(
+            f"cannot read checkpoint {path}: {type(err).__name__}: {err}"
+        ) from None
+    if not isinstance(state, dict) or "model" not in state:
+        raise InvalidCheckpoint(f"checkpoint {path} has no 'model' state dict")
+    return state, config
+
+
+def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tuple[Any, dict]:
+    """The network of a checkpoint in eval mode (float32), and its config."""
+    from .models import build_model
+
+    state, config = load_checkpoint(name_or_path)
+    model = build_model(config["model"])
+    model.load_state_dict(
+        {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
+    )
+    return model.to(device).eval(), config
+
+
+def ship_weights(checkpoint: str | os.PathLike[str], name: str, *, half: bool = False) -> Path:
+    """Copy a checkpoint's model (only) into :data:`WEIGHTS_DIR` under a shipped name.
+
+    Args:
+        checkpoint: a checkpoint path or run folder (its ``best.pt``).
+        name: one of :data:`SHIPPED`.
+        half: store floating-point tensors as float16 (half the size; loaded as float32).
+
+    Returns:
+        The written ``.pt`` path (its ``.json`` is beside it).
+
+    Raises:
+        InvalidCheckpoint: for an unknown name or an unreadable checkpoint.
+    """
+    if name not in SHIPPED:
+        raise InvalidCheckpoint(f"name must be one of {', '.join(SHIPPED)}; received {name!r}")
+    state, config = load_checkpoint(checkpoint)
+    model = {
+        k: (v.half() if half and v.is_floating_point() else v).contiguous()
+        for k, v in state["model"].items()
+    }
+    path = WEIGHTS_DIR / f"{SHIPPED[name]}.pt"
+    save_checkpoint(path, {"model": model}, {**config, "source": Path(str(checkpoint)).name})
+    return path

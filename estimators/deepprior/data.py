@@ -1,0 +1,281 @@
+"""Training and evaluation data of the learned estimators: handsim dataset folders in memory.
+
+:func:`load_frames` reads the depth images (as stored, uint16) and the labels of a split of one
+or more dataset folders (``handsim generate``) into a :class:`FrameSet`; :class:`CropDataset`
+turns it into augmented crops for torch (:func:`~handsim.estimators.deepprior.preprocess.augment`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from handsim.data.manifest import Manifest
+from handsim.data.shards import ShardReader
+from handsim.data.torch_dataset import split_of_episode
+from handsim.errors import HandSimError
+
+from .preprocess import CROP_SIZE, CUBE_M, MIDDLE_MCP, AugmentParams, augment, sample_augmentation
+
+__all__ = ["FrameSet", "load_frames", "env_frames", "CropDataset", "InvalidTrainingData"]
+
+
+class InvalidTrainingData(HandSimError, ValueError):
+    """A dataset folder or split has no usable frames; the message says which."""
+
+
+@dataclasses.dataclass
+class FrameSet:
+    """Frames of a split in memory.
+
+    Attributes:
+        depth_units: (N, H, W) uint16 depth in units of ``depth_scale_m`` (0 = none).
+        depth_scale_m: metres per depth unit, (N,) (folders may differ).
+        K: (N, 3, 3) intrinsics.
+        keypoints_cam: (N, 21, 3) keypoints, metres, camera frame.
+        occlusion: (N,) hand occlusion ratio (NaN where not computed).
+        hand_length_m: (N,) hand length, metres.
+        sensor: (N,) sensor model name of each frame's folder.
+    """
+
+    depth_units: np.ndarray
+    depth_scale_m: np.ndarray
+    K: np.ndarray
+    keypoints_cam: np.ndarray
+    occlusion: np.ndarray
+    hand_length_m: np.ndarray
+    sensor: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.K)
+
+    def depth(self, i: int) -> np.ndarray:
+        """(H, W) float32 depth of frame ``i``, metres."""
+        return self.depth_units[i].astype(np.float32) * np.float32(self.depth_scale_m[i])
+
+
+def load_frames(
+    folders: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
+    split: str = "all",
+    *,
+    max_frames: int | None = None,
+) -> FrameSet:
+    """Read every frame of a split (``train``/``val``/``test``/``all``, by episode).
+
+    Splits are those of :class:`~handsim.data.torch_dataset.HandSimDataset` (a hash of the
+    folder's seed and the episode, 80/10/10).
+
+    Raises:
+        InvalidTrainingData: if a folder is not a dataset or the split is empty.
+    """
+    import h5py
+
+    if isinstance(folders, (str, os.PathLike)):
+        folders = [folders]
+    keys = ("depth", "scale", "K", "kp", "occ", "length", "sensor")
+    parts: dict[str, list[Any]] = {k: [] for k in keys}
+    for folder in folders:
+        try:
+            manifest = Manifest.read(folder)
+        except HandSimError as err:
+            raise InvalidTrainingData(f"--data {folder}: {err}") from None
+        seed = int(manifest.config.get("seed", 0))
+        sensor = str(manifest.config.get("sensor", "unknown"))
+        for record in sorted(manifest.shards.values(), key=lambda s: s.name):
+            reader = ShardReader(Path(folder) / record.name)
+            episodes = reader.labels("episode")
+            keep = np.array(
+                [split == "all" or split_of_episode(seed, int(e)) == split for e in episodes],
+                dtype=bool,
+            )
+            keep &= reader.labels("valid").astype(bool)
+            if not keep.any():
+                continue
+            with h5py.File(reader.path, "r") as f:
+                depth = f["depth"][:]
+            parts["depth"].append(depth[keep])
+            parts["scale"].append(np.full(keep.sum(), reader.depth_scale_mm / 1000.0))
+            parts["K"].append(reader.labels("K")[keep])
+            parts["kp"].append(reader.labels("keypoints_cam")[keep])
+            parts["occ"].append(reader.labels("hand_occlusion_ratio")[keep])
+            parts["length"].append(reader.labels("hand_length_m")[keep])
+            parts["sensor"].append(np.array([sensor] * int(keep.sum())))
+            reader.close()
+    if not parts["K"]:
+        raise InvalidTrainingData(
+            f"no {split!r} frames in {', '.join(str(f) for f in folders)} (generate more "
+            "frames: the splits are 80/10/10 by episode)"
+        )
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    n = len(cat["K"]) if max_frames is None else min(max_frames, len(cat["K"]))
+    return FrameSet(
+        depth_units=cat["depth"][:n],
+        depth_scale_m=cat["scale"][:n],
+        K=cat["K"][:n],
+        keypoints_cam=cat["kp"][:n],
+        occlusion=cat["occ"][:n],
+        hand_length_m=cat["length"][:n],
+        sensor=cat["sensor"][:n],
+    )
+
+
+class CropDataset:
+    """Crops of a :class:`FrameSet` for torch: pose labels or the localizer's offset.
+
+    Sample ``i`` of epoch ``e`` draws its augmentation from ``default_rng([seed, e, i])``, so
+    an epoch is the same however it is batched or resumed.
+
+    Args:
+        frames: the frames.
+        centers: (N, 3) crop centres before augmentation, metres (e.g. the refined localizer's
+            output; default: the true middle-finger MCP).
+        target: ``"pose"`` (normalized (63,) keypoints) or ``"localizer"`` (the (3,) offset of
+            the middle MCP from the crop centre, in half cubes).
+        cube_m: cube edge, metres.
+        size: crop side, pixels.
+        rotation, scale, translation: the augmentations to draw (all off for evaluation).
+        offset_sigma_m: standard deviation of the centre offset, metres.
+        seed: augmentation seed.
+        alt_centers: (N, 3) other crop centres, drawn instead of ``centers`` with probability
+            ``alt_fraction`` per sample and epoch (the localizer learns from both its start,
+            the centre of mass, and from near its goal, so that it can be iterated).
+        alt_fraction: probability of ``alt_centers``.
+    """
+
+    def __init__(
+        self,
+        frames: FrameSet,
+        centers: np.ndarray | None = None,
+        *,
+        target: str = "pose",
+        cube_m: float = CUBE_M,
+        size: int = CROP_SIZE,
+        rotation: bool = False,
+        scale: bool = False,
+        translation: bool = False,
+        offset_sigma_m: float = 0.005,
+        seed: int = 0,
+        alt_centers: np.ndarray | None = None,
+        alt_fraction: float = 0.5,
+    ) -> None:
+        self.frames = frames
+        self.alt_centers = None if alt_centers is None else np.asarray(alt_centers)
+        self.alt_fraction = float(alt_fraction)
+        self.centers = (
+            frames.keypoints_cam[:, MIDDLE_MCP] if centers is None else np.asarray(centers)
+        )
+        self.target = target
+        self.cube_m, self.size = cube_m, size
+        self.flags = {"rotation": rotation, "scale": scale, "translation": translation}
+        self.offset_sigma_m = offset_sigma_m
+        self.seed, self.epoch = seed, 0
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def params(self, i: int) -> AugmentParams:
+        """The augmentation of sample ``i`` in the current epoch."""
+        if not any(self.flags.values()):
+            return AugmentParams()
+        rng = np.random.default_rng([self.seed, self.epoch, i])
+        return sample_augmentation(rng, offset_sigma_m=self.offset_sigma_m, **self.flags)
+
+    def sample(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(crop (1, S, S) float32, target float32)`` of frame ``i``."""
+        f = self.frames
+        center = self.centers[i]
+        if self.alt_centers is not None:
+            if np.random.default_rng([self.seed, self.epoch, i, 1]).random() < self.alt_fraction:
+                center = self.alt_centers[i]
+        crop, labels, _, _ = augment(
+            f.depth(i),
+            f.K[i],
+            f.keypoints_cam[i],
+            center,
+            self.params(i),
+            cube_m=self.cube_m,
+            size=self.size,
+        )
+        if self.target == "localizer":
+            y = labels[MIDDLE_MCP]
+        else:
+            y = labels.reshape(-1)
+        return crop[None].astype(np.float32), y.astype(np.float32)
+
+    def __getitem__(self, i: int) -> tuple[Any, Any]:
+        import torch
+
+        x, y = self.sample(int(i))
+        return torch.from_numpy(x), torch.from_numpy(y)
+
+
+def env_frames(
+    env_id: str = "handsim/Grasp-v0",
+    *,
+    episodes: int = 3,
+    every: int = 5,
+    seed: int = 0,
+    sensor: str = "structured_light",
+) -> FrameSet:
+    """Frames of an env's scripted expert (acting on the truth), every ``every``-th step.
+
+    The frames an estimator sees inside the closed loop (e.g. hand-object frames of
+    ``handsim/Grasp-v0`` from its third-person camera, the table in view), for offline
+    evaluation.
+
+    Args:
+        env_id: a registered handsim env id with ``make_expert``.
+        episodes: episodes (seeds ``seed ... seed + episodes - 1``).
+        every: keep every this many steps.
+        seed: first seed.
+        sensor: depth sensor model.
+
+    Returns:
+        The frames (depth stored in 0.1 mm units). ``occlusion`` is the frame's hand occlusion
+        ratio where it was computed, else the fraction of keypoints that are not visible.
+    """
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401 (registers the ids)
+
+    scale_m = 1e-4
+    parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length")}
+    env = gym.make(env_id, obs_mode="depth", sensor=sensor)
+    try:
+        for episode in range(episodes):
+            obs, info = env.reset(seed=seed + episode)
+            expert = env.unwrapped.make_expert(np.random.default_rng(seed + episode))
+            step, done = 0, False
+            while not done:
+                frame = info.get("frame")
+                if frame is not None and step % every == 0:
+                    depth = np.rint(np.asarray(obs["depth"], np.float64) / scale_m)
+                    parts["depth"].append(np.clip(depth, 0, 65535).astype(np.uint16))
+                    parts["K"].append(np.asarray(frame.K, np.float64))
+                    parts["kp"].append(np.asarray(frame.keypoints_cam, np.float64))
+                    ratio = frame.hand_occlusion_ratio
+                    if ratio is None or not np.isfinite(ratio):  # not computed: keypoints
+                        ratio = 1.0 - float(np.mean(frame.visible))
+                    parts["occ"].append(float(ratio))
+                    parts["length"].append(float(frame.hand_length_m))
+                action = expert.act(env.unwrapped.expert_state()).vector
+                obs, _, terminated, truncated, info = env.step(action)
+                step += 1
+                done = terminated or truncated
+    finally:
+        env.close()
+    n = len(parts["K"])
+    return FrameSet(
+        depth_units=np.stack(parts["depth"]),
+        depth_scale_m=np.full(n, scale_m),
+        K=np.stack(parts["K"]),
+        keypoints_cam=np.stack(parts["kp"]),
+        occlusion=np.asarray(parts["occ"]),
+        hand_length_m=np.asarray(parts["length"]),
+        sensor=np.array([sensor] * n),
+    )

@@ -1,0 +1,169 @@
+"""The learned estimators behind the :class:`~handsim.estimator.Estimator` protocol.
+
+:class:`DeepPriorEstimator` runs the whole pipeline on one depth image: RANSAC plane removal and
+the nearest blob's centre of mass (:class:`~.preprocess.PlaneRemovedLocalizer`), the refinement
+CNN applied ``refine_iterations`` times (it moves the centre to the predicted middle-finger
+MCP), the 3D cube crop, the pose network and the exact inverse of the label normalization.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
+
+from .preprocess import (
+    CUBE_M,
+    PlaneRemovedLocalizer,
+    crop_depth,
+    crop_matrix,
+    denormalize_keypoints,
+)
+
+__all__ = ["DeepPriorEstimator", "RefinedLocalizer"]
+
+
+class RefinedLocalizer(EstimatorBase):
+    """Hand centre: plane-removed centre of mass, then the refinement CNN, iterated.
+
+    Args:
+        checkpoint: a localizer checkpoint (shipped name ``"localizer"`` or a path), or
+            ``None`` for the plane-removed centre of mass alone.
+        iterations: refinement steps.
+        device: torch device.
+    """
+
+    def __init__(
+        self,
+        checkpoint: str | os.PathLike[str] | None = "localizer",
+        *,
+        iterations: int = 3,
+        device: str = "cpu",
+    ) -> None:
+        from .checkpoint import load_model
+
+        self.base = PlaneRemovedLocalizer()
+        self.iterations = int(iterations)
+        self.device = device
+        self.model = None
+        self.cube_m, self.size = CUBE_M, 64
+        if checkpoint is not None:
+            self.model, config = load_model(checkpoint, device)
+            self.cube_m = float(config["cube_m"])
+            self.size = int(config["model"]["size"])
+        self.checkpoint = None if checkpoint is None else str(checkpoint)
+
+    def __repr__(self) -> str:
+        return f"RefinedLocalizer(checkpoint={self.checkpoint!r}, iterations={self.iterations})"
+
+    def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
+        """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
+        import torch
+
+        if self.model is None:
+            return center
+        c = np.asarray(center, dtype=np.float64)
+        for _ in range(self.iterations):
+            M = crop_matrix(c, K, self.cube_m, self.size)  # noqa: N806
+            x = crop_depth(depth_m, M, c[2], self.cube_m, self.size)
+            with torch.inference_mode():
+                off = self.model(torch.from_numpy(x[None, None]).to(self.device))
+            c = c + off[0].double().cpu().numpy() * (self.cube_m / 2.0)
+        return c
+
+    def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
+        """(3,) refined centre, metres, or ``None`` (unchecked input)."""
+        c = self.base.localize(depth_m, K)
+        return None if c is None else self.refine(depth_m, K, c)
+
+    def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
+        """``Estimate(center_cam=...)`` or ``Estimate(valid=False)``."""
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        c = self.localize(depth_m, K_cv)
+        return Estimate(valid=False) if c is None else Estimate(center_cam=c)
+
+
+class DeepPriorEstimator(EstimatorBase):
+    """DeepPrior / DeepPrior++ on depth images: 21 keypoints in the camera frame.
+
+    Args:
+        checkpoint: the pose network: ``"deepprior++"``, ``"deepprior"`` (shipped weights) or
+            a checkpoint path (``NAME.pt`` with ``NAME.json``, or a training folder).
+        localizer: the refinement CNN's checkpoint (default: the shipped one), or ``None`` to
+            crop at the plane-removed centre of mass.
+        refine_iterations: refinement steps of the localizer.
+        device: torch device (``"cpu"`` or ``"cuda"``).
+        threads: torch CPU threads (``None``: leave torch's setting).
+
+    Raises:
+        InvalidCheckpoint: for a checkpoint that cannot be loaded.
+    """
+
+    def __init__(
+        self,
+        checkpoint: str | os.PathLike[str] = "deepprior++",
+        *,
+        localizer: str | os.PathLike[str] | None = "localizer",
+        refine_iterations: int = 3,
+        device: str = "cpu",
+        threads: int | None = None,
+    ) -> None:
+        import torch
+
+        from .checkpoint import load_model
+
+        if threads is not None:
+            torch.set_num_threads(int(threads))
+        self.checkpoint = str(checkpoint)
+        self.device = device
+        self.model, config = load_model(checkpoint, device)
+        self.cube_m = float(config["cube_m"])
+        self.size = int(config["model"]["size"])
+        self.localizer = RefinedLocalizer(localizer, iterations=refine_iterations, device=device)
+
+    def __repr__(self) -> str:
+        return (
+            f"DeepPriorEstimator(checkpoint={self.checkpoint!r}, "
+            f"localizer={self.localizer.checkpoint!r}, "
+            f"refine_iterations={self.localizer.iterations})"
+        )
+
+    def predict_at(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
+        """(21, 3) keypoints, metres, from a crop at ``center`` (unchecked input)."""
+        import torch
+
+        M = crop_matrix(center, K, self.cube_m, self.size)  # noqa: N806
+        x = crop_depth(depth_m, M, center[2], self.cube_m, self.size)
+        with torch.inference_mode():
+            y = self.model(torch.from_numpy(x[None, None]).to(self.device))
+        return denormalize_keypoints(
+            y[0].double().cpu().numpy().reshape(21, 3), center, self.cube_m
+        )
+
+    def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
+        """Estimate one frame (``Estimate(valid=False)`` when no hand blob is found).
+
+        Args:
+            depth: (H, W) float32 depth, metres, 0 = no measurement.
+            K: (3, 3) intrinsics.
+
+        Returns:
+            ``Estimate(keypoints_cam=(21, 3) metres)``.
+        """
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        center = self.localizer.localize(depth_m, K_cv)
+        if center is None:
+            return Estimate(valid=False)
+        return Estimate(keypoints_cam=self.predict_at(depth_m, K_cv, center))
+
+    def info(self) -> dict[str, Any]:
+        """What the estimator runs (for reports)."""
+        return {
+            "checkpoint": self.checkpoint,
+            "localizer": self.localizer.checkpoint,
+            "cube_m": self.cube_m,
+            "size": self.size,
+        }

@@ -1,0 +1,300 @@
+"""The networks of DeepPrior and DeepPrior++ (Oberweger et al., 2015 and 2017), in PyTorch.
+
+Every pose network maps a (B, 1, S, S) normalized depth crop to (B, 21 * 3) normalized
+keypoints (:func:`~handsim.estimators.deepprior.preprocess.normalize_keypoints`, flattened).
+
+- :class:`DeepPriorNet`: the first-stage networks of DeepPrior, ``shallow`` (one conv layer),
+  ``deep`` (three conv layers, two fully connected) and ``multiscale`` (the deep branch on the
+  crop at three resolutions), each with or without the prior bottleneck.
+- :class:`DeepPriorPP`: the ResNet-style network of DeepPrior++: a 5x5 conv of 64 filters and
+  max-pooling, four residual stages of 64/128/256/256 filters with stride 2, no global average
+  pooling, two fully connected layers with dropout 0.3, and the prior.
+- :class:`PriorLayer`: the bottleneck: a linear layer to ``prior_dim`` values and a linear
+  layer back to pose space, initialized from the PCA components and mean
+  (:meth:`PriorLayer.init_from_pca`) and then trained end to end.
+- :class:`Localizer`: the refinement CNN (three conv layers with max-pooling, two fully
+  connected layers with dropout) that predicts the offset of the middle-finger MCP from the
+  crop centre, normalized by half the cube.
+
+:func:`build_model` makes any of them from a JSON-able config dict (saved with checkpoints).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+__all__ = [
+    "N_OUT",
+    "ARCHITECTURES",
+    "PriorLayer",
+    "DeepPriorNet",
+    "DeepPriorPP",
+    "Localizer",
+    "build_model",
+]
+
+N_OUT = 21 * 3
+"""Output values of a pose network: 21 keypoints x (x, y, z), normalized."""
+
+ARCHITECTURES = ("shallow", "deep", "multiscale", "resnet", "localizer")
+"""Values of the ``arch`` config key."""
+
+
+class PriorLayer(nn.Module):
+    """The prior bottleneck: ``Linear(in, prior_dim)`` then ``Linear(prior_dim, 63)``.
+
+    The second layer maps prior coefficients to poses; :meth:`init_from_pca` sets it to the PCA
+    reconstruction ``pose = mean + coeffs @ components``.
+
+    Args:
+        in_features: input features.
+        prior_dim: dimension of the bottleneck.
+    """
+
+    def __init__(self, in_features: int, prior_dim: int = 30) -> None:
+        super().__init__()
+        self.encode = nn.Linear(in_features, prior_dim)
+        self.decode = nn.Linear(prior_dim, N_OUT)
+
+    def init_from_pca(self, mean: np.ndarray, components: np.ndarray) -> None:
+        """Set the decoder to the PCA: weight = components^T, bias = mean.
+
+        Args:
+            mean: (63,) PCA mean of normalized poses.
+            components: (prior_dim, 63) orthonormal PCA components.
+        """
+        with torch.no_grad():
+            self.decode.weight.copy_(torch.as_tensor(np.asarray(components).T, dtype=torch.float32))
+            self.decode.bias.copy_(torch.as_tensor(np.asarray(mean), dtype=torch.float32))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, in) -> (B, 63)."""
+        return self.decode(self.encode(x))
+
+
+def _head(in_features: int, fc: int, prior_dim: int | None, dropout: float) -> nn.Module:
+    layers: list[nn.Module] = [
+        nn.Flatten(),
+        nn.Linear(in_features, fc),
+        nn.ReLU(inplace=True),
+        nn.Dropout(dropout),
+        nn.Linear(fc, fc),
+        nn.ReLU(inplace=True),
+        nn.Dropout(dropout),
+    ]
+    layers.append(PriorLayer(fc, prior_dim) if prior_dim else nn.Linear(fc, N_OUT))
+    return nn.Sequential(*layers)
+
+
+def _deep_branch(size: int) -> tuple[nn.Module, int]:
+    """DeepPrior's deep feature extractor: conv5-pool4, conv5-pool2, conv3 (8 filters each)."""
+    body = nn.Sequential(
+        nn.Conv2d(1, 8, 5, padding=2),
+        nn.ReLU(inplace=True),
+        nn.MaxPool2d(4),
+        nn.Conv2d(8, 8, 5, padding=2),
+        nn.ReLU(inplace=True),
+        nn.MaxPool2d(2),
+        nn.Conv2d(8, 8, 3, padding=1),
+        nn.ReLU(inplace=True),
+    )
+    return body, 8 * (size // 8) ** 2
+
+
+class DeepPriorNet(nn.Module):
+    """DeepPrior's first-stage networks, with or without the prior.
+
+    Args:
+        variant: ``"shallow"``, ``"deep"`` or ``"multiscale"``.
+        prior_dim: bottleneck dimension, or ``None``/0 for direct regression of the 63 values.
+        size: crop side, pixels (divisible by 32 for ``multiscale``).
+        fc: units of the fully connected layers.
+        dropout: dropout of the fully connected layers.
+    """
+
+    def __init__(
+        self,
+        variant: str = "deep",
+        prior_dim: int | None = 30,
+        size: int = 128,
+        fc: int = 1024,
+        dropout: float = 0.3,
+    ) -> None:
+        super().__init__()
+        self.variant = variant
+        if variant == "shallow":
+            self.branches = nn.ModuleList(
+                [
+                    nn.Sequential(
+                        nn.Conv2d(1, 8, 5, padding=2), nn.ReLU(inplace=True), nn.MaxPool2d(4)
+                    )
+                ]
+            )
+            features = 8 * (size // 4) ** 2
+            self.scales: tuple[int, ...] = (1,)
+        elif variant == "deep":
+            body, features = _deep_branch(size)
+            self.branches = nn.ModuleList([body])
+            self.scales = (1,)
+        elif variant == "multiscale":
+            self.scales = (1, 2, 4)
+            bodies = [_deep_branch(size // s) for s in self.scales]
+            self.branches = nn.ModuleList([b for b, _ in bodies])
+            features = sum(f for _, f in bodies)
+        else:
+            raise ValueError(f"variant must be shallow, deep or multiscale; received {variant!r}")
+        if variant == "shallow":
+            self.head = nn.Sequential(
+                nn.Flatten(),
+                nn.Linear(features, fc),
+                nn.ReLU(inplace=True),
+                nn.Dropout(dropout),
+                PriorLayer(fc, prior_dim) if prior_dim else nn.Linear(fc, N_OUT),
+            )
+        else:
+            self.head = _head(features, fc, prior_dim, dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, S, S) -> (B, 63)."""
+        feats = []
+        for scale, branch in zip(self.scales, self.branches, strict=True):
+            xi = x if scale == 1 else nn.functional.max_pool2d(x, scale)
+            feats.append(branch(xi).flatten(1))
+        return self.head(torch.cat(feats, dim=1))
+
+
+class _Residual(nn.Module):
+    """A pre-activation-free basic residual block with a projection shortcut (stride s)."""
+
+    def __init__(self, cin: int, cout: int, stride: int) -> None:
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Conv2d(cin, cout, 3, stride=stride, padding=1, bias=False),
+            nn.BatchNorm2d(cout),
+            nn.ReLU(inplace=True),
+            nn.Conv2d(cout, cout, 3, padding=1, bias=False),
+            nn.BatchNorm2d(cout),
+        )
+        self.skip = nn.Sequential(
+            nn.Conv2d(cin, cout, 1, stride=stride, bias=False), nn.BatchNorm2d(cout)
+        )
+        self.relu = nn.ReLU(inplace=True)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Residual sum, then ReLU."""
+        return self.relu(self.body(x) + self.skip(x))
+
+
+class DeepPriorPP(nn.Module):
+    """DeepPrior++'s ResNet-style pose network.
+
+    conv 5x5 (64) + BN + ReLU + max-pool 2, residual stages of 64/128/256/256 filters with
+    stride 2 (one block each), flatten (no global average pooling), two fully connected layers
+    with dropout, and the prior bottleneck.
+
+    Args:
+        prior_dim: bottleneck dimension, or ``None``/0 for direct regression.
+        size: crop side, pixels (divisible by 32).
+        fc: units of the fully connected layers.
+        dropout: dropout of the fully connected layers.
+        width: factor of every conv layer's filters (1: the paper's 64 / 64-128-256-256;
+            0.25 makes the convolutions ~16x cheaper, for CPU training).
+    """
+
+    def __init__(
+        self,
+        prior_dim: int | None = 30,
+        size: int = 128,
+        fc: int = 1024,
+        dropout: float = 0.3,
+        width: float = 1.0,
+    ) -> None:
+        super().__init__()
+        stem = max(1, round(64 * width))
+        widths = [max(1, round(w * width)) for w in (64, 128, 256, 256)]
+        stages: list[nn.Module] = [
+            nn.Conv2d(1, stem, 5, padding=2, bias=False),
+            nn.BatchNorm2d(stem),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(2),
+        ]
+        cin = stem
+        for w in widths:
+            stages.append(_Residual(cin, w, 2))
+            cin = w
+        self.features = nn.Sequential(*stages)
+        side = size // 2 // 2 ** len(widths)
+        self.head = _head(cin * side * side, fc, prior_dim, dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, S, S) -> (B, 63)."""
+        return self.head(self.features(x))
+
+
+class Localizer(nn.Module):
+    """The refinement CNN: three conv layers with max-pooling, two FC layers with dropout.
+
+    Predicts the (3,) offset of the middle-finger MCP from the crop centre, in units of half
+    the cube.
+
+    Args:
+        size: crop side, pixels (divisible by 8).
+        fc: units of the fully connected layers.
+        dropout: dropout of the fully connected layers.
+    """
+
+    def __init__(self, size: int = 64, fc: int = 256, dropout: float = 0.3) -> None:
+        super().__init__()
+        self.features = nn.Sequential(
+            nn.Conv2d(1, 8, 5, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(2),
+            nn.Conv2d(8, 16, 5, padding=2),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(2),
+            nn.Conv2d(16, 32, 3, padding=1),
+            nn.ReLU(inplace=True),
+            nn.MaxPool2d(2),
+        )
+        self.head = nn.Sequential(
+            nn.Flatten(),
+            nn.Linear(32 * (size // 8) ** 2, fc),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc, fc),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(fc, 3),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 1, S, S) -> (B, 3)."""
+        return self.head(self.features(x))
+
+
+def build_model(config: dict[str, Any]) -> nn.Module:
+    """A network from its config (``arch`` plus the constructor's keyword arguments).
+
+    Config keys: ``arch`` (:data:`ARCHITECTURES`), ``size``, ``fc``, ``dropout``, for pose
+    networks ``prior_dim`` (0 = no prior) and for ``resnet`` ``width`` (filter factor).
+
+    Raises:
+        ValueError: for an unknown ``arch``.
+    """
+    arch = config.get("arch")
+    size = int(config.get("size", 128))
+    fc = int(config.get("fc", 1024))
+    dropout = float(config.get("dropout", 0.3))
+    prior = int(config.get("prior_dim", 30)) or None
+    if arch in ("shallow", "deep", "multiscale"):
+        return DeepPriorNet(arch, prior, size=size, fc=fc, dropout=dropout)
+    if arch == "resnet":
+        width = float(config.get("width", 1.0))
+        return DeepPriorPP(prior, size=size, fc=fc, dropout=dropout, width=width)
+    if arch == "localizer":
+        return Localizer(size=size, fc=fc, dropout=dropout)
+    raise ValueError(f"arch must be one of {', '.join(ARCHITECTURES)}; received {arch!r}")

@@ -1,0 +1,480 @@
+"""Preprocessing of the learned estimators: localization, the 3D cube crop, augmentation, PCA.
+
+Pure NumPy and OpenCV (no torch), shared by training, evaluation and inference.
+
+**Localization on a table.** DeepPrior's centre of mass of the nearest depth slab assumes that
+the hand is the nearest thing in view. :func:`remove_plane` first fits the dominant plane of
+the depth image (the table, a wall) with RANSAC and drops its pixels; :func:`nearest_blob_com`
+then takes the largest connected blob of the nearest remaining depth slab and returns its
+centre of mass. A learned refinement (:class:`~handsim.estimators.deepprior.models.Localizer`)
+moves that centre towards the middle-finger MCP.
+
+The RANSAC is our own, vectorised over hypotheses: it scores all hypotheses at once on a random
+subsample of the measured points and refits the winner by least squares on its inliers of the
+whole image (about 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
+``z = f(x, y)`` (a plane seen edge-on is not a function of x, y) and refits a regressor per
+trial (about 100x slower), which does not fit the inference budget.
+
+**Crop.** A cube of edge ``cube_m`` centred on ``center_cam`` is projected at the centre's
+depth to an axis-aligned pixel box, which is resampled with nearest-neighbour sampling to
+``size x size`` (one affine map, :func:`crop_matrix`). Depth is normalized to [-1, 1] by
+``(d - z_c) / (cube / 2)``; missing pixels and pixels beyond the cube's back face are +1,
+pixels before its front face -1. Keypoint labels are normalized the same way in 3D,
+``(p - c) / (cube / 2)``; :func:`denormalize_keypoints` is the exact inverse.
+
+**Augmentation** (:func:`augment`): an in-plane rotation of the image about the centre's pixel,
+a cube scale and a 3D offset of the centre. Labels follow exactly: the keypoints' pixels rotate
+with the image about the same pixel, their depth is kept, and they are back-projected; the
+offset and the scale change the centre and the cube the labels are normalized with.
+
+**Prior.** :func:`fit_pca` is a PCA (not whitened) of normalized poses; the learned models
+initialize their prior bottleneck from it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import cv2
+import numpy as np
+
+from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
+
+__all__ = [
+    "CUBE_M",
+    "CROP_SIZE",
+    "MIDDLE_MCP",
+    "AugmentParams",
+    "PlaneFit",
+    "fit_plane_ransac",
+    "remove_plane",
+    "nearest_blob_com",
+    "PlaneRemovedLocalizer",
+    "crop_matrix",
+    "crop_depth",
+    "normalize_keypoints",
+    "denormalize_keypoints",
+    "rotate_keypoints",
+    "crop_pixels",
+    "sample_augmentation",
+    "augment",
+    "fit_pca",
+]
+
+CUBE_M = 0.250
+"""Default cube edge, metres (DeepPrior on NYU / ICVL / MSRA)."""
+CROP_SIZE = 128
+"""Default crop side, pixels."""
+MIDDLE_MCP = 9
+"""Keypoint index of the middle-finger MCP: the point the refined localizer predicts."""
+
+
+@dataclasses.dataclass(frozen=True)
+class AugmentParams:
+    """One draw of the online augmentation.
+
+    Attributes:
+        angle_rad: in-plane rotation of the image about the centre's pixel, radians.
+        scale: factor of the cube edge.
+        offset_m: (3,) offset added to the crop centre, metres, camera frame.
+    """
+
+    angle_rad: float = 0.0
+    scale: float = 1.0
+    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+# Localization ----------------------------------------------------------------------------------
+
+
+def _back_project(depth_m: np.ndarray, K: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:  # noqa: N803
+    z = depth_m[v, u].astype(np.float64)
+    x = (u - K[0, 2]) * z / K[0, 0]
+    y = (v - K[1, 2]) * z / K[1, 1]
+    return np.stack([x, y, z], axis=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class PlaneFit:
+    """A plane ``n . p + d = 0`` (unit ``n``, camera frame, metres) and its inlier count."""
+
+    normal: np.ndarray
+    offset_m: float
+    inliers: int
+
+
+def fit_plane_ransac(
+    points_m: np.ndarray,
+    *,
+    threshold_m: float = 0.008,
+    hypotheses: int = 64,
+    subsample: int = 1024,
+    rng: np.random.Generator | int | None = 0,
+) -> PlaneFit | None:
+    """The dominant plane of a point cloud by RANSAC, vectorised over hypotheses.
+
+    Args:
+        points_m: (N, 3) points, metres.
+        threshold_m: inlier distance, metres.
+        hypotheses: random 3-point hypotheses.
+        subsample: points the hypotheses are scored on.
+        rng: random generator or seed (fixed by default: the same image gives the same plane).
+
+    Returns:
+        The :class:`PlaneFit` refitted by least squares on all its inliers, or ``None`` for
+        fewer than 3 points.
+    """
+    pts = np.asarray(points_m, dtype=np.float64)
+    if len(pts) < 3:
+        return None
+    rng = np.random.default_rng(rng)
+    sub = pts[rng.integers(0, len(pts), size=min(subsample, len(pts)))]
+    tri = pts[rng.integers(0, len(pts), size=(hypotheses, 3))]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(normals, axis=1)
+    ok = norm > 1e-12
+    if not np.any(ok):
+        return None
+    normals = normals[ok] / norm[ok, None]
+    offsets = -np.einsum("hk,hk->h", normals, tri[ok, 0])
+    scores = (np.abs(sub @ normals.T + offsets) < threshold_m).sum(axis=0)
+    best = int(np.argmax(scores))
+    n, d = normals[best], offsets[best]
+    inl = np.abs(pts @ n + d) < threshold_m
+    if np.count_nonzero(inl) >= 3:  # least-squares refit: smallest singular vector
+        q = pts[inl]
+        mean = q.mean(axis=0)
+        n = np.linalg.svd(q - mean, full_matrices=False)[2][-1]
+        d = -float(n @ mean)
+        inl = np.abs(pts @ n + d) < threshold_m
+    return PlaneFit(normal=n, offset_m=float(d), inliers=int(np.count_nonzero(inl)))
+
+
+def remove_plane(
+    depth_m: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    *,
+    threshold_m: float = 0.008,
+    min_fraction: float = 0.2,
+    min_spread_m: float = 0.06,
+    max_depth_m: float = 1.5,
+    rng: np.random.Generator | int | None = 0,
+) -> np.ndarray:
+    """Depth with the dominant plane's pixels set to 0 (when the plane is large enough).
+
+    Args:
+        depth_m: (H, W) depth, metres, 0 = no measurement.
+        K: (3, 3) intrinsics.
+        threshold_m: plane inlier distance, metres.
+        min_fraction: the plane is removed only if it holds at least this fraction of the
+            measured pixels,
+        min_spread_m: and if its inliers spread at least this much (the standard deviation
+            along their second principal axis, metres): a flat palm alone in view is a plane
+            too, but a narrow one.
+        max_depth_m: depths beyond this are ignored (and set to 0).
+        rng: RANSAC random generator or seed.
+
+    Returns:
+        (H, W) float32 depth copy, metres.
+    """
+    out = np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
+    # The fit runs on every second pixel of every second row; the test on every pixel.
+    v, u = np.nonzero(out[::2, ::2])
+    if len(v) < 3:
+        return out
+    pts = _back_project(out, K, 2 * v, 2 * u)
+    fit = fit_plane_ransac(pts, threshold_m=threshold_m, rng=rng)
+    if fit is None or fit.inliers < min_fraction * len(pts):
+        return out
+    inl = pts[np.abs(pts @ fit.normal + fit.offset_m) < threshold_m]
+    sub = inl[:: max(1, len(inl) // 2000)]
+    spread = np.linalg.svd(sub - sub.mean(axis=0), compute_uv=False) / math.sqrt(len(sub))
+    if spread[1] < min_spread_m:
+        return out
+    n = fit.normal if fit.offset_m >= 0 else -fit.normal  # the camera (origin) on + side
+    d = abs(fit.offset_m)
+    h, w = out.shape
+    ray_dot = (
+        n[0] * (np.arange(w) - K[0, 2]) / K[0, 0]
+        + (n[1] * (np.arange(h) - K[1, 2]) / K[1, 1])[:, None]
+        + n[2]
+    )
+    # Drop the plane and everything behind it (seen past the table's edge: the floor).
+    out[(out * ray_dot + d < threshold_m) & (out > 0)] = 0
+    return out
+
+
+def nearest_blob_com(
+    depth_m: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    *,
+    cube_m: float = CUBE_M,
+    min_pixels: int = 100,
+) -> np.ndarray | None:
+    """Centre of mass of the largest connected blob of the nearest depth slab.
+
+    The slab ``[z_min, z_min + cube]`` is split into 8-connected components and the largest
+    one (of at least ``min_pixels`` pixels) is the hand: an object nearer than the hand on a
+    table is usually smaller than the hand and its arm, and noise specks are tiny. Its mean
+    pixel and median depth are back-projected.
+
+    Args:
+        depth_m: (H, W) depth, metres, 0 = no measurement (e.g. after :func:`remove_plane`).
+        K: (3, 3) intrinsics.
+        cube_m: slab depth, metres.
+        min_pixels: smallest blob, pixels.
+
+    Returns:
+        (3,) centre in the camera frame, metres, or ``None`` if no blob is large enough.
+    """
+    measured = depth_m > 0
+    if np.count_nonzero(measured) < min_pixels:
+        return None
+    z_min = float(depth_m[measured].min())
+    slab = measured & (depth_m <= z_min + cube_m)
+    n, labels = cv2.connectedComponents(slab.astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return None
+    lab = labels[slab]
+    sizes = np.bincount(lab, minlength=n)
+    nearest = np.full(n, np.inf)
+    np.minimum.at(nearest, lab, depth_m[slab])
+    nearest[sizes < min_pixels] = np.inf
+    nearest[0] = np.inf
+    if not np.isfinite(nearest).any():
+        return None
+    blob = labels == int(np.argmax(np.where(np.isfinite(nearest), sizes, -1)))
+    v, u = np.nonzero(blob)
+    z = float(np.median(depth_m[v, u]))
+    return np.array([(u.mean() - K[0, 2]) * z / K[0, 0], (v.mean() - K[1, 2]) * z / K[1, 1], z])
+
+
+class PlaneRemovedLocalizer(EstimatorBase):
+    """Hand centre: RANSAC plane removal, then the nearest blob's centre of mass.
+
+    Args:
+        cube_mm: slab depth of the blob, mm.
+        threshold_mm: plane inlier distance, mm.
+        min_fraction: smallest plane, as a fraction of the measured pixels.
+    """
+
+    def __init__(
+        self, *, cube_mm: float = 250.0, threshold_mm: float = 8.0, min_fraction: float = 0.2
+    ) -> None:
+        self.cube_m = float(cube_mm) / 1000.0
+        self.threshold_m = float(threshold_mm) / 1000.0
+        self.min_fraction = float(min_fraction)
+
+    def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
+        """(3,) centre, metres, camera frame, or ``None`` (unchecked input)."""
+        cleaned = remove_plane(
+            depth_m, K, threshold_m=self.threshold_m, min_fraction=self.min_fraction
+        )
+        return nearest_blob_com(cleaned, K, cube_m=self.cube_m)
+
+    def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
+        """``Estimate(center_cam=...)`` or ``Estimate(valid=False)`` (no blob)."""
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        center = self.localize(depth_m, K_cv)
+        return Estimate(valid=False) if center is None else Estimate(center_cam=center)
+
+
+# Crop ------------------------------------------------------------------------------------------
+
+
+def crop_matrix(
+    center_cam: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    cube_m: float = CUBE_M,
+    size: int = CROP_SIZE,
+    angle_rad: float = 0.0,
+) -> np.ndarray:
+    """The (2, 3) affine map from image pixels ``(u, v)`` to crop pixels.
+
+    The cube's face at the centre's depth spans ``size`` pixels; the image is first rotated by
+    ``angle_rad`` about the centre's pixel (positive: counter-clockwise as seen on screen).
+
+    Args:
+        center_cam: (3,) crop centre, metres, camera frame (z > 0).
+        K: (3, 3) intrinsics.
+        cube_m: cube edge, metres.
+        size: crop side, pixels.
+        angle_rad: in-plane rotation, radians.
+
+    Returns:
+        (2, 3) float64 matrix ``M``: ``crop = M @ (u, v, 1)``.
+    """
+    c = np.asarray(center_cam, dtype=np.float64)
+    uc = K[0, 0] * c[0] / c[2] + K[0, 2]
+    vc = K[1, 1] * c[1] / c[2] + K[1, 2]
+    sx = size * c[2] / (K[0, 0] * cube_m)
+    sy = size * c[2] / (K[1, 1] * cube_m)
+    cos, sin = math.cos(angle_rad), math.sin(angle_rad)
+    R = np.array([[cos, sin], [-sin, cos]])  # noqa: N806 (v points down: CCW on screen)
+    A = np.diag([sx, sy]) @ R  # noqa: N806
+    t = np.array([(size - 1) / 2.0, (size - 1) / 2.0]) - A @ np.array([uc, vc])
+    return np.hstack([A, t[:, None]])
+
+
+def crop_depth(
+    depth_m: np.ndarray,
+    M: np.ndarray,  # noqa: N803
+    center_z_m: float,
+    cube_m: float = CUBE_M,
+    size: int = CROP_SIZE,
+) -> np.ndarray:
+    """Crop and normalize depth: ``(d - z_c) / (cube / 2)`` in [-1, 1], missing and far = +1.
+
+    Args:
+        depth_m: (H, W) float32 depth, metres, 0 = no measurement.
+        M: (2, 3) map of :func:`crop_matrix`.
+        center_z_m: crop centre depth ``z_c``, metres.
+        cube_m: cube edge, metres.
+        size: crop side, pixels.
+
+    Returns:
+        (size, size) float32 normalized depth.
+    """
+    crop = cv2.warpAffine(
+        np.ascontiguousarray(depth_m, dtype=np.float32),
+        M,
+        (size, size),
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0.0,
+    )
+    norm = (crop - np.float32(center_z_m)) / np.float32(cube_m / 2.0)
+    norm[(crop <= 0) | (norm > 1.0)] = 1.0
+    np.clip(norm, -1.0, 1.0, out=norm)
+    return norm
+
+
+def normalize_keypoints(keypoints_cam: np.ndarray, center_cam: np.ndarray, cube_m: float) -> Any:
+    """``(p - c) / (cube / 2)``: (..., J, 3) metres -> normalized (the labels)."""
+    return (np.asarray(keypoints_cam) - np.asarray(center_cam)[..., None, :]) / (cube_m / 2.0)
+
+
+def denormalize_keypoints(normalized: np.ndarray, center_cam: np.ndarray, cube_m: Any) -> Any:
+    """Exact inverse of :func:`normalize_keypoints`: (..., J, 3) -> metres, camera frame."""
+    cube = np.asarray(cube_m, dtype=np.float64)[..., None, None]
+    return np.asarray(normalized) * (cube / 2.0) + np.asarray(center_cam)[..., None, :]
+
+
+def rotate_keypoints(
+    keypoints_cam: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    center_cam: np.ndarray,
+    angle_rad: float,
+) -> np.ndarray:
+    """Keypoints moved as the image rotates by ``angle_rad`` about the centre's pixel.
+
+    Each keypoint's pixel is rotated like the image (:func:`crop_matrix`), its depth is kept,
+    and it is back-projected.
+
+    Args:
+        keypoints_cam: (J, 3) keypoints, metres, camera frame (z > 0).
+        K: (3, 3) intrinsics.
+        center_cam: (3,) rotation centre, metres.
+        angle_rad: rotation, radians.
+
+    Returns:
+        (J, 3) rotated keypoints, metres.
+    """
+    kp = np.asarray(keypoints_cam, dtype=np.float64)
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    c = np.asarray(center_cam, dtype=np.float64)
+    uc, vc = fx * c[0] / c[2] + cx, fy * c[1] / c[2] + cy
+    u = fx * kp[:, 0] / kp[:, 2] + cx - uc
+    v = fy * kp[:, 1] / kp[:, 2] + cy - vc
+    cos, sin = math.cos(angle_rad), math.sin(angle_rad)
+    ur, vr = cos * u + sin * v + uc, -sin * u + cos * v + vc
+    z = kp[:, 2]
+    return np.stack([(ur - cx) * z / fx, (vr - cy) * z / fy, z], axis=1)
+
+
+def crop_pixels(keypoints_cam: np.ndarray, K: np.ndarray, M: np.ndarray) -> np.ndarray:  # noqa: N803
+    """(J, 2) crop pixels of (J, 3) camera-frame keypoints under the map ``M``."""
+    kp = np.asarray(keypoints_cam, dtype=np.float64)
+    uv = np.stack(
+        [K[0, 0] * kp[:, 0] / kp[:, 2] + K[0, 2], K[1, 1] * kp[:, 1] / kp[:, 2] + K[1, 2]], axis=1
+    )
+    return uv @ M[:, :2].T + M[:, 2]
+
+
+def sample_augmentation(
+    rng: np.random.Generator,
+    *,
+    rotation: bool = True,
+    scale: bool = True,
+    translation: bool = True,
+    max_angle_deg: float = 180.0,
+    scale_sigma: float = 0.02,
+    offset_sigma_m: float = 0.005,
+) -> AugmentParams:
+    """Draw rotation U(-180, 180) deg, scale N(1, 0.02) and offset N(0, 5 mm) (each optional)."""
+    angle = math.radians(rng.uniform(-max_angle_deg, max_angle_deg)) if rotation else 0.0
+    s = float(rng.normal(1.0, scale_sigma)) if scale else 1.0
+    offset = rng.normal(0.0, offset_sigma_m, size=3) if translation else np.zeros(3)
+    return AugmentParams(
+        angle_rad=angle, scale=max(s, 0.5), offset_m=tuple(float(o) for o in offset)
+    )
+
+
+def augment(
+    depth_m: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    keypoints_cam: np.ndarray,
+    center_cam: np.ndarray,
+    params: AugmentParams = AugmentParams(),  # noqa: B008 (frozen)
+    *,
+    cube_m: float = CUBE_M,
+    size: int = CROP_SIZE,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """One training sample: the augmented crop and its exactly transformed labels.
+
+    Args:
+        depth_m: (H, W) depth, metres.
+        K: (3, 3) intrinsics.
+        keypoints_cam: (J, 3) keypoints, metres, camera frame.
+        center_cam: (3,) crop centre before the offset, metres.
+        params: the augmentation.
+        cube_m: cube edge before the scale, metres.
+        size: crop side, pixels.
+
+    Returns:
+        ``(crop, labels, center, cube)``: (size, size) float32 normalized depth, (J, 3)
+        normalized labels of the rotated keypoints, the (3,) centre and the cube edge used.
+    """
+    center = np.asarray(center_cam, dtype=np.float64) + np.asarray(params.offset_m)
+    cube = cube_m * params.scale
+    M = crop_matrix(center, K, cube, size, params.angle_rad)  # noqa: N806
+    crop = crop_depth(depth_m, M, center[2], cube, size)
+    rotated = rotate_keypoints(keypoints_cam, K, center, params.angle_rad)
+    return crop, normalize_keypoints(rotated, center, cube), center, cube
+
+
+# Prior -----------------------------------------------------------------------------------------
+
+
+def fit_pca(poses: np.ndarray, n_components: int) -> dict[str, np.ndarray]:
+    """PCA of flattened normalized poses (not whitened).
+
+    Args:
+        poses: (N, D) poses (e.g. normalized (N, 21, 3) keypoints reshaped to (N, 63)).
+        n_components: components kept (<= min(N, D)).
+
+    Returns:
+        ``mean`` (D,), ``components`` (n_components, D) orthonormal rows, ``explained`` (D',)
+        explained-variance ratio of every component (all of them, for the curve).
+    """
+    X = np.asarray(poses, dtype=np.float64)  # noqa: N806
+    mean = X.mean(axis=0)
+    _, s, vt = np.linalg.svd(X - mean, full_matrices=False)
+    var = s**2
+    return {
+        "mean": mean,
+        "components": vt[:n_components],
+        "explained": var / var.sum(),
+    }

@@ -1,0 +1,381 @@
+"""Training of DeepPrior, DeepPrior++ and the refinement localizer (``handsim train``).
+
+:func:`train` fits one network on the ``train`` split of handsim dataset folders and validates
+on their ``val`` split. It is resumable: every epoch writes ``last.pt`` (model, optimizer, epoch,
+history) and, when validation improves, ``best.pt`` (model only), each with its JSON config;
+running the same command again continues after the last finished epoch (a killed run loses at
+most the epoch in progress). ``metrics.json`` holds the history and the final figures.
+
+Loss: Huber (``delta`` in normalized units, 0.05 = 6.25 mm for the 250 mm cube) on the
+normalized labels; Adam with weight decay; ``torch.manual_seed(seed)`` and per-sample
+augmentation seeds make a run deterministic on one device and thread count.
+
+Pose networks crop at the true middle-finger MCP unless ``localizer`` names a localizer
+checkpoint: then at its refined centre, as at inference. The prior is the PCA of the normalized,
+augmented training poses (``pca.npz``; its explained-variance curve goes into ``metrics.json``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from handsim.errors import HandSimError
+
+from .checkpoint import save_checkpoint
+from .data import CropDataset, FrameSet, load_frames
+from .preprocess import CUBE_M, MIDDLE_MCP, PlaneRemovedLocalizer, fit_pca
+from .preprocess import sample_augmentation as _sample
+
+__all__ = ["KINDS", "TrainConfig", "InvalidTrainConfig", "train", "localizer_centers"]
+
+KINDS = ("deepprior", "deepprior++", "localizer")
+"""What ``handsim train`` trains."""
+
+
+class InvalidTrainConfig(HandSimError, ValueError):
+    """A training option is invalid, or a run folder holds a different run."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """One training run (saved as ``run.json`` in the run folder; resume needs the same).
+
+    Attributes:
+        kind: ``deepprior``, ``deepprior++`` or ``localizer``.
+        arch: DeepPrior's network: ``shallow``, ``deep`` or ``multiscale`` (``deepprior`` only).
+        prior_dim: prior bottleneck dimension, 0 for direct regression.
+        epochs: training epochs.
+        batch_size: batch size.
+        lr: Adam learning rate (decayed by 10x over the run, cosine).
+        weight_decay: Adam weight decay.
+        huber_delta: Huber loss threshold, normalized units.
+        cube_m: cube edge, metres.
+        size: crop side, pixels (localizer default 64).
+        fc: fully connected units.
+        width: DeepPrior++'s conv filter factor (1 = the paper's widths).
+        dropout: dropout of the fully connected layers.
+        rotation, scale, translation: online augmentations.
+        offset_sigma_m: centre offset standard deviation, metres.
+        localizer: localizer checkpoint whose centres the pose network is cropped at.
+        max_frames: use at most this many training frames (0: all).
+        seed: random seed.
+    """
+
+    kind: str = "deepprior++"
+    arch: str = "deep"
+    prior_dim: int = 30
+    epochs: int = 20
+    batch_size: int = 64
+    lr: float = 1e-3
+    weight_decay: float = 1e-4
+    huber_delta: float = 0.05
+    cube_m: float = CUBE_M
+    size: int = 128
+    fc: int = 1024
+    width: float = 1.0
+    dropout: float = 0.3
+    rotation: bool = True
+    scale: bool = True
+    translation: bool = True
+    offset_sigma_m: float = 0.005
+    localizer: str | None = None
+    max_frames: int = 0
+    seed: int = 0
+
+    def model_config(self) -> dict[str, Any]:
+        """The :func:`~.models.build_model` config of this run."""
+        if self.kind == "localizer":
+            return {"arch": "localizer", "size": self.size, "fc": self.fc, "dropout": self.dropout}
+        arch = "resnet" if self.kind == "deepprior++" else self.arch
+        config = {
+            "arch": arch,
+            "size": self.size,
+            "fc": self.fc,
+            "dropout": self.dropout,
+            "prior_dim": self.prior_dim,
+        }
+        if arch == "resnet":
+            config["width"] = self.width
+        return config
+
+
+def _check(config: TrainConfig) -> None:
+    if config.kind not in KINDS:
+        raise InvalidTrainConfig(
+            f"kind must be one of {', '.join(KINDS)}; received {config.kind!r}"
+        )
+    if config.arch not in ("shallow", "deep", "multiscale"):
+        raise InvalidTrainConfig(
+            f"arch must be shallow, deep or multiscale; received {config.arch!r}"
+        )
+    if config.size % 32 or config.size < 32:
+        raise InvalidTrainConfig(f"size must be a multiple of 32, >= 32; received {config.size}")
+    if not 0 <= config.prior_dim <= 63:
+        raise InvalidTrainConfig(f"prior_dim must be in [0, 63]; received {config.prior_dim}")
+
+
+def localizer_centers(
+    frames: FrameSet, checkpoint: str | None, iterations: int = 3
+) -> tuple[np.ndarray, np.ndarray]:
+    """Crop centres of every frame: the plane-removed CoM, refined by ``checkpoint`` if given.
+
+    Returns:
+        ``(centers (N, 3) metres, found (N,) bool)``; a frame without a blob gets the true
+        middle MCP and ``found = False``.
+    """
+    from .estimator import RefinedLocalizer
+
+    loc = RefinedLocalizer(checkpoint, iterations=iterations) if checkpoint else None
+    base = PlaneRemovedLocalizer()
+    centers = frames.keypoints_cam[:, MIDDLE_MCP].copy()
+    found = np.zeros(len(frames), dtype=bool)
+    for i in range(len(frames)):
+        depth = frames.depth(i)
+        c = base.localize(depth, frames.K[i])
+        if c is None:
+            continue
+        found[i] = True
+        centers[i] = c if loc is None else loc.refine(depth, frames.K[i], c)
+    return centers, found
+
+
+def _augmented_poses(frames: FrameSet, config: TrainConfig, copies: int = 2) -> np.ndarray:
+    """(copies * N, 63) normalized keypoints under the training augmentation (for the PCA)."""
+    from .preprocess import normalize_keypoints, rotate_keypoints
+
+    rng = np.random.default_rng([config.seed, 12345])
+    out = []
+    flags = {"rotation": config.rotation, "scale": config.scale, "translation": config.translation}
+    for _ in range(copies):
+        for i in range(len(frames)):
+            p = _sample(rng, offset_sigma_m=config.offset_sigma_m, **flags)
+            kp = frames.keypoints_cam[i]
+            c = kp[MIDDLE_MCP] + np.asarray(p.offset_m)
+            rot = rotate_keypoints(kp, frames.K[i], c, p.angle_rad)
+            out.append(normalize_keypoints(rot, c, config.cube_m * p.scale).reshape(-1))
+    return np.asarray(out)
+
+
+def _evaluate(model: Any, dataset: CropDataset, batch_size: int, device: str) -> dict:
+    """Mean error on a dataset without augmentation, mm."""
+    import torch
+
+    model.eval()
+    errors = []
+    with torch.inference_mode():
+        for start in range(0, len(dataset), batch_size):
+            items = [dataset[i] for i in range(start, min(start + batch_size, len(dataset)))]
+            x = torch.stack([a for a, _ in items]).to(device)
+            y = torch.stack([b for _, b in items]).to(device)
+            pred = model(x)
+            d = (pred - y).reshape(len(items), -1, 3).norm(dim=-1)
+            errors.append(d.cpu().numpy() * dataset.cube_m / 2.0 * 1000.0)
+    e = np.concatenate(errors)
+    return {"mean_error_mm": float(e.mean()), "frames": int(len(e))}
+
+
+def train(
+    data: list[str | os.PathLike[str]],
+    out: str | os.PathLike[str],
+    config: TrainConfig,
+    *,
+    device: str = "cpu",
+    val_every: int = 1,
+    progress: bool = True,
+    log: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Train (or resume) one network; returns the final metrics (also ``out/metrics.json``).
+
+    Args:
+        data: dataset folders (``handsim generate``).
+        out: run folder (created; an existing run with the same config is resumed).
+        config: the run.
+        device: torch device.
+        val_every: validate every this many epochs (and after the last).
+        progress: show a tqdm bar per epoch.
+        log: where to print one line per validation.
+
+    Raises:
+        InvalidTrainConfig: for bad options or a folder that holds a different run.
+    """
+    import torch
+    from torch.utils.data import DataLoader
+    from tqdm import tqdm
+
+    from .models import PriorLayer, build_model
+
+    _check(config)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    run_json = out / "run.json"
+    run = {"config": dataclasses.asdict(config), "data": [str(Path(d).resolve()) for d in data]}
+    if run_json.is_file():
+        previous = json.loads(run_json.read_text())
+        if previous["config"] != run["config"]:
+            changed = sorted(
+                k for k in run["config"] if previous["config"].get(k) != run["config"][k]
+            )
+            raise InvalidTrainConfig(
+                f"{out} holds a run with other options ({', '.join(changed)}); use a new --out "
+                "or the same options to resume"
+            )
+    run_json.write_text(json.dumps(run, indent=2) + "\n")
+    torch.manual_seed(config.seed)
+    np.random.seed(config.seed % 2**32)
+
+    max_frames = config.max_frames or None
+    train_frames = load_frames(data, "train", max_frames=max_frames)
+    val_frames = load_frames(
+        data, "val", max_frames=None if max_frames is None else max(8, max_frames // 8)
+    )
+    log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
+    model_config = config.model_config()
+    ckpt_config = {"model": model_config, "cube_m": config.cube_m, "kind": config.kind}
+    flags = {"rotation": config.rotation, "scale": config.scale, "translation": config.translation}
+
+    def cached_centers(frames: FrameSet, split: str, checkpoint: str | None) -> np.ndarray:
+        # Localizing every frame takes minutes on a CPU: a resumed run reads them back.
+        path = out / f"centers_{split}.npy"
+        if path.is_file():
+            centers = np.load(path)
+            if centers.shape == (len(frames), 3):
+                return centers
+        centers, _ = localizer_centers(frames, checkpoint)
+        np.save(path, centers)
+        return centers
+
+    if config.kind == "localizer":
+        centers = cached_centers(train_frames, "train", None)
+        val_centers = cached_centers(val_frames, "val", None)
+        target = "localizer"
+    elif config.localizer:
+        centers = cached_centers(train_frames, "train", config.localizer)
+        val_centers = cached_centers(val_frames, "val", config.localizer)
+        target = "pose"
+    else:
+        centers = val_centers = None
+        target = "pose"
+    train_set = CropDataset(
+        train_frames,
+        centers,
+        target=target,
+        cube_m=config.cube_m,
+        size=config.size,
+        offset_sigma_m=config.offset_sigma_m,
+        seed=config.seed,
+        # The localizer also starts near the MCP half of the time, so it can be iterated.
+        alt_centers=train_frames.keypoints_cam[:, MIDDLE_MCP] if target == "localizer" else None,
+        **flags,
+    )
+    val_set = CropDataset(
+        val_frames, val_centers, target=target, cube_m=config.cube_m, size=config.size
+    )
+
+    model = build_model(model_config).to(device)
+    pca = None
+    if config.kind != "localizer":
+        poses = _augmented_poses(train_frames, config)
+        pca = fit_pca(poses, max(config.prior_dim, 1))
+        np.savez(out / "pca.npz", **pca)
+        prior = [m for m in model.modules() if isinstance(m, PriorLayer)]
+        if prior:
+            prior[0].init_from_pca(pca["mean"], pca["components"][: config.prior_dim])
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    steps_per_epoch = math.ceil(len(train_set) / config.batch_size)
+    total_steps = max(1, steps_per_epoch * config.epochs)
+
+    def lr_at(step: int) -> float:  # cosine from lr to lr / 10
+        return config.lr * (
+            0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(step, total_steps) / total_steps))
+        )
+
+    start_epoch, best, history, elapsed = 0, math.inf, [], 0.0
+    last = out / "last.pt"
+    if last.is_file():
+        state = torch.load(last, map_location=device, weights_only=True)
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        start_epoch = int(state["epoch"])
+        best = float(state["best_val_mm"])
+        history = json.loads(str(state["history"]))
+        elapsed = float(state["elapsed_s"])
+        torch.set_rng_state(state["torch_rng"])
+        log(f"resuming {out} after epoch {start_epoch}")
+    loss_fn = torch.nn.HuberLoss(delta=config.huber_delta)
+    for epoch in range(start_epoch, config.epochs):
+        t0 = time.perf_counter()
+        model.train()
+        train_set.epoch = epoch
+        order = torch.Generator().manual_seed(config.seed * 1000 + epoch)
+        loader = DataLoader(
+            train_set, batch_size=config.batch_size, shuffle=True, generator=order, drop_last=False
+        )
+        total, count = 0.0, 0
+        bar = tqdm(
+            loader,
+            desc=f"{config.kind} epoch {epoch + 1}/{config.epochs}",
+            disable=not progress,
+            leave=False,
+        )
+        for step, (x, y) in enumerate(bar):
+            for group in optimizer.param_groups:
+                group["lr"] = lr_at(epoch * steps_per_epoch + step)
+            x, y = x.to(device), y.to(device)
+            loss = loss_fn(model(x), y)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            total += loss.item() * len(x)
+            count += len(x)
+            bar.set_postfix(loss=f"{total / count:.5f}")
+        bar.close()
+        entry: dict[str, Any] = {"epoch": epoch + 1, "train_loss": total / max(count, 1)}
+        if (epoch + 1) % val_every == 0 or epoch + 1 == config.epochs:
+            val = _evaluate(model, val_set, config.batch_size, device)
+            entry["val_mean_error_mm"] = val["mean_error_mm"]
+            if val["mean_error_mm"] < best:
+                best = val["mean_error_mm"]
+                save_checkpoint(out / "best.pt", {"model": model.state_dict()}, ckpt_config)
+        elapsed += time.perf_counter() - t0
+        entry["elapsed_s"] = elapsed
+        history.append(entry)
+        save_checkpoint(
+            last,
+            {
+                "model": model.state_dict(),
+                "optimizer": optimizer.state_dict(),
+                "epoch": epoch + 1,
+                "best_val_mm": best,
+                "history": json.dumps(history),
+                "elapsed_s": elapsed,
+                "torch_rng": torch.get_rng_state(),
+            },
+            ckpt_config,
+        )
+        log(json.dumps(entry))  # after the checkpoint: a run killed from here loses nothing
+    metrics = {
+        "kind": config.kind,
+        "config": dataclasses.asdict(config),
+        "train_frames": len(train_frames),
+        "val_frames": len(val_frames),
+        "epochs_done": len(history),
+        "best_val_mean_error_mm": best,
+        "train_time_s": elapsed,
+        "device": device,
+        "torch_threads": torch.get_num_threads(),
+        "history": history,
+    }
+    if pca is not None:
+        metrics["pca_explained_variance"] = [float(v) for v in pca["explained"]]
+        metrics["pca_cumulative"] = [float(v) for v in np.cumsum(pca["explained"])]
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    return metrics

@@ -1,0 +1,266 @@
+"""``handsim train`` and ``handsim evaluate``: the learned estimators (DeepPrior, DeepPrior++).
+
+- ``handsim train deepprior|deepprior++|localizer --data DIR [DIR ...] --out RUN``: train (or
+  resume: the same command again continues a killed run) and write ``RUN/metrics.json``.
+- ``handsim evaluate --estimator CKPT|deepprior|deepprior++ --data DIR --out OUT``: the whole
+  pipeline on a split; ``OUT/metrics.json`` (``mean_error_mm`` at its top level) and plots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from handsim.cli._args import non_negative_int, positive_int, strict_json
+from handsim.errors import HandSimError
+
+__all__ = ["add_parser"]
+
+
+def _positive_float(value: str) -> float:
+    try:
+        v = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0; received {value!r}") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0; received {value!r}")
+    return v
+
+
+def _train(args: argparse.Namespace) -> int:
+    import torch
+
+    from handsim.estimators.deepprior.train import TrainConfig, train
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    size = args.size if args.size else (64 if args.kind == "localizer" else 128)
+    fc = args.fc if args.fc else (256 if args.kind == "localizer" else 1024)
+    offset = (
+        args.offset_sigma_mm
+        if args.offset_sigma_mm is not None
+        else (20.0 if args.kind == "localizer" else 5.0)
+    )
+    config = TrainConfig(
+        kind=args.kind,
+        arch=args.arch,
+        prior_dim=args.prior_dim,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        weight_decay=args.weight_decay,
+        cube_m=args.cube_mm / 1000.0,
+        size=size,
+        fc=fc,
+        width=args.width,
+        rotation="rotation" in args.augment,
+        scale="scale" in args.augment,
+        translation="translation" in args.augment,
+        offset_sigma_m=offset / 1000.0,
+        localizer=args.localizer,
+        max_frames=args.max_frames,
+        seed=args.seed,
+    )
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
+    metrics = train(
+        args.data,
+        args.out,
+        config,
+        device=args.device,
+        val_every=args.val_every,
+        progress=not args.quiet,
+        log=lambda line: print(line, file=sys.stderr, flush=True),
+    )
+    summary = {
+        k: metrics[k]
+        for k in (
+            "kind",
+            "epochs_done",
+            "best_val_mean_error_mm",
+            "train_time_s",
+            "train_frames",
+            "val_frames",
+        )
+    }
+    print(strict_json({**summary, "out": str(args.out)}))
+    return 0
+
+
+def _evaluate(args: argparse.Namespace) -> int:
+    from handsim.estimators.deepprior.evaluate import evaluate
+
+    data = args.data
+    if args.env is not None:
+        from handsim.estimators.deepprior.data import env_frames
+
+        data = env_frames(args.env, episodes=args.env_episodes, every=args.every, seed=args.seed)
+    elif not data:
+        raise HandSimError("handsim evaluate needs --data DIR ... or --env ID")
+    report = evaluate(
+        args.estimator,
+        data,
+        args.out,
+        split=args.split,
+        localizer=None if args.localizer == "none" else args.localizer,
+        max_frames=args.max_frames,
+        progress=not args.quiet,
+        threads=args.threads,
+    )
+    keys = ("estimator", "n_frames", "n_missed", "mean_error_mm", "auc_f_tau", "localization_mm")
+    report = {
+        **report,
+        "localization_mm": {k: v["mean_mm"] for k, v in report["localization_mm"].items()},
+    }
+    print(strict_json({k: report[k] for k in keys if k in report}))
+    return 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add ``handsim train`` and ``handsim evaluate``."""
+    from handsim.estimators.deepprior.train import KINDS
+
+    tr = sub.add_parser(
+        "train",
+        help="train DeepPrior, DeepPrior++ or the hand localizer on handsim datasets",
+        description="Train a learned estimator on the train split of dataset folders (handsim "
+        "generate), validating on their val split. Checkpoints (last.pt, best.pt + JSON "
+        "configs) go to --out; the same command again resumes a killed run.",
+    )
+    tr.add_argument("kind", choices=KINDS, help=f"what to train: {', '.join(KINDS)}")
+    tr.add_argument(
+        "--data", nargs="+", required=True, type=Path, metavar="DIR", help="dataset folders"
+    )
+    tr.add_argument("--out", required=True, type=Path, metavar="DIR", help="run folder")
+    tr.add_argument("--epochs", type=positive_int, default=20, help="epochs (default: 20)")
+    tr.add_argument("--batch-size", type=positive_int, default=64, help="batch (default: 64)")
+    tr.add_argument("--lr", type=_positive_float, default=1e-3, help="Adam lr (default: 1e-3)")
+    tr.add_argument(
+        "--weight-decay", type=float, default=1e-4, help="Adam weight decay (default: 1e-4)"
+    )
+    tr.add_argument(
+        "--arch",
+        choices=("shallow", "deep", "multiscale"),
+        default="deep",
+        help="DeepPrior network (deepprior only; default: deep)",
+    )
+    tr.add_argument(
+        "--prior-dim",
+        type=non_negative_int,
+        default=30,
+        help="prior bottleneck dimension, 0 = direct regression (default: 30)",
+    )
+    tr.add_argument(
+        "--cube-mm", type=_positive_float, default=250.0, help="cube edge, mm (default: 250)"
+    )
+    tr.add_argument(
+        "--size", type=positive_int, default=0, help="crop side, px (default: 128; localizer 64)"
+    )
+    tr.add_argument(
+        "--fc",
+        type=positive_int,
+        default=0,
+        help="fully connected units (default: 1024; localizer 256)",
+    )
+    tr.add_argument(
+        "--width",
+        type=_positive_float,
+        default=1.0,
+        help="DeepPrior++ conv filter factor (default: 1 = 64/128/256/256)",
+    )
+    tr.add_argument(
+        "--augment",
+        nargs="*",
+        default=["rotation", "scale", "translation"],
+        choices=("rotation", "scale", "translation"),
+        metavar="AUG",
+        help="online augmentations: rotation scale translation (default: all; "
+        "none: give --augment alone)",
+    )
+    tr.add_argument(
+        "--offset-sigma-mm",
+        type=float,
+        default=None,
+        help="centre offset sigma, mm (default: 5; localizer 20)",
+    )
+    tr.add_argument(
+        "--localizer",
+        default=None,
+        metavar="CKPT",
+        help="crop pose training frames at this localizer's refined centres "
+        "(default: at the true middle MCP)",
+    )
+    tr.add_argument(
+        "--max-frames",
+        type=non_negative_int,
+        default=0,
+        help="use at most this many training frames (default: all)",
+    )
+    tr.add_argument(
+        "--val-every", type=positive_int, default=1, help="validate every N epochs (default: 1)"
+    )
+    tr.add_argument("--seed", type=non_negative_int, default=0, help="seed (default: 0)")
+    tr.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
+    )
+    tr.add_argument(
+        "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
+    )
+    tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    tr.set_defaults(func=_train)
+
+    ev = sub.add_parser(
+        "evaluate",
+        help="evaluate a learned estimator on a dataset split: metrics.json and plots",
+        description="Run a learned estimator (plane removal, refined localizer, crop, network) "
+        "on every frame of a split and write metrics.json (mean_error_mm, F(tau), PCK, AUC, "
+        "per joint, per occlusion bucket, per sensor, localization errors) and PNG plots.",
+    )
+    ev.add_argument(
+        "--estimator",
+        required=True,
+        metavar="CKPT|deepprior|deepprior++",
+        help="shipped weights by name, a checkpoint NAME.pt or a run folder",
+    )
+    ev.add_argument("--data", nargs="+", type=Path, metavar="DIR", help="dataset folders")
+    ev.add_argument(
+        "--env",
+        default=None,
+        metavar="ID",
+        help="instead of --data: frames of this env's scripted expert, e.g. handsim/Grasp-v0 "
+        "(hand-object frames with the table in view)",
+    )
+    ev.add_argument(
+        "--env-episodes", type=positive_int, default=3, help="episodes of --env (default: 3)"
+    )
+    ev.add_argument(
+        "--every", type=positive_int, default=5, help="keep every N-th step of --env (default: 5)"
+    )
+    ev.add_argument(
+        "--seed", type=non_negative_int, default=0, help="first seed of --env (default: 0)"
+    )
+    ev.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    ev.add_argument(
+        "--split",
+        choices=("train", "val", "test", "all"),
+        default="test",
+        help="split (default: test)",
+    )
+    ev.add_argument(
+        "--localizer",
+        default="localizer",
+        metavar="CKPT|none",
+        help="localizer checkpoint (default: the shipped one; none: plane-removed centre of mass)",
+    )
+    ev.add_argument(
+        "--max-frames",
+        type=non_negative_int,
+        default=0,
+        help="evaluate at most this many frames (default: all)",
+    )
+    ev.add_argument(
+        "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
+    )
+    ev.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    ev.set_defaults(func=_evaluate)

@@ -1,0 +1,118 @@
+"""`handsim train` (resume after a kill is exact) and `handsim evaluate` on a tiny dataset."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from handsim.cli import main
+from handsim.data.generation import GenerationConfig, generate
+from handsim.estimators.deepprior.data import CropDataset, load_frames
+from handsim.estimators.deepprior.train import InvalidTrainConfig, TrainConfig, train
+
+TINY = dict(
+    kind="deepprior++", epochs=2, batch_size=8, size=32, fc=16, width=0.125, prior_dim=4,
+    max_frames=16, seed=3,
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def tiny_data(tmp_path_factory):
+    """30 hand-only frames, one per episode (so every split has frames)."""
+    out = tmp_path_factory.mktemp("tiny")
+    config = GenerationConfig(
+        frames=30, frames_per_shard=15, frames_per_episode=1, seed=5,
+        num_objects_range=(0, 0), viewpoints=("third_person",), sensor="structured_light",
+        hand_length_range_m=(0.18, 0.18),  # one skin build for every episode
+    )  # fmt: skip
+    generate(config, out)
+    return out
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_train_resume_after_a_kill_equals_an_uninterrupted_run(tiny_data, tmp_path):
+    """A run killed after epoch 1 and rerun ends with the same weights as a straight run."""
+    torch.set_num_threads(1)
+    config = TrainConfig(**TINY)
+    full = train([tiny_data], tmp_path / "full", config, progress=False, log=lambda s: None)
+    assert full["epochs_done"] == 2
+
+    def kill_after_first_epoch(line):
+        if line.startswith('{"epoch": 1'):
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        train([tiny_data], tmp_path / "cut", config, progress=False, log=kill_after_first_epoch)
+    lines = []
+    resumed = train([tiny_data], tmp_path / "cut", config, progress=False, log=lines.append)
+    assert any("resuming" in line and "after epoch 1" in line for line in lines)
+    strip = [{k: v for k, v in e.items() if k != "elapsed_s"} for e in resumed["history"]]
+    assert strip == [{k: v for k, v in e.items() if k != "elapsed_s"} for e in full["history"]]
+    a = torch.load(tmp_path / "full" / "last.pt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "cut" / "last.pt", weights_only=True)["model"]
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], msg=key)
+    metrics = json.loads((tmp_path / "cut" / "metrics.json").read_text())
+    assert metrics["epochs_done"] == 2
+    assert np.sum(metrics["pca_explained_variance"]) == pytest.approx(1.0)
+    with pytest.raises(InvalidTrainConfig, match="other options .*epochs"):
+        train([tiny_data], tmp_path / "cut", TrainConfig(**{**TINY, "epochs": 3}), progress=False)
+
+
+def test_crop_dataset_is_deterministic_per_epoch(tiny_data):
+    """A sample is the same when drawn twice in an epoch, and changes with the epoch."""
+    frames = load_frames(tiny_data, "all")
+    ds = CropDataset(frames, rotation=True, scale=True, translation=True, size=32)
+    x0, y0 = ds.sample(0)
+    x1, y1 = ds.sample(0)
+    np.testing.assert_array_equal(x0, x1)
+    ds.epoch = 1
+    assert not np.array_equal(ds.sample(0)[1], y0)
+
+
+def test_crop_dataset_alt_centers_are_drawn_with_their_probability(tiny_data):
+    """alt_fraction 1 always crops at the alternative centres, 0 never."""
+    frames = load_frames(tiny_data, "all")
+    mcp = frames.keypoints_cam[:, 9]
+    far = mcp + [0.05, 0.0, 0.0]
+    at_mcp = CropDataset(frames, mcp, size=32)
+    always = CropDataset(frames, far, size=32, alt_centers=mcp, alt_fraction=1.0)
+    never = CropDataset(frames, far, size=32, alt_centers=mcp, alt_fraction=0.0)
+    for i in range(3):
+        np.testing.assert_array_equal(always.sample(i)[0], at_mcp.sample(i)[0])
+        assert not np.array_equal(never.sample(i)[1], at_mcp.sample(i)[1])
+
+
+def test_cli_train_and_evaluate_write_metrics(tiny_data, tmp_path, capsys):
+    """`handsim train` then `handsim evaluate` on its run folder: metrics.json and plots."""
+    run = tmp_path / "run"
+    args = ["train", "deepprior++", "--data", str(tiny_data), "--out", str(run), "--epochs", "1",
+            "--size", "32", "--fc", "16", "--width", "0.125", "--prior-dim", "4",
+            "--batch-size", "8", "-q", "--threads", "1"]  # fmt: skip
+    assert main(args) == 0
+    assert json.loads(capsys.readouterr().out)["epochs_done"] == 1
+    out = tmp_path / "eval"
+    args = ["evaluate", "--estimator", str(run), "--data", str(tiny_data), "--out", str(out),
+            "--split", "all", "--localizer", "none", "-q"]  # fmt: skip
+    assert main(args) == 0
+    report = json.loads((out / "metrics.json").read_text())
+    assert report["mean_error_mm"] > 0 and report["n_frames"] == 30
+    assert set(report["localization_mm"]) == {"com", "plane_removed_com", "refined"}
+    assert len(report["per_joint_mean_mm"]) == 21
+    assert "structured_light" in report["by_sensor"]
+    for name in ("f_tau.png", "pck.png", "error_by_occlusion.png", "error_by_joint.png"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_cli_errors(tmp_path, capsys):
+    """A missing checkpoint or dataset is one error line naming what is valid (exit 2)."""
+    assert main(["evaluate", "--estimator", str(tmp_path / "none"), "--data", str(tmp_path),
+                 "--out", str(tmp_path / "o")]) == 2  # fmt: skip
+    assert "give a shipped name" in capsys.readouterr().err
+    assert main(["train", "localizer", "--data", str(tmp_path), "--out", str(tmp_path / "r"),
+                 "-q"]) == 2  # fmt: skip
+    assert "error" in capsys.readouterr().err

@@ -1,0 +1,105 @@
+"""DeepPrior models: output shapes, the PCA-initialized prior, checkpoints with weights_only."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from handsim.estimators.deepprior import checkpoint as C
+from handsim.estimators.deepprior.models import (
+    DeepPriorNet,
+    DeepPriorPP,
+    Localizer,
+    PriorLayer,
+    build_model,
+)
+from handsim.estimators.deepprior.preprocess import fit_pca
+
+
+@pytest.mark.parametrize("variant", ["shallow", "deep", "multiscale"])
+@pytest.mark.parametrize("prior_dim", [None, 8, 30])
+def test_deepprior_output_shapes(variant, prior_dim):
+    """Every DeepPrior variant maps (B, 1, S, S) to (B, 63); the prior layer iff prior_dim."""
+    net = DeepPriorNet(variant, prior_dim, size=64, fc=32).eval()
+    assert net(torch.zeros(3, 1, 64, 64)).shape == (3, 63)
+    has_prior = any(isinstance(m, PriorLayer) for m in net.modules())
+    assert has_prior == bool(prior_dim)
+
+
+@pytest.mark.parametrize("width", [1.0, 0.25])
+def test_deepprior_pp_output_shape_and_stages(width):
+    """DeepPrior++: 63 outputs, four stages 64/128/256/256 (x width), no GAP, dropout 0.3."""
+    net = DeepPriorPP(30, size=128, fc=64, width=width).eval()
+    assert net(torch.zeros(2, 1, 128, 128)).shape == (2, 63)
+    convs = [m for m in net.features.modules() if isinstance(m, torch.nn.Conv2d)]
+    assert convs[0].out_channels == round(64 * width)
+    assert [m.out_channels for m in convs if m.kernel_size == (1, 1)] == [
+        round(w * width) for w in (64, 128, 256, 256)
+    ]
+    assert not any(isinstance(m, torch.nn.AdaptiveAvgPool2d) for m in net.modules())
+    drops = [m.p for m in net.head.modules() if isinstance(m, torch.nn.Dropout)]
+    assert drops == [0.3, 0.3]
+
+
+def test_localizer_output_shape():
+    """The localizer predicts a (B, 3) offset."""
+    assert Localizer(size=64, fc=32).eval()(torch.zeros(4, 1, 64, 64)).shape == (4, 3)
+
+
+def test_build_model_rejects_unknown_arch():
+    """An unknown arch names the valid ones."""
+    with pytest.raises(ValueError, match="arch must be one of"):
+        build_model({"arch": "vgg"})
+
+
+def test_pca_init_equals_the_pca_projection_before_training():
+    """With the encoder set to the PCA projection, the prior layer is the PCA reconstruction."""
+    rng = np.random.default_rng(0)
+    poses = rng.normal(size=(300, 63)) @ rng.normal(size=(63, 63)) * 0.1
+    pca = fit_pca(poses, 30)
+    layer = PriorLayer(63, 30)
+    layer.init_from_pca(pca["mean"], pca["components"])
+    with torch.no_grad():
+        layer.encode.weight.copy_(torch.as_tensor(pca["components"], dtype=torch.float32))
+        layer.encode.bias.copy_(
+            torch.as_tensor(-pca["components"] @ pca["mean"], dtype=torch.float32)
+        )
+        out = layer(torch.as_tensor(poses, dtype=torch.float32)).double().numpy()
+    coeffs = (poses - pca["mean"]) @ pca["components"].T
+    expected = coeffs @ pca["components"] + pca["mean"]
+    np.testing.assert_allclose(out, expected, atol=1e-4)
+    # The decoder alone maps coefficients to poses: weight = components^T, bias = mean.
+    np.testing.assert_allclose(layer.decode.weight.detach().numpy(), pca["components"].T, atol=1e-7)
+    np.testing.assert_allclose(layer.decode.bias.detach().numpy(), pca["mean"], atol=1e-7)
+
+
+def test_checkpoint_round_trip_with_weights_only(tmp_path):
+    """save_checkpoint + load_model (torch.load weights_only=True) gives the same outputs."""
+    config = {
+        "model": {"arch": "resnet", "size": 64, "fc": 32, "width": 0.25, "prior_dim": 8},
+        "cube_m": 0.25,
+        "kind": "deepprior++",
+    }
+    torch.manual_seed(0)
+    net = build_model(config["model"]).eval()
+    C.save_checkpoint(tmp_path / "m.pt", {"model": net.state_dict()}, config)
+    assert json.loads((tmp_path / "m.json").read_text()) == config
+    loaded, cfg = C.load_model(tmp_path / "m.pt")
+    x = torch.randn(2, 1, 64, 64)
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(x), net(x))
+    assert cfg == config
+    # a training folder resolves to its best.pt
+    C.save_checkpoint(tmp_path / "best.pt", {"model": net.state_dict()}, config)
+    assert C.resolve_checkpoint(tmp_path) == tmp_path / "best.pt"
+
+
+def test_checkpoint_errors_name_what_is_valid(tmp_path):
+    """Missing and unreadable checkpoints raise InvalidCheckpoint with the reason."""
+    with pytest.raises(C.InvalidCheckpoint, match="give a shipped name"):
+        C.resolve_checkpoint(tmp_path / "nope.pt")
+    (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
+    (tmp_path / "bad.json").write_text("{}")
+    with pytest.raises(C.InvalidCheckpoint, match="cannot read checkpoint"):
+        C.load_checkpoint(tmp_path / "bad.pt")

@@ -1,0 +1,178 @@
+"""DeepPrior preprocessing: plane removal, blob CoM, crop round trips, exact augmentation, PCA."""
+
+import math
+
+import numpy as np
+import pytest
+
+from handsim.estimators.deepprior import preprocess as P
+
+K = np.array([[240.0, 0.0, 160.0], [0.0, 240.0, 120.0], [0.0, 0.0, 1.0]])
+H, W = 240, 320
+
+
+def _project(points):
+    return np.stack(
+        [
+            K[0, 0] * points[:, 0] / points[:, 2] + K[0, 2],
+            K[1, 1] * points[:, 1] / points[:, 2] + K[1, 2],
+        ],
+        axis=1,
+    )
+
+
+def _table_and_box(table_z=0.8, tilt=0.3, box_center=(0.02, -0.01, 0.55), half=0.03):
+    """A tilted table plane and a box (the 'hand') in front of it."""
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    rx, ry = (u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1]
+    # Plane z = table_z + tilt * y  ->  z = table_z / (1 - tilt * ry)
+    depth = (table_z / (1.0 - tilt * ry)).astype(np.float32)
+    cx, cy, cz = box_center
+    f = K[0, 0] * half / cz
+    uc, vc = K[0, 2] + K[0, 0] * cx / cz, K[1, 2] + K[1, 1] * cy / cz
+    inside = (np.abs(u - uc) <= f) & (np.abs(v - vc) <= f)
+    depth[inside] = cz
+    return depth, np.array(box_center), rx
+
+
+def test_plane_removal_keeps_the_hand_and_drops_the_table():
+    """RANSAC removes the table; the nearest-blob CoM lands on the box, not the table."""
+    depth, center, _ = _table_and_box()
+    cleaned = P.remove_plane(depth, K)
+    assert np.all(cleaned[depth == np.float32(0.55)] > 0)
+    assert np.count_nonzero(cleaned) == np.count_nonzero(depth == np.float32(0.55))
+    com = P.nearest_blob_com(cleaned, K)
+    np.testing.assert_allclose(com, center, atol=2e-3)
+
+
+def test_plane_removal_leaves_a_hand_alone_in_view():
+    """A small flat patch alone in view (a palm) is not removed as a 'plane' (spread test)."""
+    depth, _, _ = _table_and_box()
+    depth[depth != np.float32(0.55)] = 0
+    cleaned = P.remove_plane(depth, K)
+    np.testing.assert_array_equal(cleaned, depth)
+
+
+def test_localizer_without_a_blob_is_invalid():
+    """An empty depth image gives Estimate(valid=False)."""
+    est = P.PlaneRemovedLocalizer().predict(np.zeros((H, W), np.float32), K)
+    assert not est.valid
+
+
+def test_normalize_round_trip():
+    """denormalize(normalize(p)) == p, for batches and single frames."""
+    rng = np.random.default_rng(0)
+    kp = rng.normal([0, 0, 0.5], 0.05, size=(4, 21, 3))
+    c = rng.normal([0, 0, 0.5], 0.01, size=(4, 3))
+    cube = np.array([0.25, 0.3, 0.2, 0.25])
+    norm = np.stack([P.normalize_keypoints(kp[i], c[i], cube[i]) for i in range(4)])
+    np.testing.assert_allclose(P.denormalize_keypoints(norm, c, cube), kp, atol=1e-12)
+    one = P.normalize_keypoints(kp[0], c[0], 0.25)
+    np.testing.assert_allclose(P.denormalize_keypoints(one, c[0], 0.25), kp[0], atol=1e-12)
+
+
+def test_crop_maps_the_cube_onto_the_crop_and_back():
+    """The cube's face projects onto the crop's border; the inverse map returns image pixels."""
+    c = np.array([0.03, -0.02, 0.5])
+    M = P.crop_matrix(c, K, 0.25, 128)
+    corners = np.array([[c[0] - 0.125, c[1] - 0.125, c[2]], [c[0] + 0.125, c[1] + 0.125, c[2]]])
+    px = P.crop_pixels(corners, K, M)
+    np.testing.assert_allclose(px[1] - px[0], [128.0, 128.0], atol=1e-9)
+    np.testing.assert_allclose(P.crop_pixels(c[None], K, M)[0], [63.5, 63.5], atol=1e-9)
+    inv = np.vstack([np.linalg.inv(np.vstack([M, [0, 0, 1]]))[:2]])
+    uv = _project(corners)
+    back = px @ inv[:, :2].T + inv[:, 2]
+    np.testing.assert_allclose(back, uv, atol=1e-9)
+
+
+def test_crop_depth_normalization_and_missing_values():
+    """(d - z_c) / (cube / 2); missing and far -> +1, near -> -1."""
+    depth = np.zeros((H, W), np.float32)
+    c = np.array([0.0, 0.0, 0.5])
+    depth[100:140, 140:180] = 0.55
+    depth[110:120, 150:160] = 0.30  # nearer than the cube: -1
+    depth[125:130, 165:170] = 0.90  # beyond the cube: +1
+    M = P.crop_matrix(c, K, 0.25, 128)
+    crop = P.crop_depth(depth, M, 0.5, 0.25, 128)
+    assert crop.dtype == np.float32 and crop.shape == (128, 128)
+    assert crop.min() == -1.0 and crop.max() == 1.0
+    allowed = np.array([-1.0, 1.0, (0.55 - 0.5) / 0.125])
+    values = np.unique(crop)
+    assert np.all(np.isclose(values[:, None], allowed[None], atol=1e-6).any(axis=1)), values
+    assert crop[0, 0] == 1.0  # missing
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 37.0, -120.0, 180.0])
+@pytest.mark.parametrize("scale", [1.0, 1.05])
+def test_augmentation_labels_are_exact(angle_deg, scale):
+    """Each keypoint, drawn as a depth blob, lands where its transformed label says.
+
+    The crop pixel of the transformed label (its normalized x, y projected) holds the
+    normalized depth of the label's z.
+    """
+    rng = np.random.default_rng(1)
+    center = np.array([0.02, 0.01, 0.5])
+    kp = center + rng.uniform(-0.07, 0.07, size=(21, 3))
+    depth = np.zeros((H, W), np.float32)
+    uv = np.rint(_project(kp)).astype(int)
+    kp_snapped = np.stack(
+        [
+            (uv[:, 0] - K[0, 2]) * kp[:, 2] / K[0, 0],
+            (uv[:, 1] - K[1, 2]) * kp[:, 2] / K[1, 1],
+            kp[:, 2],
+        ],
+        axis=1,
+    )
+    for (u, v), z in zip(uv, kp[:, 2], strict=True):
+        depth[v - 1 : v + 2, u - 1 : u + 2] = z
+    params = P.AugmentParams(math.radians(angle_deg), scale, (0.004, -0.003, 0.006))
+    crop, labels, c, cube = P.augment(depth, K, kp_snapped, center, params)
+    assert cube == pytest.approx(0.25 * scale)
+    np.testing.assert_allclose(c, center + [0.004, -0.003, 0.006])
+    rotated = P.denormalize_keypoints(labels, c, cube)
+    M = P.crop_matrix(c, K, cube, 128, params.angle_rad)
+    px = P.crop_pixels(kp_snapped, K, M)
+    px_labels = P.crop_pixels(rotated, K, P.crop_matrix(c, K, cube, 128))
+    np.testing.assert_allclose(px_labels, px, atol=1e-9)  # the label follows the image
+    for (x, y), label in zip(px, labels, strict=True):
+        xi, yi = int(round(x)), int(round(y))
+        if 0 <= xi < 128 and 0 <= yi < 128:
+            assert crop[yi, xi] == pytest.approx(label[2], abs=1e-5)
+
+
+def test_rotation_by_zero_is_identity_and_full_turn_returns():
+    """Rotation by 0 and by 2 pi is the identity; +a then -a returns."""
+    rng = np.random.default_rng(2)
+    kp = rng.normal([0, 0, 0.5], 0.04, size=(21, 3))
+    c = kp[9]
+    np.testing.assert_allclose(P.rotate_keypoints(kp, K, c, 0.0), kp, atol=1e-12)
+    np.testing.assert_allclose(P.rotate_keypoints(kp, K, c, 2 * math.pi), kp, atol=1e-12)
+    half = P.rotate_keypoints(P.rotate_keypoints(kp, K, c, 1.0), K, c, -1.0)
+    np.testing.assert_allclose(half, kp, atol=1e-12)
+
+
+def test_sample_augmentation_respects_flags_and_ranges():
+    """Disabled augmentations draw nothing; the others follow their distributions."""
+    rng = np.random.default_rng(3)
+    off = P.sample_augmentation(rng, rotation=False, scale=False, translation=False)
+    assert off == P.AugmentParams()
+    draws = [P.sample_augmentation(rng) for _ in range(500)]
+    angles = np.array([d.angle_rad for d in draws])
+    assert angles.min() >= -math.pi and angles.max() <= math.pi
+    assert np.std([d.scale for d in draws]) == pytest.approx(0.02, rel=0.2)
+    assert np.std([d.offset_m for d in draws]) == pytest.approx(0.005, rel=0.2)
+
+
+def test_pca_is_not_whitened_and_reconstructs():
+    """Components are orthonormal, the explained ratios sum to 1, full rank reconstructs."""
+    rng = np.random.default_rng(4)
+    X = rng.normal(size=(200, 10)) @ rng.normal(size=(10, 10))
+    pca = P.fit_pca(X, 10)
+    comp = pca["components"]
+    np.testing.assert_allclose(comp @ comp.T, np.eye(10), atol=1e-10)
+    assert pca["explained"].sum() == pytest.approx(1.0)
+    assert np.all(np.diff(pca["explained"]) <= 1e-12)
+    coeffs = (X - pca["mean"]) @ comp.T
+    np.testing.assert_allclose(coeffs @ comp + pca["mean"], X, atol=1e-9)
+    # Not whitened: the coefficients' variances are the eigenvalues, not 1.
+    assert not np.allclose(coeffs.var(axis=0), 1.0, atol=0.1)
