@@ -86,6 +86,7 @@ __all__ = [
     "HandSimEnv",
     "HandDriver",
     "PhysicsDiverged",
+    "RESET_ATTEMPTS",
     "stiffen_hand_contacts",
     "SKIN_FRICTION",
     "OBJECT_MATERIALS",
@@ -398,6 +399,10 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+RESET_ATTEMPTS = 5
+"""Episodes drawn at a reset before giving up when each one's settling diverges."""
 
 
 class PhysicsDiverged(HandSimError, RuntimeError):
@@ -948,12 +953,22 @@ class HandSimEnv(gym.Env, abc.ABC):
         """
         super().reset(seed=seed)
         rng = self.np_random
-        self._build_scene(rng)
-        start = self._reset_task(rng)
-        self.scene.binding.set_pose(self.scene.data, start)
-        self.driver = HandDriver(self.scene)
-        self.driver.set_target(start)
-        self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep)))
+        # A draw whose settling diverges is drawn again (from the same generator, so seeded
+        # resets stay reproducible); it never becomes an episode that cannot be stepped.
+        for _ in range(RESET_ATTEMPTS):
+            self._build_scene(rng)
+            start = self._reset_task(rng)
+            self.scene.binding.set_pose(self.scene.data, start)
+            self.driver = HandDriver(self.scene)
+            self.driver.set_target(start)
+            if not self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep))):
+                break
+        else:
+            raise PhysicsDiverged(
+                f"the physics diverged while settling {RESET_ATTEMPTS} drawn episodes in a row "
+                "at reset; check the env's arguments (hand size, objects) or reset with "
+                "another seed"
+            )
         self.elapsed_steps = 0
         self._frame_viewer()
         self._begin_task()

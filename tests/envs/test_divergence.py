@@ -9,6 +9,7 @@ import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.base import (
     DIVERGENCE_LEVER_RATIO,
     DIVERGENCE_SPEED_M_S,
+    RESET_ATTEMPTS,
     HandDriver,
     PhysicsDiverged,
     divergence_speed_bounds,
@@ -158,4 +159,38 @@ def test_random_action_soak_does_not_diverge(hand_size):
         assert np.all(np.abs(obs["proprio"][27:]) <= bounds)
         if terminated or truncated:
             env.reset()
+    env.close()
+
+
+def test_a_reset_whose_settling_diverges_draws_again(monkeypatch):
+    """A diverging settle never yields an episode that cannot be stepped; it is drawn again."""
+    calls = []
+    step = HandDriver.step
+
+    def first_settle_diverges(self, n):
+        calls.append(n)
+        if len(calls) == 1:
+            self.diverged = True
+            return True
+        return step(self, n)
+
+    monkeypatch.setattr(HandDriver, "step", first_settle_diverges)
+    env = gym.make("handsim/HandPose-v0", obs_mode="state")
+    env.reset(seed=0)
+    *_, info = env.step(env.action_space.sample())
+    assert not info["physics_diverged"] and len(calls) == 3  # two settles, one step
+    env.close()
+
+
+def test_a_reset_that_keeps_diverging_says_so(monkeypatch):
+    """After RESET_ATTEMPTS diverging draws, reset raises a PhysicsDiverged that says why."""
+
+    def always_diverges(self, n):
+        self.diverged = True
+        return True
+
+    monkeypatch.setattr(HandDriver, "step", always_diverges)
+    env = gym.make("handsim/HandPose-v0", obs_mode="state")
+    with pytest.raises(PhysicsDiverged, match=f"diverged while settling {RESET_ATTEMPTS} drawn"):
+        env.reset(seed=0)
     env.close()
