@@ -45,7 +45,6 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from handsim.envs.base import HandDriver, set_skin_friction
 from handsim.envs.grasping import (
     CONTROL_DT_S,
     FRAME_SKIP,
@@ -56,6 +55,7 @@ from handsim.envs.grasping import (
     run_episode,
     shape_class,
 )
+from handsim.envs.physics import HandDriver, set_skin_friction
 from handsim.hand.model import HAND_SIZES, hand_params
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import Scene, SceneSpec, sample_placements

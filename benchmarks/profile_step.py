@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
-from handsim.envs.base import HandDriver
+from handsim.envs.physics import HandDriver
 from handsim.frame import FrameRenderer
 from handsim.world.render import DepthRenderer
 

@@ -57,19 +57,25 @@ from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
 from handsim.data.arrays import empty_label_arrays, frame_to_arrays
+from handsim.envs.config import (
+    _HAS_DISPLAY,
+    RENDER_MODES,
+    WORKSPACE_M,
+    EnvConfig,
+    InvalidEnvConfig,
+)
+from handsim.envs.physics import (
+    HandDriver,
+    PhysicsDiverged,
+)
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
 from handsim.hand.model import (
-    HAND_CONTACT_SOLIMP,
-    HAND_CONTACT_SOLMIX,
-    HAND_CONTACT_SOLREF,
-    HAND_SIZES,
     hand_params,
 )
 from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import MAX_WRIST_SPEED
-from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
-from handsim.world.registry import OBJECTS
+from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
     CameraSpec,
@@ -84,309 +90,31 @@ from handsim.world.sensors import sensor_model
 
 __all__ = [
     "HandSimEnv",
-    "HandDriver",
-    "PhysicsDiverged",
     "RESET_ATTEMPTS",
-    "stiffen_hand_contacts",
-    "SKIN_FRICTION",
-    "OBJECT_MATERIALS",
-    "skin_friction",
-    "set_skin_friction",
-    "divergence_speed_bounds",
-    "DIVERGENCE_SPEED_M_S",
-    "DIVERGENCE_LEVER_RATIO",
-    "EnvConfig",
-    "InvalidEnvConfig",
-    "OBS_MODES",
-    "CONTROL_MODES",
-    "REWARD_TYPES",
-    "VIEWPOINTS",
-    "HANDEDNESS",
-    "OBJECT_SETS",
-    "WORKSPACE_M",
-    "SENSORS",
-    "WRIST_TRACKING_SPEED",
-    "WRIST_TRACKING_ANGULAR_SPEED",
+    "without_images",
     "DEPTH_MAX_M",
     "DELTA_ANGULAR_SPEED",
     "DELTA_JOINT_SPEED",
-    "DEPTH_FORMATS",
     "InvalidAction",
-    "IMAGE_SIZE_RANGE",
-    "RENDER_SIZE_RANGE",
-    "RENDER_QUALITIES",
     "depth_colormap",
     "scaled_intrinsics",
 ]
 
-OBS_MODES: tuple[str, ...] = (
-    "depth",
-    "depth+segmentation",
-    "state",
-    "depth+state",
-    "privileged_state",
-)
-"""Observation modes: which keys the observation ``Dict`` has (see :class:`HandSimEnv`)."""
-DEPTH_FORMATS: tuple[str, ...] = ("float32_m", "uint16_mm")
-"""Depth observation encodings: float32 metres, or uint16 millimetres (rounded)."""
-IMAGE_SIZE_RANGE: tuple[int, int] = (8, 2048)
-"""Valid observation image ``width`` / ``height``, pixels (inclusive)."""
-RENDER_SIZE_RANGE: tuple[int, int] = (16, 4096)
-"""Valid ``render_width`` / ``render_height``, pixels (inclusive)."""
-RENDER_QUALITIES: tuple[str, ...] = ("fast", "high")
-"""``render_quality`` values: ``"fast"`` draws no shadows (a shadow pass more than doubles the
-cost of a software-rendered colour image); ``"high"`` lets one light cast shadows, with a shadow
-map about half the image size."""
-_HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-CONTROL_MODES: tuple[str, ...] = ("pose", "delta")
-"""Absolute 27-DoF pose targets, or normalized deltas of the current target."""
-REWARD_TYPES: tuple[str, ...] = ("dense", "sparse")
-VIEWPOINTS: tuple[str, ...] = ("third_person", "egocentric", "random")
-"""Camera placements: across the table, head-mounted, or a seeded random view per episode."""
-HANDEDNESS: tuple[str, ...] = ("right", "left", "random")
-OBJECT_SETS: dict[str, tuple[str, ...]] = {"ycbv": tuple(OBJECTS)}
-"""Named object sets accepted for ``objects``."""
-WORKSPACE_M: tuple[tuple[float, float], ...] = ((-0.5, 0.5), (-0.5, 0.5), (0.0, 0.6))
-"""Bounds of the wrist target (x, y, z), world frame, metres (table top at z = 0)."""
 DEPTH_MAX_M = 10.0
 """Upper bound of the depth observation, metres."""
 DELTA_ANGULAR_SPEED = 3.0
 """Wrist rotation per unit delta action, rad/s."""
 DELTA_JOINT_SPEED = 6.0
 """Joint motion per unit delta action, rad/s."""
-WRIST_TRACKING_SPEED = 2.0
-"""Fastest motion of the mocap body toward the wrist target, m/s (fast human reaching)."""
-WRIST_TRACKING_ANGULAR_SPEED = 4 * np.pi
-"""Fastest rotation of the mocap body toward the wrist target, rad/s."""
-DIVERGENCE_SPEED_M_S = 5.0
-"""Speed above which the physics counts as diverged, m/s: five times the fastest wrist tracking
-and about twice the fastest human finger and hand motions (pitching, finger flicks)."""
-DIVERGENCE_LEVER_RATIO = 0.1
-"""Lever arm, as a fraction of the hand length (about a middle phalanx), that turns
-:data:`DIVERGENCE_SPEED_M_S` into the angular-velocity bound of rotational DoFs."""
-SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
-"""Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
 SETTLE_S = 0.1
 """Physics time run at reset so objects and the hand settle before the first observation."""
 
 _POSE_LO = np.concatenate([[w[0] for w in WORKSPACE_M], [-np.pi] * 3, JOINT_LIMITS[:, 0]])
 _POSE_HI = np.concatenate([[w[1] for w in WORKSPACE_M], [np.pi] * 3, JOINT_LIMITS[:, 1]])
-_DIVERGENCE_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-)
-
-
-class InvalidEnvConfig(HandSimError, ValueError):
-    """An env keyword argument is invalid."""
 
 
 class InvalidAction(HandSimError, ValueError):
     """An action passed to ``step`` has the wrong shape, dtype or a non-finite value."""
-
-
-def _bool(value: object, name: str) -> bool:
-    if not isinstance(value, (bool, np.bool_)):
-        raise InvalidEnvConfig(f"{name} must be True or False; received {value!r}")
-    return bool(value)
-
-
-def _size(value: object, name: str, valid: tuple[int, int], note: str = "") -> int:
-    lo, hi = valid
-    if (
-        not isinstance(value, (int, np.integer))
-        or isinstance(value, (bool, np.bool_))
-        or not lo <= value <= hi
-    ):
-        raise InvalidEnvConfig(
-            f"{name} must be an integer number of pixels in [{lo}, {hi}]{note}; received {value!r}"
-        )
-    return int(value)
-
-
-def _choice(value: object, name: str, valid: tuple[str, ...]) -> str:
-    if value not in valid:
-        raise InvalidEnvConfig(f"{name}={value!r} is not valid; choose one of {', '.join(valid)}")
-    return str(value)
-
-
-def _hand_size(value: object) -> tuple[float, float]:
-    """(low, high) hand length in metres from a preset name, a length or a range."""
-    if isinstance(value, str):
-        if value not in HAND_SIZES:
-            raise InvalidEnvConfig(
-                f"hand_size={value!r} is not a size; use one of {', '.join(HAND_SIZES)}, "
-                "a hand length in metres, or a (low, high) range in metres"
-            )
-        length = HAND_SIZES[value]
-        return (length, length)
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        value = (float(value), float(value))
-    try:
-        lo, hi = (float(v) for v in value)  # type: ignore[union-attr]
-    except (TypeError, ValueError):
-        raise InvalidEnvConfig(
-            f"hand_size={value!r} is not valid; use one of {', '.join(HAND_SIZES)}, a hand "
-            "length in metres, or a (low, high) range in metres"
-        ) from None
-    if not lo <= hi:
-        raise InvalidEnvConfig(f"hand_size range ({lo}, {hi}) has low > high")
-    for length in (lo, hi):
-        hand_params(length)  # raises InvalidHandParams with the valid range
-    return (lo, hi)
-
-
-def _object_names(value: object, min_count: int) -> tuple[str, ...]:
-    if isinstance(value, str):
-        value = OBJECT_SETS[value] if value in OBJECT_SETS else (value,)
-    try:
-        names = tuple(OBJECTS.canonical(n) for n in value)  # type: ignore[union-attr]
-    except TypeError:
-        raise InvalidEnvConfig(
-            f"objects={value!r} is not valid; give an object name, a list of names or a set "
-            f"({', '.join(OBJECT_SETS)})"
-        ) from None
-    if len(names) < min_count:
-        raise InvalidEnvConfig(
-            f"objects needs at least {min_count} name(s); received {len(names)}: {names}"
-        )
-    return names
-
-
-@dataclasses.dataclass(frozen=True)
-class EnvConfig:
-    """Validated keyword arguments shared by every handsim env.
-
-    Attributes:
-        objects: canonical object names the episode draws from.
-        hand_size_m: (low, high) hand length, metres; drawn uniformly per episode.
-        handedness: ``"right"``, ``"left"`` or ``"random"`` (per episode).
-        camera: camera preset (:data:`~handsim.world.camera.CAMERA_PRESETS`).
-        viewpoint: one of :data:`VIEWPOINTS`.
-        sensor: sensor model name (:data:`SENSORS`).
-        obs_mode: one of :data:`OBS_MODES`.
-        control_mode: one of :data:`CONTROL_MODES`.
-        reward_type: one of :data:`REWARD_TYPES`.
-        frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
-        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or (only with a display)
-            ``"human"``.
-        labels: render and label a :class:`~handsim.frame.Frame` every step (``info["labels"]``);
-            default ``True`` for modes with images, ``False`` for ``"state"`` and
-            ``"privileged_state"`` (nothing is rendered then).
-        width: observation image width, pixels (default: the camera preset's); images are
-            resized from the sensor resolution (nearest neighbour) and ``K`` scaled with them.
-        height: observation image height, pixels (default: the preset's, or ``width`` times the
-            preset's aspect ratio when only ``width`` is given).
-        depth_format: ``"float32_m"`` (metres) or ``"uint16_mm"`` (millimetres, rounded).
-        channel_axis: give images a leading channel axis: depth and segmentation ``(1, H, W)``
-            (what Stable-Baselines3's CNN policies take) instead of ``(H, W)``.
-        render_width: width of ``render()`` images, pixels.
-        render_height: height of ``render()`` images, pixels.
-        render_quality: ``"fast"`` (default: no shadow pass, the cheapest colour image) or
-            ``"high"`` (one light casts shadows, for pictures); see :data:`RENDER_QUALITIES`.
-
-    The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
-    :mod:`handsim.envs`).
-    """
-
-    objects: tuple[str, ...] = ()
-    hand_size_m: tuple[float, float] = (HAND_SIZES["medium"], HAND_SIZES["medium"])
-    handedness: str = "right"
-    camera: str = "icvl"
-    viewpoint: str = "third_person"
-    sensor: str = "none"
-    obs_mode: str = "depth"
-    control_mode: str = "pose"
-    reward_type: str = "dense"
-    frame_skip: int = 10
-    render_mode: str | None = None
-    labels: bool = True
-    width: int = 320
-    height: int = 240
-    depth_format: str = "float32_m"
-    channel_axis: bool = False
-    render_width: int = 480
-    render_height: int = 360
-    render_quality: str = "fast"
-
-    @classmethod
-    def from_kwargs(
-        cls,
-        *,
-        objects: object = (),
-        min_objects: int = 0,
-        hand_size: object = "medium",
-        handedness: object = "right",
-        camera: object = "icvl",
-        viewpoint: object = "third_person",
-        sensor: object = "none",
-        obs_mode: object = "depth",
-        control_mode: object = "pose",
-        reward_type: object = "dense",
-        frame_skip: object = 10,
-        render_mode: object = None,
-        labels: object = None,
-        width: object = None,
-        height: object = None,
-        depth_format: object = "float32_m",
-        channel_axis: object = False,
-        render_width: object = 480,
-        render_height: object = 360,
-        render_quality: object = "fast",
-    ) -> EnvConfig:
-        """Validate the keyword arguments of an env (each error lists the valid values)."""
-        if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
-            raise InvalidEnvConfig(
-                f"frame_skip must be a positive integer; received {frame_skip!r}"
-            )
-        if frame_skip < 1:
-            raise InvalidEnvConfig(f"frame_skip must be a positive integer; received {frame_skip}")
-        if render_mode == "human" and not _HAS_DISPLAY:
-            raise InvalidEnvConfig(
-                "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
-                "'depth_array' headless"
-            )
-        if render_mode is not None:
-            _choice(render_mode, "render_mode", tuple(HandSimEnv.metadata["render_modes"]))
-        camera = _choice(camera, "camera", tuple(CAMERA_PRESETS))
-        obs_mode = _choice(obs_mode, "obs_mode", OBS_MODES)
-        preset = CAMERA_PRESETS[camera]
-        note = f" (the {camera!r} sensor is {preset.width} x {preset.height})"
-        if width is not None:
-            width = _size(width, "width", IMAGE_SIZE_RANGE, note)
-        if height is not None:
-            height = _size(height, "height", IMAGE_SIZE_RANGE, note)
-        if width is None:
-            width = (
-                preset.width
-                if height is None
-                else max(IMAGE_SIZE_RANGE[0], round(height * preset.width / preset.height))
-            )
-        if height is None:
-            height = max(IMAGE_SIZE_RANGE[0], round(width * preset.height / preset.width))
-        labels = "depth" in obs_mode if labels is None else _bool(labels, "labels")
-        return cls(
-            objects=_object_names(objects, min_objects) if min_objects or objects else (),
-            hand_size_m=_hand_size(hand_size),
-            handedness=_choice(handedness, "handedness", HANDEDNESS),
-            camera=camera,
-            viewpoint=_choice(viewpoint, "viewpoint", VIEWPOINTS),
-            sensor=_choice(sensor, "sensor", SENSORS),
-            obs_mode=obs_mode,
-            control_mode=_choice(control_mode, "control_mode", CONTROL_MODES),
-            reward_type=_choice(reward_type, "reward_type", REWARD_TYPES),
-            frame_skip=int(frame_skip),
-            render_mode=render_mode,  # type: ignore[arg-type]
-            labels=labels,
-            width=int(width),
-            height=int(height),
-            depth_format=_choice(depth_format, "depth_format", DEPTH_FORMATS),
-            channel_axis=_bool(channel_axis, "channel_axis"),
-            render_width=_size(render_width, "render_width", RENDER_SIZE_RANGE),
-            render_height=_size(render_height, "render_height", RENDER_SIZE_RANGE),
-            render_quality=_choice(render_quality, "render_quality", RENDER_QUALITIES),
-        )
 
 
 def without_images(frame: Frame) -> Frame:
@@ -403,273 +131,6 @@ def _plain(value: Any) -> Any:
 
 RESET_ATTEMPTS = 5
 """Episodes drawn at a reset before giving up when each one's settling diverges."""
-
-
-class PhysicsDiverged(HandSimError, RuntimeError):
-    """The physics diverged and the episode was truncated; it cannot be stepped further."""
-
-
-def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.ndarray:
-    """Per-DoF speed bound above which a state counts as diverged.
-
-    Linear DoFs (free-joint translations, slides) are bounded by :data:`DIVERGENCE_SPEED_M_S`;
-    rotational DoFs (hinges, free and ball rotations) by that speed at a lever of
-    :data:`DIVERGENCE_LEVER_RATIO` times the hand length (a phalanx), so a smaller hand, whose
-    fingers legitimately turn faster, gets a higher angular bound.
-
-    Args:
-        model: the compiled model.
-        hand_length_m: the hand's length, metres.
-
-    Returns:
-        (nv,) bound per DoF: m/s for linear DoFs, rad/s for rotational ones.
-    """
-    angular = DIVERGENCE_SPEED_M_S / (DIVERGENCE_LEVER_RATIO * hand_length_m)
-    bounds = np.full(model.nv, angular)
-    for j in range(model.njnt):
-        adr = model.jnt_dofadr[j]
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            bounds[adr : adr + 3] = DIVERGENCE_SPEED_M_S
-        elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
-            bounds[adr] = DIVERGENCE_SPEED_M_S
-    return bounds
-
-
-def stiffen_hand_contacts(scene: Scene) -> None:
-    """Give the scene's hand-object and hand-table contacts the hand's contact parameters.
-
-    Writes :data:`~handsim.hand.model.HAND_CONTACT_SOLREF`, ``HAND_CONTACT_SOLIMP`` and
-    ``HAND_CONTACT_SOLMIX`` onto every collision geom outside the hand (idempotent). MuJoCo
-    mixes the two geoms' parameters by ``solmix``, so hand-object and hand-table contacts (and
-    object-object and object-table ones) are stiff, and contacts between the hand's own
-    segments keep MuJoCo's defaults.
-    """
-    model = scene.model
-    root = model.body(scene.hand.root_body).id
-    other = (model.body_rootid[model.geom_bodyid] != root) & (
-        (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-    )
-    model.geom_solref[other] = HAND_CONTACT_SOLREF
-    model.geom_solimp[other] = HAND_CONTACT_SOLIMP
-    model.geom_solmix[other] = HAND_CONTACT_SOLMIX
-
-
-SKIN_FRICTION: dict[str, float] = {
-    "paper": 0.42,
-    "metal": 0.6,
-    "plastic": 0.53,
-    "other": 0.5,
-}
-"""Sliding friction of human skin on each object material (hand-object contacts).
-
-Measured values: palmar skin on paper 0.27 dry and 0.42 moist, on smooth vinyl 0.53, on
-textured vinyl 0.50, on aluminium 0.38 (Buchholz, Frederick & Armstrong 1988, Ergonomics
-31(3):317-325); the finger pad sliding on aluminium 0.6 on average (Seo et al.
-2009, Ergonomics 52(5):609-616; it falls as the normal force grows from 1 to 20 N). Cardboard
-takes moist paper (finger pads are kept moist by their sweat glands), metal the finger pad on
-aluminium (the digits, not the palm, carry the load), plastic smooth vinyl. Wood, foam and
-fruit skin have no measured value in these sources; ``"other"`` takes textured vinyl's 0.50 as
-a stand-in.
-"""
-
-OBJECT_MATERIALS: dict[str, str] = {
-    "002_master_chef_can": "metal",
-    "003_cracker_box": "paper",
-    "004_sugar_box": "paper",
-    "005_tomato_soup_can": "metal",
-    "006_mustard_bottle": "plastic",
-    "007_tuna_fish_can": "metal",
-    "008_pudding_box": "paper",
-    "009_gelatin_box": "paper",
-    "010_potted_meat_can": "metal",
-    "011_banana": "other",
-    "019_pitcher_base": "plastic",
-    "021_bleach_cleanser": "plastic",
-    "024_bowl": "plastic",
-    "025_mug": "plastic",
-    "035_power_drill": "plastic",
-    "036_wood_block": "other",
-    "037_scissors": "plastic",
-    "040_large_marker": "plastic",
-    "051_large_clamp": "plastic",
-    "052_extra_large_clamp": "plastic",
-    "061_foam_brick": "other",
-}
-"""Surface material of each YCB-Video object (its outside, where the hand touches it);
-imported objects are ``"other"``."""
-
-
-def skin_friction(name: str) -> float:
-    """Hand-object sliding friction of an object, by name.
-
-    :data:`SKIN_FRICTION` of its material (:data:`OBJECT_MATERIALS`; ``"other"`` for names
-    not listed).
-    """
-    return SKIN_FRICTION[OBJECT_MATERIALS.get(name, "other")]
-
-
-def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
-    """Give hand-object contacts the friction of skin on each object's material.
-
-    Writes the sliding friction (:func:`skin_friction`, or ``friction`` for every object) onto
-    the collision geoms of every object and raises their ``priority`` to 1, so that MuJoCo
-    takes the object's friction for its contacts with the hand (and with the table and other
-    objects) instead of the larger of the two geoms' values. Opt-in: by default the hand and
-    the objects keep MuJoCo's friction of 1.0 (with skin friction the scripted expert does not
-    yet lift every object; docs/grasping.md).
-
-    Args:
-        scene: the scene.
-        friction: one sliding friction for every object (``None``: per material).
-
-    Raises:
-        InvalidEnvConfig: for a friction that is not a finite number > 0.
-    """
-    if friction is not None and not (
-        isinstance(friction, (int, float, np.floating))
-        and not isinstance(friction, bool)
-        and np.isfinite(friction)
-        and friction > 0
-    ):
-        raise InvalidEnvConfig(f"friction must be a finite number > 0; received {friction!r}")
-    model = scene.model
-    for body_name, obj in scene.objects:
-        body = model.body(body_name).id
-        geoms = (model.geom_bodyid == body) & (
-            (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-        )
-        model.geom_friction[geoms, 0] = skin_friction(obj.name) if friction is None else friction
-        model.geom_priority[geoms] = 1
-
-
-class HandDriver:
-    """Drives a scene's physical hand toward a target pose, one control step at a time.
-
-    The finger targets go to the position actuators at once. The mocap body (the hand's wrist
-    target, welded softly to the hand root) is moved once per :meth:`step` toward the wrist
-    target, by at most :data:`WRIST_TRACKING_SPEED` m/s and
-    :data:`WRIST_TRACKING_ANGULAR_SPEED` rad/s times the step's duration; the weld's own
-    time constant (10 ms) smooths the motion in between. The physics sub-steps then run in one
-    ``mj_step(..., nstep=n)`` call (no Python per sub-step), after the first, which reuses the
-    ``mj_forward`` the previous step ended with (``mj_step2``), so a control step costs ``n``
-    forward passes, as ``n`` bare ``mj_step`` calls do, and still ends forwarded for the
-    observation. Whoever edits the data between steps should make a new driver (as
-    ``set_state`` does) or call ``mj_forward``.
-
-    Divergence is checked once per :meth:`step`, on the state it ends in: a MuJoCo
-    instability warning raised during any of its sub-steps (MuJoCo then resets the state), a
-    non-finite position or velocity, or a velocity above :func:`divergence_speed_bounds` (a
-    blow-up grows by orders of magnitude within a few sub-steps, long before MuJoCo warns about
-    a huge acceleration). A diverged driver refuses to step again (:class:`PhysicsDiverged`).
-    Envs and scripted-episode loops share it, so both run the same physics.
-
-    Args:
-        scene: a scene with a hand.
-        forwarded: the data already holds ``mj_forward`` of its current state.
-    """
-
-    def __init__(self, scene: Scene, *, forwarded: bool = False) -> None:
-        self.scene = scene
-        self.target = scene.binding.pose(scene.data)
-        self._target_quat_wxyz = self.target.quat_wxyz
-        self._warnings = self._divergence_count()
-        self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
-        stiffen_hand_contacts(scene)
-        self.diverged = False
-        """``True`` once a :meth:`step` diverged."""
-        self._forwarded = bool(forwarded)
-        self._arrived = False  # the mocap body sits at the wrist target
-
-    def set_target(self, target: HandPose) -> None:
-        """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
-        target = target.clip()
-        if not (
-            np.array_equal(target.wrist_pos, self.target.wrist_pos)
-            and np.array_equal(target.wrist_rotvec, self.target.wrist_rotvec)
-        ):
-            self._arrived = False
-        self.target = target
-        self._target_quat_wxyz = self.target.quat_wxyz
-        binding = self.scene.binding
-        self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
-
-    def _divergence_count(self) -> int:
-        data = self.scene.data
-        return int(sum(data.warning[w].number for w in _DIVERGENCE_WARNINGS))
-
-    def _track(self, duration_s: float) -> None:
-        """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""
-        if self._arrived:
-            return
-        data, mocap = self.scene.data, self.scene.binding.mocap_id
-        pos = data.mocap_pos[mocap]
-        offset = self.target.wrist_pos - pos
-        distance = np.linalg.norm(offset)
-        reach = WRIST_TRACKING_SPEED * duration_s
-        if distance > reach:
-            data.mocap_pos[mocap] = pos + offset * (reach / distance)
-        else:
-            data.mocap_pos[mocap] = self.target.wrist_pos
-        quat = data.mocap_quat[mocap]
-        # Rotation from the current to the target orientation (the short way), as axis * angle.
-        inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
-        mujoco.mju_negQuat(inverse, quat)
-        mujoco.mju_mulQuat(relative, self._target_quat_wxyz, inverse)
-        if relative[0] < 0:
-            relative = -relative
-        mujoco.mju_quat2Vel(rotvec, relative, 1.0)
-        angle = np.linalg.norm(rotvec)
-        turn = WRIST_TRACKING_ANGULAR_SPEED * duration_s
-        if angle <= turn:
-            data.mocap_quat[mocap] = self._target_quat_wxyz
-            self._arrived = distance <= reach
-            return
-        step, new = np.empty(4), np.empty(4)
-        mujoco.mju_axisAngle2Quat(step, rotvec / angle, turn)
-        mujoco.mju_mulQuat(new, step, quat)
-        mujoco.mju_normalize4(new)
-        data.mocap_quat[mocap] = new
-
-    def step(self, n: int) -> bool:
-        """Run ``n`` physics steps toward the target, then ``mj_forward``.
-
-        Returns:
-            ``True`` if the physics diverged during these steps (see the class docstring); the
-            data is then not forwarded and the driver refuses further steps.
-
-        Raises:
-            PhysicsDiverged: if an earlier step diverged.
-        """
-        if self.diverged:
-            raise PhysicsDiverged(
-                "the physics diverged in an earlier step and the episode was truncated; "
-                "call reset() (or restore a state) before stepping again"
-            )
-        model, data = self.scene.model, self.scene.data
-        self._track(n * model.opt.timestep)
-        if self._forwarded:
-            # The data holds the full forward pass of this state (the last step's mj_forward):
-            # finish the first sub-step from it, so each sub-step costs one forward pass. The
-            # new controls act at once (mj_step2 recomputes actuation); the mocap moved by
-            # _track acts from the second sub-step on.
-            mujoco.mj_step2(model, data)
-            if n > 1:
-                mujoco.mj_step(model, data, nstep=n - 1)
-        else:
-            mujoco.mj_step(model, data, nstep=n)
-        self._forwarded = False
-        warnings = self._divergence_count()
-        # NaN fails the comparison, so the bound also catches non-finite velocities; positions
-        # integrate bounded velocities (MuJoCo itself warns on bad positions).
-        if warnings != self._warnings or not np.all(np.abs(data.qvel) <= self._speed_bounds):
-            self._warnings = warnings
-            self.diverged = True
-            return True
-        # mj_step leaves positions, contacts and sites at the state before integration; the
-        # observation and labels describe the state after it.
-        mujoco.mj_forward(model, data)
-        self._forwarded = True
-        return False
 
 
 _VIEWER_AZIMUTH_DEG = 150.0
@@ -762,7 +223,7 @@ class HandSimEnv(gym.Env, abc.ABC):
     """
 
     metadata = {
-        "render_modes": ["rgb_array", "depth_array"] + (["human"] if _HAS_DISPLAY else []),
+        "render_modes": list(RENDER_MODES),
         "render_fps": 50,
     }
     max_objects: int = 0

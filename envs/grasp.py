@@ -8,7 +8,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from handsim.envs.base import EnvConfig, HandSimEnv, InvalidEnvConfig
+from handsim.envs.base import HandSimEnv
+from handsim.envs.config import EnvConfig, InvalidEnvConfig
 from handsim.envs.grasping import (
     LIFT_HEIGHT_M,
     GraspExpert,
@@ -83,7 +84,7 @@ class GraspEnv(HandSimEnv):
 
     ## Arguments
     ``objects`` (a name, a list of names, or ``"ycbv"``) and the shared arguments of
-    :class:`~handsim.envs.base.EnvConfig`.
+    :class:`~handsim.envs.config.EnvConfig`.
 
     ## Version History
 
@@ -281,7 +282,7 @@ class GraspClutterEnv(GraspEnv):
     ## Arguments
     ``num_objects``: an int or an inclusive (low, high) range within [1, 6]; ``objects``
     (default ``"ycbv"``) must hold at least ``high`` names; and the shared arguments of
-    :class:`~handsim.envs.base.EnvConfig`.
+    :class:`~handsim.envs.config.EnvConfig`.
 
     ## Version History
 

@@ -8,7 +8,8 @@ import numpy as np
 from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
-from handsim.envs.base import _POSE_HI, _POSE_LO, EnvConfig, HandSimEnv
+from handsim.envs.base import _POSE_HI, _POSE_LO, HandSimEnv
+from handsim.envs.config import EnvConfig
 from handsim.envs.experts import GestureExpert, HandState
 from handsim.hand.kinematics import ForwardKinematics
 from handsim.hand.pose import HandPose
@@ -70,7 +71,7 @@ class HandPoseEnv(HandSimEnv):
     ``hand_size``, ``handedness``, ``camera``, ``viewpoint``, ``sensor``, ``obs_mode``,
     ``control_mode``, ``reward_type``, ``frame_skip``, ``render_mode``, ``labels``, ``width``,
     ``height``, ``depth_format``, ``channel_axis``, ``render_width``, ``render_height``: see
-    :class:`~handsim.envs.base.EnvConfig` (the reference with every valid value is
+    :class:`~handsim.envs.config.EnvConfig` (the reference with every valid value is
     ``docs/envs.md``).
 
     ## Version History

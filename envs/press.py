@@ -16,7 +16,8 @@ import numpy as np
 from gymnasium import spaces
 from scipy.spatial.transform import Rotation
 
-from handsim.envs.base import EnvConfig, HandSimEnv, InvalidEnvConfig
+from handsim.envs.base import HandSimEnv
+from handsim.envs.config import EnvConfig, InvalidEnvConfig
 from handsim.envs.experts import ExpertError
 from handsim.hand.kinematics import ForwardKinematics
 from handsim.hand.model import HandParams
@@ -338,7 +339,7 @@ class PressEnv(HandSimEnv):
 
     ## Arguments
     ``task``: one of :data:`PRESS_TASKS` (default ``"random"``), and the shared arguments of
-    :class:`~handsim.envs.base.EnvConfig`.
+    :class:`~handsim.envs.config.EnvConfig`.
 
     ## Version History
 

@@ -34,7 +34,7 @@ import numpy as np
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.data.arrays import frame_to_arrays
 from handsim.data.generation import MIN_KEYPOINTS_IN_FRAME, InvalidGenerationConfig
-from handsim.envs.base import VIEWPOINTS
+from handsim.envs.config import VIEWPOINTS
 from handsim.errors import HandSimError
 from handsim.world.camera import camera_preset
 

@@ -9,7 +9,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from handsim.envs.base import HandSimEnv, InvalidEnvConfig, without_images
+from handsim.envs.base import HandSimEnv, without_images
+from handsim.envs.config import InvalidEnvConfig
 from handsim.estimator import (
     Estimate,
     Estimator,

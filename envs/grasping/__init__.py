@@ -14,7 +14,7 @@ The pieces an environment needs to run a pick-and-lift episode:
 - :class:`LiftTracker` / :func:`evaluate_lift`: the success definition (below).
 - :func:`run_episode`: the ground-truth loop used by the tests and ``benchmarks/bench_grasp.py``.
 
-Control: the env applies the expert's pose with :class:`handsim.envs.base.HandDriver` (the
+Control: the env applies the expert's pose with :class:`handsim.envs.physics.HandDriver` (the
 wrist follows a mocap target through a soft weld, the fingers have position actuators) and steps
 the physics :data:`FRAME_SKIP` times (0.002 s each, so the expert runs at 50 Hz);
 :func:`run_episode` does the same.

@@ -15,7 +15,6 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from handsim.envs.base import HandDriver, skin_friction
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
@@ -44,6 +43,7 @@ from handsim.envs.grasping.planning import (
     shape_class,
     start_pose,
 )
+from handsim.envs.physics import HandDriver, skin_friction
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.model import HandParams
 from handsim.hand.pose import JOINT_LIMITS, JOINT_NAMES, HandPose

@@ -139,7 +139,7 @@ def _run(args: argparse.Namespace) -> int:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim closed-loop`` to the program's subcommands."""
     from handsim.envs import ENV_IDS
-    from handsim.envs.base import SENSORS
+    from handsim.envs.config import SENSORS
     from handsim.world.camera import CAMERA_PRESETS
     from handsim.world.registry import OBJECT_NAMES
 

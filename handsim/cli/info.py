@@ -22,7 +22,7 @@ def collect_info() -> dict[str, Any]:
     import handsim
     from handsim.cli.estimators import BUILTIN_ESTIMATORS
     from handsim.envs import ENV_IDS
-    from handsim.envs.base import OBS_MODES, SENSORS, VIEWPOINTS
+    from handsim.envs.config import OBS_MODES, SENSORS, VIEWPOINTS
     from handsim.hand.model import HAND_SIZES, Hand
     from handsim.hand.pose import JOINT_LIMITS_DEG, JOINT_NAMES
     from handsim.world.camera import CAMERA_PRESETS

@@ -198,7 +198,7 @@ the two geoms' parameters weighted by ``solmix``; the default is 1).
 
 The three ``HAND_CONTACT_*`` values are the contact parameters of hand-object and hand-table
 contacts. They are written onto the geoms the hand touches (every geom outside the hand) of a
-compiled scene by ``handsim.envs.base.HandDriver``, so contacts between the hand's own
+compiled scene by ``handsim.envs.physics.HandDriver``, so contacts between the hand's own
 segments keep MuJoCo's defaults (a fist's fingers press into each other softly, as gesture
 targets assume)."""
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import handsim.envs  # noqa: F401 (registers the ids)
-from handsim.envs.base import (
+from handsim.envs.base import RESET_ATTEMPTS
+from handsim.envs.physics import (
     DIVERGENCE_LEVER_RATIO,
     DIVERGENCE_SPEED_M_S,
-    RESET_ATTEMPTS,
     HandDriver,
     PhysicsDiverged,
     divergence_speed_bounds,

@@ -9,13 +9,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import handsim.envs
-from handsim.envs.base import (
-    DEPTH_MAX_M,
-    InvalidAction,
-    InvalidEnvConfig,
-    _nearest_indices,
-    scaled_intrinsics,
-)
+from handsim.envs.base import DEPTH_MAX_M, InvalidAction, _nearest_indices, scaled_intrinsics
+from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.hand_pose import HandPoseEnv
 from handsim.errors import HandSimError
 from handsim.frame import Frame

@@ -7,7 +7,7 @@ from gymnasium.utils.env_checker import check_env
 
 import handsim.envs
 from handsim.data.arrays import LABEL_SCHEMA, empty_label_arrays
-from handsim.envs.base import OBS_MODES, WORKSPACE_M, InvalidEnvConfig
+from handsim.envs.config import OBS_MODES, WORKSPACE_M, InvalidEnvConfig
 from handsim.envs.hand_pose import HandPoseEnv
 from handsim.hand.pose import JOINT_LIMITS
 from handsim.hand.pose_sources import MAX_WRIST_SPEED

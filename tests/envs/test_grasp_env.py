@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import handsim.envs  # noqa: F401 (registers the ids)
-from handsim.envs.base import InvalidEnvConfig
+from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.grasping import InvalidGraspState
 from handsim.errors import UnknownName
 from handsim.world.scene import OBJECT_LABEL_OFFSET

@@ -9,13 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handsim.envs.base import (
-    OBJECT_MATERIALS,
-    SKIN_FRICTION,
-    InvalidEnvConfig,
-    set_skin_friction,
-    skin_friction,
-)
+from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.grasping import (
     CONTROL_DT_S,
     FRAME_SKIP,
@@ -41,6 +35,7 @@ from handsim.envs.grasping import (
     touch_forces,
 )
 from handsim.envs.grasping.planning import _clear_of_obstacles
+from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object

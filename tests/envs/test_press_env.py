@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import handsim.envs  # noqa: F401
-from handsim.envs.base import InvalidEnvConfig
+from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.press import BUTTON_TRAVEL_M, N_BUTTONS, PRESS_THRESHOLD_M
 
 

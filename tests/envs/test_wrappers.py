@@ -9,8 +9,8 @@ import pytest
 
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.cli import main
-from handsim.envs.base import InvalidEnvConfig
 from handsim.envs.closed_loop import evaluate_closed_loop, write_report
+from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.estimators import CenterOfMassLocalizer, OracleEstimator
 from handsim.viz import SCALE_BAR_WIDTH

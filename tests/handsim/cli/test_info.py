@@ -4,7 +4,7 @@ import json
 
 from handsim.cli import main
 from handsim.envs import ENV_IDS
-from handsim.envs.base import SENSORS, VIEWPOINTS
+from handsim.envs.config import SENSORS, VIEWPOINTS
 from handsim.hand.pose import JOINT_NAMES
 from handsim.world.camera import CAMERA_PRESETS
 from handsim.world.registry import OBJECT_NAMES, OBJECTS

@@ -9,7 +9,7 @@ import pytest
 import handsim
 from handsim.cli import main
 from handsim.envs import ENV_IDS
-from handsim.envs.base import SENSORS
+from handsim.envs.config import SENSORS
 from handsim.world.camera import CAMERA_PRESETS
 from handsim.world.registry import OBJECT_NAMES
 
