@@ -27,6 +27,7 @@ WebSocket uses the maintained ``websockets`` package (``pip install 'handsim[tel
 
 from __future__ import annotations
 
+import abc
 import contextlib
 import json
 import math
@@ -160,7 +161,7 @@ def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) ->
     return LiveFrame(seq, float(t), time.monotonic(), kp)
 
 
-class LiveReceiver:
+class LiveReceiver(abc.ABC):
     """Base of the receivers: the latest accepted frame and the drop counters.
 
     Attributes:
@@ -235,13 +236,13 @@ class LiveReceiver:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    @abc.abstractmethod
     def start(self) -> None:
         """Bind and start receiving in a background thread."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def close(self) -> None:
         """Stop receiving and release the port (idempotent)."""
-        raise NotImplementedError
 
 
 class UdpReceiver(LiveReceiver):
