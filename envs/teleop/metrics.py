@@ -23,6 +23,8 @@ import math
 
 import numpy as np
 
+from handsim.metrics import FINGERTIP_INDICES
+
 __all__ = [
     "JITTER_CUTOFF_HZ",
     "MAX_LAG_S",
@@ -37,8 +39,8 @@ JITTER_CUTOFF_HZ = 5.0
 """Motion above this frequency counts as jitter, Hz (voluntary hand motion is mostly below)."""
 MAX_LAG_S = 0.5
 """Largest lag searched by the cross-correlation, seconds."""
-FINGERTIPS: tuple[int, ...] = (4, 8, 12, 16, 20)
-"""Keypoint indices of the five fingertips."""
+FINGERTIPS: tuple[int, ...] = FINGERTIP_INDICES
+"""Keypoint indices of the five fingertips (:data:`handsim.metrics.FINGERTIP_INDICES`)."""
 
 
 def high_frequency_rms_mm(
