@@ -24,6 +24,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from handsim._validate import integer
 from handsim.errors import HandSimError
 
 __all__ = ["MinariUnavailable", "default_dataset_id", "record_minari"]
@@ -107,8 +108,7 @@ def record_minari(
             f"Minari export needs minari with its create extra ({err}); "
             "pip install 'handsim[minari]'"
         ) from None
-    if not isinstance(episodes, int | np.integer) or isinstance(episodes, bool) or episodes < 1:
-        raise HandSimError(f"episodes must be an int >= 1; received {episodes!r}")
+    episodes = integer("episodes", episodes, HandSimError, lo=1)
     dataset_id = dataset_id or default_dataset_id(env_id)
     kwargs = dict(env_kwargs or {})
     if max_episode_steps is not None:
