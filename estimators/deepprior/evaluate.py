@@ -84,9 +84,7 @@ def evaluate(
 
     from .estimator import DeepPriorEstimator
 
-    est = DeepPriorEstimator(
-        estimator, localizer=localizer, threads=threads or None, device=device
-    )
+    est = DeepPriorEstimator(estimator, localizer=localizer, threads=threads or None, device=device)
     if isinstance(data, FrameSet):
         frames = data
         data_names = ["(frames in memory)"]
