@@ -166,3 +166,23 @@ def test_env_frames_keep_every_nth_step_of_the_expert():
     assert frames.keypoints_cam.shape == (len(frames), 21, 3)
     assert np.all(frames.keypoints_cam[..., 2] > 0.1)  # in front of the camera
     assert np.all((frames.occlusion >= 0) & (frames.occlusion <= 1))
+
+
+def test_deepprior_with_the_com_detector_and_no_refinement(tiny_data, tmp_path):
+    """detector='com' without a localizer is DeepPrior's own pipeline; a bad name is refused."""
+    from handsim.estimators.deepprior.checkpoint import InvalidCheckpoint
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+    from handsim.estimators.deepprior.preprocess import MIDDLE_MCP
+
+    torch.set_num_threads(1)
+    train([tiny_data], tmp_path / "dp", TrainConfig(**TINY), progress=False, log=lambda s: None)
+    est = DeepPriorEstimator(tmp_path / "dp", localizer=None, detector="com")
+    assert "detector='com'" in repr(est) and est.info()["detector"] == "com"
+    frames = load_frames(tiny_data, "all")
+    estimate = est.predict(frames.depth(0), frames.K[0])
+    assert estimate.valid and estimate.keypoints_cam.shape == (21, 3)
+    # The hand is the nearest thing: the centre of mass lands within a cube of the MCP.
+    center = est.localizer.localize(frames.depth(0), frames.K[0])
+    assert np.linalg.norm(center - frames.keypoints_cam[0, MIDDLE_MCP]) < 0.125
+    with pytest.raises(InvalidCheckpoint, match="detector must be one of plane, com"):
+        DeepPriorEstimator(tmp_path / "dp", localizer=None, detector="table")
