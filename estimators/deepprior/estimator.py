@@ -61,17 +61,50 @@ class RefinedLocalizer(EstimatorBase):
 
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
+        return self.refine_batch([depth_m], K[None], np.asarray(center, np.float64)[None])[0]
+
+    def refine_batch(
+        self,
+        depths_m: Any,
+        K: np.ndarray,  # noqa: N803
+        centers: np.ndarray,
+        batch_size: int = 256,
+    ) -> np.ndarray:
+        """:meth:`refine` for many frames at once, one network call per batch and iteration.
+
+        Args:
+            depths_m: N (H, W) depth images, metres (a sequence, or a callable ``i -> depth``).
+            K: (N, 3, 3) intrinsics.
+            centers: (N, 3) starting centres, metres.
+            batch_size: frames per network call.
+
+        Returns:
+            (N, 3) refined centres, metres.
+        """
         import torch
 
-        if self.model is None:
-            return center
-        c = np.asarray(center, dtype=np.float64)
+        c = np.array(centers, dtype=np.float64)
+        if self.model is None or len(c) == 0:
+            return c
+        depth = depths_m if callable(depths_m) else depths_m.__getitem__
         for _ in range(self.iterations):
-            M = crop_matrix(c, K, self.cube_m, self.size)  # noqa: N806
-            x = crop_depth(depth_m, M, c[2], self.cube_m, self.size)
-            with torch.inference_mode():
-                off = self.model(torch.from_numpy(x[None, None]).to(self.device))
-            c = c + off[0].double().cpu().numpy() * (self.cube_m / 2.0)
+            for start in range(0, len(c), batch_size):
+                idx = range(start, min(start + batch_size, len(c)))
+                x = np.stack(
+                    [
+                        crop_depth(
+                            depth(i),
+                            crop_matrix(c[i], K[i], self.cube_m, self.size),
+                            c[i, 2],
+                            self.cube_m,
+                            self.size,
+                        )
+                        for i in idx
+                    ]
+                )
+                with torch.inference_mode():
+                    off = self.model(torch.from_numpy(x[:, None]).to(self.device))
+                c[start : idx.stop] += off.double().cpu().numpy() * (self.cube_m / 2.0)
         return c
 
     def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
