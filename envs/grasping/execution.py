@@ -238,8 +238,10 @@ class GraspExpert:
     by scaling every digit's deflection from the measured contact posture (proprioception at
     the end of the squeeze) toward the squeeze targets, within :data:`MIN_GRIP_SCALE` and
     :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
-    (target - angle)``, so the force follows the scale. Without touch (``touch_forces_n`` is
-    ``None``) the scale comes once from a joint-torque force model (:meth:`grip_targets`).
+    (target - angle)``, so the force follows the scale. The grip only tightens while lifting;
+    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` in the palm frame, and
+    never again after that. Without touch (``touch_forces_n`` is ``None``) the scale comes once
+    from a joint-torque force model (:meth:`grip_targets`).
 
     Args:
         obj: the object to grasp.
