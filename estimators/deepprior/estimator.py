@@ -23,17 +23,27 @@ from .preprocess import (
     denormalize_keypoints,
 )
 
-__all__ = ["DeepPriorEstimator", "RefinedLocalizer"]
+__all__ = ["DETECTORS", "DeepPriorEstimator", "RefinedLocalizer"]
+
+
+DETECTORS = ("plane", "com")
+"""First hand centres: ``"plane"`` (RANSAC plane removal, then the nearest blob's centre of
+mass; works on a table) or ``"com"`` (DeepPrior's centre of mass of the nearest depth slab,
+cheaper, for a hand nearest to the camera)."""
 
 
 class RefinedLocalizer(EstimatorBase):
-    """Hand centre: plane-removed centre of mass, then the refinement CNN, iterated.
+    """Hand centre: a first centre (:data:`DETECTORS`), then the refinement CNN, iterated.
 
     Args:
         checkpoint: a localizer checkpoint (shipped name ``"localizer"`` or a path), or
-            ``None`` for the plane-removed centre of mass alone.
+            ``None`` for the first centre alone.
         iterations: refinement steps.
         device: torch device.
+        detector: the first centre, ``"plane"`` or ``"com"``.
+
+    Raises:
+        InvalidCheckpoint: for an unknown detector or a checkpoint that cannot be loaded.
     """
 
     def __init__(
@@ -42,10 +52,18 @@ class RefinedLocalizer(EstimatorBase):
         *,
         iterations: int = 3,
         device: str = "cpu",
+        detector: str = "plane",
     ) -> None:
-        from .checkpoint import load_model
+        from handsim.estimators.com import CenterOfMassLocalizer
 
-        self.base = PlaneRemovedLocalizer()
+        from .checkpoint import InvalidCheckpoint, load_model
+
+        if detector not in DETECTORS:
+            raise InvalidCheckpoint(
+                f"detector must be one of {', '.join(DETECTORS)}; received {detector!r}"
+            )
+        self.detector = detector
+        self.base = PlaneRemovedLocalizer() if detector == "plane" else CenterOfMassLocalizer()
         self.iterations = int(iterations)
         self.device = device
         self.model = None
@@ -57,7 +75,10 @@ class RefinedLocalizer(EstimatorBase):
         self.checkpoint = None if checkpoint is None else str(checkpoint)
 
     def __repr__(self) -> str:
-        return f"RefinedLocalizer(checkpoint={self.checkpoint!r}, iterations={self.iterations})"
+        return (
+            f"RefinedLocalizer(checkpoint={self.checkpoint!r}, iterations={self.iterations}, "
+            f"detector={self.detector!r})"
+        )
 
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
@@ -129,6 +150,9 @@ class DeepPriorEstimator(EstimatorBase):
             crop at the plane-removed centre of mass.
         refine_iterations: refinement steps of the localizer.
         device: torch device (``"cpu"`` or ``"cuda"``).
+        detector: the localizer's first centre (:data:`DETECTORS`): ``"plane"`` (default,
+            works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
+            to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
         threads: torch CPU threads (``None``: leave torch's setting).
 
     Raises:
@@ -143,6 +167,7 @@ class DeepPriorEstimator(EstimatorBase):
         refine_iterations: int = 3,
         device: str = "cpu",
         threads: int | None = None,
+        detector: str = "plane",
     ) -> None:
         import torch
 
@@ -155,13 +180,16 @@ class DeepPriorEstimator(EstimatorBase):
         self.model, config = load_model(checkpoint, device)
         self.cube_m = float(config["cube_m"])
         self.size = int(config["model"]["size"])
-        self.localizer = RefinedLocalizer(localizer, iterations=refine_iterations, device=device)
+        self.localizer = RefinedLocalizer(
+            localizer, iterations=refine_iterations, device=device, detector=detector
+        )
 
     def __repr__(self) -> str:
         return (
             f"DeepPriorEstimator(checkpoint={self.checkpoint!r}, "
             f"localizer={self.localizer.checkpoint!r}, "
-            f"refine_iterations={self.localizer.iterations})"
+            f"refine_iterations={self.localizer.iterations}, "
+            f"detector={self.localizer.detector!r})"
         )
 
     def predict_at(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
@@ -197,6 +225,7 @@ class DeepPriorEstimator(EstimatorBase):
         return {
             "checkpoint": self.checkpoint,
             "localizer": self.localizer.checkpoint,
+            "detector": self.localizer.detector,
             "cube_m": self.cube_m,
             "size": self.size,
         }
