@@ -13,8 +13,8 @@ the env's own placement and start pose, depth rendered every step, the expert fr
 Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
 [--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
 [--friction default|skin|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]] [--no-replan]
-[--out benchmarks/results/bench_grasp.json]``. Prints one row per object (grasp type,
-successes, mean lift and slip, failure reasons) and writes every episode to JSON.
+[--workers N] [--out|--json benchmarks/results/bench_grasp.json]``. Prints one row per object
+(grasp type, successes, mean lift and slip, failure reasons) and writes every episode to JSON.
 
 Contact quality (``run_episode`` mode), per object over its episodes:
 
@@ -26,6 +26,10 @@ Contact quality (``run_episode`` mode), per object over its episodes:
   weight (the median over episodes; ``F/W max`` the largest episode median);
 - ``slip mm``: the largest slip in the palm frame of a successful hold.
 
+``--workers N`` runs the episodes in N processes; every episode depends only on its object,
+seed and options, so the records (and tables) are those of a serial run. The JSON's
+``per_object`` maps each object to ``{"size side": [successes, episodes]}``.
+
 ``--sizes all`` runs the small, medium and large presets, right and left (one table each).
 ``--physics`` instead measures the physics rate of a held grasp: ``HandDriver.step`` (one
 control step: mocap tracking, ``mj_step(nstep=10)``, divergence checks, ``mj_forward``) against
@@ -36,8 +40,10 @@ from __future__ import annotations
 
 import argparse
 import collections
+import concurrent.futures
 import dataclasses
 import json
+import multiprocessing
 import platform
 import time
 from pathlib import Path
@@ -99,38 +105,50 @@ def _env_episode(name: str, seed: int, hand_size_m: float = 0.189, side: str = "
         env.close()
 
 
-def run_clutter(episodes: int, first_seed: int = 0) -> dict:
-    """GraspClutter-v0 episodes (3-6 objects from all 21, a random target) with the expert."""
+def _clutter_episode(seed: int) -> dict:
+    """One GraspClutter-v0 episode (3-6 objects from all 21, a random target) with the expert.
+
+    A fresh env per episode, so the record depends on the seed only (any process, any order).
+    """
     import gymnasium as gym
 
     import handsim.envs  # noqa: F401 (registers the ids)
 
     env = gym.make("handsim/GraspClutter-v0")
-    runs = []
-    for seed in range(first_seed, first_seed + episodes):
+    try:
         _, info = env.reset(seed=seed)
         base = env.unwrapped
         target = base.scene.objects[base.target_instance][1].name
         try:
             expert = base.make_expert()
         except GraspPlanningError:
-            runs.append({"seed": seed, "target": target, "success": False, "failure": "no_plan"})
-            continue
+            return {"seed": seed, "target": target, "success": False, "failure": "no_plan"}
         while True:
             _, _, terminated, truncated, info = env.step(expert.act(base.expert_state()).vector)
             if terminated or truncated:
                 break
-        runs.append(
-            {
-                "seed": seed,
-                "target": target,
-                "n_objects": len(base.scene.objects),
-                "success": bool(info.get("is_success", False)),
-                "failure": None if info.get("is_success") else base.tracker.outcome().failure,
-            }
-        )
-        print(runs[-1], flush=True)
-    env.close()
+        return {
+            "seed": seed,
+            "target": target,
+            "n_objects": len(base.scene.objects),
+            "success": bool(info.get("is_success", False)),
+            "failure": None if info.get("is_success") else base.tracker.outcome().failure,
+        }
+    finally:
+        env.close()
+
+
+def run_clutter(episodes: int, first_seed: int = 0, pool=None) -> dict:
+    """GraspClutter-v0 episodes ``first_seed ..`` with the expert (in ``pool`` if given)."""
+    seeds = range(first_seed, first_seed + episodes)
+    if pool is None:
+        results = map(_clutter_episode, seeds)
+    else:
+        results = (f.result() for f in [pool.submit(_clutter_episode, s) for s in seeds])
+    runs = []
+    for run in results:
+        runs.append(run)
+        print(run, flush=True)
     ok = sum(r["success"] for r in runs)
     return {"episodes": len(runs), "successes": ok, "runs": runs}
 
@@ -186,10 +204,9 @@ def _size_length(hand_size: str, seed: int = 0) -> float:
     return HAND_SIZES[hand_size] if hand_size in HAND_SIZES else float(hand_size)
 
 
-def run_object(
+def _episode(
     name: str,
-    seeds: int,
-    first_seed: int = 0,
+    seed: int,
     use_env: bool = False,
     hand_size: str = "medium",
     side: str = "right",
@@ -198,70 +215,76 @@ def run_object(
     noise_kind: str = "axis",
     replan: bool = True,
 ) -> dict:
-    """Run ``seeds`` episodes with one object; return its row and the episodes.
+    """One episode of one object (arguments as :func:`run_object`); its JSON record.
 
-    ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
-    object, and the expert sizes its grip for it; otherwise for skin on the material);
-    ``object_noise_mm``/``noise_kind``: the expert perceives the object's position with that
-    error at every step (see :func:`_noisy_perception`); ``replan=False``: the expert plans
-    once, at the start (open loop).
+    Depends only on its arguments (the seed fixes placement, start pose and noise), so episodes
+    run in any order or process give the same records.
     """
     obj = get_object(name)
-    episodes = []
     start = time.perf_counter()
-    grasp_types = collections.Counter()
-    for seed in range(first_seed, first_seed + seeds):
-        params = hand_params(_size_length(hand_size, seed), side)
-        if use_env:
-            try:
-                episode = _env_episode(name, seed, params.hand_length, side)
-            except GraspPlanningError as err:
-                episode = {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
-            grasp_types[episode.get("grasp_type", "-")] += 1
-            episodes.append(episode)
-            continue
-        rng = np.random.default_rng(seed)
-        placements = sample_placements(rng, [name])
-        scene = Scene(SceneSpec(hand=params, objects=placements))
-        if friction != "default":
-            set_skin_friction(scene, None if friction == "skin" else float(friction))
-        # A number is what the hand feels: the expert sizes its grip for it too.
-        assumed = None if friction in ("default", "skin") else float(friction)
-        expert = GraspExpert(obj, params, replan=replan, friction=assumed)
-        records: list = []
-
-        def record(step: int, expert: GraspExpert, scene: Scene = scene, records=records):
-            records.append((expert.phase, contact_metrics(scene, 0)))
-
+    params = hand_params(_size_length(hand_size, seed), side)
+    if use_env:
         try:
-            outcome = run_episode(
-                scene,
-                0,
-                expert,
-                rng,
-                _MAX_STEPS,
-                on_step=record,
-                perceive=_noisy_perception(object_noise_mm, noise_kind, seed),
-            )
+            episode = _env_episode(name, seed, params.hand_length, side)
         except GraspPlanningError as err:
-            episodes.append(
-                {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
-            )
-            continue
-        grasp_types[expert.grasp_type] += 1
-        outcome = outcome.to_dict()
-        if expert.plan is None:
-            outcome["failure"] = "no_plan"
-        episodes.append(
-            {
-                "seed": seed,
-                "grasp_type": expert.grasp_type,
-                "replans": expert.replans,
-                **outcome,
-                **_contact_summary(obj, records),
-            }
+            episode = {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
+        return {**episode, "hand_length_m": params.hand_length, "wall_s": _since(start)}
+    rng = np.random.default_rng(seed)
+    placements = sample_placements(rng, [name])
+    scene = Scene(SceneSpec(hand=params, objects=placements))
+    if friction != "default":
+        set_skin_friction(scene, None if friction == "skin" else float(friction))
+    # A number is what the hand feels: the expert sizes its grip for it too.
+    assumed = None if friction in ("default", "skin") else float(friction)
+    expert = GraspExpert(obj, params, replan=replan, friction=assumed)
+    records: list = []
+
+    def record(step: int, expert: GraspExpert) -> None:
+        records.append((expert.phase, contact_metrics(scene, 0)))
+
+    try:
+        outcome = run_episode(
+            scene,
+            0,
+            expert,
+            rng,
+            _MAX_STEPS,
+            on_step=record,
+            perceive=_noisy_perception(object_noise_mm, noise_kind, seed),
         )
-    wall = time.perf_counter() - start
+    except GraspPlanningError as err:
+        return {
+            "seed": seed,
+            "success": False,
+            "failure": "no_plan",
+            "error": str(err),
+            "hand_length_m": params.hand_length,
+            "wall_s": _since(start),
+        }
+    outcome = outcome.to_dict()
+    if expert.plan is None:
+        outcome["failure"] = "no_plan"
+    return {
+        "seed": seed,
+        "grasp_type": expert.grasp_type,
+        "replans": expert.replans,
+        "hand_length_m": params.hand_length,
+        **outcome,
+        **_contact_summary(obj, records),
+        "wall_s": _since(start),
+    }
+
+
+def _since(start: float) -> float:
+    return time.perf_counter() - start
+
+
+def _object_row(name: str, episodes: list[dict]) -> dict:
+    """The row of one object from its episode records (in seed order)."""
+    obj = get_object(name)
+    grasp_types = collections.Counter(
+        e["grasp_type"] for e in episodes if e.get("grasp_type") is not None
+    )
     ok = [e for e in episodes if e["success"]]
     lifts = [e["max_lift_m"] for e in episodes if "max_lift_m" in e]
     slips = [e["slip_m"] for e in ok]
@@ -286,9 +309,38 @@ def run_object(
         "max_table_depth_mm": pooled("max_table_depth_mm", np.max),
         "force_over_weight": pooled("hold_force_over_weight", np.median),
         "max_slip_m": max(slips) if slips else None,
-        "wall_s": wall,
+        "wall_s": float(sum(e.get("wall_s", 0.0) for e in episodes)),
         "runs": episodes,
     }
+
+
+def run_object(
+    name: str,
+    seeds: int,
+    first_seed: int = 0,
+    use_env: bool = False,
+    hand_size: str = "medium",
+    side: str = "right",
+    friction: str = "default",
+    object_noise_mm: float = 0.0,
+    noise_kind: str = "axis",
+    replan: bool = True,
+) -> dict:
+    """Run ``seeds`` episodes with one object; return its row and the episodes.
+
+    ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
+    object, and the expert sizes its grip for it; otherwise for skin on the material);
+    ``object_noise_mm``/``noise_kind``: the expert perceives the object's position with that
+    error at every step (see :func:`_noisy_perception`); ``replan=False``: the expert plans
+    once, at the start (open loop).
+    """
+    episodes = [
+        _episode(
+            name, seed, use_env, hand_size, side, friction, object_noise_mm, noise_kind, replan
+        )
+        for seed in range(first_seed, first_seed + seeds)
+    ]
+    return _object_row(name, episodes)
 
 
 def bench_physics(names: list[str], control_steps: int = 100, repeats: int = 7) -> dict:
@@ -359,8 +411,38 @@ def _fmt(value: float | None, scale: float = 1.0, digits: int = 1) -> str:
     return "-" if value is None else f"{scale * value:.{digits}f}"
 
 
-def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: str) -> dict:
-    """One success / contact table for a hand size and side."""
+def _episode_args(args: argparse.Namespace, hand_size: str, side: str) -> tuple:
+    """The arguments of :func:`_episode` after name and seed."""
+    return (
+        args.env,
+        hand_size,
+        side,
+        args.friction,
+        args.object_noise_mm,
+        args.noise_kind,
+        not args.no_replan,
+    )
+
+
+def _submit(pool, names: list[str], args: argparse.Namespace, hand_size: str, side: str) -> dict:
+    """Queue every episode of one table in ``pool``: object name -> futures in seed order."""
+    extra = _episode_args(args, hand_size, side)
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    return {name: [pool.submit(_episode, name, seed, *extra) for seed in seeds] for name in names}
+
+
+def run_table(
+    names: list[str],
+    args: argparse.Namespace,
+    hand_size: str,
+    side: str,
+    pending: dict | None = None,
+) -> dict:
+    """One success / contact table for a hand size and side.
+
+    ``pending``: the table's episodes already queued in a process pool (see :func:`_submit`);
+    otherwise they run here, one after the other.
+    """
     header = (
         f"{'object':<24} {'class':<10} {'grasp type':<20} {'ok':>7} {'lift mm':>8} "
         f"{'slip mm':>8} {'hold p95':>8} {'hold max':>8} {'all mm':>7} {'table':>6} "
@@ -372,18 +454,12 @@ def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: 
     rows = []
     start = time.perf_counter()
     for name in names:
-        row = run_object(
-            name,
-            args.seeds,
-            args.first_seed,
-            args.env,
-            hand_size,
-            side,
-            args.friction,
-            args.object_noise_mm,
-            args.noise_kind,
-            not args.no_replan,
-        )
+        if pending is not None:
+            row = _object_row(name, [f.result() for f in pending[name]])
+        else:
+            row = run_object(
+                name, args.seeds, args.first_seed, *_episode_args(args, hand_size, side)
+            )
         rows.append(row)
         failures = ", ".join(f"{k} {v}" for k, v in row["failures"].items()) or "-"
         print(
@@ -402,11 +478,12 @@ def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: 
     at_target = sum(r["successes"] >= 0.95 * r["episodes"] for r in rows)
     forces = [r["force_over_weight"] for r in rows if r.get("force_over_weight") is not None]
     wall = time.perf_counter() - start
+    cpu = sum(r["wall_s"] for r in rows)
     print("-" * len(header))
     print(
         f"total {total}/{episodes} ({100 * total / max(episodes, 1):.1f} %); objects at >= 95 %: "
         f"{at_target}/{len(rows)}; median F/W {_fmt(np.median(forces) if forces else None)}; "
-        f"wall {wall:.0f} s"
+        f"wall {wall:.0f} s (episodes {cpu:.0f} s)"
     )
     return {
         "hand_size": hand_size,
@@ -415,6 +492,8 @@ def run_table(names: list[str], args: argparse.Namespace, hand_size: str, side: 
         "total_episodes": episodes,
         "median_force_over_weight": float(np.median(forces)) if forces else None,
         "wall_s": wall,
+        "episodes_s": cpu,
+        "per_object": {r["object"]: [r["successes"], r["episodes"]] for r in rows},
         "objects": rows,
     }
 
@@ -461,14 +540,38 @@ def main() -> None:
     parser.add_argument(
         "--clutter", type=int, default=0, help="run this many GraspClutter-v0 episodes instead"
     )
-    parser.add_argument("--out", default="benchmarks/results/bench_grasp.json")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="episodes run in this many processes (results identical to 1; default 1)",
+    )
+    parser.add_argument(
+        "--out", "--json", default="benchmarks/results/bench_grasp.json", help="JSON written"
+    )
     args = parser.parse_args()
+    if args.workers < 1:
+        parser.error(f"--workers must be at least 1, got {args.workers}")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    pool = None
+    if args.workers > 1 and not args.physics:
+        # spawn: each worker imports MuJoCo (and EGL for --env) itself.
+        context = multiprocessing.get_context("spawn")
+        pool = concurrent.futures.ProcessPoolExecutor(args.workers, mp_context=context)
+    try:
+        _run(args, out, pool)
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+
+
+def _run(args: argparse.Namespace, out: Path, pool) -> None:
+    start = time.perf_counter()
     if args.clutter:
-        result = run_clutter(args.clutter, args.first_seed)
+        result = run_clutter(args.clutter, args.first_seed, pool)
         print(f"GraspClutter-v0: {result['successes']}/{result['episodes']} successes")
-        out.write_text(json.dumps(result, indent=2))
+        out.write_text(json.dumps({**result, "workers": args.workers}, indent=2))
         print(f"written: {out}")
         return
     names = [OBJECTS.canonical(n) for n in args.objects]
@@ -485,7 +588,15 @@ def main() -> None:
         if args.sizes == "all"
         else [(args.hand_size, args.side)]
     )
-    tables = [run_table(names, args, size, side) for size, side in hands]
+    # With a pool, every table's episodes are queued at once so no worker idles between tables.
+    pending = [None if pool is None else _submit(pool, names, args, *hand) for hand in hands]
+    tables = [
+        run_table(names, args, *hand, queued) for hand, queued in zip(hands, pending, strict=True)
+    ]
+    total = sum(t["total_successes"] for t in tables)
+    episodes = sum(t["total_episodes"] for t in tables)
+    wall = time.perf_counter() - start
+    print(f"all tables: {total}/{episodes}; wall {wall:.0f} s with {args.workers} worker(s)")
     out.write_text(
         json.dumps(
             {
@@ -498,6 +609,15 @@ def main() -> None:
                 "noise_kind": args.noise_kind,
                 "replan": not args.no_replan,
                 "max_steps": _MAX_STEPS,
+                "workers": args.workers,
+                "wall_s": wall,
+                "total_successes": total,
+                "total_episodes": episodes,
+                # object -> "size side" -> [successes, episodes]
+                "per_object": {
+                    name: {f"{t['hand_size']} {t['side']}": t["per_object"][name] for t in tables}
+                    for name in names
+                },
                 "tables": tables,
             },
             indent=2,

@@ -91,6 +91,13 @@ _SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the tabl
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
 _GRIP_EASE = 0.9  # the grip scale falls by at most 10 % per control step...
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
+HOLD_SLIP_M = 0.0015
+"""The hold's easing stops for good once the object has moved this far in the palm frame
+(metres; the median of the last five perceived positions against that of the hold's first
+five), and the grip goes back to where it was three easing steps before: a grip eased until
+the object starts to slip is held there, not eased further (people stop relaxing their grip at
+the first slip; Johansson & Westling 1984)."""
+_SLIP_WINDOW = 5
 MIN_GRIP_FORCE_N = 1.0
 """The least total grip force, newtons: for objects lighter than about 30 g people's
 grip-to-load ratio rises (Hiramatsu, Kimura, Kadota, Ito & Kinoshita 2015, PLoS ONE), and
@@ -231,8 +238,10 @@ class GraspExpert:
     by scaling every digit's deflection from the measured contact posture (proprioception at
     the end of the squeeze) toward the squeeze targets, within :data:`MIN_GRIP_SCALE` and
     :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
-    (target - angle)``, so the force follows the scale. Without touch (``touch_forces_n`` is
-    ``None``) the scale comes once from a joint-torque force model (:meth:`grip_targets`).
+    (target - angle)``, so the force follows the scale. The grip only tightens while lifting;
+    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` in the palm frame, and
+    never again after that. Without touch (``touch_forces_n`` is ``None``) the scale comes once
+    from a joint-torque force model (:meth:`grip_targets`).
 
     Args:
         obj: the object to grasp.
@@ -311,6 +320,10 @@ class GraspExpert:
         self._grip: tuple[np.ndarray, np.ndarray] | None = None  # contact angles, squeeze
         self._grip_scale: list[float] = [1.0]
         self._grip_force_n: float | None = None
+        self._hold_palm: list[np.ndarray] = []  # perceived object positions in the palm frame
+        self._hold_ref: np.ndarray | None = None
+        self._eased: list[list[float]] = []  # grip scales of the last easing steps
+        self._easing_stopped = False
 
     @property
     def grasp_type(self) -> str:
@@ -341,6 +354,10 @@ class GraspExpert:
         self.replans = 0
         self._grip = None
         self._grip_force_n = None
+        self._hold_palm = []
+        self._hold_ref = None
+        self._eased = []
+        self._easing_stopped = False
         self._filter = _PoseFilter(self.obj)
         self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
@@ -502,6 +519,20 @@ class GraspExpert:
         grip_n = GRIP_SAFETY_FACTOR * self.obj.mass_kg * accel / self.friction
         return max(grip_n, MIN_GRIP_FORCE_N)
 
+    def _slipping(self, state: GraspState) -> bool:
+        """Has the object moved :data:`HOLD_SLIP_M` in the palm frame since the hold began?"""
+        hand = state.hand_pose
+        rotation = Rotation.from_rotvec(hand.wrist_rotvec)
+        in_palm = rotation.inv().apply(state.T_world_from_obj[:3, 3] - hand.wrist_pos)
+        self._hold_palm = [*self._hold_palm[1 - _SLIP_WINDOW :], in_palm]
+        if len(self._hold_palm) < _SLIP_WINDOW:
+            return False
+        recent = np.median(np.stack(self._hold_palm), axis=0)
+        if self._hold_ref is None:
+            self._hold_ref = recent
+            return False
+        return bool(np.linalg.norm(recent - self._hold_ref) > HOLD_SLIP_M)
+
     def _grip_groups(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """(joint indices, touch parts, share of the grip force) of each regulated group.
 
@@ -527,9 +558,14 @@ class GraspExpert:
             # on each other through the object, so only their common level is controllable.
             wanted = self._grip_force_target(lifting=self.phase != "hold")
             force = float(touch.sum())
-            # While the load grows (the lift) the grip only tightens; it eases in the hold.
-            ease = 1.0 if self.phase == "lift" else _GRIP_EASE
+            # While the load grows (the lift) the grip only tightens; it eases in the hold,
+            # until the object starts to slip.
+            if self.phase == "hold" and not self._easing_stopped and self._slipping(state):
+                self._easing_stopped = True
+            ease = 1.0 if self.phase == "lift" or self._easing_stopped else _GRIP_EASE
             ratio = float(np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, ease, _GRIP_TIGHTEN))
+            if ratio < 1.0:
+                self._eased = [*self._eased[-2:], list(self._grip_scale)]
             self._grip_scale = [
                 float(np.clip(k * ratio, self.recipe.min_grip_scale, MAX_GRIP_SCALE))
                 for k in self._grip_scale

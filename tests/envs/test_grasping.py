@@ -463,6 +463,35 @@ def test_grip_force_follows_weight_and_friction():
     assert marker._grip_force_target(False) == 1.0
 
 
+def test_hold_stops_easing_at_the_first_slip():
+    """A perceived 3 mm slip in the palm during the hold stops the easing for good."""
+    runs = {}
+    for slip_m in (0.0, 0.003):
+        scene, rng = _scene("061_foam_brick")
+        expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+        hold_steps = []
+
+        def perceive(state, expert=expert, hold_steps=hold_steps, slip_m=slip_m):
+            if expert.phase == "hold" and len(hold_steps) > 10:
+                return dataclasses.replace(
+                    state, T_world_from_obj=_shifted(state.T_world_from_obj, [0, 0, -slip_m])
+                )
+            return state
+
+        def record(step, expert, hold_steps=hold_steps):
+            if expert.phase == "hold":
+                hold_steps.append((expert._easing_stopped, list(expert._grip_scale)))
+
+        run_episode(scene, 0, expert, rng, stop_on_success=False, on_step=record, perceive=perceive)
+        runs[slip_m] = hold_steps
+    assert not any(stopped for stopped, _ in runs[0.0])
+    slipped = runs[0.003]
+    first = next(k for k, (stopped, _) in enumerate(slipped) if stopped)
+    assert 10 < first < 20  # the median of five shifted estimates reacts within a few steps
+    scales = np.array([scale for _, scale in slipped[first:]])
+    assert np.all(np.diff(scales, axis=0) >= 0.0)  # never eased again
+
+
 # Closed loop: re-planning ---------------------------------------------------------------------
 
 
