@@ -67,11 +67,24 @@ _LABEL_COMPRESSION = {"compression": "gzip", "compression_opts": 1, "shuffle": T
 _LABEL_CHUNK = 64  # frames per label chunk
 
 
-def depth_units(depth_m: np.ndarray, depth_scale_mm: float) -> np.ndarray:
-    """Depth in metres as uint16 units of ``depth_scale_mm``; out of range or invalid -> 0."""
-    units = np.rint(np.asarray(depth_m, dtype=np.float64) * (1000.0 / depth_scale_mm))
-    units[~np.isfinite(units) | (units > np.iinfo(np.uint16).max) | (units < 0)] = 0
-    return units.astype(np.uint16)
+def depth_units(
+    depth_m: np.ndarray, depth_scale_mm: float, out: np.ndarray | None = None
+) -> np.ndarray:
+    """Depth in metres as uint16 units of ``depth_scale_mm``; out of range or invalid -> 0.
+
+    ``out``: a uint16 array of the depth's shape to write into (default: a new one).
+    """
+    units = np.array(depth_m, dtype=np.float64)  # rounded in float64, whatever the input
+    units *= 1000.0 / depth_scale_mm
+    np.rint(units, out=units)
+    bad = ~np.isfinite(units)
+    bad |= units > np.iinfo(np.uint16).max
+    bad |= units < 0
+    units[bad] = 0
+    if out is None:
+        return units.astype(np.uint16)
+    np.copyto(out, units, casting="unsafe")
+    return out
 
 
 class InvalidShard(HandSimError, ValueError):
@@ -160,7 +173,9 @@ class ShardWriter:
         self.partial_path = self.path.with_name(self.path.stem + PARTIAL_SUFFIX)
         self.frames = 0
         self._written = 0  # frames already in the file; the others wait in _pending
-        self._pending: dict[str, list[np.ndarray]] = {}
+        # Frames not yet written, one preallocated block of _LABEL_CHUNK rows per dataset.
+        self._pending: dict[str, np.ndarray] = {}
+        self._datasets: dict[str, h5py.Dataset] = {}
         self._file = h5py.File(self.partial_path, "w")
         f, (h, w) = self._file, self.image_shape
         f.attrs.update(
@@ -169,7 +184,7 @@ class ShardWriter:
         images = ["depth", "segmentation"] + (["depth_clean"] if self.paired_clean else [])
         for key in images:
             dtype = np.uint8 if key == "segmentation" else np.uint16
-            f.create_dataset(
+            self._datasets[key] = f.create_dataset(
                 key,
                 (0, h, w),
                 dtype,
@@ -178,7 +193,9 @@ class ShardWriter:
                 **_IMAGE_COMPRESSION,
             )
         for key in ("episode", "step"):
-            f.create_dataset(key, (0,), np.int64, maxshape=(None,), chunks=(_LABEL_CHUNK,))
+            self._datasets[key] = f.create_dataset(
+                key, (0,), np.int64, maxshape=(None,), chunks=(_LABEL_CHUNK,)
+            )
         labels = f.create_group("labels")
         for key, (shape_k, dtype, unit) in LABEL_SCHEMA.items():
             ds = labels.create_dataset(
@@ -190,15 +207,20 @@ class ShardWriter:
                 **_LABEL_COMPRESSION,
             )
             ds.attrs["unit"] = unit
+            self._datasets["labels/" + key] = ds
+        self._pending = {
+            key: np.empty((_LABEL_CHUNK, *ds.shape[1:]), ds.dtype)
+            for key, ds in self._datasets.items()
+        }
 
-    def _depth_units(self, depth_m: np.ndarray, key: str) -> np.ndarray:
+    def _depth_units(self, depth_m: np.ndarray, key: str, out: np.ndarray) -> None:
         depth = np.asarray(depth_m)
         if depth.shape != self.image_shape or depth.dtype.kind != "f":
             raise InvalidShard(
                 f"{key} must be a float array of shape {self.image_shape}; received "
                 f"{depth.dtype} of shape {depth.shape}"
             )
-        return depth_units(depth, self.depth_scale_mm)
+        depth_units(depth, self.depth_scale_mm, out=out)
 
     def append(self, arrays: Mapping[str, np.ndarray], *, episode: int, step: int) -> None:
         """Add one frame.
@@ -230,18 +252,15 @@ class ShardWriter:
                 f"segmentation must be labels 0..255 of shape {self.image_shape}; received "
                 f"shape {seg.shape}"
             )
-        rows = {
-            "depth": self._depth_units(arrays["depth"], "depth"),
-            "segmentation": seg.astype(np.uint8),
-            "episode": np.int64(episode),
-            "step": np.int64(step),
-        }
+        row, pending = self.frames - self._written, self._pending
+        self._depth_units(arrays["depth"], "depth", pending["depth"][row])
         if self.paired_clean:
-            rows["depth_clean"] = self._depth_units(arrays["depth_clean"], "depth_clean")
-        for key in LABEL_SCHEMA:
-            rows["labels/" + key] = np.array(arrays[key], dtype=LABEL_SCHEMA[key][1])
-        for key, row in rows.items():
-            self._pending.setdefault(key, []).append(row)
+            self._depth_units(arrays["depth_clean"], "depth_clean", pending["depth_clean"][row])
+        pending["segmentation"][row] = seg
+        pending["episode"][row] = episode
+        pending["step"][row] = step
+        for key in LABEL_SCHEMA:  # dtypes checked above
+            pending["labels/" + key][row] = arrays[key]
         self.frames += 1
         if self.frames - self._written == _LABEL_CHUNK:
             self._flush()
@@ -252,11 +271,10 @@ class ShardWriter:
         n = self.frames - self._written
         if n == 0:
             return
-        f = self._file
-        for key, rows in self._pending.items():
-            f[key].resize(self.frames, axis=0)
-            f[key][self._written : self.frames] = np.stack(rows)
-        self._pending = {}
+        for key, block in self._pending.items():
+            dataset = self._datasets[key]
+            dataset.resize(self.frames, axis=0)
+            dataset[self._written : self.frames] = block[:n]
         self._written = self.frames
 
     def close(self) -> ShardInfo:
