@@ -376,13 +376,20 @@ class ShardReader:
         return out
 
     def read_block(
-        self, start: int, stop: int, images: tuple[str, ...] | None = None
+        self,
+        start: int,
+        stop: int,
+        images: tuple[str, ...] | None = None,
+        *,
+        stored: bool = False,
     ) -> dict[str, np.ndarray]:
         """Frames ``start`` to ``stop - 1`` at once, ``(n, ...)`` arrays as :meth:`__getitem__`.
 
         One read per image dataset for the whole block (faster than frame by frame).
         ``images`` limits the images read (``depth``, ``segmentation``, ``depth_clean``);
-        ``None`` reads them all.
+        ``None`` reads them all. ``stored``: images as stored (depth uint16 in units of
+        :attr:`depth_scale_mm`, segmentation uint8), for a caller that converts them into
+        its own arrays.
 
         Raises:
             InvalidShard: for a range outside ``[0, frames]`` or an empty one.
@@ -403,9 +410,10 @@ class ShardReader:
         for key in ("depth", "depth_clean"):
             if key in wanted and key in f:
                 units = f[key][start:stop]
-                out[key] = np.multiply(units, scale, dtype=np.float32)  # one pass
+                out[key] = units if stored else np.multiply(units, scale, dtype=np.float32)
         if "segmentation" in wanted:
-            out["segmentation"] = f["segmentation"][start:stop].astype(np.int16)
+            segmentation = f["segmentation"][start:stop]
+            out["segmentation"] = segmentation if stored else segmentation.astype(np.int16)
         return out
 
     def _all_labels(self) -> dict[str, np.ndarray]:
