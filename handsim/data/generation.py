@@ -59,7 +59,12 @@ from handsim.hand.pose_sources import (
     sample_synergy,
     sample_uniform,
 )
-from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
+from handsim.world.camera import (
+    CAMERA_PRESETS,
+    CameraIntrinsics,
+    camera_preset,
+    look_at_quat_wxyz,
+)
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
 from handsim.world.scene import (
     CameraSpec,
@@ -545,10 +550,8 @@ class KinematicSource:
         direction /= np.linalg.norm(direction)
         eye = target + distance * direction
         eye[2] = max(eye[2], 0.03)
-        spec = CameraSpec.look_at(
-            "camera", self.intrinsics, tuple(eye), tuple(target), up=tuple(up)
-        )
-        return np.asarray(spec.pos_m), np.asarray(spec.quat_wxyz)
+        # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
+        return eye, look_at_quat_wxyz(eye, np.asarray(target, dtype=float), tuple(up))
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
