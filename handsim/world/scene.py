@@ -16,7 +16,6 @@ the order of :attr:`SceneSpec.objects`.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 import pathlib
 
@@ -410,16 +409,6 @@ def _intrinsics(value: object, default: str) -> CameraIntrinsics:
     return value
 
 
-@functools.lru_cache(maxsize=64)
-def _hand(params: HandParams) -> Hand:
-    """The hand of ``params``, built once (spec and actuator tuning, ~30 ms) per parameters.
-
-    Scenes only copy a hand's spec (:meth:`Hand.attach_to`) and read the rest, so scenes made
-    one after another (e.g. a dataset's episodes) can share one.
-    """
-    return Hand(params)
-
-
 class Scene:
     """A compiled scene with its data.
 
@@ -458,7 +447,7 @@ class Scene:
                 rgba=[0.55, 0.45, 0.35, 1.0],
                 group=0,
             )
-        self.hand = _hand(spec.hand) if spec.hand is not None else None
+        self.hand = Hand(spec.hand) if spec.hand is not None else None
         if self.hand is not None:
             self.hand.attach_to(mj)
         else:
