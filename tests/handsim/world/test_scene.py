@@ -67,6 +67,15 @@ def test_segmentation_labels_every_part_seen(scene):
     assert np.all(depth[labels == 0] == 0) and np.all(depth[labels > 0] > 0)
 
 
+def test_a_renderer_leaves_the_model_as_it_was(scene):
+    """The renderer makes its context without a shadow map but restores the model's setting."""
+    cam = scene.camera("third_person")
+    before = scene.model.vis.quality.shadowsize
+    with DepthRenderer(scene.model, cam.name, cam.intrinsics) as renderer:
+        renderer.render(scene.data)
+    assert scene.model.vis.quality.shadowsize == before
+
+
 def test_geom_labels_follow_bodies(scene):
     """Hand geoms carry their digit's label, object geoms their instance label."""
     model = scene.model
