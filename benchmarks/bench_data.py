@@ -95,11 +95,12 @@ def _plain_render_fps(frames: int) -> float:
     scene.reset(gesture("open").replace(wrist_pos=np.array([0.0, 0.0, 0.3])))
     renderer = mujoco.Renderer(scene.model, intr.height, intr.width)
     renderer.enable_depth_rendering()
-    start = time.perf_counter()
+    cpu, start = _cpu_s(), time.perf_counter()
     for _ in range(frames):
         renderer.update_scene(scene.data, camera="camera")
         renderer.render()
     fps = frames / (time.perf_counter() - start)
+    _CPU_S["plain"] = _cpu_s() - cpu  # the renderer's threads included
     renderer.close()
     return fps
 
@@ -214,10 +215,17 @@ def main() -> None:
             )
         if part == "ratio":
             results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+            results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
         if part in ("all", "ratio"):
             results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
             results["generate_over_plain_render"] = (
                 results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
+            )
+            # Per CPU-second (OpenGL's threads included in both): steadier on a shared machine.
+            results["plain_depth_render_frames_per_cpu_s"] = args.frames / _CPU_S["plain"]
+            results["generate_over_plain_render_per_cpu_s"] = (
+                results["generate_1_worker_frames_per_cpu_s"]
+                / results["plain_depth_render_frames_per_cpu_s"]
             )
             # A long run's steady state: every hand of the range built once in this process
             # (a skin per 2 mm of hand length, ~0.14 s each; actuator gains per hand).
@@ -225,6 +233,9 @@ def main() -> None:
             results["generate_1_worker_warm_fps"] = _generate(args.frames, 1, tmp / "w1_warm")
             results["generate_warm_over_plain_render"] = (
                 results["generate_1_worker_warm_fps"] / results["plain_depth_render_fps"]
+            )
+            results["generate_warm_over_plain_render_per_cpu_s"] = (
+                args.frames / _CPU_S["last"] / results["plain_depth_render_frames_per_cpu_s"]
             )
         if part == "ratio":
             # Without the structured-light noise model: what the rest of the pipeline costs.
