@@ -8,7 +8,9 @@ Measured in one run, on this machine:
   ratio says how many free cores there were, the CPU ratio what 2 workers cost per frame;
 - Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - the same scene's plain MuJoCo depth render rate (``mujoco.Renderer`` with depth on), and the
-  ratio of generation with one worker to it;
+  ratio of generation with one worker to it: cold (a fresh process, which builds the skin of
+  every new hand length) and warm (every hand of the range built beforehand: a long run's
+  steady state); ``--only ratio`` measures just these, and the warm rate without sensor noise;
 - bytes per stored frame against raw float32 depth + labels;
 - read rate of :class:`~handsim.data.torch_dataset.HandSimDataset` through a ``DataLoader``
   with 2 workers and batches of 32: a plain shuffle, the block batch sampler
@@ -21,7 +23,7 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--only all|read|memory|workers]``; writes
+[--memory-frames 1000] [--only all|read|memory|workers|ratio]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -52,16 +54,31 @@ def _cpu_s() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-def _generate(frames: int, workers: int, out: Path, preset: str = "hand-only") -> float:
+def _generate(
+    frames: int, workers: int, out: Path, preset: str = "hand-only", **overrides: object
+) -> float:
     from handsim.data.generation import PRESETS, GenerationConfig, generate
 
     config = GenerationConfig.from_mapping(
-        PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8)
+        PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8), **overrides
     )
     cpu, start = _cpu_s(), time.perf_counter()
     generate(config, out, workers=workers)
     _CPU_S["last"] = _cpu_s() - cpu
     return frames / (time.perf_counter() - start)
+
+
+def _build_every_hand(preset: str = "hand-only") -> None:
+    """Build every hand a preset draws (its 2 mm grid of lengths, both sides) in this process."""
+    from handsim.data.generation import PRESETS, GenerationConfig
+    from handsim.hand.model import Hand, hand_params
+
+    lo, hi = GenerationConfig.from_mapping(PRESETS[preset]).hand_length_range_m
+    for length in np.unique(
+        np.clip(np.round(np.arange(lo, hi + 0.002, 0.002) / 0.002) * 0.002, lo, hi)
+    ):
+        for side in ("right", "left"):
+            Hand(hand_params(float(length), side))
 
 
 def _plain_render_fps(frames: int) -> float:
@@ -78,11 +95,12 @@ def _plain_render_fps(frames: int) -> float:
     scene.reset(gesture("open").replace(wrist_pos=np.array([0.0, 0.0, 0.3])))
     renderer = mujoco.Renderer(scene.model, intr.height, intr.width)
     renderer.enable_depth_rendering()
-    start = time.perf_counter()
+    cpu, start = _cpu_s(), time.perf_counter()
     for _ in range(frames):
         renderer.update_scene(scene.data, camera="camera")
         renderer.render()
     fps = frames / (time.perf_counter() - start)
+    _CPU_S["plain"] = _cpu_s() - cpu  # the renderer's threads included
     renderer.close()
     return fps
 
@@ -166,7 +184,7 @@ def main() -> None:
     parser.add_argument("--memory", action="store_true", help="also compare peak RSS (slow)")
     parser.add_argument(
         "--only",
-        choices=("all", "read", "memory", "workers"),
+        choices=("all", "read", "memory", "workers", "ratio"),
         default="all",
         help="run one part only",
     )
@@ -195,11 +213,39 @@ def main() -> None:
                 results["generate_2_workers_frames_per_cpu_s"]
                 / results["generate_1_worker_frames_per_cpu_s"]
             )
-        if part == "all":
+        if part == "ratio":
+            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+            results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
+        if part in ("all", "ratio"):
             results["plain_depth_render_fps"] = _plain_render_fps(args.frames)
             results["generate_over_plain_render"] = (
                 results["generate_1_worker_fps"] / results["plain_depth_render_fps"]
             )
+            # Per CPU-second (OpenGL's threads included in both): steadier on a shared machine.
+            results["plain_depth_render_frames_per_cpu_s"] = args.frames / _CPU_S["plain"]
+            results["generate_over_plain_render_per_cpu_s"] = (
+                results["generate_1_worker_frames_per_cpu_s"]
+                / results["plain_depth_render_frames_per_cpu_s"]
+            )
+            # A long run's steady state: every hand of the range built once in this process
+            # (a skin per 2 mm of hand length, ~0.14 s each; actuator gains per hand).
+            _build_every_hand()
+            results["generate_1_worker_warm_fps"] = _generate(args.frames, 1, tmp / "w1_warm")
+            results["generate_warm_over_plain_render"] = (
+                results["generate_1_worker_warm_fps"] / results["plain_depth_render_fps"]
+            )
+            results["generate_warm_over_plain_render_per_cpu_s"] = (
+                args.frames / _CPU_S["last"] / results["plain_depth_render_frames_per_cpu_s"]
+            )
+        if part == "ratio":
+            # Without the structured-light noise model: what the rest of the pipeline costs.
+            results["generate_1_worker_warm_no_noise_fps"] = _generate(
+                args.frames, 1, tmp / "w1_none", sensor="none"
+            )
+            results["generate_warm_no_noise_over_plain_render"] = (
+                results["generate_1_worker_warm_no_noise_fps"] / results["plain_depth_render_fps"]
+            )
+        if part in ("all", "ratio"):
             manifest = Manifest.read(tmp / "w1")
             stored = sum(s.bytes for s in manifest.shards.values()) / manifest.frames
             h, w = manifest.image_shape

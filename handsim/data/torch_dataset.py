@@ -193,12 +193,15 @@ class HandSimDataset:
         shard, frame = self._index[self._check_index(i)]
         return self._sample(self._readers[shard][int(frame)], None)
 
-    def _runs(self, indices: Sequence[int]) -> Iterator[tuple[dict[str, np.ndarray], np.ndarray]]:
+    def _runs(
+        self, indices: Sequence[int], stored: bool = False
+    ) -> Iterator[tuple[dict[str, np.ndarray], np.ndarray, ShardReader]]:
         """Read ``indices`` in runs of nearby frames of one shard, in order.
 
-        Yields ``(block, rows)``: the block's arrays and the rows of it that are the next
-        samples. A run goes on while the next sample is a later frame of the same shard at
-        most :data:`_RUN_GAP` frames on (filtered-out frames in between are read and dropped).
+        Yields ``(block, rows, reader)``: the block's arrays (images as stored with
+        ``stored``), the rows of it that are the next samples, and the shard's reader. A run
+        goes on while the next sample is a later frame of the same shard at most
+        :data:`_RUN_GAP` frames on (filtered-out frames in between are read and dropped).
         """
         rows = self._index[[self._check_index(i) for i in indices]]
         k, n = 0, len(rows)
@@ -212,8 +215,9 @@ class HandSimDataset:
             ):
                 end += 1
             last = rows[end - 1, 1]
-            block = self._readers[shard].read_block(int(first), int(last) + 1, self._images)
-            yield block, rows[k:end, 1] - first
+            reader = self._readers[shard]
+            block = reader.read_block(int(first), int(last) + 1, self._images, stored=stored)
+            yield block, rows[k:end, 1] - first, reader
             k = end
 
     def __getitems__(self, indices: Sequence[int]) -> list[dict[str, Any]]:
@@ -223,33 +227,63 @@ class HandSimDataset:
         (:meth:`~handsim.data.shards.ShardReader.read_block`).
         """
         return [
-            self._sample(block, int(row)) for block, rows in self._runs(indices) for row in rows
+            self._sample(block, int(row)) for block, rows, _ in self._runs(indices) for row in rows
         ]
 
     def batch(self, indices: Sequence[int]) -> dict[str, Any]:
         """Samples ``indices`` as one batch: a dict of stacked tensors, like ``default_collate``.
 
-        The collate-free path of :meth:`loader`: one tensor per key per batch, made from the
-        block reads directly (no per-sample tensors to stack). The transform, if any, is
-        applied to every sample (then they are collated as usual).
+        The collate-free path of :meth:`loader`: the block reads are copied straight into the
+        batch. Every tensor of the batch is a view of one buffer, allocated in shared memory
+        inside a ``DataLoader`` worker, so a batch crosses to the main process as one shared
+        segment instead of one per key (which cost more than reading it). The transform, if
+        any, is applied to every sample (then they are collated as usual).
+
+        Raises:
+            InvalidDatasetQuery: if the batch mixes shards with and without a requested image
+                (e.g. ``depth_clean``).
         """
         import torch
 
         if self.transform is not None:
             return torch.utils.data.default_collate(self.__getitems__(indices))
-        parts: dict[str, list[np.ndarray]] = {}
-        for block, rows in self._runs(indices):
-            whole = len(rows) == len(block["valid"])  # rows are then 0..n-1: no copy
-            for key in self.keys if self.keys is not None else block:
-                parts.setdefault(key, []).append(block[key] if whole else block[key][rows])
+        runs = list(self._runs(indices, stored=True))
+        n = sum(len(rows) for _, rows, _ in runs)
+        first = runs[0][0] if runs else {}
+        keys = [k for k in (self.keys if self.keys is not None else first) if k in first]
+        layout, total = [], 0
+        for key in keys:
+            sample_shape = first[key].shape[1:]
+            if key in ("depth", "depth_clean") or not sample_shape:
+                sample_shape = (1, *sample_shape)  # a scalar label is (1,), as in __getitem__
+            dtype = {"segmentation": np.dtype(np.int64), "depth": np.dtype(np.float32)}.get(
+                key.replace("depth_clean", "depth"), first[key].dtype
+            )
+            layout.append((key, sample_shape, dtype, total))
+            total += -(-n * int(np.prod(sample_shape)) * dtype.itemsize // 64) * 64  # aligned
+        buffer = _new_buffer(total)
         out = {}
-        for key, arrays in parts.items():
-            array = arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
-            if key in ("depth", "depth_clean") or array.ndim == 1:
-                array = array[:, None]  # a scalar label is (1,) per sample, as in __getitem__
-            elif key == "segmentation":
-                array = array.astype(np.int64)
-            out[key] = torch.from_numpy(np.ascontiguousarray(array))
+        for key, sample_shape, dtype, offset in layout:
+            size = n * int(np.prod(sample_shape)) * dtype.itemsize
+            tensor = buffer[offset : offset + size].view(_torch_dtype(dtype))
+            out[key] = tensor.view(n, *sample_shape)
+            target = tensor.numpy().reshape(n, *first[key].shape[1:])
+            row = 0
+            for block, rows, reader in runs:
+                if key not in block:
+                    raise InvalidDatasetQuery(
+                        f"this batch mixes shards with and without {key!r}; leave it out of keys"
+                    )
+                whole = len(rows) == len(block["valid"])  # rows are then 0..n-1: no gather
+                source = block[key] if whole else block[key][rows]
+                rows_out = target[row : row + len(rows)]
+                if key in ("depth", "depth_clean"):
+                    # Stored units to metres, written straight into the batch (one pass).
+                    scale = np.float32(reader.depth_scale_mm / 1000.0)
+                    np.multiply(source, scale, out=rows_out, dtype=np.float32)
+                else:
+                    rows_out[...] = source  # uint8 -> int64 for the segmentation
+                row += len(rows)
         return out
 
     def loader(
@@ -347,3 +381,23 @@ class BlockBatchSampler:
         )
         for b in range(0, self.n, self.batch_size):
             yield order[b : b + self.batch_size].tolist()
+
+
+def _torch_dtype(dtype: np.dtype):
+    import torch
+
+    return torch.from_numpy(np.empty(0, dtype=dtype)).dtype
+
+
+def _new_buffer(nbytes: int):
+    """A (nbytes,) uint8 tensor, in shared memory inside a DataLoader worker.
+
+    What ``default_collate`` does for its batches: the worker writes the batch once, and
+    sending it to the main process copies nothing.
+    """
+    import torch
+
+    if torch.utils.data.get_worker_info() is not None:
+        storage = torch.empty(0, dtype=torch.uint8).untyped_storage()._new_shared(nbytes)
+        return torch.empty(0, dtype=torch.uint8).set_(storage)
+    return torch.empty(nbytes, dtype=torch.uint8)

@@ -610,6 +610,10 @@ def _joint_class(joint: str) -> str:
     return kind if len(ranges) == 1 else joint
 
 
+_TUNED_GAINS: dict[HandParams, tuple[tuple[float, float, float], ...]] = {}
+"""Actuator gains per hand parameters (:meth:`Hand._tune_actuators`), a few kB each."""
+
+
 class Hand:
     """A hand model: owns its ``MjSpec`` and knows the names of everything in it.
 
@@ -795,27 +799,43 @@ class Hand:
         ``kp = max(kp_kind, I omega^2 / (1 - (2 dt omega)^2))``, armature
         ``max(kp (2 dt)^2, kp / omega^2 - I)`` and critical damping ``kv = 2 sqrt(kp (I + arm))``.
         """
+        joints = {self.prefix + j.name: j for j in self.spec.joints}
+        actuators = {self.prefix + a.name: a for a in self.spec.actuators}
+        # The gains depend on the parameters only: compiled once per parameters (~20 ms,
+        # paid again by every scene and dataset episode of the same hand otherwise).
+        gains = _TUNED_GAINS.get(self.params)
+        if gains is None:
+            gains = self._compute_gains()
+            if len(_TUNED_GAINS) >= 1024:
+                _TUNED_GAINS.clear()
+            _TUNED_GAINS[self.params] = gains
+        for i, name in enumerate(JOINT_NAMES):
+            full_name = self.prefix + name
+            armature, kp, kv = gains[i]
+            joints[full_name].armature = armature
+            if i in self.actuated:
+                actuators[f"{full_name}_act"].set_to_position(kp=kp, kv=kv)
+
+    def _compute_gains(self) -> tuple[tuple[float, float, float], ...]:
+        """``(armature, kp, kv)`` of every hinge in :data:`JOINT_NAMES` order."""
         model = self.compile()
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         inertia = np.empty((model.nv, model.nv))
         mujoco.mj_fullM(model, data, inertia)
         stable = (2.0 * HAND_PHYSICS_OPTIONS["timestep"]) ** 2
-        joints = {self.prefix + j.name: j for j in self.spec.joints}
-        actuators = {self.prefix + a.name: a for a in self.spec.actuators}
-        for i, name in enumerate(JOINT_NAMES):
-            full_name = self.prefix + name
-            dof = model.jnt_dofadr[model.joint(full_name).id]
+        gains = []
+        for name in JOINT_NAMES:
+            dof = model.jnt_dofadr[model.joint(self.prefix + name).id]
             link_inertia = inertia[dof, dof]
             kp = max(
                 ACTUATOR_GAINS[_joint_kind(name)][0],
                 link_inertia * FINGER_OMEGA**2 / (1.0 - stable * FINGER_OMEGA**2),
             )
             armature = max(kp * stable, kp / FINGER_OMEGA**2 - link_inertia)
-            joints[full_name].armature = armature
-            if i in self.actuated:
-                kv = 2.0 * np.sqrt(kp * (link_inertia + armature))
-                actuators[f"{full_name}_act"].set_to_position(kp=kp, kv=kv)
+            kv = 2.0 * np.sqrt(kp * (link_inertia + armature))
+            gains.append((armature, kp, kv))
+        return tuple(gains)
 
     # Using ----------------------------------------------------------------------------------
 

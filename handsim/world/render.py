@@ -12,7 +12,10 @@ no display).
 
 from __future__ import annotations
 
+import contextlib
 import os
+import threading
+from collections.abc import Iterator
 
 import cv2
 import mujoco
@@ -22,7 +25,7 @@ from mujoco import gl_context
 from handsim.errors import HandSimError, UnknownName
 from handsim.world.camera import CameraIntrinsics
 
-__all__ = ["DepthRenderer", "RENDERED_GEOM_GROUPS", "RenderError"]
+__all__ = ["DepthRenderer", "RENDERED_GEOM_GROUPS", "RenderError", "shared_render_context"]
 
 RENDERED_GEOM_GROUPS: tuple[int, ...] = (0, 1, 2)
 """Geom groups a depth camera sees."""
@@ -52,6 +55,73 @@ def _make_gl_context(width: int, height: int) -> object | None:
 
         return EGLContext(width, height)
     return gl_context.GLContext(width, height)
+
+
+class _Spare(threading.local):
+    """Per thread: open shared_render_context blocks, and a context kept for the next renderer.
+
+    ``spare`` is a closed renderer's OpenGL context and MjrContext, with its model's key.
+    """
+
+    depth = 0
+    spare: tuple | None = None  # (pid, gl context, MjrContext, key)
+
+
+_SPARE = _Spare()
+
+
+def _context_key(model: mujoco.MjModel) -> tuple:
+    """What an MjrContext holds of a model besides its meshes' shapes (which are re-uploaded).
+
+    Equal keys: a context made for one model draws the other once its meshes are re-uploaded
+    (textures, height fields, skins and flexes would need more, so models with any of them
+    never share; planes are drawn from lists sized by their geoms).
+    """
+    plane = model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE
+    vis = model.vis
+    return (
+        vis.global_.offwidth,
+        vis.global_.offheight,
+        vis.quality.offsamples,
+        vis.quality.numslices,
+        vis.quality.numstacks,
+        vis.quality.numquads,
+        model.nmesh,
+        model.ntex + model.nhfield + model.nskin + model.nflex,
+        model.geom_size[plane].tobytes(),
+    )
+
+
+def _free_spare() -> None:
+    spare, _SPARE.spare = _SPARE.spare, None
+    if spare is not None and spare[0] == os.getpid():
+        _, gl, context, _ = spare
+        if gl is not None:
+            gl.make_current()
+        context.free()
+        if gl is not None:
+            gl.free()
+
+
+@contextlib.contextmanager
+def shared_render_context() -> Iterator[None]:
+    """Within the block, renderers made one after another in a thread share an OpenGL context.
+
+    A :class:`DepthRenderer` closed in the block keeps its OpenGL context, and its MuJoCo
+    render context, for the next one made in the same thread: for a model of the same kind
+    (:func:`_context_key`: e.g. another hand size, or other objects with as many meshes) only
+    the meshes are uploaded again; otherwise the render context is made anew in the same
+    OpenGL context. Images are the same as with separate renderers. For code that makes a
+    renderer per scene, e.g. one per dataset episode; what is kept is freed when the block
+    ends.
+    """
+    _SPARE.depth += 1
+    try:
+        yield
+    finally:
+        _SPARE.depth -= 1
+        if _SPARE.depth == 0:
+            _free_spare()
 
 
 class DepthRenderer:
@@ -85,14 +155,34 @@ class DepthRenderer:
         self.camera = camera
         self.camera_id = int(model.camera(camera).id)
         self.intrinsics = intrinsics
-        self._gl = _make_gl_context(w, h)
+        self._key = _context_key(model)
+        spare, _SPARE.spare = _SPARE.spare, None
+        if spare is not None and spare[0] != os.getpid():
+            spare = None  # made before a fork: not this process's to use
+        self._gl = _make_gl_context(w, h) if spare is None else spare[1]
         if self._gl is not None:
             self._gl.make_current()
-        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        if spare is not None and spare[3] == self._key:
+            self._context = spare[2]
+            for mesh in range(model.nmesh):
+                mujoco.mjr_uploadMesh(model, self._context, mesh)
+        else:
+            if spare is not None:
+                spare[2].free()
+            # No shadow map: depth and segmentation draw no shadows, and allocating MuJoCo's
+            # default 4096 x 4096 one is most of a context's cost (~35 ms of ~45 ms).
+            shadow_size = model.vis.quality.shadowsize
+            model.vis.quality.shadowsize = 0
+            try:
+                self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+            finally:
+                model.vis.quality.shadowsize = shadow_size
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._context)
         # Reversed Z (0 = far) keeps depth precise far from the camera.
         self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
-        self._scene = mujoco.MjvScene(model, maxgeom=10_000)
+        # Room for every geom and site several times over (decor is off); a 10 000-geom scene
+        # costs ~10 ms to allocate, a lot for a renderer made per episode.
+        self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 4 * (model.ngeom + model.nsite)))
         # One pass gives both: geoms are drawn in their segmentation id colours.
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
         self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
@@ -267,7 +357,12 @@ class DepthRenderer:
         return self._geom_ids(rgb)
 
     def close(self) -> None:
-        """Free the OpenGL context (idempotent)."""
+        """Free the OpenGL context (idempotent); in :func:`shared_render_context`, keep it."""
+        if self._context is not None and _SPARE.depth > 0:
+            _free_spare()
+            _SPARE.spare = (os.getpid(), self._gl, self._context, self._key)
+            self._context = self._gl = None
+            return
         if self._context is not None:
             self._context.free()
             self._context = None

@@ -575,27 +575,46 @@ class StructuredLight:
             (H, W) float32 noisy depth, metres, 0 = no measurement.
         """
         clean = _check_depth(depth_m, intrinsics)
-        h, w = clean.shape
+        full_h, full_w = clean.shape
         grid = _pixel_grid(intrinsics)
-        scratch = _scratch(h * w)
+        scratch = _scratch(full_h * full_w)
         fb = np.float32(intrinsics.fx * self.baseline_m)
-        # 1. Lateral jitter: nearest-neighbour resampling at rounded Gaussian displacements.
-        depth = clean
+        # 1. Lateral jitter: nearest-neighbour resampling at rounded Gaussian displacements
+        # (drawn for the whole image, whatever is processed below).
+        pixel_map, reach = None, 0
         if self.lateral_jitter_px > 0:
-            pixel_map = scratch.get("pixel_map", (h, w, 2), np.int16)
+            pixel_map = scratch.get("pixel_map", (full_h, full_w, 2), np.int16)
             _jitter_offsets(rng, self.lateral_jitter_px, pixel_map, scratch)
+            reach = int(np.abs(pixel_map).max())
             pixel_map += grid.pixel_map
+        # Only the box around the pixels with depth is processed (a hand alone covers a few
+        # percent of the image): grown by the farthest jitter, every pixel that can get depth,
+        # and by one more pixel, the neighbours of each (normals), so that every step below
+        # gives what it gives on the whole image. Pixels without depth change nothing: they
+        # cast no projector shadow and get no noise.
+        rows = np.flatnonzero(clean.any(axis=1))
+        if rows.size == 0:
+            return np.zeros((full_h, full_w), dtype=np.float32)
+        cols = np.flatnonzero(clean.any(axis=0))
+        r0, r1 = max(int(rows[0]) - reach - 1, 0), min(int(rows[-1]) + reach + 2, full_h)
+        c0, c1 = max(int(cols[0]) - reach - 1, 0), min(int(cols[-1]) + reach + 2, full_w)
+        h, w = r1 - r0, c1 - c0
+        box = (slice(r0, r1), slice(c0, c1))
+        depth = scratch.get("jittered", (h, w))
+        if pixel_map is not None:
             depth = cv2.remap(
                 clean,
-                pixel_map,
+                np.ascontiguousarray(pixel_map[box]),
                 None,
                 cv2.INTER_NEAREST,
-                dst=scratch.get("jittered", (h, w)),
+                dst=depth,
                 borderMode=cv2.BORDER_REPLICATE,
             )
+        else:
+            np.copyto(depth, clean[box])
         valid = np.greater(depth, 0, out=scratch.get("valid", (h, w), np.bool_))
         if not valid.any():
-            return np.zeros((h, w), dtype=np.float32)
+            return np.zeros((full_h, full_w), dtype=np.float32)
         # 2. Projector shadow. Pixel u is lit iff g(u) = d(u) - u exceeds g of every pixel to its
         # right (its projector column u - d(u) is left of theirs). Pixels without depth have
         # d = 0, so g = -u is below g of any pixel to their left: they claim nothing. A pixel
@@ -606,16 +625,15 @@ class StructuredLight:
             np.divide(fb, depth, out=disparity, where=valid)
             window = math.ceil(float(disparity.max()) - fb / float(depth.max())) + 1
             window = min(window, w)  # a window of w columns already reaches every row's end
-            valid &= _projector_lit(disparity, grid.columns, window, scratch)
+            valid &= _projector_lit(disparity, grid.columns[c0:c1], window, scratch)
             lit_depth = scratch.get("lit_depth", (h, w))
             lit_depth.fill(0.0)
             depth = cv2.copyTo(depth, valid.view(np.uint8), lit_depth)
         # 4. Grazing-angle dropout, on the lit pixels' normals (1 / cos^2 of the incidence; 1
-        # where there is no normal).
+        # where there is no normal). The box's border is the image's or has no depth.
         if h >= 3 and w >= 3:
-            _, secant2 = _secant2_incidence(
-                depth, intrinsics, grid.x, grid.y, grid.ray2, 0.05, scratch
-            )
+            x, y, ray2 = (np.ascontiguousarray(a[box]) for a in (grid.x, grid.y, grid.ray2))
+            _, secant2 = _secant2_incidence(depth, intrinsics, x, y, ray2, 0.05, scratch)
         else:
             secant2 = scratch.get("secant2", (h, w))
             secant2.fill(1.0)
@@ -668,8 +686,8 @@ class StructuredLight:
         np.less(measured, self.min_range_m, out=drop)
         drop |= np.greater(measured, self.max_range_m, out=scratch.get("far", (n,), bool))
         np.copyto(measured, 0.0, where=drop)
-        out = np.zeros((h, w), dtype=np.float32)
-        out[valid] = measured
+        out = np.zeros((full_h, full_w), dtype=np.float32)
+        out[box][valid] = measured
         return out
 
 

@@ -134,3 +134,22 @@ def test_writer_and_reader_errors_say_what_is_valid(tmp_path, frame_arrays):
     (tmp_path / "x.h5").write_bytes(b"")
     with pytest.raises(InvalidShard, match="not a readable HDF5 file"):
         ShardReader(tmp_path / "x.h5")
+
+
+def test_read_block_can_give_the_images_as_stored(tmp_path):
+    """stored=True: depth in uint16 units and uint8 labels, which convert to the default block."""
+    from handsim.data.generation import GenerationConfig, generate
+
+    config = GenerationConfig.from_mapping(
+        {"frames": 3, "sensor": "none", "num_objects_range": (1, 1), "paired_clean": True}
+    )
+    generate(config, tmp_path)
+    reader = ShardReader(tmp_path / "shard-00000.h5")
+    stored, block = reader.read_block(0, 3, stored=True), reader.read_block(0, 3)
+    assert stored["depth"].dtype == stored["depth_clean"].dtype == np.uint16
+    assert stored["segmentation"].dtype == np.uint8
+    scale = np.float32(reader.depth_scale_mm / 1000.0)
+    for key in ("depth", "depth_clean"):
+        np.testing.assert_array_equal(stored[key] * scale, block[key])
+    np.testing.assert_array_equal(stored["segmentation"], block["segmentation"])
+    np.testing.assert_array_equal(stored["keypoints_cam"], block["keypoints_cam"])

@@ -127,3 +127,29 @@ def test_the_loader_batches_equal_collated_samples(dataset_folder):
             np.testing.assert_array_equal(batch[key].numpy(), expected[key].numpy(), err_msg=key)
     with_transform = HandSimDataset(dataset_folder, transform=lambda s: {"ep": s["episode"]})
     assert with_transform.batch([0, 5])["ep"].shape == (2, 1)
+
+
+def test_a_batch_is_one_buffer_equal_to_the_collated_samples(dataset_folder):
+    """batch(): every key as default_collate would give it, all views of one storage."""
+    data = HandSimDataset(dataset_folder)
+    indices = [4, 5, 0, 2]  # a run of two frames, a frame, a frame of another shard
+    batch = data.batch(indices)
+    expected = torch.utils.data.default_collate([data[i] for i in indices])
+    assert batch.keys() == expected.keys()
+    for key in expected:
+        assert batch[key].dtype == expected[key].dtype, key
+        np.testing.assert_array_equal(batch[key].numpy(), expected[key].numpy(), err_msg=key)
+    # One storage: a worker sends the batch as one shared-memory segment.
+    assert len({t.untyped_storage().data_ptr() for t in batch.values()}) == 1
+
+
+def test_a_batch_across_folders_with_and_without_an_image_is_an_error(dataset_folder, tmp_path):
+    """A key some shards lack (paired clean depth) cannot be stacked: the error names it."""
+    config = GenerationConfig.from_mapping(
+        {"frames": 1, "sensor": "none", "num_objects_range": (0, 0), "paired_clean": True}
+    )
+    generate(config, tmp_path / "clean")
+    data = HandSimDataset([tmp_path / "clean", dataset_folder])
+    assert data.batch([0])["depth_clean"].shape == (1, 1, 240, 320)
+    with pytest.raises(InvalidDatasetQuery, match="mixes shards with and without 'depth_clean'"):
+        data.batch([0, 1])

@@ -372,3 +372,13 @@ def test_forearm_is_optional():
     with_arm = Hand(HandParams(forearm=True, surface="capsules")).compile()
     without = Hand(HandParams(forearm=False, surface="capsules")).compile()
     assert with_arm.ngeom == without.ngeom + 4
+
+
+def test_hands_of_the_same_parameters_compile_to_the_same_model():
+    """The actuator tuning is reused per parameters: equal armatures, gains and biases."""
+    params = hand_params(0.201, "left")
+    first, second = Hand(params).compile(), Hand(params).compile()
+    for field in ("dof_armature", "actuator_gainprm", "actuator_biasprm", "body_mass"):
+        np.testing.assert_array_equal(getattr(first, field), getattr(second, field), err_msg=field)
+    other = Hand(hand_params(0.161, "left")).compile()
+    assert not np.array_equal(first.actuator_gainprm, other.actuator_gainprm)

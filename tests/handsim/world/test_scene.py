@@ -1,12 +1,15 @@
 """Scenes: compilation, placements, cameras and segmentation labels."""
 
+import contextlib
+
 import mujoco
 import numpy as np
 import pytest
 
 from handsim.errors import UnknownName
+from handsim.hand.model import hand_params
 from handsim.world.camera import T_cam_from_world, camera_preset
-from handsim.world.render import DepthRenderer
+from handsim.world.render import DepthRenderer, shared_render_context
 from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
     SEGMENT_LABELS,
@@ -65,6 +68,39 @@ def test_segmentation_labels_every_part_seen(scene):
     for k in range(len(scene.objects)):
         assert OBJECT_LABEL_OFFSET + k in seen
     assert np.all(depth[labels == 0] == 0) and np.all(depth[labels > 0] > 0)
+
+
+def test_a_renderer_leaves_the_model_as_it_was(scene):
+    """The renderer makes its context without a shadow map but restores the model's setting."""
+    cam = scene.camera("third_person")
+    before = scene.model.vis.quality.shadowsize
+    with DepthRenderer(scene.model, cam.name, cam.intrinsics) as renderer:
+        renderer.render(scene.data)
+    assert scene.model.vis.quality.shadowsize == before
+
+
+def test_renderers_sharing_a_context_render_what_separate_ones_render(scene):
+    """Renderers handing one OpenGL context on (shared_render_context) give equal images."""
+    cam = scene.camera("third_person")
+    # Another hand size (as many meshes: re-uploaded), then the scene with objects (a new
+    # render context), then the first model again.
+    small = Scene(SceneSpec(hand=hand_params(0.16), cameras=(cam,)))
+    large = Scene(SceneSpec(hand=hand_params(0.21), cameras=(cam,)))
+    scenes = (small, large, scene, small)
+
+    def images(shared: bool) -> list:
+        out = []
+        with shared_render_context() if shared else contextlib.nullcontext():
+            for s in scenes:
+                renderer = DepthRenderer(s.model, cam.name, cam.intrinsics)
+                out.append(renderer.render(s.data))
+                renderer.close()
+        return out
+
+    for separate, shared in zip(images(False), images(True), strict=True):
+        for a, b in zip(separate, shared, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert large.model.nmesh == small.model.nmesh != scene.model.nmesh
 
 
 def test_geom_labels_follow_bodies(scene):
