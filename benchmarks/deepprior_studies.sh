@@ -6,14 +6,14 @@
 #
 #   bash benchmarks/deepprior_studies.sh OUT_DIR
 #
-# Environment (defaults in brackets): HANDSIM [handsim], FRAMES [3000], EPOCHS [6], WIDTH [0.25],
+# Environment (defaults in brackets): HANDSIM [handsim], FRAMES [3000], EPOCHS [3], WIDTH [0.25],
 # WORKERS [2] (data generation), THREADS [1] (torch), DEVICE [cpu]. Runs resume; OUT_DIR/summary.json
 # collects the best validation error of every run.
 set -euo pipefail
 OUT=${1:?usage: deepprior_studies.sh OUT_DIR}
 HANDSIM=${HANDSIM:-handsim}
 FRAMES=${FRAMES:-3000}
-EPOCHS=${EPOCHS:-6}
+EPOCHS=${EPOCHS:-3}
 WIDTH=${WIDTH:-0.25}
 WORKERS=${WORKERS:-2}
 THREADS=${THREADS:-1}
@@ -35,18 +35,20 @@ run() {  # name data args...
   echo "[$(date -u +%H:%M:%S)] $name" >&2
   $HANDSIM train deepprior++ --data "$OUT/data/$data" --out "$OUT/$name" "${COMMON[@]}" "$@" >/dev/null
 }
-for p in 30 0 8 16 45; do run "a_prior$p" all --prior-dim "$p"; done
+evaluate() {  # network data: its error at the true centre on the test split of data
+  [[ -f "$OUT/eval_${1}_on_$2/metrics.json" ]] && return
+  $HANDSIM evaluate --estimator "$OUT/$1" --localizer none --data "$OUT/data/$2" --split test \
+    --threads "$THREADS" --out "$OUT/eval_${1}_on_$2" -q >/dev/null
+}
+# The most telling runs first: a run cut short still answers part of each question.
+run a_prior30 all --prior-dim 30
 run b_none all --augment
-for a in translation rotation scale; do run "b_$a" all --augment "$a"; done
+run a_prior0 all --prior-dim 0
+# (e): a network trained on small hands, and the all-sizes one, on large and small hands.
 run e_small small
-# (e): the small-hand network and the all-sizes network on large hands, at the true centre.
-for n in e_small a_prior30; do
-  for d in large small; do
-    [[ -f "$OUT/eval_${n}_on_$d/metrics.json" ]] && continue
-    $HANDSIM evaluate --estimator "$OUT/$n" --localizer none --data "$OUT/data/$d" --split test \
-      --threads "$THREADS" --out "$OUT/eval_${n}_on_$d" -q >/dev/null
-  done
-done
+for n in e_small a_prior30; do evaluate "$n" large; evaluate "$n" small; done
+for p in 8 16 45; do run "a_prior$p" all --prior-dim "$p"; done
+for a in translation rotation scale; do run "b_$a" all --augment "$a"; done
 python3 - "$OUT" <<'PY'
 import json, sys
 from pathlib import Path
