@@ -103,7 +103,9 @@ def load_checkpoint(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any
 
 
 def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tuple[Any, dict]:
-    """The network of a checkpoint in eval mode (float32), and its config."""
+    """The network of a checkpoint in eval mode (float32, channels-last), and its config."""
+    import torch
+
     from .models import build_model
 
     state, config = load_checkpoint(name_or_path)
@@ -111,7 +113,8 @@ def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tup
     model.load_state_dict(
         {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
     )
-    return model.to(device).eval(), config
+    # Channels-last convolutions are ~1.5x faster at batch 1 on a CPU core (oneDNN).
+    return model.to(device=device, memory_format=torch.channels_last).eval(), config
 
 
 def ship_weights(checkpoint: str | os.PathLike[str], name: str, *, half: bool = False) -> Path:

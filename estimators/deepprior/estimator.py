@@ -26,6 +26,13 @@ from .preprocess import (
 __all__ = ["DETECTORS", "DeepPriorEstimator", "RefinedLocalizer"]
 
 
+def _as_input(x: np.ndarray, device: str) -> Any:
+    """(B, 1, S, S) crops as a channels-last tensor on ``device`` (the networks' layout)."""
+    import torch
+
+    return torch.from_numpy(x).to(device=device, memory_format=torch.channels_last)
+
+
 DETECTORS = ("plane", "com")
 """First hand centres: ``"plane"`` (RANSAC plane removal, then the nearest blob's centre of
 mass; works on a table) or ``"com"`` (DeepPrior's centre of mass of the nearest depth slab,
@@ -124,7 +131,7 @@ class RefinedLocalizer(EstimatorBase):
                     ]
                 )
                 with torch.inference_mode():
-                    off = self.model(torch.from_numpy(x[:, None]).to(self.device))
+                    off = self.model(_as_input(x[:, None], self.device))
                 c[start : idx.stop] += off.double().cpu().numpy() * (self.cube_m / 2.0)
         return c
 
@@ -199,7 +206,7 @@ class DeepPriorEstimator(EstimatorBase):
         M = crop_matrix(center, K, self.cube_m, self.size)  # noqa: N806
         x = crop_depth(depth_m, M, center[2], self.cube_m, self.size)
         with torch.inference_mode():
-            y = self.model(torch.from_numpy(x[None, None]).to(self.device))
+            y = self.model(_as_input(x[None, None], self.device))
         return denormalize_keypoints(
             y[0].double().cpu().numpy().reshape(21, 3), center, self.cube_m
         )
