@@ -370,6 +370,7 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
+        self._below_near_m = float(np.nextafter(self._near_m, np.float32(0.0)))
         # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
         self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
@@ -394,7 +395,6 @@ class FrameRenderer:
         h, w = self.intrinsics.height, self.intrinsics.width
         self._depth_buffer = np.empty((h, w), dtype=np.float32)
         self._mask_buffer = np.empty((h, w), dtype=bool)
-        self._far_buffer = np.empty((h, w), dtype=bool)
         # Each object's silhouette and its box corners in the camera frame when it was made
         # (NaN: none yet); see _silhouettes.
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
@@ -593,14 +593,14 @@ class FrameRenderer:
             data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
         )
         # The camera's working range: nothing is measured outside it (the far clip plane of
-        # the scene may serve a camera with a longer range).
-        # Background pixels (depth 0, label 0) are nearer than `near` too; resetting them is
-        # harmless and saves a pass.
-        out_of_range = np.less(depth_clean, self._near_m, out=self._mask_buffer)
+        # the scene may serve a camera with a longer range). OpenCV's thresholds zero depth
+        # below `near` (kept: above the float32 just below it) and beyond `far`; then every
+        # pixel without depth, background (label 0 already) or out of range, gets label 0.
+        cv2.threshold(depth_clean, self._below_near_m, 0.0, cv2.THRESH_TOZERO, dst=depth_clean)
         if self._check_far:
-            out_of_range |= np.greater(depth_clean, self._far_m, out=self._far_buffer)
-        np.copyto(depth_clean, np.float32(0.0), where=out_of_range)
-        np.copyto(labels, np.int16(0), where=out_of_range)
+            far = float(self._far_m)
+            cv2.threshold(depth_clean, far, 0.0, cv2.THRESH_TOZERO_INV, dst=depth_clean)
+        np.multiply(labels, np.not_equal(depth_clean, 0.0, out=self._mask_buffer), out=labels)
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:

@@ -830,24 +830,37 @@ class LiftTracker:
         Raises:
             InvalidGraspState: for non-increasing time or malformed arrays.
         """
-        if not time_s > self._last_time_s:
-            raise InvalidGraspState(
-                f"time_s must increase from step to step; received {time_s} after "
-                f"{self._last_time_s}"
-            )
+        self._check_time(time_s)
         pos = np.asarray(obj_pos_world, dtype=np.float64)
         if pos.shape != (3,) or not np.all(np.isfinite(pos)):
             raise InvalidGraspState(
                 f"obj_pos_world must be 3 finite numbers (m); received {obj_pos_world!r}"
             )
         T = _check_transform(T_world_from_palm, "T_world_from_palm")
+        return self._update(time_s, pos, T[:3, :3], T[:3, 3])
+
+    def _check_time(self, time_s: float) -> None:
+        if not time_s > self._last_time_s:
+            raise InvalidGraspState(
+                f"time_s must increase from step to step; received {time_s} after "
+                f"{self._last_time_s}"
+            )
+
+    def _update(
+        self,
+        time_s: float,
+        pos: np.ndarray,
+        R_world_from_palm: np.ndarray,  # noqa: N803
+        palm_pos: np.ndarray,
+    ) -> bool:
+        """:meth:`update` on checked arrays."""
         self._last_time_s = float(time_s)
         self.steps += 1
         if self.success:
             return True
         lift = float(pos[2] - self.rest_height_m)
         self.max_lift_m = max(self.max_lift_m, lift)
-        pos_palm = T[:3, :3].T @ (pos - T[:3, 3])
+        pos_palm = R_world_from_palm.T @ (pos - palm_pos)
         if lift < self.lift_height_m:
             if self._window_start_s is not None:
                 self._broken = "dropped"
@@ -886,10 +899,16 @@ class LiftTracker:
         body_id = _object_body_id(scene, instance)
         palm_id = int(scene.model.body(scene.hand.root_body).id)
         data = scene.data
-        T = np.eye(4)
-        T[:3, :3] = data.xmat[palm_id].reshape(3, 3)
-        T[:3, 3] = data.xpos[palm_id]
-        return self.update(time_s, data.xpos[body_id], T)
+        self._check_time(time_s)
+        pos, palm_pos = data.xpos[body_id], data.xpos[palm_id]
+        R = data.xmat[palm_id].reshape(3, 3)  # noqa: N806
+        # MuJoCo's xmat is a rotation; only a diverged state could be non-finite.
+        if not (np.isfinite(pos).all() and np.isfinite(R).all() and np.isfinite(palm_pos).all()):
+            raise InvalidGraspState(
+                f"the scene's object or palm pose is not finite (object at {pos}); the physics "
+                "diverged"
+            )
+        return self._update(time_s, pos.copy(), R, palm_pos)
 
     def outcome(self, diverged: bool = False) -> GraspOutcome:
         """The outcome of the episode so far (call at its end).
