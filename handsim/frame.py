@@ -47,6 +47,7 @@ object instance, position in the camera frame, normal force in newtons).
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import NamedTuple
 
 import cv2
@@ -232,12 +233,15 @@ def _pixel_box(
     ``lo`` and ``hi`` are (2,) pixel coordinates ``(u, v)`` (may be infinite); the box is widened
     by ``margin`` pixels and clipped to the image.
     """
-    size = np.array([width, height])
-    lo = np.floor(np.clip(lo, -1 - margin, size + margin)).astype(int) - margin
-    hi = np.ceil(np.clip(hi, -1 - margin, size + margin)).astype(int) + margin + 1
-    u0, v0 = np.clip(lo, 0, size)
-    u1, v1 = np.clip(hi, 0, size)
-    return int(u0), int(v0), int(u1), int(v1)
+    # Four numbers: Python's math is several times cheaper than NumPy's calls here.
+    box = []
+    for value, size, end in zip(
+        (*lo.tolist(), *hi.tolist()), (width, height) * 2, (False, False, True, True), strict=True
+    ):
+        value = min(max(value, -1 - margin), size + margin)  # finite (an inf is clipped)
+        edge = math.ceil(value) + margin + 1 if end else math.floor(value) - margin
+        box.append(min(max(edge, 0), size))
+    return box[0], box[1], box[2], box[3]
 
 
 def _keypoint_radii(scene: Scene) -> np.ndarray:
@@ -400,6 +404,8 @@ class FrameRenderer:
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
         self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
         self._K = _read_only(self.intrinsics.K)
+        self._camera_key: bytes | None = None
+        self._T_cam_from_world: np.ndarray | None = None
 
     def close(self) -> None:
         """Free the renderer."""
@@ -427,6 +433,15 @@ class FrameRenderer:
             return self.renderer.render_segmentation(data, region)
         finally:
             groups[:] = saved
+
+    def _camera_pose(self, data: mujoco.MjData) -> np.ndarray:
+        """``T_cam_from_world`` (read-only), recomputed only when the camera moved."""
+        cam = self.renderer.camera_id
+        key = data.cam_xpos[cam].tobytes() + data.cam_xmat[cam].tobytes()
+        if key != self._camera_key:
+            self._camera_key = key
+            self._T_cam_from_world = _read_only(T_cam_from_world(data, cam))
+        return self._T_cam_from_world
 
     def _moved_px(self, before: np.ndarray, after: np.ndarray) -> np.ndarray | float:
         """Upper bound on how far any point of an object moved in the image, pixels.
@@ -607,7 +622,7 @@ class FrameRenderer:
             depth = self.sensor.apply(depth_clean, intr, rng)
             if np.may_share_memory(depth, depth_clean):
                 depth = depth.copy()  # a sensor model that returned its input
-        T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
+        T = self._camera_pose(data)  # noqa: N806
         R, t = T[:3, :3], T[:3, 3]  # noqa: N806
 
         # Keypoints.
@@ -670,12 +685,14 @@ class FrameRenderer:
         contacts = []
         ncon = data.ncon
         if ncon and n:
-            pairs = data.contact.geom[:ncon]  # (ncon, 2) geom ids
+            contact = data.contact
+            pairs = contact.geom[:ncon]  # (ncon, 2) geom ids
+            contact_pos = contact.pos
             hand_first = self._is_hand_geom[pairs[:, 0]] & (self._geom_instance[pairs[:, 1]] >= 0)
             hand_second = self._is_hand_geom[pairs[:, 1]] & (self._geom_instance[pairs[:, 0]] >= 0)
             force = np.zeros(6)
             for i in np.flatnonzero(hand_first | hand_second):
-                pos_cam = R @ data.contact.pos[i] + t
+                pos_cam = R @ contact_pos[i] + t
                 for hand_geom, other, hit in (
                     (pairs[i, 0], pairs[i, 1], hand_first[i]),
                     (pairs[i, 1], pairs[i, 0], hand_second[i]),
@@ -695,7 +712,7 @@ class FrameRenderer:
         return Frame(
             camera=self.camera_spec.name,
             K=self._K,
-            T_cam_from_world=_read_only(T),
+            T_cam_from_world=T,
             depth=_owned_read_only(depth),
             depth_clean=_read_only(depth_clean) if keep_clean else None,
             segmentation=_owned_read_only(labels),

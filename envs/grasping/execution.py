@@ -488,10 +488,12 @@ class GraspExpert:
 
     def _maybe_replan(self, state: GraspState) -> None:
         """Closed loop: plan again if the filtered object pose moved (reach, approach, wait)."""
-        self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
         if not self.replan or self.phase not in ("wait", "reach", "approach"):
+            # The filtered pose serves re-planning only, which never comes back once the
+            # digits close (or without replan): it stops taking estimates.
             return
+        self._filter.add(state.T_world_from_obj)
         t = state.time_s
         if t - self._last_plan_s < _REPLAN_PERIOD_S - 1e-9:
             return

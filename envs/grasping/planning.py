@@ -208,20 +208,37 @@ class GraspState:
         T[:3, :3] = data.xmat[body_id].reshape(3, 3)
         T[:3, 3] = data.xpos[body_id]
         pose = scene.binding.pose(data)
-        return cls(
-            time_s=time_s,
-            hand_pose=pose,
-            joint_angles_rad=pose.angles,
-            keypoints_world=scene.binding.keypoints(data),
-            T_world_from_obj=T,
-            obj=scene.objects[instance][1],
-            touch_forces_n=touch_forces(scene, instance),
-            obstacles=tuple(
+        fields = {
+            "time_s": time_s,
+            "hand_pose": pose,
+            "keypoints_world": scene.binding.keypoints(data),
+            "T_world_from_obj": T,
+            "obj": scene.objects[instance][1],
+            "joint_angles_rad": pose.angles.copy(),
+            "touch_forces_n": touch_forces(scene, instance),
+            "obstacles": tuple(
                 (other, _body_pose(scene, int(scene.model.body(body).id)))
                 for k, (body, other) in enumerate(scene.objects)
                 if k != instance
             ),
+        }
+        finite = (
+            isinstance(time_s, (int, float, np.floating))
+            and math.isfinite(time_s)
+            and np.isfinite(T).all()
+            and np.isfinite(fields["keypoints_world"]).all()
+            and np.isfinite(fields["touch_forces_n"]).all()
+            and all(np.isfinite(T_other).all() for _, T_other in fields["obstacles"])
         )
+        if not finite:
+            return cls(**fields)  # raises, naming what is not finite (a diverged state)
+        # MuJoCo's arrays have the right shapes and its rotations are rotations: the checks of
+        # __post_init__ (a third of the cost of a state) have nothing to find.
+        state = object.__new__(cls)
+        for name, value in fields.items():
+            object.__setattr__(state, name, value)
+        object.__setattr__(state, "time_s", float(time_s))
+        return state
 
 
 def _body_pose(scene: Scene, body_id: int) -> np.ndarray:
@@ -249,13 +266,12 @@ def touch_forces(scene: Scene, instance: int) -> np.ndarray:
     geoms = data.contact.geom[:n]
     labels = scene.geom_labels[geoms].astype(int) - _PALM_LABEL
     on_target = model.geom_bodyid[geoms] == body_id
+    # A hand part on one side, the target on the other; visited in (contact, side) order.
+    hits = on_target[:, ::-1] & (labels >= 0) & (labels < len(TOUCH_PARTS))
     wrench = np.zeros(6)
-    for i in range(n):
-        for side in (0, 1):
-            part = labels[i, side]
-            if on_target[i, 1 - side] and 0 <= part < len(TOUCH_PARTS):
-                mujoco.mj_contactForce(model, data, i, wrench)
-                forces[part] += wrench[0]
+    for i, side in zip(*np.nonzero(hits), strict=True):
+        mujoco.mj_contactForce(model, data, int(i), wrench)
+        forces[labels[i, side]] += wrench[0]
     return forces
 
 

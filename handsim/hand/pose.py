@@ -367,7 +367,14 @@ class HandPose:
 
     def clip(self) -> HandPose:
         """Copy with every articulation clamped to :data:`JOINT_LIMITS`."""
-        return self.replace(angles=np.clip(self.angles, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]))
+        # Fields of a valid pose, angles clamped into the limits: valid, no checks to repeat.
+        clipped = object.__new__(type(self))
+        object.__setattr__(clipped, "wrist_pos", self.wrist_pos.copy())
+        object.__setattr__(clipped, "wrist_rotvec", self.wrist_rotvec.copy())
+        object.__setattr__(
+            clipped, "angles", np.clip(self.angles, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+        )
+        return clipped
 
     def mirrored(self) -> HandPose:
         """The pose mirrored through the world ``x = 0`` plane (right <-> left hand).
