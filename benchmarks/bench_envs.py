@@ -33,8 +33,9 @@ control, no sensor noise unless stated):
 - ``async_2_vs_1``: steps/s of ``AsyncVectorEnv`` (spawned workers) with 2 HandPose-v0 envs
   against 1, and the ratio (this machine has 2 cores);
 - ``make_vec_fork_2_vs_1``: the same through ``gym.make_vec(..., vectorization_mode="async")``
-  with default arguments (forked workers) after this process has rendered; best of
-  ``--repeats`` interleaved runs each;
+  with default arguments (forked workers) after this process has rendered, and with
+  ``vector_kwargs={"copy": False}`` (observations handed out as views of the shared memory);
+  best of ``--repeats`` interleaved runs each;
 - ``obs_modes``: Grasp-v0 steps/s with the same random pose actions in ``"state"`` (nothing
   rendered), ``"privileged_state"``, ``"depth"`` and ``"depth"`` with ``labels=False``, and
   the ratio state / depth (best of ``--repeats`` interleaved runs);
@@ -110,9 +111,14 @@ def _vector_rate(n: int, steps: int) -> float:
     return n * steps / elapsed
 
 
-def _make_vec_rate(n: int, steps: int) -> float:
-    """Steps/s of ``gym.make_vec`` with default arguments (fork on Linux)."""
-    envs = gym.make_vec("handsim/HandPose-v0", num_envs=n, vectorization_mode="async")
+def _make_vec_rate(n: int, steps: int, vector_kwargs: dict | None = None) -> float:
+    """Steps/s of ``gym.make_vec`` (default arguments unless given: fork on Linux)."""
+    envs = gym.make_vec(
+        "handsim/HandPose-v0",
+        num_envs=n,
+        vectorization_mode="async",
+        vector_kwargs=vector_kwargs,
+    )
     envs.reset(seed=list(range(n)))
     envs.action_space.seed(0)
     envs.step(envs.action_space.sample())
@@ -656,15 +662,22 @@ def _make_vec_2_vs_1(args: argparse.Namespace) -> dict:
     parent = gym.make("handsim/HandPose-v0")
     parent.reset(seed=0)
     parent.step(parent.action_space.sample())
+    no_copy = {"copy": False}
     best = _best_of(
         args.repeats,
         {
             "1_worker": lambda: _make_vec_rate(1, args.steps),
             "2_workers": lambda: _make_vec_rate(2, args.steps),
+            "1_worker_copy_false": lambda: _make_vec_rate(1, args.steps, no_copy),
+            "2_workers_copy_false": lambda: _make_vec_rate(2, args.steps, no_copy),
         },
     )
     parent.close()
-    return {**best, "ratio": best["2_workers"] / best["1_worker"]}
+    return {
+        **best,
+        "ratio": best["2_workers"] / best["1_worker"],
+        "ratio_copy_false": best["2_workers_copy_false"] / best["1_worker_copy_false"],
+    }
 
 
 def _write(results: dict, path: str) -> None:

@@ -277,6 +277,7 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
 
 # Offsets of a pixel and its 8 neighbours (the centre first).
 _NEIGHBOURS = np.array([(0, 0)] + [(dv, du) for dv in (-1, 0, 1) for du in (-1, 0, 1) if dv or du])
+_NEIGHBOUR_ROWS, _NEIGHBOUR_COLS = _NEIGHBOURS[:, 0].copy(), _NEIGHBOURS[:, 1].copy()
 
 
 def _equal(a: object, b: object) -> bool:
@@ -563,8 +564,9 @@ class FrameRenderer:
         if k.size == 0:
             return visible, occluder
         h, w = depth_m.shape
-        rows = np.clip(row[k, None].astype(np.intp) + _NEIGHBOURS[:, 0], 0, h - 1)
-        cols = np.clip(col[k, None].astype(np.intp) + _NEIGHBOURS[:, 1], 0, w - 1)
+        # Clamped into the image (np.clip's wrapper costs more than the two ufuncs).
+        rows = np.minimum(np.maximum(row[k, None].astype(np.intp) + _NEIGHBOUR_ROWS, 0), h - 1)
+        cols = np.minimum(np.maximum(col[k, None].astype(np.intp) + _NEIGHBOUR_COLS, 0), w - 1)
         seen = depth_m[rows, cols]  # (n, 9), the keypoint's own pixel first
         label = labels[rows, cols]
         band = (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)[:, None]
@@ -637,40 +639,41 @@ class FrameRenderer:
         visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
         # Objects, all at once: (n, 4, 4) poses and (n, 8, 3) box corners in the camera frame.
         n = len(scene.objects)
-        bodies = self._object_bodies
-        T_cam_obj = np.zeros((n, 4, 4))  # noqa: N806
-        T_cam_obj[:, :3, :3] = R @ data.xmat[bodies].reshape(n, 3, 3)
-        T_cam_obj[:, :3, 3] = data.xpos[bodies] @ R.T + t
-        T_cam_obj[:, 3, 3] = 1.0
-        corners_cam = (
-            np.einsum("nij,nkj->nki", T_cam_obj[:, :3, :3], self._object_corners)
-            + T_cam_obj[:, None, :3, 3]
-        )
-        boxes = []
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uv = intr.project(corners_cam)  # (n, 8, 2)
-        for k in range(n):
-            if np.all(corners_cam[k, :, 2] > 1e-3):
-                boxes.append((uv[k].min(axis=0), uv[k].max(axis=0)))
-            else:  # partly behind the camera: its image extent is unbounded
-                boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
-        silhouettes = self._silhouettes(data, labels, depth_clean, corners_cam, boxes)
         objects = []
-        for k, (_, obj) in enumerate(scene.objects):
-            px_all = silhouettes[k].count()
-            px_visib = silhouettes[k].count_where(labels, OBJECT_LABEL_OFFSET + k)
-            objects.append(
-                ObjectLabel(
-                    instance=k,
-                    name=obj.name,
-                    ycbv_id=obj.ycbv_id,
-                    T_cam_from_obj=_owned_read_only(T_cam_obj[k].copy()),
-                    corners_cam=_owned_read_only(corners_cam[k].copy()),
-                    visib_fract=px_visib / px_all if px_all else 0.0,
-                    px_count_all=px_all,
-                    px_count_visib=px_visib,
-                )
+        if n:  # a scene without objects skips the object work (its arrays would be empty)
+            bodies = self._object_bodies
+            T_cam_obj = np.zeros((n, 4, 4))  # noqa: N806
+            T_cam_obj[:, :3, :3] = R @ data.xmat[bodies].reshape(n, 3, 3)
+            T_cam_obj[:, :3, 3] = data.xpos[bodies] @ R.T + t
+            T_cam_obj[:, 3, 3] = 1.0
+            corners_cam = (
+                np.einsum("nij,nkj->nki", T_cam_obj[:, :3, :3], self._object_corners)
+                + T_cam_obj[:, None, :3, 3]
             )
+            boxes = []
+            with np.errstate(divide="ignore", invalid="ignore"):
+                uv = intr.project(corners_cam)  # (n, 8, 2)
+            for k in range(n):
+                if np.all(corners_cam[k, :, 2] > 1e-3):
+                    boxes.append((uv[k].min(axis=0), uv[k].max(axis=0)))
+                else:  # partly behind the camera: its image extent is unbounded
+                    boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
+            silhouettes = self._silhouettes(data, labels, depth_clean, corners_cam, boxes)
+            for k, (_, obj) in enumerate(scene.objects):
+                px_all = silhouettes[k].count()
+                px_visib = silhouettes[k].count_where(labels, OBJECT_LABEL_OFFSET + k)
+                objects.append(
+                    ObjectLabel(
+                        instance=k,
+                        name=obj.name,
+                        ycbv_id=obj.ycbv_id,
+                        T_cam_from_obj=_owned_read_only(T_cam_obj[k].copy()),
+                        corners_cam=_owned_read_only(corners_cam[k].copy()),
+                        visib_fract=px_visib / px_all if px_all else 0.0,
+                        px_count_all=px_all,
+                        px_count_visib=px_visib,
+                    )
+                )
 
         occlusion_ratio = None
         if hand_occlusion:
