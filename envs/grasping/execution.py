@@ -13,6 +13,7 @@ from typing import Literal
 
 import mujoco
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
@@ -46,7 +47,6 @@ from handsim.envs.physics import HandDriver, skin_friction
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.model import HandParams
 from handsim.hand.pose import JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.hand.pose_sources import minimum_jerk
 from handsim.world.objects import YCBObject
 from handsim.world.scene import Scene
 
@@ -195,6 +195,27 @@ def _duration(
     return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
 
 
+_HULLS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _hull_points(points: np.ndarray) -> np.ndarray:
+    """The points on the convex hull of ``points`` (all of them if the hull is degenerate).
+
+    The lowest point of a posed object is a hull vertex (a linear function's minimum over a
+    point set lies on its hull), so the filter's per-estimate test reads a few dozen points
+    rather than the model's thousands. Cached per points array.
+    """
+    cached = _HULLS.get(id(points))
+    if cached is not None and cached[0] is points:
+        return cached[1]
+    try:
+        hull = points[np.sort(ConvexHull(points).vertices)]
+    except (QhullError, ValueError):
+        hull = points
+    _HULLS[id(points)] = (points, hull)
+    return hull
+
+
 class _PoseFilter:
     """The object's pose from a stream of perceived poses, assuming it stays still.
 
@@ -208,7 +229,7 @@ class _PoseFilter:
     """
 
     def __init__(self, obj: YCBObject) -> None:
-        self.points = np.asarray(obj.model_points_m)
+        self.points = _hull_points(np.asarray(obj.model_points_m))
         # The estimates since the object last moved: rows [start, end) of reused buffers.
         self._pos = np.empty((2 * _FILTER_WINDOW, 3))
         self._quat = np.empty((2 * _FILTER_WINDOW, 4))  # wxyz
@@ -380,6 +401,7 @@ class GraspExpert:
         self._scale = np.ones(3)  # speed jitter of reach, approach, lift
         self._grip: tuple[np.ndarray, np.ndarray] | None = None  # contact angles, squeeze
         self._grip_scale: list[float] = [1.0]
+        self._groups: list[tuple[np.ndarray, np.ndarray, float]] = []
         self._grip_force_n: float | None = None
 
     @property
@@ -611,7 +633,7 @@ class GraspExpert:
             ]
             self._grip_force_n = force
         scale = np.ones(len(JOINT_NAMES))
-        for k, (joints, _, _) in enumerate(self._grip_groups()):
+        for k, (joints, _, _) in enumerate(self._groups):
             scale[joints] = self._grip_scale[k]
         targets = contact + scale * (squeeze - contact)
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
@@ -622,7 +644,7 @@ class GraspExpert:
         squeeze = self.plan.closed
         self._grip = (contact, squeeze)
         touch = state.touch_forces_n
-        groups = self._grip_groups()
+        groups = self._groups = self._grip_groups()  # fixed from here: the plan no longer changes
         if touch is not None:
             wanted = self._grip_force_target(lifting=True)
             self._grip_scale = [
@@ -711,7 +733,9 @@ class GraspExpert:
         segment = self._segments[self._index]
         self.phase = segment.name
         tau = (t - self._segment_start_s) / max(segment.duration_s, 1e-9)
-        s = float(np.clip(minimum_jerk(np.clip(tau, 0.0, 1.0)), 0.0, 1.0))
+        # minimum_jerk on one number, in Python floats (the same operations, bit for bit).
+        t = min(max(tau, 0.0), 1.0)
+        s = min(max(t**3 * (10.0 + t * (-15.0 + 6.0 * t)), 0.0), 1.0)
         start = self._from
         pos = start.pos + s * (segment.pos - start.pos)
         quat = _quat_slerp(start.quat, segment.quat, s)
