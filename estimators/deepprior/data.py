@@ -79,7 +79,10 @@ def load_frames(
         folders = [folders]
     keys = ("depth", "scale", "K", "kp", "occ", "length", "sensor")
     parts: dict[str, list[Any]] = {k: [] for k in keys}
+    total = 0
     for folder in folders:
+        if max_frames is not None and total >= max_frames:
+            break  # enough frames: do not decompress the rest
         try:
             manifest = Manifest.read(folder)
         except HandSimError as err:
@@ -87,6 +90,8 @@ def load_frames(
         seed = int(manifest.config.get("seed", 0))
         sensor = str(manifest.config.get("sensor", "unknown"))
         for record in sorted(manifest.shards.values(), key=lambda s: s.name):
+            if max_frames is not None and total >= max_frames:
+                break
             reader = ShardReader(Path(folder) / record.name)
             episodes = reader.labels("episode")
             keep = np.array(
@@ -105,6 +110,7 @@ def load_frames(
             parts["occ"].append(reader.labels("hand_occlusion_ratio")[keep])
             parts["length"].append(reader.labels("hand_length_m")[keep])
             parts["sensor"].append(np.array([sensor] * int(keep.sum())))
+            total += int(keep.sum())
             reader.close()
     if not parts["K"]:
         raise InvalidTrainingData(
@@ -252,7 +258,7 @@ def env_frames(
             expert = env.unwrapped.make_expert(np.random.default_rng(seed + episode))
             step, done = 0, False
             while not done:
-                frame = info.get("frame")
+                frame = env.unwrapped.frame
                 if frame is not None and step % every == 0:
                     depth = np.rint(np.asarray(obs["depth"], np.float64) / scale_m)
                     parts["depth"].append(np.clip(depth, 0, 65535).astype(np.uint16))

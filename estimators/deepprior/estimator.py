@@ -23,17 +23,27 @@ from .preprocess import (
     denormalize_keypoints,
 )
 
-__all__ = ["DeepPriorEstimator", "RefinedLocalizer"]
+__all__ = ["DETECTORS", "DeepPriorEstimator", "RefinedLocalizer"]
+
+
+DETECTORS = ("plane", "com")
+"""First hand centres: ``"plane"`` (RANSAC plane removal, then the nearest blob's centre of
+mass; works on a table) or ``"com"`` (DeepPrior's centre of mass of the nearest depth slab,
+cheaper, for a hand nearest to the camera)."""
 
 
 class RefinedLocalizer(EstimatorBase):
-    """Hand centre: plane-removed centre of mass, then the refinement CNN, iterated.
+    """Hand centre: a first centre (:data:`DETECTORS`), then the refinement CNN, iterated.
 
     Args:
         checkpoint: a localizer checkpoint (shipped name ``"localizer"`` or a path), or
-            ``None`` for the plane-removed centre of mass alone.
+            ``None`` for the first centre alone.
         iterations: refinement steps.
         device: torch device.
+        detector: the first centre, ``"plane"`` or ``"com"``.
+
+    Raises:
+        InvalidCheckpoint: for an unknown detector or a checkpoint that cannot be loaded.
     """
 
     def __init__(
@@ -42,10 +52,18 @@ class RefinedLocalizer(EstimatorBase):
         *,
         iterations: int = 3,
         device: str = "cpu",
+        detector: str = "plane",
     ) -> None:
-        from .checkpoint import load_model
+        from handsim.estimators.com import CenterOfMassLocalizer
 
-        self.base = PlaneRemovedLocalizer()
+        from .checkpoint import InvalidCheckpoint, load_model
+
+        if detector not in DETECTORS:
+            raise InvalidCheckpoint(
+                f"detector must be one of {', '.join(DETECTORS)}; received {detector!r}"
+            )
+        self.detector = detector
+        self.base = PlaneRemovedLocalizer() if detector == "plane" else CenterOfMassLocalizer()
         self.iterations = int(iterations)
         self.device = device
         self.model = None
@@ -57,21 +75,57 @@ class RefinedLocalizer(EstimatorBase):
         self.checkpoint = None if checkpoint is None else str(checkpoint)
 
     def __repr__(self) -> str:
-        return f"RefinedLocalizer(checkpoint={self.checkpoint!r}, iterations={self.iterations})"
+        return (
+            f"RefinedLocalizer(checkpoint={self.checkpoint!r}, iterations={self.iterations}, "
+            f"detector={self.detector!r})"
+        )
 
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
+        return self.refine_batch([depth_m], K[None], np.asarray(center, np.float64)[None])[0]
+
+    def refine_batch(
+        self,
+        depths_m: Any,
+        K: np.ndarray,  # noqa: N803
+        centers: np.ndarray,
+        batch_size: int = 256,
+    ) -> np.ndarray:
+        """:meth:`refine` for many frames at once, one network call per batch and iteration.
+
+        Args:
+            depths_m: N (H, W) depth images, metres (a sequence, or a callable ``i -> depth``).
+            K: (N, 3, 3) intrinsics.
+            centers: (N, 3) starting centres, metres.
+            batch_size: frames per network call.
+
+        Returns:
+            (N, 3) refined centres, metres.
+        """
         import torch
 
-        if self.model is None:
-            return center
-        c = np.asarray(center, dtype=np.float64)
+        c = np.array(centers, dtype=np.float64)
+        if self.model is None or len(c) == 0:
+            return c
+        depth = depths_m if callable(depths_m) else depths_m.__getitem__
         for _ in range(self.iterations):
-            M = crop_matrix(c, K, self.cube_m, self.size)  # noqa: N806
-            x = crop_depth(depth_m, M, c[2], self.cube_m, self.size)
-            with torch.inference_mode():
-                off = self.model(torch.from_numpy(x[None, None]).to(self.device))
-            c = c + off[0].double().cpu().numpy() * (self.cube_m / 2.0)
+            for start in range(0, len(c), batch_size):
+                idx = range(start, min(start + batch_size, len(c)))
+                x = np.stack(
+                    [
+                        crop_depth(
+                            depth(i),
+                            crop_matrix(c[i], K[i], self.cube_m, self.size),
+                            c[i, 2],
+                            self.cube_m,
+                            self.size,
+                        )
+                        for i in idx
+                    ]
+                )
+                with torch.inference_mode():
+                    off = self.model(torch.from_numpy(x[:, None]).to(self.device))
+                c[start : idx.stop] += off.double().cpu().numpy() * (self.cube_m / 2.0)
         return c
 
     def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
@@ -96,6 +150,9 @@ class DeepPriorEstimator(EstimatorBase):
             crop at the plane-removed centre of mass.
         refine_iterations: refinement steps of the localizer.
         device: torch device (``"cpu"`` or ``"cuda"``).
+        detector: the localizer's first centre (:data:`DETECTORS`): ``"plane"`` (default,
+            works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
+            to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
         threads: torch CPU threads (``None``: leave torch's setting).
 
     Raises:
@@ -110,6 +167,7 @@ class DeepPriorEstimator(EstimatorBase):
         refine_iterations: int = 3,
         device: str = "cpu",
         threads: int | None = None,
+        detector: str = "plane",
     ) -> None:
         import torch
 
@@ -122,13 +180,16 @@ class DeepPriorEstimator(EstimatorBase):
         self.model, config = load_model(checkpoint, device)
         self.cube_m = float(config["cube_m"])
         self.size = int(config["model"]["size"])
-        self.localizer = RefinedLocalizer(localizer, iterations=refine_iterations, device=device)
+        self.localizer = RefinedLocalizer(
+            localizer, iterations=refine_iterations, device=device, detector=detector
+        )
 
     def __repr__(self) -> str:
         return (
             f"DeepPriorEstimator(checkpoint={self.checkpoint!r}, "
             f"localizer={self.localizer.checkpoint!r}, "
-            f"refine_iterations={self.localizer.iterations})"
+            f"refine_iterations={self.localizer.iterations}, "
+            f"detector={self.localizer.detector!r})"
         )
 
     def predict_at(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
@@ -164,6 +225,7 @@ class DeepPriorEstimator(EstimatorBase):
         return {
             "checkpoint": self.checkpoint,
             "localizer": self.localizer.checkpoint,
+            "detector": self.localizer.detector,
             "cube_m": self.cube_m,
             "size": self.size,
         }

@@ -54,6 +54,7 @@ def evaluate(
     progress: bool = True,
     threads: int = 0,
     with_centres: bool = True,
+    device: str = "cpu",
 ) -> dict[str, Any]:
     """Evaluate a pose checkpoint (or shipped name) on a split; write the report and plots.
 
@@ -68,6 +69,7 @@ def evaluate(
         threads: torch CPU threads (0: torch's default).
         with_centres: also run the network on crops centred by the plain centre of mass, the
             plane-removed one and the true middle MCP (``mean_error_mm_by_crop_centre``).
+        device: torch device of the networks.
 
     Returns:
         The report (also ``out/metrics.json``).
@@ -82,7 +84,7 @@ def evaluate(
 
     from .estimator import DeepPriorEstimator
 
-    est = DeepPriorEstimator(estimator, localizer=localizer, threads=threads or None)
+    est = DeepPriorEstimator(estimator, localizer=localizer, threads=threads or None, device=device)
     if isinstance(data, FrameSet):
         frames = data
         data_names = ["(frames in memory)"]

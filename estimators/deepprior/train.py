@@ -20,9 +20,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import multiprocessing
 import os
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Any
 
@@ -123,28 +125,61 @@ def _check(config: TrainConfig) -> None:
         raise InvalidTrainConfig(f"prior_dim must be in [0, 63]; received {config.prior_dim}")
 
 
+_FRAMES: FrameSet | None = None  # the frames of localizer_centers, inherited by forked workers
+
+
+def _plane_removed_coms(indices: range) -> list[np.ndarray | None]:
+    base = PlaneRemovedLocalizer()
+    f = _FRAMES
+    assert f is not None
+    return [base.localize(f.depth(i), f.K[i]) for i in indices]
+
+
 def localizer_centers(
-    frames: FrameSet, checkpoint: str | None, iterations: int = 3
+    frames: FrameSet,
+    checkpoint: str | None,
+    iterations: int = 3,
+    *,
+    workers: int = 0,
+    device: str = "cpu",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop centres of every frame: the plane-removed CoM, refined by ``checkpoint`` if given.
+
+    Args:
+        frames: the frames.
+        checkpoint: localizer checkpoint, or ``None`` for the plane-removed CoM alone.
+        iterations: refinement steps.
+        workers: processes for the plane fits (0: this process; forked workers on Linux).
+        device: torch device of the refinement network (batched).
 
     Returns:
         ``(centers (N, 3) metres, found (N,) bool)``; a frame without a blob gets the true
         middle MCP and ``found = False``.
     """
+    global _FRAMES
     from .estimator import RefinedLocalizer
 
-    loc = RefinedLocalizer(checkpoint, iterations=iterations) if checkpoint else None
-    base = PlaneRemovedLocalizer()
+    n = len(frames)
+    chunks = [range(s, min(s + 256, n)) for s in range(0, n, 256)]
+    _FRAMES = frames
+    try:
+        if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
+            with multiprocessing.get_context("fork").Pool(workers) as pool:
+                coms = [c for part in pool.map(_plane_removed_coms, chunks) for c in part]
+        else:
+            coms = [c for chunk in chunks for c in _plane_removed_coms(chunk)]
+    finally:
+        _FRAMES = None
+    found = np.array([c is not None for c in coms], dtype=bool)
     centers = frames.keypoints_cam[:, MIDDLE_MCP].copy()
-    found = np.zeros(len(frames), dtype=bool)
-    for i in range(len(frames)):
-        depth = frames.depth(i)
-        c = base.localize(depth, frames.K[i])
-        if c is None:
-            continue
-        found[i] = True
-        centers[i] = c if loc is None else loc.refine(depth, frames.K[i], c)
+    if found.any():
+        centers[found] = np.stack([c for c in coms if c is not None])
+    if checkpoint and found.any():
+        loc = RefinedLocalizer(checkpoint, iterations=iterations, device=device)
+        idx = np.flatnonzero(found)
+        centers[idx] = loc.refine_batch(
+            lambda j: frames.depth(int(idx[j])), frames.K[idx], centers[idx]
+        )
     return centers, found
 
 
@@ -189,6 +224,8 @@ def train(
     config: TrainConfig,
     *,
     device: str = "cpu",
+    loader_workers: int = 0,
+    amp: bool = False,
     val_every: int = 1,
     progress: bool = True,
     log: Callable[[str], None] = print,
@@ -200,6 +237,10 @@ def train(
         out: run folder (created; an existing run with the same config is resumed).
         config: the run.
         device: torch device.
+        loader_workers: DataLoader processes that crop and augment (0: this process); they
+            also run the plane fits of the crop centres. The result does not depend on it.
+        amp: on CUDA, run the forward pass in bfloat16 (mixed precision; the loss and the
+            weights stay float32). Ignored on the CPU.
         val_every: validate every this many epochs (and after the last).
         progress: show a tqdm bar per epoch.
         log: where to print one line per validation.
@@ -231,6 +272,16 @@ def train(
     run_json.write_text(json.dumps(run, indent=2) + "\n")
     torch.manual_seed(config.seed)
     np.random.seed(config.seed % 2**32)
+    if loader_workers:
+        import cv2
+
+        # OpenCV's thread pool does not survive a fork (its workers hang); one process per
+        # core needs no threads.
+        cv2.setNumThreads(1)
+    if device.startswith("cuda"):
+        torch.backends.cudnn.benchmark = True
+        torch.backends.cuda.matmul.allow_tf32 = True
+        torch.backends.cudnn.allow_tf32 = True
 
     max_frames = config.max_frames or None
     train_frames = load_frames(data, "train", max_frames=max_frames)
@@ -249,7 +300,7 @@ def train(
             centers = np.load(path)
             if centers.shape == (len(frames), 3):
                 return centers
-        centers, _ = localizer_centers(frames, checkpoint)
+        centers, _ = localizer_centers(frames, checkpoint, workers=loader_workers, device=device)
         np.save(path, centers)
         return centers
 
@@ -311,34 +362,52 @@ def train(
         torch.set_rng_state(state["torch_rng"])
         log(f"resuming {out} after epoch {start_epoch}")
     loss_fn = torch.nn.HuberLoss(delta=config.huber_delta)
+    use_amp = bool(amp) and device.startswith("cuda")
     for epoch in range(start_epoch, config.epochs):
         t0 = time.perf_counter()
         model.train()
         train_set.epoch = epoch
         order = torch.Generator().manual_seed(config.seed * 1000 + epoch)
         loader = DataLoader(
-            train_set, batch_size=config.batch_size, shuffle=True, generator=order, drop_last=False
+            train_set,
+            batch_size=config.batch_size,
+            shuffle=True,
+            generator=order,
+            drop_last=False,
+            num_workers=loader_workers,
+            pin_memory=device.startswith("cuda"),
+            prefetch_factor=4 if loader_workers else None,
         )
-        total, count = 0.0, 0
+        total, count, wait_s = 0.0, 0, 0.0
         bar = tqdm(
             loader,
             desc=f"{config.kind} epoch {epoch + 1}/{config.epochs}",
             disable=not progress,
             leave=False,
         )
+        t_data = time.perf_counter()
         for step, (x, y) in enumerate(bar):
+            wait_s += time.perf_counter() - t_data
             for group in optimizer.param_groups:
                 group["lr"] = lr_at(epoch * steps_per_epoch + step)
-            x, y = x.to(device), y.to(device)
-            loss = loss_fn(model(x), y)
+            x, y = x.to(device, non_blocking=True), y.to(device, non_blocking=True)
+            with torch.autocast("cuda", dtype=torch.bfloat16) if use_amp else nullcontext():
+                pred = model(x)
+            loss = loss_fn(pred.float(), y)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()
             total += loss.item() * len(x)
             count += len(x)
             bar.set_postfix(loss=f"{total / count:.5f}")
+            t_data = time.perf_counter()
         bar.close()
-        entry: dict[str, Any] = {"epoch": epoch + 1, "train_loss": total / max(count, 1)}
+        entry: dict[str, Any] = {
+            "epoch": epoch + 1,
+            "train_loss": total / max(count, 1),
+            # Time the GPU/CPU waited for crops: large means more --loader-workers.
+            "data_wait_s": round(wait_s, 3),
+        }
         if (epoch + 1) % val_every == 0 or epoch + 1 == config.epochs:
             val = _evaluate(model, val_set, config.batch_size, device)
             entry["val_mean_error_mm"] = val["mean_error_mm"]
@@ -371,6 +440,7 @@ def train(
         "best_val_mean_error_mm": best,
         "train_time_s": elapsed,
         "device": device,
+        "amp_bf16": use_amp,
         "torch_threads": torch.get_num_threads(),
         "history": history,
     }

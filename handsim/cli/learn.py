@@ -69,6 +69,8 @@ def _train(args: argparse.Namespace) -> int:
         args.out,
         config,
         device=args.device,
+        loader_workers=args.loader_workers,
+        amp=args.amp,
         val_every=args.val_every,
         progress=not args.quiet,
         log=lambda line: print(line, file=sys.stderr, flush=True),
@@ -89,8 +91,12 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
+    import torch
+
     from handsim.estimators.deepprior.evaluate import evaluate
 
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
     data = args.data
     if args.env is not None:
         from handsim.estimators.deepprior.data import env_frames
@@ -107,6 +113,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         progress=not args.quiet,
         threads=args.threads,
+        device=args.device,
     )
     keys = ("estimator", "n_frames", "n_missed", "mean_error_mm", "auc_f_tau", "localization_mm")
     report = {
@@ -207,6 +214,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
     )
+    tr.add_argument(
+        "--loader-workers",
+        type=non_negative_int,
+        default=0,
+        metavar="N",
+        help="processes that crop and augment (default: 0, in the training process; e.g. the "
+        "number of free cores when training on a GPU)",
+    )
+    tr.add_argument(
+        "--amp",
+        action="store_true",
+        help="with --device cuda: bfloat16 mixed precision for the forward pass",
+    )
     tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     tr.set_defaults(func=_train)
 
@@ -261,6 +281,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     ev.add_argument(
         "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
+    )
+    ev.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
     )
     ev.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     ev.set_defaults(func=_evaluate)

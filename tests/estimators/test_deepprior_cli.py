@@ -116,3 +116,73 @@ def test_cli_errors(tmp_path, capsys):
     assert main(["train", "localizer", "--data", str(tmp_path), "--out", str(tmp_path / "r"),
                  "-q"]) == 2  # fmt: skip
     assert "error" in capsys.readouterr().err
+
+
+def test_loader_workers_do_not_change_the_result(tiny_data, tmp_path):
+    """Crops come from per-sample seeds: 2 DataLoader processes train the same weights as 0."""
+    torch.set_num_threads(1)
+    config = TrainConfig(**{**TINY, "epochs": 1})
+    quiet = {"progress": False, "log": lambda s: None}
+    train([tiny_data], tmp_path / "w0", config, loader_workers=0, **quiet)
+    train([tiny_data], tmp_path / "w2", config, loader_workers=2, **quiet)
+    a = torch.load(tmp_path / "w0" / "last.pt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "w2" / "last.pt", weights_only=True)["model"]
+    for key in a:
+        torch.testing.assert_close(a[key], b[key], msg=key)
+
+
+def test_localizer_centers_in_worker_processes_and_batches_equal_one_by_one(tiny_data, tmp_path):
+    """Forked plane fits and the batched refinement give each frame's one-by-one centre."""
+    from handsim.estimators.deepprior.estimator import RefinedLocalizer
+    from handsim.estimators.deepprior.preprocess import PlaneRemovedLocalizer
+    from handsim.estimators.deepprior.train import localizer_centers
+
+    torch.set_num_threads(1)
+    frames = load_frames(tiny_data, "all")
+    loc_config = TrainConfig(kind="localizer", epochs=1, batch_size=8, size=32, fc=16, seed=1)
+    train([tiny_data], tmp_path / "loc", loc_config, progress=False, log=lambda s: None)
+    ckpt = str(tmp_path / "loc" / "last.pt")
+    serial, found = localizer_centers(frames, ckpt)
+    forked, found2 = localizer_centers(frames, ckpt, workers=2)
+    np.testing.assert_array_equal(found, found2)
+    np.testing.assert_allclose(forked, serial, atol=1e-9)
+    assert found.all()
+    refined = RefinedLocalizer(ckpt)
+    base = PlaneRemovedLocalizer()
+    for i in range(0, len(frames), 7):
+        start = base.localize(frames.depth(i), frames.K[i])
+        one = refined.refine(frames.depth(i), frames.K[i], start)
+        np.testing.assert_allclose(serial[i], one, atol=1e-6)
+        assert not np.allclose(one, start)  # the network moved it
+
+
+def test_env_frames_keep_every_nth_step_of_the_expert():
+    """Frames of Grasp-v0's expert: depth, intrinsics and keypoints of every 20th step."""
+    from handsim.estimators.deepprior.data import env_frames
+
+    frames = env_frames("handsim/Grasp-v0", episodes=1, every=20, seed=0)
+    assert 5 <= len(frames) <= 40
+    assert frames.depth_units.dtype == np.uint16 and frames.depth_units.ndim == 3
+    assert frames.keypoints_cam.shape == (len(frames), 21, 3)
+    assert np.all(frames.keypoints_cam[..., 2] > 0.1)  # in front of the camera
+    assert np.all((frames.occlusion >= 0) & (frames.occlusion <= 1))
+
+
+def test_deepprior_with_the_com_detector_and_no_refinement(tiny_data, tmp_path):
+    """detector='com' without a localizer is DeepPrior's own pipeline; a bad name is refused."""
+    from handsim.estimators.deepprior.checkpoint import InvalidCheckpoint
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+    from handsim.estimators.deepprior.preprocess import MIDDLE_MCP
+
+    torch.set_num_threads(1)
+    train([tiny_data], tmp_path / "dp", TrainConfig(**TINY), progress=False, log=lambda s: None)
+    est = DeepPriorEstimator(tmp_path / "dp", localizer=None, detector="com")
+    assert "detector='com'" in repr(est) and est.info()["detector"] == "com"
+    frames = load_frames(tiny_data, "all")
+    estimate = est.predict(frames.depth(0), frames.K[0])
+    assert estimate.valid and estimate.keypoints_cam.shape == (21, 3)
+    # The hand is the nearest thing: the centre of mass lands within a cube of the MCP.
+    center = est.localizer.localize(frames.depth(0), frames.K[0])
+    assert np.linalg.norm(center - frames.keypoints_cam[0, MIDDLE_MCP]) < 0.125
+    with pytest.raises(InvalidCheckpoint, match="detector must be one of plane, com"):
+        DeepPriorEstimator(tmp_path / "dp", localizer=None, detector="table")
