@@ -35,7 +35,9 @@ control, no sensor noise unless stated):
 - ``make_vec_fork_2_vs_1``: the same through ``gym.make_vec(..., vectorization_mode="async")``
   with default arguments (forked workers) after this process has rendered, and with
   ``vector_kwargs={"copy": False}`` (observations handed out as views of the shared memory);
-  best of ``--repeats`` interleaved runs each;
+  best of ``--repeats`` interleaved runs each; and ``cpu_scaling_2_vs_1_processes``, the
+  speed-up of two processes running a pure-Python loop over one, measured just after (on a
+  shared machine it says how many cores were free);
 - ``obs_modes``: Grasp-v0 steps/s with the same random pose actions in ``"state"`` (nothing
   rendered), ``"privileged_state"``, ``"depth"`` and ``"depth"`` with ``labels=False``, and
   the ratio state / depth (best of ``--repeats`` interleaved runs);
@@ -657,6 +659,30 @@ def main() -> None:
     _print_summary(results["limit"]["summary"])
 
 
+def _spin(n: int) -> int:
+    total = 0
+    for i in range(n):
+        total += i * i
+    return total
+
+
+def _cpu_scaling(n: int = 8_000_000) -> float:
+    """Speed-up of two processes running a pure-Python loop over one: the cores free now.
+
+    On a machine that other jobs share this is what bounds any 2-worker ratio measured beside it.
+    """
+    import multiprocessing
+
+    start = time.perf_counter()
+    _spin(n)
+    one = time.perf_counter() - start
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        start = time.perf_counter()
+        pool.map(_spin, [n, n])
+        two = time.perf_counter() - start
+    return 2 * one / two
+
+
 def _make_vec_2_vs_1(args: argparse.Namespace) -> dict:
     # Render in this process first: forked workers must not inherit a hanging GL state.
     parent = gym.make("handsim/HandPose-v0")
@@ -677,6 +703,8 @@ def _make_vec_2_vs_1(args: argparse.Namespace) -> dict:
         **best,
         "ratio": best["2_workers"] / best["1_worker"],
         "ratio_copy_false": best["2_workers_copy_false"] / best["1_worker_copy_false"],
+        # The cores free at the time, measured just after the runs.
+        "cpu_scaling_2_vs_1_processes": _cpu_scaling(),
     }
 
 
