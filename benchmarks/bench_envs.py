@@ -33,8 +33,11 @@ control, no sensor noise unless stated):
 - ``async_2_vs_1``: steps/s of ``AsyncVectorEnv`` (spawned workers) with 2 HandPose-v0 envs
   against 1, and the ratio (this machine has 2 cores);
 - ``make_vec_fork_2_vs_1``: the same through ``gym.make_vec(..., vectorization_mode="async")``
-  with default arguments (forked workers) after this process has rendered; best of
-  ``--repeats`` interleaved runs each;
+  with default arguments (forked workers) after this process has rendered, and with
+  ``vector_kwargs={"copy": False}`` (observations handed out as views of the shared memory);
+  best of ``--repeats`` interleaved runs each; and ``cpu_scaling_2_vs_1_processes``, the
+  speed-up of two processes running a pure-Python loop over one, measured just after (on a
+  shared machine it says how many cores were free);
 - ``obs_modes``: Grasp-v0 steps/s with the same random pose actions in ``"state"`` (nothing
   rendered), ``"privileged_state"``, ``"depth"`` and ``"depth"`` with ``labels=False``, and
   the ratio state / depth (best of ``--repeats`` interleaved runs);
@@ -110,9 +113,14 @@ def _vector_rate(n: int, steps: int) -> float:
     return n * steps / elapsed
 
 
-def _make_vec_rate(n: int, steps: int) -> float:
-    """Steps/s of ``gym.make_vec`` with default arguments (fork on Linux)."""
-    envs = gym.make_vec("handsim/HandPose-v0", num_envs=n, vectorization_mode="async")
+def _make_vec_rate(n: int, steps: int, vector_kwargs: dict | None = None) -> float:
+    """Steps/s of ``gym.make_vec`` (default arguments unless given: fork on Linux)."""
+    envs = gym.make_vec(
+        "handsim/HandPose-v0",
+        num_envs=n,
+        vectorization_mode="async",
+        vector_kwargs=vector_kwargs,
+    )
     envs.reset(seed=list(range(n)))
     envs.action_space.seed(0)
     envs.step(envs.action_space.sample())
@@ -651,20 +659,53 @@ def main() -> None:
     _print_summary(results["limit"]["summary"])
 
 
+def _spin(n: int) -> int:
+    total = 0
+    for i in range(n):
+        total += i * i
+    return total
+
+
+def _cpu_scaling(n: int = 8_000_000) -> float:
+    """Speed-up of two processes running a pure-Python loop over one: the cores free now.
+
+    On a machine that other jobs share this is what bounds any 2-worker ratio measured beside it.
+    """
+    import multiprocessing
+
+    start = time.perf_counter()
+    _spin(n)
+    one = time.perf_counter() - start
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        start = time.perf_counter()
+        pool.map(_spin, [n, n])
+        two = time.perf_counter() - start
+    return 2 * one / two
+
+
 def _make_vec_2_vs_1(args: argparse.Namespace) -> dict:
     # Render in this process first: forked workers must not inherit a hanging GL state.
     parent = gym.make("handsim/HandPose-v0")
     parent.reset(seed=0)
     parent.step(parent.action_space.sample())
+    no_copy = {"copy": False}
     best = _best_of(
         args.repeats,
         {
             "1_worker": lambda: _make_vec_rate(1, args.steps),
             "2_workers": lambda: _make_vec_rate(2, args.steps),
+            "1_worker_copy_false": lambda: _make_vec_rate(1, args.steps, no_copy),
+            "2_workers_copy_false": lambda: _make_vec_rate(2, args.steps, no_copy),
         },
     )
     parent.close()
-    return {**best, "ratio": best["2_workers"] / best["1_worker"]}
+    return {
+        **best,
+        "ratio": best["2_workers"] / best["1_worker"],
+        "ratio_copy_false": best["2_workers_copy_false"] / best["1_worker_copy_false"],
+        # The cores free at the time, measured just after the runs.
+        "cpu_scaling_2_vs_1_processes": _cpu_scaling(),
+    }
 
 
 def _write(results: dict, path: str) -> None:

@@ -237,7 +237,8 @@ class GraspEnv(HandSimEnv):
             "keypoints_world": keypoints_world,
             "T_world_from_obj": T_world_from_obj,
         }
-        return dataclasses.replace(truth, **{k: v for k, v in estimated.items() if v is not None})
+        estimated = {k: v for k, v in estimated.items() if v is not None}
+        return dataclasses.replace(truth, **estimated) if estimated else truth
 
     def make_expert(
         self, rng: np.random.Generator | None = None, state: GraspState | None = None

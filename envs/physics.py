@@ -47,6 +47,7 @@ _DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQPOS,
 )
+_DIVERGENCE_WARNING_INDICES = [int(w) for w in _DIVERGENCE_WARNINGS]
 
 
 class PhysicsDiverged(HandSimError, RuntimeError):
@@ -239,7 +240,7 @@ class HandDriver:
 
     def _divergence_count(self) -> int:
         data = self.scene.data
-        return int(sum(data.warning[w].number for w in _DIVERGENCE_WARNINGS))
+        return int(data.warning.number[_DIVERGENCE_WARNING_INDICES].sum())
 
     def _track(self, duration_s: float) -> None:
         """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""

@@ -47,6 +47,7 @@ object instance, position in the camera frame, normal force in newtons).
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import NamedTuple
 
 import cv2
@@ -232,12 +233,15 @@ def _pixel_box(
     ``lo`` and ``hi`` are (2,) pixel coordinates ``(u, v)`` (may be infinite); the box is widened
     by ``margin`` pixels and clipped to the image.
     """
-    size = np.array([width, height])
-    lo = np.floor(np.clip(lo, -1 - margin, size + margin)).astype(int) - margin
-    hi = np.ceil(np.clip(hi, -1 - margin, size + margin)).astype(int) + margin + 1
-    u0, v0 = np.clip(lo, 0, size)
-    u1, v1 = np.clip(hi, 0, size)
-    return int(u0), int(v0), int(u1), int(v1)
+    # Four numbers: Python's math is several times cheaper than NumPy's calls here.
+    box = []
+    for value, size, end in zip(
+        (*lo.tolist(), *hi.tolist()), (width, height) * 2, (False, False, True, True), strict=True
+    ):
+        value = min(max(value, -1 - margin), size + margin)  # finite (an inf is clipped)
+        edge = math.ceil(value) + margin + 1 if end else math.floor(value) - margin
+        box.append(min(max(edge, 0), size))
+    return box[0], box[1], box[2], box[3]
 
 
 def _keypoint_radii(scene: Scene) -> np.ndarray:
@@ -273,6 +277,7 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
 
 # Offsets of a pixel and its 8 neighbours (the centre first).
 _NEIGHBOURS = np.array([(0, 0)] + [(dv, du) for dv in (-1, 0, 1) for du in (-1, 0, 1) if dv or du])
+_NEIGHBOUR_ROWS, _NEIGHBOUR_COLS = _NEIGHBOURS[:, 0].copy(), _NEIGHBOURS[:, 1].copy()
 
 
 def _equal(a: object, b: object) -> bool:
@@ -370,6 +375,7 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
+        self._below_near_m = float(np.nextafter(self._near_m, np.float32(0.0)))
         # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
         self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
@@ -394,12 +400,13 @@ class FrameRenderer:
         h, w = self.intrinsics.height, self.intrinsics.width
         self._depth_buffer = np.empty((h, w), dtype=np.float32)
         self._mask_buffer = np.empty((h, w), dtype=bool)
-        self._far_buffer = np.empty((h, w), dtype=bool)
         # Each object's silhouette and its box corners in the camera frame when it was made
         # (NaN: none yet); see _silhouettes.
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
         self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
         self._K = _read_only(self.intrinsics.K)
+        self._camera_key: bytes | None = None
+        self._T_cam_from_world: np.ndarray | None = None
 
     def close(self) -> None:
         """Free the renderer."""
@@ -427,6 +434,15 @@ class FrameRenderer:
             return self.renderer.render_segmentation(data, region)
         finally:
             groups[:] = saved
+
+    def _camera_pose(self, data: mujoco.MjData) -> np.ndarray:
+        """``T_cam_from_world`` (read-only), recomputed only when the camera moved."""
+        cam = self.renderer.camera_id
+        key = data.cam_xpos[cam].tobytes() + data.cam_xmat[cam].tobytes()
+        if key != self._camera_key:
+            self._camera_key = key
+            self._T_cam_from_world = _read_only(T_cam_from_world(data, cam))
+        return self._T_cam_from_world
 
     def _moved_px(self, before: np.ndarray, after: np.ndarray) -> np.ndarray | float:
         """Upper bound on how far any point of an object moved in the image, pixels.
@@ -548,8 +564,9 @@ class FrameRenderer:
         if k.size == 0:
             return visible, occluder
         h, w = depth_m.shape
-        rows = np.clip(row[k, None].astype(np.intp) + _NEIGHBOURS[:, 0], 0, h - 1)
-        cols = np.clip(col[k, None].astype(np.intp) + _NEIGHBOURS[:, 1], 0, w - 1)
+        # Clamped into the image (np.clip's wrapper costs more than the two ufuncs).
+        rows = np.minimum(np.maximum(row[k, None].astype(np.intp) + _NEIGHBOUR_ROWS, 0), h - 1)
+        cols = np.minimum(np.maximum(col[k, None].astype(np.intp) + _NEIGHBOUR_COLS, 0), w - 1)
         seen = depth_m[rows, cols]  # (n, 9), the keypoint's own pixel first
         label = labels[rows, cols]
         band = (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)[:, None]
@@ -593,21 +610,21 @@ class FrameRenderer:
             data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
         )
         # The camera's working range: nothing is measured outside it (the far clip plane of
-        # the scene may serve a camera with a longer range).
-        # Background pixels (depth 0, label 0) are nearer than `near` too; resetting them is
-        # harmless and saves a pass.
-        out_of_range = np.less(depth_clean, self._near_m, out=self._mask_buffer)
+        # the scene may serve a camera with a longer range). OpenCV's thresholds zero depth
+        # below `near` (kept: above the float32 just below it) and beyond `far`; then every
+        # pixel without depth, background (label 0 already) or out of range, gets label 0.
+        cv2.threshold(depth_clean, self._below_near_m, 0.0, cv2.THRESH_TOZERO, dst=depth_clean)
         if self._check_far:
-            out_of_range |= np.greater(depth_clean, self._far_m, out=self._far_buffer)
-        np.copyto(depth_clean, np.float32(0.0), where=out_of_range)
-        np.copyto(labels, np.int16(0), where=out_of_range)
+            far = float(self._far_m)
+            cv2.threshold(depth_clean, far, 0.0, cv2.THRESH_TOZERO_INV, dst=depth_clean)
+        np.multiply(labels, np.not_equal(depth_clean, 0.0, out=self._mask_buffer), out=labels)
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:
             depth = self.sensor.apply(depth_clean, intr, rng)
             if np.may_share_memory(depth, depth_clean):
                 depth = depth.copy()  # a sensor model that returned its input
-        T = T_cam_from_world(data, self.renderer.camera_id)  # noqa: N806
+        T = self._camera_pose(data)  # noqa: N806
         R, t = T[:3, :3], T[:3, 3]  # noqa: N806
 
         # Keypoints.
@@ -622,40 +639,41 @@ class FrameRenderer:
         visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
         # Objects, all at once: (n, 4, 4) poses and (n, 8, 3) box corners in the camera frame.
         n = len(scene.objects)
-        bodies = self._object_bodies
-        T_cam_obj = np.zeros((n, 4, 4))  # noqa: N806
-        T_cam_obj[:, :3, :3] = R @ data.xmat[bodies].reshape(n, 3, 3)
-        T_cam_obj[:, :3, 3] = data.xpos[bodies] @ R.T + t
-        T_cam_obj[:, 3, 3] = 1.0
-        corners_cam = (
-            np.einsum("nij,nkj->nki", T_cam_obj[:, :3, :3], self._object_corners)
-            + T_cam_obj[:, None, :3, 3]
-        )
-        boxes = []
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uv = intr.project(corners_cam)  # (n, 8, 2)
-        for k in range(n):
-            if np.all(corners_cam[k, :, 2] > 1e-3):
-                boxes.append((uv[k].min(axis=0), uv[k].max(axis=0)))
-            else:  # partly behind the camera: its image extent is unbounded
-                boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
-        silhouettes = self._silhouettes(data, labels, depth_clean, corners_cam, boxes)
         objects = []
-        for k, (_, obj) in enumerate(scene.objects):
-            px_all = silhouettes[k].count()
-            px_visib = silhouettes[k].count_where(labels, OBJECT_LABEL_OFFSET + k)
-            objects.append(
-                ObjectLabel(
-                    instance=k,
-                    name=obj.name,
-                    ycbv_id=obj.ycbv_id,
-                    T_cam_from_obj=_owned_read_only(T_cam_obj[k].copy()),
-                    corners_cam=_owned_read_only(corners_cam[k].copy()),
-                    visib_fract=px_visib / px_all if px_all else 0.0,
-                    px_count_all=px_all,
-                    px_count_visib=px_visib,
-                )
+        if n:  # a scene without objects skips the object work (its arrays would be empty)
+            bodies = self._object_bodies
+            T_cam_obj = np.zeros((n, 4, 4))  # noqa: N806
+            T_cam_obj[:, :3, :3] = R @ data.xmat[bodies].reshape(n, 3, 3)
+            T_cam_obj[:, :3, 3] = data.xpos[bodies] @ R.T + t
+            T_cam_obj[:, 3, 3] = 1.0
+            corners_cam = (
+                np.einsum("nij,nkj->nki", T_cam_obj[:, :3, :3], self._object_corners)
+                + T_cam_obj[:, None, :3, 3]
             )
+            boxes = []
+            with np.errstate(divide="ignore", invalid="ignore"):
+                uv = intr.project(corners_cam)  # (n, 8, 2)
+            for k in range(n):
+                if np.all(corners_cam[k, :, 2] > 1e-3):
+                    boxes.append((uv[k].min(axis=0), uv[k].max(axis=0)))
+                else:  # partly behind the camera: its image extent is unbounded
+                    boxes.append((np.full(2, -np.inf), np.full(2, np.inf)))
+            silhouettes = self._silhouettes(data, labels, depth_clean, corners_cam, boxes)
+            for k, (_, obj) in enumerate(scene.objects):
+                px_all = silhouettes[k].count()
+                px_visib = silhouettes[k].count_where(labels, OBJECT_LABEL_OFFSET + k)
+                objects.append(
+                    ObjectLabel(
+                        instance=k,
+                        name=obj.name,
+                        ycbv_id=obj.ycbv_id,
+                        T_cam_from_obj=_owned_read_only(T_cam_obj[k].copy()),
+                        corners_cam=_owned_read_only(corners_cam[k].copy()),
+                        visib_fract=px_visib / px_all if px_all else 0.0,
+                        px_count_all=px_all,
+                        px_count_visib=px_visib,
+                    )
+                )
 
         occlusion_ratio = None
         if hand_occlusion:
@@ -670,12 +688,14 @@ class FrameRenderer:
         contacts = []
         ncon = data.ncon
         if ncon and n:
-            pairs = data.contact.geom[:ncon]  # (ncon, 2) geom ids
+            contact = data.contact
+            pairs = contact.geom[:ncon]  # (ncon, 2) geom ids
+            contact_pos = contact.pos
             hand_first = self._is_hand_geom[pairs[:, 0]] & (self._geom_instance[pairs[:, 1]] >= 0)
             hand_second = self._is_hand_geom[pairs[:, 1]] & (self._geom_instance[pairs[:, 0]] >= 0)
             force = np.zeros(6)
             for i in np.flatnonzero(hand_first | hand_second):
-                pos_cam = R @ data.contact.pos[i] + t
+                pos_cam = R @ contact_pos[i] + t
                 for hand_geom, other, hit in (
                     (pairs[i, 0], pairs[i, 1], hand_first[i]),
                     (pairs[i, 1], pairs[i, 0], hand_second[i]),
@@ -695,7 +715,7 @@ class FrameRenderer:
         return Frame(
             camera=self.camera_spec.name,
             K=self._K,
-            T_cam_from_world=_read_only(T),
+            T_cam_from_world=T,
             depth=_owned_read_only(depth),
             depth_clean=_read_only(depth_clean) if keep_clean else None,
             segmentation=_owned_read_only(labels),

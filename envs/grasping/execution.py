@@ -13,7 +13,7 @@ from typing import Literal
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial import ConvexHull, QhullError
 
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
@@ -47,7 +47,6 @@ from handsim.envs.physics import HandDriver, skin_friction
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.model import HandParams
 from handsim.hand.pose import JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.hand.pose_sources import minimum_jerk
 from handsim.world.objects import YCBObject
 from handsim.world.scene import Scene
 
@@ -129,27 +128,99 @@ _DIGIT_ALL_JOINTS = {
 }
 
 
+# Rotations of the per-step path as (w, x, y, z) quaternions through MuJoCo's C functions:
+# scipy's Rotation objects cost tens of microseconds each to make and combine.
+_IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def _quat_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
+    """(4,) wxyz quaternion of a (3,) rotation vector, radians."""
+    quat = _IDENTITY_QUAT.copy()
+    mujoco.mju_quatIntegrate(quat, np.asarray(rotvec, dtype=np.float64), 1.0)
+    return quat
+
+
+def _rotvec_from_quat(quat: np.ndarray) -> np.ndarray:
+    """(3,) rotation vector (angle in [0, pi]) of a unit wxyz quaternion."""
+    rotvec = np.empty(3)
+    mujoco.mju_quat2Vel(rotvec, quat, 1.0)
+    return rotvec
+
+
+def _quat_angle(quat_a: np.ndarray, quat_b: np.ndarray) -> float:
+    """Angle of the rotation between two unit wxyz quaternions, radians in [0, pi]."""
+    rotvec = np.empty(3)
+    mujoco.mju_subQuat(rotvec, quat_a, quat_b)
+    return math.sqrt(float(rotvec @ rotvec))
+
+
+def _quat_slerp(quat_0: np.ndarray, quat_1: np.ndarray, s: float) -> np.ndarray:
+    """Spherical interpolation from ``quat_0`` (s = 0) to ``quat_1`` (s = 1), the short way."""
+    rotvec = np.empty(3)
+    mujoco.mju_subQuat(rotvec, quat_1, quat_0)  # quat_0 * exp(rotvec) = quat_1
+    quat = quat_0.copy()
+    mujoco.mju_quatIntegrate(quat, rotvec, s)
+    return quat
+
+
+def _quat_from_matrix(R: np.ndarray) -> np.ndarray:  # noqa: N803
+    """(4,) wxyz quaternion of a (3, 3) rotation matrix."""
+    quat = np.empty(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
+    return quat
+
+
+def _median_rows(values: np.ndarray) -> np.ndarray:
+    """Per-column median of an (n, k) array: ``np.median(values, axis=0)`` without its overhead."""
+    n = len(values)
+    ordered = np.sort(values, axis=0)
+    if n % 2:
+        return ordered[n // 2]
+    return (ordered[n // 2 - 1] + ordered[n // 2]) / 2.0
+
+
 @dataclasses.dataclass
 class _Segment:
     name: str
     duration_s: float
     pos: np.ndarray
-    rotation: Rotation
+    quat: np.ndarray  # (4,) wxyz, world_from_hand
     angles: np.ndarray
 
 
 def _duration(
     pos0: np.ndarray,
     pos1: np.ndarray,
-    rot0: Rotation,
-    rot1: Rotation,
+    quat0: np.ndarray,
+    quat1: np.ndarray,
     speed_m_s: float,
     minimum_s: float,
 ) -> float:
     distance = float(np.linalg.norm(pos1 - pos0))
-    angle = float((rot1 * rot0.inv()).magnitude())
+    angle = _quat_angle(quat1, quat0)
     # Minimum jerk peaks at 1.875 times the mean speed.
     return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
+
+
+_HULLS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _hull_points(points: np.ndarray) -> np.ndarray:
+    """The points on the convex hull of ``points`` (all of them if the hull is degenerate).
+
+    The lowest point of a posed object is a hull vertex (a linear function's minimum over a
+    point set lies on its hull), so the filter's per-estimate test reads a few dozen points
+    rather than the model's thousands. Cached per points array.
+    """
+    cached = _HULLS.get(id(points))
+    if cached is not None and cached[0] is points:
+        return cached[1]
+    try:
+        hull = points[np.sort(ConvexHull(points).vertices)]
+    except (QhullError, ValueError):
+        hull = points
+    _HULLS[id(points)] = (points, hull)
+    return hull
 
 
 class _PoseFilter:
@@ -165,41 +236,61 @@ class _PoseFilter:
     """
 
     def __init__(self, obj: YCBObject) -> None:
-        self.points = np.asarray(obj.model_points_m)
-        self.pos: list[np.ndarray] = []
-        self.rot: list[np.ndarray] = []
+        self.points = _hull_points(np.asarray(obj.model_points_m))
+        # The estimates since the object last moved: rows [start, end) of reused buffers.
+        self._pos = np.empty((2 * _FILTER_WINDOW, 3))
+        self._quat = np.empty((2 * _FILTER_WINDOW, 4))  # wxyz
+        self._start = self._end = 0
+
+    def __len__(self) -> int:
+        return self._end - self._start
 
     def add(self, T: np.ndarray) -> None:
-        T = T.copy()
-        lowest = float((self.points @ T[:3, :3].T)[:, 2].min() + T[2, 3])
+        R = T[:3, :3]  # noqa: N806
+        pos = T[:3, 3].copy()
+        lowest = float((self.points @ R[2]).min() + pos[2])
         if abs(lowest) < _SUPPORT_SNAP_M:
-            T[2, 3] -= lowest
-        self.pos.append(T[:3, 3])
-        self.rot.append(T[:3, :3])
-        if len(self.pos) > _FILTER_WINDOW:
-            del self.pos[0], self.rot[0]
-        if len(self.pos) >= 10:
-            window = np.array(self.pos[:-5])
-            centre = np.median(window, axis=0)
+            pos[2] -= lowest
+        if self._end == len(self._pos):  # full: move the window to the front
+            n = len(self)
+            self._pos[:n] = self._pos[self._start : self._end]
+            self._quat[:n] = self._quat[self._start : self._end]
+            self._start, self._end = 0, n
+        self._pos[self._end] = pos
+        self._quat[self._end] = _quat_from_matrix(R)
+        self._end += 1
+        if len(self) > _FILTER_WINDOW:
+            self._start += 1
+        if len(self) >= 10:
+            window = self._pos[self._start : self._end - 5]
+            centre = _median_rows(window)
             # Robust per-axis spread of the estimates (MAD), and that of a median of five.
-            sigma = 1.4826 * np.median(np.abs(window - centre), axis=0)
-            recent = np.median(np.array(self.pos[-5:]), axis=0)
+            sigma = 1.4826 * _median_rows(np.abs(window - centre))
+            recent = _median_rows(self._pos[self._end - 5 : self._end])
             gate = max(_MOTION_MIN_M, 4.0 * float(np.linalg.norm(sigma)) * 1.25 / np.sqrt(5))
             if np.linalg.norm(recent - centre) > gate:
-                self.pos, self.rot = self.pos[-5:], self.rot[-5:]
+                self._start = self._end - 5
 
     def pose(self) -> np.ndarray:
         T = np.eye(4)
-        T[:3, 3] = np.median(np.array(self.pos), axis=0)
-        T[:3, :3] = Rotation.from_matrix(np.array(self.rot)).mean().as_matrix()
+        T[:3, 3] = _median_rows(self._pos[self._start : self._end])
+        # The chordal mean of the orientations: the principal eigenvector of sum(q q^T)
+        # (Markley et al. 2007; scipy's Rotation.mean), whatever the quaternions' signs.
+        quat = self._quat[self._start : self._end]
+        _, vectors = np.linalg.eigh(quat.T @ quat)
+        mean = np.empty(9)
+        mujoco.mju_quat2Mat(mean, np.ascontiguousarray(vectors[:, -1]))
+        T[:3, :3] = mean.reshape(3, 3)
         return T
 
 
 def _close(T: np.ndarray, reference: np.ndarray) -> bool:
     """Within :data:`REPLAN_DISTANCE_M` and :data:`REPLAN_ANGLE_RAD` of ``reference``."""
     moved = float(np.linalg.norm(T[:3, 3] - reference[:3, 3]))
-    turned = float(Rotation.from_matrix(T[:3, :3] @ reference[:3, :3].T).magnitude())
-    return moved < REPLAN_DISTANCE_M and turned < REPLAN_ANGLE_RAD
+    if moved >= REPLAN_DISTANCE_M:
+        return False
+    turned = _quat_angle(_quat_from_matrix(T[:3, :3]), _quat_from_matrix(reference[:3, :3]))
+    return turned < REPLAN_ANGLE_RAD
 
 
 class GraspExpert:
@@ -319,6 +410,7 @@ class GraspExpert:
         self._scale = np.ones(3)  # speed jitter of reach, approach, lift
         self._grip: tuple[np.ndarray, np.ndarray] | None = None  # contact angles, squeeze
         self._grip_scale: list[float] = [1.0]
+        self._groups: list[tuple[np.ndarray, np.ndarray, float]] = []
         self._grip_force_n: float | None = None
         self._hold_palm: list[np.ndarray] = []  # perceived object positions in the palm frame
         self._hold_ref: np.ndarray | None = None
@@ -346,7 +438,7 @@ class GraspExpert:
             "start",
             0.0,
             hand.wrist_pos.copy(),
-            Rotation.from_rotvec(hand.wrist_rotvec),
+            _quat_from_rotvec(hand.wrist_rotvec),
             hand.angles.copy(),
         )
         self.plan = None
@@ -405,13 +497,14 @@ class GraspExpert:
             plan.approach_dir
         )
         lift_pos = grasp_pos + np.array([0.0, 0.0, _LIFT_TARGET_M])
+        quat = plan.rotation.as_quat(scalar_first=True)
         segments = [
-            _Segment("reach", 0.0, pre_pos, plan.rotation, plan.preshape),
-            _Segment("approach", 0.0, plan.approach_end, plan.rotation, plan.preshape),
-            _Segment("close", _CLOSE_S, grasp_pos, plan.rotation, plan.contact),
-            _Segment("squeeze", _SQUEEZE_S, grasp_pos, plan.rotation, plan.closed),
-            _Segment("settle", _SETTLE_S, grasp_pos, plan.rotation, plan.closed),
-            _Segment("lift", 0.0, lift_pos, plan.rotation, plan.closed),
+            _Segment("reach", 0.0, pre_pos, quat, plan.preshape),
+            _Segment("approach", 0.0, plan.approach_end, quat, plan.preshape),
+            _Segment("close", _CLOSE_S, grasp_pos, quat, plan.contact),
+            _Segment("squeeze", _SQUEEZE_S, grasp_pos, quat, plan.closed),
+            _Segment("settle", _SETTLE_S, grasp_pos, quat, plan.closed),
+            _Segment("lift", 0.0, lift_pos, quat, plan.closed),
         ]
         if first == "approach":
             segments = segments[1:]
@@ -423,7 +516,7 @@ class GraspExpert:
                     "lift": (_LIFT_SPEED_M_S, self._scale[2]),
                 }.get(segment.name, (_SLOW_SPEED_M_S, self._scale[1]))
                 segment.duration_s = jitter * _duration(
-                    previous.pos, segment.pos, previous.rotation, segment.rotation, speed, 0.4
+                    previous.pos, segment.pos, previous.quat, segment.quat, speed, 0.4
                 )
             previous = segment
         self._segments = segments
@@ -434,10 +527,12 @@ class GraspExpert:
 
     def _maybe_replan(self, state: GraspState) -> None:
         """Closed loop: plan again if the filtered object pose moved (reach, approach, wait)."""
-        self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
         if not self.replan or self.phase not in ("wait", "reach", "approach"):
+            # The filtered pose serves re-planning only, which never comes back once the
+            # digits close (or without replan): it stops taking estimates.
             return
+        self._filter.add(state.T_world_from_obj)
         t = state.time_s
         if t - self._last_plan_s < _REPLAN_PERIOD_S - 1e-9:
             return
@@ -464,7 +559,9 @@ class GraspExpert:
             d = plan.approach_dir
             along = float(np.clip((here - a) @ d, 0.0, _PREGRASP_DIST_M))
             off_line = float(np.linalg.norm(here - (a + along * d)))
-            turn = float((plan.rotation * old.rotation.inv()).magnitude())
+            turn = _quat_angle(
+                plan.rotation.as_quat(scalar_first=True), old.rotation.as_quat(scalar_first=True)
+            )
             if off_line < 0.01 and turn < np.deg2rad(10.0) and plan.strategy == old.strategy:
                 first = "approach"
         self._make_plan(T, t, first, plan)
@@ -572,7 +669,7 @@ class GraspExpert:
             ]
             self._grip_force_n = force
         scale = np.ones(len(JOINT_NAMES))
-        for k, (joints, _, _) in enumerate(self._grip_groups()):
+        for k, (joints, _, _) in enumerate(self._groups):
             scale[joints] = self._grip_scale[k]
         targets = contact + scale * (squeeze - contact)
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
@@ -583,7 +680,7 @@ class GraspExpert:
         squeeze = self.plan.closed
         self._grip = (contact, squeeze)
         touch = state.touch_forces_n
-        groups = self._grip_groups()
+        groups = self._groups = self._grip_groups()  # fixed from here: the plan no longer changes
         if touch is not None:
             wanted = self._grip_force_target(lifting=True)
             self._grip_scale = [
@@ -637,7 +734,7 @@ class GraspExpert:
         self._maybe_replan(state)
         pose = self._follow(state)
         self._commanded = _Segment(
-            "commanded", 0.0, pose.wrist_pos, Rotation.from_rotvec(pose.wrist_rotvec), pose.angles
+            "commanded", 0.0, pose.wrist_pos, self._commanded_quat, pose.angles
         )
         return pose
 
@@ -646,7 +743,8 @@ class GraspExpert:
         if self.plan is None:
             self.phase = "wait"
             here = self._commanded
-            return HandPose(here.pos, here.rotation.as_rotvec(), here.angles)
+            self._commanded_quat = here.quat
+            return HandPose(here.pos, _rotvec_from_quat(here.quat), here.angles)
         while self._index < len(self._segments):
             segment = self._segments[self._index]
             elapsed = t - self._segment_start_s
@@ -666,15 +764,18 @@ class GraspExpert:
         if self._index >= len(self._segments):
             self.phase = "hold"
             last = self._segments[-1]
-            return HandPose(last.pos, last.rotation.as_rotvec(), self._regulated_angles(state))
+            self._commanded_quat = last.quat
+            return HandPose(last.pos, _rotvec_from_quat(last.quat), self._regulated_angles(state))
         segment = self._segments[self._index]
         self.phase = segment.name
         tau = (t - self._segment_start_s) / max(segment.duration_s, 1e-9)
-        s = float(np.clip(minimum_jerk(np.clip(tau, 0.0, 1.0)), 0.0, 1.0))
+        # minimum_jerk on one number, in Python floats (the same operations, bit for bit).
+        t = min(max(tau, 0.0), 1.0)
+        s = min(max(t**3 * (10.0 + t * (-15.0 + 6.0 * t)), 0.0), 1.0)
         start = self._from
         pos = start.pos + s * (segment.pos - start.pos)
-        slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.rotation, segment.rotation]))
-        rotation = slerp([s])[0]
+        quat = _quat_slerp(start.quat, segment.quat, s)
+        self._commanded_quat = quat
         if self._grip is not None:
             angles = self._regulated_angles(state)
             if segment.name == "settle":
@@ -682,7 +783,7 @@ class GraspExpert:
                 angles = start.angles + s * (angles - start.angles)
         else:
             angles = start.angles + s * (segment.angles - start.angles)
-        return HandPose(pos, rotation.as_rotvec(), angles)
+        return HandPose(pos, _rotvec_from_quat(quat), angles)
 
 
 # Success --------------------------------------------------------------------------------------
@@ -791,24 +892,37 @@ class LiftTracker:
         Raises:
             InvalidGraspState: for non-increasing time or malformed arrays.
         """
-        if not time_s > self._last_time_s:
-            raise InvalidGraspState(
-                f"time_s must increase from step to step; received {time_s} after "
-                f"{self._last_time_s}"
-            )
+        self._check_time(time_s)
         pos = np.asarray(obj_pos_world, dtype=np.float64)
         if pos.shape != (3,) or not np.all(np.isfinite(pos)):
             raise InvalidGraspState(
                 f"obj_pos_world must be 3 finite numbers (m); received {obj_pos_world!r}"
             )
         T = _check_transform(T_world_from_palm, "T_world_from_palm")
+        return self._update(time_s, pos, T[:3, :3], T[:3, 3])
+
+    def _check_time(self, time_s: float) -> None:
+        if not time_s > self._last_time_s:
+            raise InvalidGraspState(
+                f"time_s must increase from step to step; received {time_s} after "
+                f"{self._last_time_s}"
+            )
+
+    def _update(
+        self,
+        time_s: float,
+        pos: np.ndarray,
+        R_world_from_palm: np.ndarray,  # noqa: N803
+        palm_pos: np.ndarray,
+    ) -> bool:
+        """:meth:`update` on checked arrays."""
         self._last_time_s = float(time_s)
         self.steps += 1
         if self.success:
             return True
         lift = float(pos[2] - self.rest_height_m)
         self.max_lift_m = max(self.max_lift_m, lift)
-        pos_palm = T[:3, :3].T @ (pos - T[:3, 3])
+        pos_palm = R_world_from_palm.T @ (pos - palm_pos)
         if lift < self.lift_height_m:
             if self._window_start_s is not None:
                 self._broken = "dropped"
@@ -847,10 +961,16 @@ class LiftTracker:
         body_id = _object_body_id(scene, instance)
         palm_id = int(scene.model.body(scene.hand.root_body).id)
         data = scene.data
-        T = np.eye(4)
-        T[:3, :3] = data.xmat[palm_id].reshape(3, 3)
-        T[:3, 3] = data.xpos[palm_id]
-        return self.update(time_s, data.xpos[body_id], T)
+        self._check_time(time_s)
+        pos, palm_pos = data.xpos[body_id], data.xpos[palm_id]
+        R = data.xmat[palm_id].reshape(3, 3)  # noqa: N806
+        # MuJoCo's xmat is a rotation; only a diverged state could be non-finite.
+        if not (np.isfinite(pos).all() and np.isfinite(R).all() and np.isfinite(palm_pos).all()):
+            raise InvalidGraspState(
+                f"the scene's object or palm pose is not finite (object at {pos}); the physics "
+                "diverged"
+            )
+        return self._update(time_s, pos.copy(), R, palm_pos)
 
     def outcome(self, diverged: bool = False) -> GraspOutcome:
         """The outcome of the episode so far (call at its end).

@@ -97,15 +97,17 @@ _EYE3 = np.eye(3)
 
 def _check_transform(T: object, name: str) -> np.ndarray:
     array = np.array(T, dtype=np.float64)
-    if array.shape != (4, 4) or not np.all(np.isfinite(array)):
+    if array.shape != (4, 4) or not np.isfinite(array).all():
         raise InvalidGraspState(
             f"{name} must be a finite (4, 4) rigid transform; received shape "
             f"{np.shape(T)} {'with NaN/Inf' if array.shape == (4, 4) else ''}".rstrip()
         )
     rot = array[:3, :3]
     # np.allclose(rot.T @ rot, I, atol=1e-5) and a positive determinant, without their overhead.
-    orthonormal = np.all(np.abs(rot.T @ rot - _EYE3) <= 1e-5 + 1e-5 * _EYE3)
-    if not orthonormal or np.linalg.det(rot) < 0:
+    orthonormal = (np.abs(rot.T @ rot - _EYE3) <= 1e-5 + 1e-5 * _EYE3).all()
+    # The determinant's sign: (r0 x r1) . r2, from the six products np.cross would make.
+    (a, b, c), (d, e, f), (g, h, i) = rot.tolist()
+    if not orthonormal or a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0:
         raise InvalidGraspState(f"{name}[:3, :3] must be a rotation matrix; received {rot}")
     return array
 
@@ -147,7 +149,7 @@ class GraspState:
                 f"hand_pose must be a single HandPose; received {type(self.hand_pose).__name__}"
             )
         keypoints = np.array(self.keypoints_world, dtype=np.float64)
-        if keypoints.shape != (21, 3) or not np.all(np.isfinite(keypoints)):
+        if keypoints.shape != (21, 3) or not np.isfinite(keypoints).all():
             raise InvalidGraspState(
                 "keypoints_world must be a finite (21, 3) array in metres; received shape "
                 f"{keypoints.shape}"
@@ -159,7 +161,7 @@ class GraspState:
             )
         angles = self.hand_pose.angles if self.joint_angles_rad is None else self.joint_angles_rad
         angles = np.array(angles, dtype=np.float64)
-        if angles.shape != (21,) or not np.all(np.isfinite(angles)):
+        if angles.shape != (21,) or not np.isfinite(angles).all():
             raise InvalidGraspState(
                 f"joint_angles_rad must be a finite (21,) array in radians; received shape "
                 f"{angles.shape}"
@@ -167,7 +169,7 @@ class GraspState:
         object.__setattr__(self, "joint_angles_rad", angles)
         if self.touch_forces_n is not None:
             touch = np.array(self.touch_forces_n, dtype=np.float64)
-            if touch.shape != (len(TOUCH_PARTS),) or not np.all(np.isfinite(touch)):
+            if touch.shape != (len(TOUCH_PARTS),) or not np.isfinite(touch).all():
                 raise InvalidGraspState(
                     f"touch_forces_n must be a finite ({len(TOUCH_PARTS)},) array in newtons "
                     f"(palm, thumb, index, middle, ring, little); received shape {touch.shape}"
@@ -206,20 +208,37 @@ class GraspState:
         T[:3, :3] = data.xmat[body_id].reshape(3, 3)
         T[:3, 3] = data.xpos[body_id]
         pose = scene.binding.pose(data)
-        return cls(
-            time_s=time_s,
-            hand_pose=pose,
-            joint_angles_rad=pose.angles,
-            keypoints_world=scene.binding.keypoints(data),
-            T_world_from_obj=T,
-            obj=scene.objects[instance][1],
-            touch_forces_n=touch_forces(scene, instance),
-            obstacles=tuple(
+        fields = {
+            "time_s": time_s,
+            "hand_pose": pose,
+            "keypoints_world": scene.binding.keypoints(data),
+            "T_world_from_obj": T,
+            "obj": scene.objects[instance][1],
+            "joint_angles_rad": pose.angles.copy(),
+            "touch_forces_n": touch_forces(scene, instance),
+            "obstacles": tuple(
                 (other, _body_pose(scene, int(scene.model.body(body).id)))
                 for k, (body, other) in enumerate(scene.objects)
                 if k != instance
             ),
+        }
+        finite = (
+            isinstance(time_s, (int, float, np.floating))
+            and math.isfinite(time_s)
+            and np.isfinite(T).all()
+            and np.isfinite(fields["keypoints_world"]).all()
+            and np.isfinite(fields["touch_forces_n"]).all()
+            and all(np.isfinite(T_other).all() for _, T_other in fields["obstacles"])
         )
+        if not finite:
+            return cls(**fields)  # raises, naming what is not finite (a diverged state)
+        # MuJoCo's arrays have the right shapes and its rotations are rotations: the checks of
+        # __post_init__ (a third of the cost of a state) have nothing to find.
+        state = object.__new__(cls)
+        for name, value in fields.items():
+            object.__setattr__(state, name, value)
+        object.__setattr__(state, "time_s", float(time_s))
+        return state
 
 
 def _body_pose(scene: Scene, body_id: int) -> np.ndarray:
@@ -247,13 +266,12 @@ def touch_forces(scene: Scene, instance: int) -> np.ndarray:
     geoms = data.contact.geom[:n]
     labels = scene.geom_labels[geoms].astype(int) - _PALM_LABEL
     on_target = model.geom_bodyid[geoms] == body_id
+    # A hand part on one side, the target on the other; visited in (contact, side) order.
+    hits = on_target[:, ::-1] & (labels >= 0) & (labels < len(TOUCH_PARTS))
     wrench = np.zeros(6)
-    for i in range(n):
-        for side in (0, 1):
-            part = labels[i, side]
-            if on_target[i, 1 - side] and 0 <= part < len(TOUCH_PARTS):
-                mujoco.mj_contactForce(model, data, i, wrench)
-                forces[part] += wrench[0]
+    for i, side in zip(*np.nonzero(hits), strict=True):
+        mujoco.mj_contactForce(model, data, int(i), wrench)
+        forces[labels[i, side]] += wrench[0]
     return forces
 
 

@@ -116,6 +116,11 @@ def empty_label_arrays() -> dict[str, np.ndarray]:
     False, integers -1 except the counts (0), ``hand_occlusion_ratio`` -1. Readers check
     ``valid`` (and ``object_valid``, ``contact_count`` for the slots).
     """
+    # Copies of one template: an env makes these every step.
+    return {key: array.copy() for key, array in _EMPTY_LABEL_ARRAYS.items()}
+
+
+def _make_empty_label_arrays() -> dict[str, np.ndarray]:
     out = {}
     for key, (shape, dtype, _) in LABEL_SCHEMA.items():
         if dtype.kind == "f":
@@ -129,6 +134,9 @@ def empty_label_arrays() -> dict[str, np.ndarray]:
     out["object_px_count_visib"][:] = 0
     out["hand_occlusion_ratio"][()] = -1.0
     return out
+
+
+_EMPTY_LABEL_ARRAYS = _make_empty_label_arrays()
 
 
 def frame_to_arrays(frame: Frame, *, images: bool = False) -> dict[str, np.ndarray]:

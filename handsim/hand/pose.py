@@ -48,11 +48,11 @@ little_mcp_abd         -45 .. 15    ulnar: the mean widest ring-little spread (3
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.errors import InvalidPose
 
@@ -150,8 +150,26 @@ MAX_ABS_POSE = {"wrist_pos": 1000.0, "wrist_rotvec": 100.0, "angles": 100.0}
 (and a rotation vector of 1e300 rad has no usable quaternion)."""
 
 
+def _half_angle_sinc(angle: float) -> float:
+    """``sin(angle / 2) / angle``, by its series for small angles (as scipy's from_rotvec)."""
+    if angle <= 1e-3:
+        return 0.5 - angle**2 / 48 + angle**4 / 3840
+    return math.sin(angle / 2) / angle
+
+
 def _as_float_array(value: object, name: str, last_dim: int) -> np.ndarray:
     # A copy: poses do not alias (or get mutated through) the caller's arrays.
+    if (
+        type(value) is np.ndarray
+        and value.dtype == np.float64
+        and value.ndim
+        and value.shape[-1] == last_dim
+    ):
+        # The common case in a step loop, in one reduction (NaN fails the comparison and takes
+        # the checks below, which name the problem).
+        array = value.copy()
+        if array.size == 0 or float(np.abs(array).max()) <= MAX_ABS_POSE[name]:
+            return array
     try:
         raw = np.array(value)
     except ValueError:
@@ -283,8 +301,21 @@ class HandPose:
     @property
     def quat_wxyz(self) -> np.ndarray:
         """(..., 4) rotation ``world_from_hand`` as a quaternion, MuJoCo's (w, x, y, z) order."""
-        quat_xyzw = Rotation.from_rotvec(self.wrist_rotvec.reshape(-1, 3)).as_quat()
-        return np.roll(quat_xyzw, 1, axis=-1).reshape(self.batch_shape + (4,))
+        rotvec = self.wrist_rotvec
+        if rotvec.shape == (3,):
+            # One pose (the step loop's case): scalar arithmetic, no array temporaries.
+            x, y, z = rotvec.tolist()
+            angle = math.sqrt(x * x + y * y + z * z)
+            scale = _half_angle_sinc(angle)
+            return np.array([math.cos(angle / 2), scale * x, scale * y, scale * z])
+        # scipy's Rotation.from_rotvec (and its series for small angles), without its overhead.
+        angle = np.sqrt(np.sum(rotvec * rotvec, axis=-1))
+        small = angle <= 1e-3
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.where(
+                small, 0.5 - angle**2 / 48 + angle**4 / 3840, np.sin(angle / 2) / angle
+            )
+        return np.concatenate([np.cos(angle / 2)[..., None], scale[..., None] * rotvec], axis=-1)
 
     def __getitem__(self, index: object) -> HandPose:
         """Index into the batch dimensions."""
@@ -336,7 +367,14 @@ class HandPose:
 
     def clip(self) -> HandPose:
         """Copy with every articulation clamped to :data:`JOINT_LIMITS`."""
-        return self.replace(angles=np.clip(self.angles, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]))
+        # Fields of a valid pose, angles clamped into the limits: valid, no checks to repeat.
+        clipped = object.__new__(type(self))
+        object.__setattr__(clipped, "wrist_pos", self.wrist_pos.copy())
+        object.__setattr__(clipped, "wrist_rotvec", self.wrist_rotvec.copy())
+        object.__setattr__(
+            clipped, "angles", np.clip(self.angles, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+        )
+        return clipped
 
     def mirrored(self) -> HandPose:
         """The pose mirrored through the world ``x = 0`` plane (right <-> left hand).

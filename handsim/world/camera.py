@@ -156,8 +156,9 @@ class CameraIntrinsics:
             (..., 2) pixel coordinates ``(u, v)``.
         """
         p = np.asarray(points_cam, dtype=np.float64)
-        z = p[..., 2]
-        return np.stack([self.fx * p[..., 0] / z + self.cx, self.fy * p[..., 1] / z + self.cy], -1)
+        # fx * x / z + cx and fy * y / z + cy, both columns at once.
+        f, c = np.array((self.fx, self.fy)), np.array((self.cx, self.cy))
+        return p[..., :2] * f / p[..., 2:3] + c
 
     def backproject(self, depth_m: np.ndarray) -> np.ndarray:
         """Back-project a depth image to camera-frame points.

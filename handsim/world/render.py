@@ -196,7 +196,7 @@ class DepthRenderer:
         self._rect = mujoco.MjrRect(0, 0, w, h)
         self._rgb = np.empty((h, w, 3), dtype=np.uint8)
         self._zbuffer = np.empty((h, w), dtype=np.float32)
-        self._background = np.empty((h, w), dtype=bool)
+        self._foreground = np.empty((h, w), dtype=bool)
         self._lut = np.empty(256, dtype=np.int32)  # segmentation colour index -> geom id
         self._lut_key: tuple | None = None
         self._red: np.ndarray | None = None
@@ -319,15 +319,19 @@ class DepthRenderer:
             out = (np.empty_like(self._zbuffer), np.empty(self._zbuffer.shape, dtype=dtype))
         depth_m, ids = out
         self._geom_ids(self._rgb, out=ids, geom_values=geom_values, fill=fill)
-        # float32 is enough: the relative rounding error is ~1e-7 (0.2 um at 1.5 m).
-        np.add(self._zbuffer[::-1], self._c, out=depth_m)
+        # float32 is enough: the relative rounding error is ~1e-7 (0.2 um at 1.5 m). Flipping
+        # first keeps every pass on contiguous rows.
+        cv2.flip(self._zbuffer, 0, dst=depth_m)
+        np.add(depth_m, self._c, out=depth_m)
         np.divide(self._d, depth_m, out=depth_m)
-        background = self._background
+        foreground = self._foreground
         if self._scene.ngeom < 255:
-            np.equal(self._red, 0, out=background)  # colour index 0: no geom
+            np.not_equal(self._red, 0, out=foreground)  # colour index 0: no geom
         else:
-            np.less(self._geom_ids(self._rgb), 0, out=background)
-        np.copyto(depth_m, np.float32(0.0), where=background)
+            np.greater_equal(self._geom_ids(self._rgb), 0, out=foreground)
+        # Depth 0 on the background: the depth is finite everywhere (the far plane at most), so
+        # multiplying by the mask (1 or 0) is exact, and a fraction of np.copyto(where=)'s cost.
+        np.multiply(depth_m, foreground, out=depth_m)
         return depth_m, ids
 
     def render_segmentation(
