@@ -619,8 +619,10 @@ class GraspExpert:
     def _slipping(self, state: GraspState) -> bool:
         """Has the object moved :data:`HOLD_SLIP_M` in the palm frame since the hold began?"""
         hand = state.hand_pose
-        rotation = Rotation.from_rotvec(hand.wrist_rotvec)
-        in_palm = rotation.inv().apply(state.T_world_from_obj[:3, 3] - hand.wrist_pos)
+        quat = _quat_from_rotvec(hand.wrist_rotvec)
+        in_palm = np.empty(3)
+        mujoco.mju_negQuat(quat, quat)  # world -> palm
+        mujoco.mju_rotVecQuat(in_palm, state.T_world_from_obj[:3, 3] - hand.wrist_pos, quat)
         self._hold_palm = [*self._hold_palm[1 - _SLIP_WINDOW :], in_palm]
         if len(self._hold_palm) < _SLIP_WINDOW:
             return False
