@@ -128,18 +128,9 @@ _DIGIT_ALL_JOINTS = {
 }
 
 
-# Rotations of the per-step path as (w, x, y, z) quaternions through MuJoCo's C functions:
-# scipy's Rotation objects cost tens of microseconds each to make and combine.
-_IDENTITY_QUAT = np.array([1.0, 0.0, 0.0, 0.0])
-
-
-def _quat_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
-    """(4,) wxyz quaternion of a (3,) rotation vector, radians."""
-    quat = _IDENTITY_QUAT.copy()
-    mujoco.mju_quatIntegrate(quat, np.asarray(rotvec, dtype=np.float64), 1.0)
-    return quat
-
-
+# Rotations of the per-step path as (w, x, y, z) quaternions through MuJoCo's C functions
+# (HandPose.quat_wxyz for a pose's): scipy's Rotation objects cost tens of microseconds each to
+# make and combine.
 def _rotvec_from_quat(quat: np.ndarray) -> np.ndarray:
     """(3,) rotation vector (angle in [0, pi]) of a unit wxyz quaternion."""
     rotvec = np.empty(3)
@@ -438,7 +429,7 @@ class GraspExpert:
             "start",
             0.0,
             hand.wrist_pos.copy(),
-            _quat_from_rotvec(hand.wrist_rotvec),
+            hand.quat_wxyz,
             hand.angles.copy(),
         )
         self.plan = None
@@ -619,9 +610,9 @@ class GraspExpert:
     def _slipping(self, state: GraspState) -> bool:
         """Has the object moved :data:`HOLD_SLIP_M` in the palm frame since the hold began?"""
         hand = state.hand_pose
-        quat = _quat_from_rotvec(hand.wrist_rotvec)
+        quat = np.empty(4)
+        mujoco.mju_negQuat(quat, hand.quat_wxyz)  # world -> palm
         in_palm = np.empty(3)
-        mujoco.mju_negQuat(quat, quat)  # world -> palm
         mujoco.mju_rotVecQuat(in_palm, state.T_world_from_obj[:3, 3] - hand.wrist_pos, quat)
         self._hold_palm = [*self._hold_palm[1 - _SLIP_WINDOW :], in_palm]
         if len(self._hold_palm) < _SLIP_WINDOW:
