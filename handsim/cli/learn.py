@@ -28,6 +28,13 @@ def _positive_float(value: str) -> float:
     return v
 
 
+def _check_device(device: str) -> None:
+    import torch
+
+    if device == "cuda" and not torch.cuda.is_available():
+        raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
+
+
 def _train(args: argparse.Namespace) -> int:
     import torch
 
@@ -62,8 +69,7 @@ def _train(args: argparse.Namespace) -> int:
         max_frames=args.max_frames,
         seed=args.seed,
     )
-    if args.device == "cuda" and not torch.cuda.is_available():
-        raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
+    _check_device(args.device)
     metrics = train(
         args.data,
         args.out,
@@ -91,12 +97,9 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _evaluate(args: argparse.Namespace) -> int:
-    import torch
-
     from handsim.estimators.deepprior.evaluate import evaluate
 
-    if args.device == "cuda" and not torch.cuda.is_available():
-        raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
+    _check_device(args.device)
     data = args.data
     if args.env is not None:
         from handsim.estimators.deepprior.data import env_frames

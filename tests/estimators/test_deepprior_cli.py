@@ -187,3 +187,16 @@ def test_deepprior_with_the_com_detector_and_no_refinement(tiny_data, tmp_path):
     assert np.linalg.norm(center - frames.keypoints_cam[0, MIDDLE_MCP]) < 0.125
     with pytest.raises(InvalidCheckpoint, match="detector must be one of plane, com"):
         DeepPriorEstimator(tmp_path / "dp", localizer=None, detector="table")
+
+
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_cli_device_cuda_without_a_gpu_is_one_error_line(command, tmp_path, capsys, monkeypatch):
+    """--device cuda on a machine without CUDA says so (exit 2) before any work."""
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    args = {
+        "train": ["train", "localizer", "--data", str(tmp_path), "--out", str(tmp_path / "r")],
+        "evaluate": ["evaluate", "--estimator", "deepprior++", "--data", str(tmp_path),
+                     "--out", str(tmp_path / "o")],
+    }[command]  # fmt: skip
+    assert main([*args, "--device", "cuda", "-q"]) == 2
+    assert "no CUDA device is available to torch; use cpu" in capsys.readouterr().err
