@@ -276,7 +276,8 @@ def train(
         import cv2
 
         # OpenCV's thread pool does not survive a fork (its workers hang); one process per
-        # core needs no threads.
+        # core needs no threads. Restored when the run completes.
+        opencv_threads = cv2.getNumThreads()
         cv2.setNumThreads(1)
     if device.startswith("cuda"):
         torch.backends.cudnn.benchmark = True
@@ -448,4 +449,6 @@ def train(
         metrics["pca_explained_variance"] = [float(v) for v in pca["explained"]]
         metrics["pca_cumulative"] = [float(v) for v in np.cumsum(pca["explained"])]
     (out / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    if loader_workers:
+        cv2.setNumThreads(opencv_threads)
     return metrics
