@@ -37,7 +37,8 @@ itself in a new process (a fork of a process that had rendered) drops the inheri
 without touching them and makes its own. ``import handsim`` also sets ``LP_NUM_THREADS=0``
 (unless set) so that Mesa's software rasterizer keeps no worker threads that a forked child
 would wait for; vector envs therefore work with the ``fork``, ``spawn`` and ``forkserver`` start
-methods.
+methods. A Gymnasium vector worker is pinned to one CPU (:mod:`handsim.envs.workers`: Linux
+otherwise often runs two workers on one CPU).
 """
 
 from __future__ import annotations
@@ -68,6 +69,7 @@ from handsim.envs.physics import (
     HandDriver,
     PhysicsDiverged,
 )
+from handsim.envs.workers import pin_vector_worker
 from handsim.errors import HandSimError
 from handsim.frame import Frame, FrameRenderer
 from handsim.hand.model import (
@@ -284,6 +286,9 @@ class HandSimEnv(gym.Env, abc.ABC):
         self._frame_renderer: FrameRenderer | None = None
         self._rgb_renderer: mujoco.Renderer | None = None
         self._gl_pid = os.getpid()
+        self.worker_cpu = pin_vector_worker()
+        """The CPU this process was pinned to as a vector-env worker, or ``None``
+        (:mod:`handsim.envs.workers`)."""
         self._viewer: Any = None
         self._viewer_camera: mujoco.MjvCamera | None = None
         self._viewer_range_m = (0.1, 2.0)

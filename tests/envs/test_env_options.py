@@ -1,6 +1,7 @@
 """Observation options, rendering for people, vector envs, experts through wrappers, bad actions."""
 
 import multiprocessing as mp
+import os
 
 import gymnasium as gym
 import mujoco
@@ -12,6 +13,7 @@ import handsim.envs
 from handsim.envs.base import DEPTH_MAX_M, InvalidAction, _nearest_indices, scaled_intrinsics
 from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.hand_pose import HandPoseEnv
+from handsim.envs.workers import PIN_ENV_VAR, pin_vector_worker
 from handsim.errors import HandSimError
 from handsim.frame import Frame
 from handsim.world.camera import camera_preset
@@ -317,10 +319,48 @@ def test_async_vector_env_with_every_start_method(context):
     parent = _rendered_parent_env()
     envs = gym.make_vec("handsim/HandPose-v0", num_envs=2, vectorization_mode="async",
                         vector_kwargs={"context": context}, width=32, height=24)  # fmt: skip
+    cpus = envs.get_attr("worker_cpu")
     obs, reward = _run_vector(envs)
     assert obs["depth"].shape == (2, 24, 32) and np.all(obs["depth"].max(axis=(1, 2)) > 0)
     assert reward.shape == (2,)
+    allowed = sorted(os.sched_getaffinity(0))
+    if len(allowed) > 1:  # one worker per CPU
+        assert list(cpus) == allowed[:2]
+    assert parent.unwrapped.worker_cpu is None  # this process is no worker
     parent.close()
+
+
+def _pin_in_child(queue):
+    queue.put((pin_vector_worker(), pin_vector_worker(), sorted(os.sched_getaffinity(0))))
+
+
+@pytest.mark.parametrize(
+    ("name", "setting", "pinned"),
+    [
+        ("Worker<AsyncVectorEnv>-3", None, True),
+        ("Worker<AsyncVectorEnv>-3", "0", False),
+        ("Process-1", None, False),
+    ],
+)
+def test_vector_workers_are_pinned_to_one_cpu(monkeypatch, name, setting, pinned):
+    """A Gymnasium worker (by its process name) is pinned to CPU i mod n, unless turned off."""
+    allowed = sorted(os.sched_getaffinity(0))
+    if setting is None:
+        monkeypatch.delenv(PIN_ENV_VAR, raising=False)
+    else:
+        monkeypatch.setenv(PIN_ENV_VAR, setting)
+    ctx = mp.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_pin_in_child, args=(queue,), name=name)
+    child.start()
+    child.join(timeout=60)
+    first, again, affinity = queue.get(timeout=5)
+    if pinned and len(allowed) > 1:
+        assert first == again == allowed[3 % len(allowed)]
+        assert affinity == [first]
+    else:
+        assert first is None and again is None
+        assert affinity == allowed
 
 
 def test_make_vec_with_default_arguments():
