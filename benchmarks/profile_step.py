@@ -1,6 +1,7 @@
 """Where an env step's time goes: process CPU time per part, and cProfile's top functions.
 
-Run: ``python benchmarks/profile_step.py [--env Grasp-v0] [--steps 300] [--cprofile]``.
+Run: ``python benchmarks/profile_step.py [--env Grasp-v0] [--steps 300] [--cprofile]
+[--draw-by-part]``.
 
 The env steps with its expert (as in ``bench_envs.py --limit``). Each part is timed by wrapping
 the function that does it (process CPU time, nested parts subtracted):
@@ -15,6 +16,9 @@ the function that does it (process CPU time, nested parts subtracted):
 - ``env (other)``: the rest of ``env.step`` (action, reward, observation, info).
 
 ``--cprofile`` also prints cProfile's top functions by own time (CPU clock).
+``--draw-by-part`` then times the depth draw + read-back of the last state with parts of the
+scene hidden (everything, without the palm's mesh, without the hand, without the table,
+nothing), with the triangles each part adds.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ import numpy as np
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.physics import HandDriver
 from handsim.frame import FrameRenderer
-from handsim.world.render import DepthRenderer
+from handsim.world.render import RENDERED_GEOM_GROUPS, DepthRenderer
 
 _ENVS = {
     "HandPose-v0": {},
@@ -72,6 +76,7 @@ def main() -> None:
     parser.add_argument("--env", default="Grasp-v0", choices=tuple(_ENVS))
     parser.add_argument("--steps", type=int, default=300)
     parser.add_argument("--cprofile", action="store_true")
+    parser.add_argument("--draw-by-part", action="store_true")
     args = parser.parse_args()
     timers = _Timers()
     for owner, name in ((DepthRenderer, "_draw"), (mujoco, "mjr_readPixels")):
@@ -114,7 +119,46 @@ def main() -> None:
         print(f"{part:<40} {1e3 * spent / args.steps:8.2f} {100 * spent / total:5.0f}%")
     if profile is not None:
         pstats.Stats(profile).sort_stats("tottime").print_stats(20)
+    if args.draw_by_part:
+        _draw_by_part(u)
     env.close()
+
+
+def _draw_by_part(u: gym.Env, draws: int = 300) -> None:
+    """CPU time of one depth draw + read-back with parts of the scene hidden."""
+    model, data = u.scene.model, u.scene.data
+    renderer = u.frame_renderer.renderer
+    rgb = np.empty((*renderer._zbuffer.shape, 3), dtype=np.uint8)
+    depth = np.empty_like(renderer._zbuffer)
+    drawn = np.isin(model.geom_group, RENDERED_GEOM_GROUPS)
+    hand = drawn & u.frame_renderer._is_hand_geom
+    names = [model.geom(i).name for i in range(model.ngeom)]
+    palm = hand & np.array(["palm" in name for name in names])
+    table = drawn & np.array([name == "table" for name in names])
+    is_mesh = model.geom_type == mujoco.mjtGeom.mjGEOM_MESH
+    faces = np.where(is_mesh, model.mesh_facenum[np.maximum(model.geom_dataid, 0)], 0)
+    saved = model.geom_group.copy()
+    hidden_group = 5  # drawn by no handsim camera
+    print(f"{'drawn':<28} {'ms/draw':>8} {'mesh triangles hidden':>22}")
+    for label, hide in (
+        ("everything", np.zeros_like(drawn)),
+        ("without the palm", palm),
+        ("without the hand", hand),
+        ("without the table", table),
+        ("nothing", drawn),
+    ):
+        model.geom_group[hide] = hidden_group
+        try:
+            renderer._draw(data)
+            mujoco.mjr_readPixels(rgb, depth, renderer._rect, renderer._context)
+            start = time.process_time()
+            for _ in range(draws):
+                renderer._draw(data)
+                mujoco.mjr_readPixels(rgb, depth, renderer._rect, renderer._context)
+            ms = 1e3 * (time.process_time() - start) / draws
+        finally:
+            model.geom_group[:] = saved
+        print(f"{label:<28} {ms:8.2f} {int(faces[hide].sum()):>22}")
 
 
 if __name__ == "__main__":
