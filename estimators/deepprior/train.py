@@ -32,7 +32,7 @@ import numpy as np
 
 from handsim.errors import HandSimError
 
-from .checkpoint import save_checkpoint
+from .checkpoint import load_checkpoint, resolve_checkpoint, save_checkpoint
 from .data import CropDataset, FrameSet, load_frames
 from .preprocess import CUBE_M, MIDDLE_MCP, PlaneRemovedLocalizer, fit_pca
 from .preprocess import sample_augmentation as _sample
@@ -68,6 +68,8 @@ class TrainConfig:
         rotation, scale, translation: online augmentations.
         offset_sigma_m: centre offset standard deviation, metres.
         localizer: localizer checkpoint whose centres the pose network is cropped at.
+        init: checkpoint whose weights the run starts from (a run folder, a ``.pt`` path or a
+            shipped name), e.g. to fine-tune shipped weights; its network must be this run's.
         max_frames: use at most this many training frames (0: all).
         seed: random seed.
     """
@@ -90,6 +92,7 @@ class TrainConfig:
     translation: bool = True
     offset_sigma_m: float = 0.005
     localizer: str | None = None
+    init: str | None = None
     max_frames: int = 0
     seed: int = 0
 
@@ -218,6 +221,25 @@ def _evaluate(model: Any, dataset: CropDataset, batch_size: int, device: str) ->
     return {"mean_error_mm": float(e.mean()), "frames": int(len(e))}
 
 
+def _load_init(model: Any, config: TrainConfig, ckpt_config: dict, log: Callable) -> None:
+    """Load ``config.init``'s weights into ``model`` (float32), checking it is the same network."""
+    state, init_config = load_checkpoint(config.init)
+    theirs = {k: init_config.get(k) for k in ("kind", "model", "cube_m")}
+    ours = {k: ckpt_config[k] for k in ("kind", "model", "cube_m")}
+    if theirs != ours:
+        differ = ", ".join(
+            f"{k}: {theirs[k]!r} there, {ours[k]!r} here" for k in ours if theirs[k] != ours[k]
+        )
+        raise InvalidTrainConfig(
+            f"--init {config.init} holds another network ({differ}); give this run the same "
+            "network options or another checkpoint"
+        )
+    model.load_state_dict(
+        {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
+    )
+    log(f"starting from the weights of {resolve_checkpoint(config.init)}")
+
+
 def train(
     data: list[str | os.PathLike[str]],
     out: str | os.PathLike[str],
@@ -341,6 +363,9 @@ def train(
         prior = [m for m in model.modules() if isinstance(m, PriorLayer)]
         if prior:
             prior[0].init_from_pca(pca["mean"], pca["components"][: config.prior_dim])
+    last = out / "last.pt"
+    if config.init is not None and not last.is_file():
+        _load_init(model, config, ckpt_config, log)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     steps_per_epoch = math.ceil(len(train_set) / config.batch_size)
     total_steps = max(1, steps_per_epoch * config.epochs)
@@ -351,7 +376,6 @@ def train(
         )
 
     start_epoch, best, history, elapsed = 0, math.inf, [], 0.0
-    last = out / "last.pt"
     if last.is_file():
         state = torch.load(last, map_location=device, weights_only=True)
         model.load_state_dict(state["model"])

@@ -66,6 +66,7 @@ def _train(args: argparse.Namespace) -> int:
         translation="translation" in args.augment,
         offset_sigma_m=offset / 1000.0,
         localizer=args.localizer,
+        init=args.init,
         max_frames=args.max_frames,
         seed=args.seed,
     )
@@ -200,6 +201,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="CKPT",
         help="crop pose training frames at this localizer's refined centres "
         "(default: at the true middle MCP)",
+    )
+    tr.add_argument(
+        "--init",
+        default=None,
+        metavar="CKPT",
+        help="start from this checkpoint's weights (a run folder, a .pt file or a shipped "
+        "name: deepprior++, localizer; the same network options), e.g. to fine-tune",
     )
     tr.add_argument(
         "--max-frames",

@@ -64,6 +64,26 @@ def test_train_resume_after_a_kill_equals_an_uninterrupted_run(tiny_data, tmp_pa
         train([tiny_data], tmp_path / "cut", TrainConfig(**{**TINY, "epochs": 3}), progress=False)
 
 
+def test_init_starts_from_a_checkpoint_of_the_same_network(tiny_data, tmp_path):
+    """--init loads a run's weights (lr 0 keeps them); another network is refused by name."""
+    torch.set_num_threads(1)
+    quiet = {"progress": False, "log": lambda s: None}
+    config = TrainConfig(**{**TINY, "epochs": 1})
+    train([tiny_data], tmp_path / "a", config, **quiet)
+    lines = []
+    tuned = TrainConfig(**{**TINY, "epochs": 1, "lr": 0.0, "init": str(tmp_path / "a")})
+    train([tiny_data], tmp_path / "b", tuned, progress=False, log=lines.append)
+    assert any(line.startswith("starting from the weights of") for line in lines)
+    a = torch.load(tmp_path / "a" / "last.pt", weights_only=True)["model"]
+    b = torch.load(tmp_path / "b" / "last.pt", weights_only=True)["model"]
+    for key in a:
+        if "running_" not in key and "num_batches" not in key:  # batch norm still tracks
+            torch.testing.assert_close(a[key], b[key], msg=key)
+    other = TrainConfig(**{**TINY, "width": 0.25, "init": str(tmp_path / "a")})
+    with pytest.raises(InvalidTrainConfig, match="holds another network .*width"):
+        train([tiny_data], tmp_path / "c", other, **quiet)
+
+
 def test_crop_dataset_is_deterministic_per_epoch(tiny_data):
     """A sample is the same when drawn twice in an epoch, and changes with the epoch."""
     frames = load_frames(tiny_data, "all")
