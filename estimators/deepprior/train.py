@@ -13,6 +13,13 @@ augmentation seeds make a run deterministic on one device and thread count.
 Pose networks crop at the true middle-finger MCP unless ``localizer`` names a localizer
 checkpoint: then at its refined centre, as at inference. The prior is the PCA of the normalized,
 augmented training poses (``pca.npz``; its explained-variance curve goes into ``metrics.json``).
+
+Batch normalization: after every epoch the running statistics are recomputed as plain averages
+over :data:`PRECISE_BN_BATCHES` training batches ("precise BN"). The momentum-averaged
+statistics that training leaves lag the weights and follow the last few batches; with them the
+validation error of the shipped DeepPrior++ swung between 41 and 116 mm from epoch to epoch, and
+an epoch of fine-tuning measured 78.7 mm as stored against 40.7 mm with its statistics
+recomputed (same weights, 485 validation frames).
 """
 
 from __future__ import annotations
@@ -37,10 +44,21 @@ from .data import CropDataset, FrameSet, load_frames
 from .preprocess import CUBE_M, MIDDLE_MCP, PlaneRemovedLocalizer, fit_pca
 from .preprocess import sample_augmentation as _sample
 
-__all__ = ["KINDS", "TrainConfig", "InvalidTrainConfig", "train", "localizer_centers"]
+__all__ = [
+    "KINDS",
+    "PRECISE_BN_BATCHES",
+    "TrainConfig",
+    "InvalidTrainConfig",
+    "train",
+    "localizer_centers",
+    "precise_bn",
+]
 
 KINDS = ("deepprior", "deepprior++", "localizer")
 """What ``handsim train`` trains."""
+
+PRECISE_BN_BATCHES = 32
+"""Training batches whose plain average gives the batch-norm statistics after each epoch."""
 
 
 class InvalidTrainConfig(HandSimError, ValueError):
@@ -201,6 +219,43 @@ def _augmented_poses(frames: FrameSet, config: TrainConfig, copies: int = 2) -> 
             rot = rotate_keypoints(kp, frames.K[i], c, p.angle_rad)
             out.append(normalize_keypoints(rot, c, config.cube_m * p.scale).reshape(-1))
     return np.asarray(out)
+
+
+def precise_bn(
+    model: Any,
+    dataset: Any,
+    batch_size: int,
+    device: str = "cpu",
+    batches: int = PRECISE_BN_BATCHES,
+    seed: int = 0,
+) -> None:
+    """Recompute the batch-norm running statistics of ``model`` over training batches.
+
+    Each batch-norm layer's mean and variance become the plain averages of their per-batch
+    values over ``batches`` batches of ``batch_size`` crops drawn (seeded) from ``dataset``;
+    nothing else changes (dropout stays off, no gradient, torch's random state untouched).
+    A model without batch normalization is left as it is.
+    """
+    import torch
+
+    norms = [m for m in model.modules() if isinstance(m, torch.nn.modules.batchnorm._BatchNorm)]
+    if not norms:
+        return
+    was_training = model.training
+    momenta = [m.momentum for m in norms]
+    model.eval()
+    for m in norms:
+        m.reset_running_stats()
+        m.momentum = None  # None: a cumulative (plain) average
+        m.train()
+    order = np.random.default_rng(seed).permutation(len(dataset))[: batches * batch_size]
+    with torch.no_grad():
+        for start in range(0, len(order), batch_size):
+            crops = [dataset[int(i)][0] for i in order[start : start + batch_size]]
+            model(torch.stack(crops).to(device))
+    for m, momentum in zip(norms, momenta, strict=True):
+        m.momentum = momentum
+    model.train(was_training)
 
 
 def _evaluate(model: Any, dataset: CropDataset, batch_size: int, device: str) -> dict:
@@ -433,6 +488,7 @@ def train(
             # Time the GPU/CPU waited for crops: large means more --loader-workers.
             "data_wait_s": round(wait_s, 3),
         }
+        precise_bn(model, train_set, config.batch_size, device, seed=config.seed * 1000 + epoch)
         if (epoch + 1) % val_every == 0 or epoch + 1 == config.epochs:
             val = _evaluate(model, val_set, config.batch_size, device)
             entry["val_mean_error_mm"] = val["mean_error_mm"]

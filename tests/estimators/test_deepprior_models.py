@@ -103,3 +103,40 @@ def test_checkpoint_errors_name_what_is_valid(tmp_path):
     (tmp_path / "bad.json").write_text("{}")
     with pytest.raises(C.InvalidCheckpoint, match="cannot read checkpoint"):
         C.load_checkpoint(tmp_path / "bad.pt")
+
+
+def test_precise_bn_gives_plain_averages_of_batch_statistics():
+    """precise_bn: each batch norm's statistics = the mean of its per-batch ones; rest untouched."""
+    from handsim.estimators.deepprior.train import precise_bn
+
+    torch.manual_seed(0)
+    config = {
+        "arch": "resnet",
+        "size": 32,
+        "fc": 16,
+        "dropout": 0.3,
+        "prior_dim": 4,
+        "width": 0.125,
+    }
+    model = build_model(config)
+    model.train()
+    for _ in range(3):  # momentum statistics, as training leaves them
+        model(torch.randn(8, 1, 32, 32) * 3.0 + 1.0)
+    dataset = [(torch.randn(1, 32, 32) * 0.5 - 0.2, torch.zeros(63)) for _ in range(40)]
+    first = next(m for m in model.modules() if isinstance(m, torch.nn.BatchNorm2d))
+    seen = []
+    hook = first.register_forward_hook(lambda m, inputs, out: seen.append(inputs[0].detach()))
+    weights = {k: v.clone() for k, v in model.state_dict().items() if "running" not in k}
+    rng_state = torch.get_rng_state()
+    precise_bn(model, dataset, batch_size=8, batches=3, seed=1)
+    hook.remove()
+    assert len(seen) == 3 and model.training  # 3 batches; the mode is restored
+    means = torch.stack([x.mean(dim=(0, 2, 3)) for x in seen]).mean(dim=0)
+    variances = torch.stack([x.var(dim=(0, 2, 3), unbiased=True) for x in seen]).mean(dim=0)
+    torch.testing.assert_close(first.running_mean, means, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(first.running_var, variances, rtol=1e-5, atol=1e-6)
+    assert first.momentum == 0.1
+    for key, value in weights.items():
+        if "num_batches" not in key:
+            torch.testing.assert_close(model.state_dict()[key], value, msg=key)
+    assert torch.equal(torch.get_rng_state(), rng_state)  # dropout drew nothing
