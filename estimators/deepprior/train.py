@@ -18,7 +18,7 @@ Batch normalization: after every epoch the running statistics are recomputed as 
 over :data:`PRECISE_BN_BATCHES` training batches ("precise BN"). The momentum-averaged
 statistics that training leaves lag the weights and follow the last few batches; with them the
 validation error of the shipped DeepPrior++ swung between 41 and 116 mm from epoch to epoch, and
-an epoch of fine-tuning measured 78.7 mm as stored against 40.7 mm with its statistics
+an epoch of fine-tuning measured 78.7 mm as stored against 40.8 mm with its statistics
 recomputed (same weights, 485 validation frames).
 """
 
