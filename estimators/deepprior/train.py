@@ -251,8 +251,10 @@ def precise_bn(
     order = np.random.default_rng(seed).permutation(len(dataset))[: batches * batch_size]
     with torch.no_grad():
         for start in range(0, len(order), batch_size):
-            crops = [dataset[int(i)][0] for i in order[start : start + batch_size]]
-            model(torch.stack(crops).to(device))
+            chunk = order[start : start + batch_size]
+            if len(chunk) < 2 and start > 0:
+                break  # batch norm cannot take a batch of one (and it would add nothing)
+            model(torch.stack([dataset[int(i)][0] for i in chunk]).to(device))
     for m, momentum in zip(norms, momenta, strict=True):
         m.momentum = momentum
     model.train(was_training)

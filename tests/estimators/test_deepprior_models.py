@@ -140,3 +140,5 @@ def test_precise_bn_gives_plain_averages_of_batch_statistics():
         if "num_batches" not in key:
             torch.testing.assert_close(model.state_dict()[key], value, msg=key)
     assert torch.equal(torch.get_rng_state(), rng_state)  # dropout drew nothing
+    precise_bn(model, dataset[:9], batch_size=8, batches=2)  # a last batch of one is skipped
+    assert torch.isfinite(first.running_var).all()
