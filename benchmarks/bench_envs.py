@@ -63,6 +63,7 @@ import time
 import types
 from collections.abc import Iterator
 from pathlib import Path
+from unittest import mock
 
 import gymnasium as gym
 import mujoco
@@ -689,15 +690,9 @@ def _unpinned(run):
     """``run`` with Gymnasium's vector workers left unpinned (``HANDSIM_PIN_WORKERS=0``)."""
 
     def unpinned() -> float:
-        saved = os.environ.get(PIN_ENV_VAR)
-        os.environ[PIN_ENV_VAR] = "0"  # read by the workers, which inherit the environment
-        try:
+        # Read by the workers, which inherit the environment.
+        with mock.patch.dict(os.environ, {PIN_ENV_VAR: "0"}):
             return run()
-        finally:
-            if saved is None:
-                del os.environ[PIN_ENV_VAR]
-            else:
-                os.environ[PIN_ENV_VAR] = saved
 
     return unpinned
 

@@ -35,7 +35,7 @@ import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.physics import HandDriver
-from handsim.frame import FrameRenderer
+from handsim.frame import _HIDDEN_GROUP, FrameRenderer
 from handsim.world.render import RENDERED_GEOM_GROUPS, DepthRenderer
 
 _ENVS = {
@@ -138,7 +138,6 @@ def _draw_by_part(u: gym.Env, draws: int = 300) -> None:
     is_mesh = model.geom_type == mujoco.mjtGeom.mjGEOM_MESH
     faces = np.where(is_mesh, model.mesh_facenum[np.maximum(model.geom_dataid, 0)], 0)
     saved = model.geom_group.copy()
-    hidden_group = 5  # drawn by no handsim camera
     print(f"{'drawn':<28} {'ms/draw':>8} {'mesh triangles hidden':>22}")
     for label, hide in (
         ("everything", np.zeros_like(drawn)),
@@ -147,7 +146,7 @@ def _draw_by_part(u: gym.Env, draws: int = 300) -> None:
         ("without the table", table),
         ("nothing", drawn),
     ):
-        model.geom_group[hide] = hidden_group
+        model.geom_group[hide] = _HIDDEN_GROUP  # the group the frame hides geoms in
         try:
             renderer._draw(data)
             mujoco.mjr_readPixels(rgb, depth, renderer._rect, renderer._context)
