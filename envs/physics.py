@@ -13,9 +13,7 @@ from handsim.hand.model import (
     HAND_CONTACT_SOLREF,
 )
 from handsim.hand.pose import HandPose
-from handsim.world.scene import (
-    Scene,
-)
+from handsim.world.scene import InvalidScene, Scene
 
 __all__ = [
     "HandDriver",
@@ -214,6 +212,12 @@ class HandDriver:
     """
 
     def __init__(self, scene: Scene, *, forwarded: bool = False) -> None:
+        if scene.hand_rescaled:
+            raise InvalidScene(
+                "this scene's hand was rescaled in place (Scene.set_hand_length), which keeps "
+                "the masses and actuator gains of the length it was built for: simulate a "
+                "scene built for the hand, Scene(scene.spec)"
+            )
         self.scene = scene
         self.target = scene.binding.pose(scene.data)
         self._target_quat_wxyz = self.target.quat_wxyz

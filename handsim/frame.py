@@ -371,6 +371,7 @@ class FrameRenderer:
         self.intrinsics = self.camera_spec.intrinsics
         self.sensor = sensor if sensor is not None else NoNoise()
         self.renderer = DepthRenderer(scene.model, camera, self.intrinsics)
+        self._hand_version = scene.hand_geometry_version
         self._kp_radius = _keypoint_radii(scene)
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
@@ -604,6 +605,10 @@ class FrameRenderer:
             The labelled frame.
         """
         scene, model, data = self.scene, self.scene.model, self.scene.data
+        if scene.hand_geometry_version != self._hand_version:  # Scene.set_hand_length
+            self.renderer.upload_meshes(scene.hand_mesh_ids)
+            self._kp_radius = _keypoint_radii(scene)
+            self._hand_version = scene.hand_geometry_version
         intr = self.intrinsics
         labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
         depth_clean, labels = self.renderer.render(

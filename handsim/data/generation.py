@@ -24,6 +24,8 @@ redraw a frame until it is accepted (at most :data:`MAX_TRIES_PER_FRAME` draws).
 
 from __future__ import annotations
 
+import atexit
+import collections
 import contextlib
 import dataclasses
 import importlib
@@ -36,7 +38,6 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Protocol
 
-import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -108,6 +109,8 @@ MAX_PENETRATION_M = 0.004
 """Deepest hand-object or hand-table overlap a kinematic frame may have, metres."""
 MAX_TRIES_PER_FRAME = 200
 """Draws per frame before an episode ends early (its scene cannot give an accepted frame)."""
+KEPT_SCENES = 2
+"""Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
 MIN_KEYPOINTS_IN_FRAME = 15
 """Fewest of the 21 keypoints inside the image for a frame to be kept."""
 MAX_EMPTY_EPISODES = 5
@@ -466,36 +469,56 @@ class KinematicSource:
         self.config = config
         self.intrinsics = camera_preset(config.camera)
         self.sensor = sensor_model(config.sensor)
-        # Each episode's renderer takes over the previous one's OpenGL context (its meshes
-        # uploaded again): ~10 ms less per episode than a new context.
+        # A new scene's renderer takes over the OpenGL context of the one it replaces (its
+        # meshes uploaded again): ~10 ms less than a new context.
         self._render_context = contextlib.ExitStack()
         self._render_context.enter_context(shared_render_context())
+        # Scenes kept between episodes with their renderers, least recently used first: an
+        # episode with the same side, objects and placements rescales the hand of a kept one
+        # (about 1 ms) instead of building a scene (~50 ms, plus ~0.15 s for each new hand
+        # length's skin).
+        self._scenes: collections.OrderedDict[tuple, tuple[Scene, FrameRenderer]] = (
+            collections.OrderedDict()
+        )
 
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
         """Every field is checked by :class:`GenerationConfig` itself."""
 
     def close(self) -> None:
-        """Free the OpenGL context kept between episodes."""
+        """Free the scenes, renderers and OpenGL context kept between episodes."""
+        while self._scenes:
+            self._scenes.popitem()[1][1].close()
         self._render_context.close()
 
-    def _scene(self, rng: np.random.Generator) -> Scene:
+    def _scene(self, rng: np.random.Generator) -> tuple[Scene, FrameRenderer]:
+        """The episode's scene and renderer: a kept one when it has the same side and objects."""
         c = self.config
-        # On a 2 mm grid: a hand's skin is built once per length (about a second) and cached.
-        lo, hi = c.hand_length_range_m
-        length = float(np.clip(np.round(rng.uniform(lo, hi) / 0.002) * 0.002, lo, hi))
+        length = float(rng.uniform(*c.hand_length_range_m))
         side = "left" if rng.random() < c.left_fraction else "right"
         n = int(rng.integers(c.num_objects_range[0], c.num_objects_range[1] + 1))
         names = [c.objects[i] for i in rng.choice(len(c.objects), size=n)] if n else []
         placements = sample_placements(rng, names) if names else ()
-        camera = CameraSpec.look_at("camera", self.intrinsics, (0.0, -0.6, 0.4), (0.0, 0.0, 0.1))
-        spec = SceneSpec(
-            hand=hand_params(length, side),
-            objects=placements,
-            cameras=(camera,),
-            table=n > 0,
-        )
-        return Scene(spec)
+        key = (side, placements)
+        kept = self._scenes.pop(key, None)
+        if kept is None:
+            while len(self._scenes) >= KEPT_SCENES:
+                self._scenes.popitem(last=False)[1][1].close()
+            camera = CameraSpec.look_at(
+                "camera", self.intrinsics, (0.0, -0.6, 0.4), (0.0, 0.0, 0.1)
+            )
+            spec = SceneSpec(
+                # Every hand is the medium one rescaled: its skin is built once per process.
+                hand=hand_params("medium", side),
+                objects=placements,
+                cameras=(camera,),
+                table=n > 0,
+            )
+            scene = Scene(spec)
+            kept = (scene, FrameRenderer(scene, "camera", self.sensor))
+        self._scenes[key] = kept
+        kept[0].set_hand_length(length)
+        return kept
 
     def _pose(self, rng: np.random.Generator, source: str):
         if source == "gesture":
@@ -584,34 +607,32 @@ class KinematicSource:
         Stops early when :data:`MAX_TRIES_PER_FRAME` draws give no accepted frame (the
         episode's hand and objects may not reach the occlusion asked for).
         """
-        scene = self._scene(rng)
+        scene, renderer = self._scene(rng)
         source = str(rng.choice(self.config.pose_sources))
         cam = scene.model.camera("camera").id
-        with FrameRenderer(scene, "camera", self.sensor) as renderer:
-            for _ in range(frames):
-                for _ in range(MAX_TRIES_PER_FRAME):
-                    view = str(rng.choice(self.config.viewpoints))
-                    wrist, rotvec, obj = self._wrist(rng, scene, view == "through_object")
-                    pose = self._pose(rng, source).replace(wrist_pos=wrist, wrist_rotvec=rotvec)
-                    palm = wrist + Rotation.from_rotvec(rotvec).apply([0.0, 0.07, 0.0])
-                    scene.model.cam_pos[cam], scene.model.cam_quat[cam] = self._camera(
-                        rng, view, palm, obj
-                    )
-                    scene.binding.set_pose(scene.data, pose)
-                    mujoco.mj_forward(scene.model, scene.data)  # camera and hand placed
-                    if self._penetration_m(scene) > MAX_PENETRATION_M:
-                        continue
-                    frame = renderer.render(
-                        rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
-                    )
-                    ratio = frame.hand_occlusion_ratio or 0.0
-                    if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
-                        arrays = frame_to_arrays(frame, images=True)
-                        arrays["hand_occlusion_ratio"][()] = ratio
-                        yield arrays
-                        break
-                else:
-                    return  # this scene cannot give an accepted frame: a new episode may
+        for _ in range(frames):
+            for _ in range(MAX_TRIES_PER_FRAME):
+                view = str(rng.choice(self.config.viewpoints))
+                wrist, rotvec, obj = self._wrist(rng, scene, view == "through_object")
+                pose = self._pose(rng, source).replace(wrist_pos=wrist, wrist_rotvec=rotvec)
+                palm = wrist + Rotation.from_rotvec(rotvec).apply([0.0, 0.07, 0.0])
+                scene.model.cam_pos[cam], scene.model.cam_quat[cam] = self._camera(
+                    rng, view, palm, obj
+                )
+                scene.binding.set_pose(scene.data, pose)  # forwards: camera and hand placed
+                if self._penetration_m(scene) > MAX_PENETRATION_M:
+                    continue
+                frame = renderer.render(
+                    rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
+                )
+                ratio = frame.hand_occlusion_ratio or 0.0
+                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
+                    arrays = frame_to_arrays(frame, images=True)
+                    arrays["hand_occlusion_ratio"][()] = ratio
+                    yield arrays
+                    break
+            else:
+                return  # this scene cannot give an accepted frame: a new episode may
 
 
 class _Acceptor:
@@ -640,12 +661,45 @@ class _Acceptor:
         return True
 
 
+_KEPT_SOURCE: dict[str, FrameSource] = {}
+"""This process's kinematic source, by its config, kept from shard to shard (its scenes)."""
+
+
+def close_kept_source() -> None:
+    """Free the kinematic source (scenes, renderers) this process keeps between shards."""
+    while _KEPT_SOURCE:
+        _KEPT_SOURCE.popitem()[1].close()
+
+
 @contextlib.contextmanager
-def _closing(source: FrameSource) -> Iterator[FrameSource]:
+def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
+    """The source of one shard: a kinematic source is kept for the next shard of its config.
+
+    A kept source changes no frame: it rescales a kept hand from the geometry it was built
+    with (bitwise the same whatever the lengths before), and keeps a scene with objects only
+    for the same objects at the same placements.
+    """
+    key = json.dumps(config.to_json(), sort_keys=True)
+    source = _KEPT_SOURCE.get(key)
+    if source is None:
+        source = make_source(config)
+        if isinstance(source, KinematicSource):
+            close_kept_source()
+            if not _KEPT_SOURCE_AT_EXIT:
+                atexit.register(close_kept_source)  # GL objects freed before teardown
+                _KEPT_SOURCE_AT_EXIT.append(True)
+            _KEPT_SOURCE[key] = source
     try:
         yield source
+    except BaseException:
+        close_kept_source()  # an error may leave a scene half-changed
+        raise
     finally:
-        source.close()
+        if key not in _KEPT_SOURCE:
+            source.close()
+
+
+_KEPT_SOURCE_AT_EXIT: list[bool] = []
 
 
 def generate_shard(
@@ -668,15 +722,13 @@ def generate_shard(
     folder = Path(folder)
     frames = config.shard_frames(index)
     rng = np.random.default_rng([config.seed, index])
-    source = make_source(config)
     accept = _Acceptor(config, frames)
-    shape = (source.intrinsics.height, source.intrinsics.width)
     path = folder / Manifest.shard_name(index)
     with (
-        _closing(source),
+        _shard_source(config) as source,
         ShardWriter(
             path,
-            image_shape=shape,
+            image_shape=(source.intrinsics.height, source.intrinsics.width),
             depth_scale_mm=config.depth_scale_mm,
             paired_clean=config.paired_clean,
         ) as writer,
@@ -873,6 +925,7 @@ def generate(
     finally:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
+        close_kept_source()  # shards made in this process
     edges = config._buckets()[0] if config.occlusion_buckets is not None else np.linspace(0, 1, 11)
     manifest.occlusion_histogram = _histogram(folder, manifest, edges)
     manifest.write(folder)

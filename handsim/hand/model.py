@@ -62,6 +62,7 @@ damping ``kv = 2 sqrt(kp I)``. Torques are limited to human ranges (``forcerange
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import os
 import pathlib
@@ -656,6 +657,7 @@ class Hand:
         self.mocap_body = f"{p}mocap"
         self.weld = f"{p}root_weld"
         self.spec = self._build_spec()
+        self._spec_length = self.params.hand_length  # the length the spec was built for
         self._tune_actuators()
 
     # Building -------------------------------------------------------------------------------
@@ -852,6 +854,7 @@ class Hand:
         Every element name gets the side prefix (``rh_``/``lh_``), so a right and a left hand
         can share a scene. Sets the scene's options to :data:`HAND_PHYSICS_OPTIONS`.
         """
+        self._check_spec("attach_to")
         for key, value in HAND_PHYSICS_OPTIONS.items():
             setattr(scene.option, key, value)
         scene.attach(self.spec.copy(), prefix=self.prefix, frame=scene.worldbody.add_frame())
@@ -895,6 +898,28 @@ class Hand:
         from handsim.world.mjcf import save_spec
 
         return save_spec(self._xml_spec(), path, assets_dir=assets_dir)
+
+    def rescaled(self, params: HandParams) -> Hand:
+        """This hand's record for ``params``, a uniform rescale of its own (no spec is built).
+
+        What :meth:`handsim.world.scene.Scene.set_hand_length` keeps for a hand it scaled in a
+        compiled model: the parameters and the skeleton of the new length, the same names.
+        Its :attr:`spec` is this hand's (the built length), so it cannot be compiled or
+        attached.
+        """
+        hand = copy.copy(self)
+        hand.params = params
+        hand.skeleton = build_skeleton(params)
+        hand._spec_length = self._spec_length
+        return hand
+
+    def _check_spec(self, what: str) -> None:
+        if self._spec_length != self.params.hand_length:
+            raise InvalidHandParams(
+                f"{what}: this hand was rescaled from {self._spec_length} m in a compiled model "
+                f"(Scene.set_hand_length) and has no spec of its own; build "
+                f"Hand(hand.params) for a {self.params.hand_length} m hand"
+            )
 
     def bind(self, model: mujoco.MjModel) -> HandBinding:
         """Resolve this hand's names in a compiled model.

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import cv2
 import mujoco
@@ -206,6 +206,19 @@ class DepthRenderer:
         # OpenGL perspective depth, remapped for reversed Z: metric = d / (buffer + c).
         self._c = np.float32(-0.5) * (-(far + near) / (far - near)) - np.float32(0.5)
         self._d = np.float32(-0.5) * (-(np.float32(2) * far * near) / (far - near))
+
+    def upload_meshes(self, mesh_ids: Sequence[int]) -> None:
+        """Upload meshes again after their vertices changed in the model (e.g. a rescaled hand).
+
+        Args:
+            mesh_ids: mesh indices in the model.
+        """
+        if self._context is None:
+            raise RenderError("upload_meshes() called after close()")
+        if self._gl is not None:
+            self._gl.make_current()
+        for mesh in mesh_ids:
+            mujoco.mjr_uploadMesh(self.model, self._context, int(mesh))
 
     def _draw(self, data: mujoco.MjData) -> None:
         if self._context is None:

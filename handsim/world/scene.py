@@ -22,7 +22,7 @@ import pathlib
 import mujoco
 import numpy as np
 
-from handsim._validate import boolean, integer, real_array, real_scalar, show
+from handsim._validate import boolean, integer, is_real, real_array, real_scalar, show
 from handsim.errors import HandSimError
 from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
 from handsim.hand.pose import DIGITS, HandPose
@@ -470,6 +470,23 @@ class Scene:
         self.data = mujoco.MjData(self.model)
         self.binding = self.hand.bind(self.model) if self.hand is not None else None
         self.geom_labels = self._label_geoms()
+        self._hand_body_ids = np.array(
+            []
+            if self.hand is None
+            else [self.model.body(self.hand.prefix + b.name).id for b in self.hand.skeleton.bodies],
+            dtype=np.intp,
+        )
+        hand_geoms = np.isin(self.model.geom_bodyid, self._hand_body_ids)
+        mesh_geoms = hand_geoms & (self.model.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+        self.hand_mesh_ids: tuple[int, ...] = tuple(
+            int(m) for m in np.unique(self.model.geom_dataid[mesh_geoms])
+        )
+        """Meshes of the hand (its skin), for renderers to upload again after a rescale."""
+        self.hand_rescaled = False
+        """:meth:`set_hand_length` changed the hand: kinematic use only."""
+        self._built_hand_geometry: tuple | None = None
+        self.hand_geometry_version = 0
+        """Counts :meth:`set_hand_length` calls (renderers compare it to upload the skin)."""
         self.reset()
 
     def to_xml(self) -> str:
@@ -479,7 +496,11 @@ class Scene:
         (numbers at full precision, see :func:`handsim.world.mjcf.spec_to_xml`). The state is not
         part of it: objects start at their placements, the hand at the world origin (its
         ``qpos0``), not where :meth:`reset` puts it.
+
+        Raises:
+            InvalidScene: after :meth:`set_hand_length`.
         """
+        self._check_not_rescaled("to_xml")
         return spec_to_xml(self.mjspec)
 
     def save(self, path: str | os.PathLike[str], *, assets_dir: str = "assets") -> pathlib.Path:
@@ -494,8 +515,20 @@ class Scene:
 
         Returns:
             The path of the XML file.
+
+        Raises:
+            InvalidScene: after :meth:`set_hand_length`.
         """
+        self._check_not_rescaled("save")
         return save_spec(self.mjspec, path, assets_dir=assets_dir)
+
+    def _check_not_rescaled(self, what: str) -> None:
+        if self.hand_rescaled:
+            raise InvalidScene(
+                f"{what}: the hand was rescaled in place with set_hand_length (kinematic use "
+                f"only); build Scene(scene.spec) for a model of the hand at "
+                f"{self.hand.params.hand_length} m"
+            )
 
     def _set_clip_planes(self) -> None:
         # OpenGL clip planes from the cameras' working ranges, not from the model's extent
@@ -513,6 +546,90 @@ class Scene:
         # The spec says the same, so its MJCF (to_xml, save) gives this model.
         self.mjspec.visual.map.znear = self.model.vis.map.znear
         self.mjspec.visual.map.zfar = self.model.vis.map.zfar
+
+    def set_hand_length(self, hand_length_m: float) -> None:
+        """Scale the hand in place to ``hand_length_m``: for kinematic use (posing, rendering).
+
+        A hand of another length is the same hand scaled uniformly about its wrist (the palm
+        breadth and every radius follow the length), so this rescales the compiled model's
+        hand geometry: body and site positions, geom sizes and bounds, and the skin's mesh
+        vertices. Keypoints, collision geoms and depth images are then those of a scene built
+        for that length, up to the skin's triangulation (built on a fixed grid in metres, so a
+        rescaled skin's triangles are scaled too). It costs about a millisecond, against tens
+        of milliseconds for a new scene (and a second for a new length's skin).
+
+        Renderers made before the call upload the rescaled skin on their next frame
+        (:class:`~handsim.frame.FrameRenderer` does it itself; a bare
+        :class:`~handsim.world.render.DepthRenderer` needs
+        :meth:`~handsim.world.render.DepthRenderer.upload_meshes` with
+        :attr:`hand_mesh_ids`). Masses, inertias and actuator gains are not rescaled, so a
+        rescaled scene cannot be simulated: :class:`~handsim.envs.physics.HandDriver` refuses
+        it, and :meth:`to_xml` and :meth:`save` too (the ``MjSpec`` still holds the built
+        length).
+
+        Args:
+            hand_length_m: the new hand length, metres (the range of
+                :class:`~handsim.hand.model.HandParams`).
+
+        Raises:
+            InvalidScene: if the scene has no hand.
+            InvalidHandParams: for a length outside the valid range.
+        """
+        if self.hand is None:
+            raise InvalidScene("set_hand_length needs a scene with a hand; SceneSpec(hand=None)")
+        old = self.hand.params
+        scale = float(hand_length_m) / old.hand_length if is_real(hand_length_m) else 1.0
+        params = dataclasses.replace(
+            old,
+            hand_length=hand_length_m,  # validated here
+            palm_breadth=None if old.palm_breadth is None else old.palm_breadth * scale,
+        )
+        if scale == 1.0:
+            return
+        if self._built_hand_geometry is None:
+            self._built_hand_geometry = self._hand_geometry()
+        built_length, built = self._built_hand_geometry
+        factor = params.hand_length / built_length  # from the built values: no drift
+        for name, rows, values in built:
+            getattr(self.model, name)[rows] = values * factor
+        self.hand = self.hand.rescaled(params)
+        self.binding.hand = self.hand
+        self.spec = dataclasses.replace(self.spec, hand=params)
+        self.hand_rescaled = True
+        self.hand_geometry_version += 1
+        mujoco.mj_forward(self.model, self.data)
+
+    def _hand_geometry(self) -> tuple[float, list[tuple[str, np.ndarray, np.ndarray]]]:
+        """The built hand length and ``(model field, rows, values)`` of what scales with it."""
+        model = self.model
+        hand_bodies = np.zeros(model.nbody, dtype=bool)
+        hand_bodies[self._hand_body_ids] = True
+        geoms = np.flatnonzero(hand_bodies[model.geom_bodyid])
+        bvh = [
+            np.arange(adr, adr + num)
+            for adr, num in [
+                *((model.body_bvhadr[b], model.body_bvhnum[b]) for b in self._hand_body_ids),
+                *((model.mesh_bvhadr[m], model.mesh_bvhnum[m]) for m in self.hand_mesh_ids),
+            ]
+            if adr >= 0
+        ]
+        verts = [
+            np.arange(model.mesh_vertadr[m], model.mesh_vertadr[m] + model.mesh_vertnum[m])
+            for m in self.hand_mesh_ids
+        ]
+        rows = {
+            "body_pos": self._hand_body_ids[1:],  # the root's position is the wrist pose (qpos)
+            "geom_pos": geoms,
+            "geom_size": geoms,
+            "geom_rbound": geoms,
+            "geom_aabb": geoms,
+            "site_pos": np.flatnonzero(hand_bodies[model.site_bodyid]),
+            "bvh_aabb": np.concatenate(bvh) if bvh else np.zeros(0, dtype=np.intp),
+            "mesh_vert": np.concatenate(verts) if verts else np.zeros(0, dtype=np.intp),
+        }
+        return self.hand.params.hand_length, [
+            (name, index, getattr(model, name)[index].copy()) for name, index in rows.items()
+        ]
 
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)

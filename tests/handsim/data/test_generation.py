@@ -219,3 +219,27 @@ def test_a_dataset_made_before_new_config_fields_resumes(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps(doc))
     assert generate(config, tmp_path).shards == made.shards
     assert Manifest.read(tmp_path).config == config.to_json()
+
+
+def test_scenes_kept_between_shards_change_no_frame(tmp_path):
+    """A process keeps its hand scenes from shard to shard; a shard is the same without them."""
+    from handsim.data import generation
+
+    config = GenerationConfig.from_mapping(
+        PRESETS["hand-only"], frames=6, frames_per_shard=3, frames_per_episode=1
+    )
+    generation.close_kept_source()
+    for index in range(2):
+        (tmp_path / f"kept{index}").mkdir()
+        kept = generate_shard(config, index, tmp_path / f"kept{index}")
+    (source,) = generation._KEPT_SOURCE.values()
+    # Shard 1's episodes reused the scenes of shard 0 (one per side), rescaling their hands.
+    assert 1 <= len(source._scenes) <= 2
+    assert all(scene.hand_rescaled for scene, _ in source._scenes.values())
+    generation.close_kept_source()
+    (tmp_path / "fresh").mkdir()
+    assert generate_shard(config, 1, tmp_path / "fresh") == kept
+    lengths = ShardReader(tmp_path / "fresh" / "shard-00001.h5").labels("hand_length_m")
+    assert len(set(lengths.tolist())) == 3  # one hand length per episode, off any grid
+    generation.close_kept_source()
+    assert not generation._KEPT_SOURCE

@@ -188,3 +188,63 @@ def test_errors():
     assert isinstance(
         CameraSpec.look_at("c", camera_preset("icvl"), (0, -1, 0), (0, 0, 0)), CameraSpec
     )
+
+
+def _hand_frame(scene):
+    """(keypoints in the camera, hand mask, depth) of the scene's current state."""
+    from handsim.frame import FrameRenderer
+
+    with FrameRenderer(scene, "camera") as renderer:
+        frame = renderer.render(np.random.default_rng(0))
+    return frame.keypoints_cam, frame.segmentation >= SEGMENT_LABELS.index("palm"), frame.depth
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+@pytest.mark.parametrize("length_m", [0.15, 0.22])
+def test_a_rescaled_hand_is_the_hand_built_at_that_length(side, length_m):
+    """set_hand_length gives the keypoints (exactly), pixels and depth of a scene built so."""
+    from handsim.hand.pose_sources import gesture
+
+    cam = CameraSpec.look_at("camera", camera_preset("icvl"), (0.0, -0.45, 0.5), (0, 0, 0.3))
+    pose = gesture("pinch").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2))
+    built = Scene(SceneSpec(hand=hand_params(length_m, side), cameras=(cam,), table=True))
+    rescaled = Scene(SceneSpec(hand=hand_params("medium", side), cameras=(cam,), table=True))
+    rescaled.set_hand_length(0.2)  # from whatever length it has: no drift
+    rescaled.set_hand_length(length_m)
+    assert rescaled.hand.params == built.hand.params == rescaled.spec.hand
+    assert rescaled.hand_rescaled and not built.hand_rescaled
+    for s in (built, rescaled):
+        s.binding.set_pose(s.data, pose)
+    kp_a, mask_a, depth_a = _hand_frame(built)
+    kp_b, mask_b, depth_b = _hand_frame(rescaled)
+    np.testing.assert_allclose(kp_b, kp_a, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(rescaled.model.geom_size, built.model.geom_size, rtol=0.02)
+    # The skins differ only in their triangles (each built on a grid of fixed size).
+    assert (mask_a & mask_b).sum() / (mask_a | mask_b).sum() > 0.99
+    both = mask_a & mask_b
+    assert np.median(np.abs(depth_a[both] - depth_b[both])) < 2e-4
+
+
+def test_a_rescaled_scene_is_for_kinematic_use_only():
+    """Physics, MJCF export and a second spec of the rescaled hand are refused, saying why."""
+    from handsim.envs.physics import HandDriver
+    from handsim.errors import InvalidHandParams
+
+    scene = Scene(SceneSpec(cameras=(third_person_camera(camera_preset("icvl")),)))
+    scene.set_hand_length(scene.hand.params.hand_length)  # the same length: nothing changes
+    assert not scene.hand_rescaled
+    HandDriver(scene)
+    with pytest.raises(InvalidHandParams, match=r"must be in \[0.14, 0.235\] m .* received 0.5"):
+        scene.set_hand_length(0.5)
+    version = scene.hand_geometry_version
+    scene.set_hand_length(0.17)
+    assert scene.hand_geometry_version == version + 1
+    with pytest.raises(InvalidScene, match=r"rescaled in place .* Scene\(scene.spec\)"):
+        HandDriver(scene)
+    with pytest.raises(InvalidScene, match=r"to_xml: the hand was rescaled in place"):
+        scene.to_xml()
+    with pytest.raises(InvalidHandParams, match=r"rescaled from 0.189 m .* build Hand"):
+        scene.hand.compile()
+    Scene(scene.spec).to_xml()  # the spec holds the new length: a scene built for it
+    with pytest.raises(InvalidScene, match="needs a scene with a hand"):
+        Scene(SceneSpec(hand=None)).set_hand_length(0.17)
