@@ -685,9 +685,6 @@ def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
         source = make_source(config)
         if isinstance(source, KinematicSource):
             close_kept_source()
-            if not _KEPT_SOURCE_AT_EXIT:
-                atexit.register(close_kept_source)  # GL objects freed before teardown
-                _KEPT_SOURCE_AT_EXIT.append(True)
             _KEPT_SOURCE[key] = source
     try:
         yield source
@@ -697,6 +694,12 @@ def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
     finally:
         if key not in _KEPT_SOURCE:
             source.close()
+    if key in _KEPT_SOURCE and not _KEPT_SOURCE_AT_EXIT:
+        # Free the renderers before teardown (a pool worker keeps its source to the end).
+        # Registered once a shard has made its OpenGL context: exit handlers run last
+        # registered first, so this runs before MuJoCo's EGL display is terminated.
+        atexit.register(close_kept_source)
+        _KEPT_SOURCE_AT_EXIT.append(True)
 
 
 _KEPT_SOURCE_AT_EXIT: list[bool] = []
