@@ -2,12 +2,11 @@
 
 Measured in one run, on this machine:
 
-- kinematic generation (preset ``hand-only``, 320 x 240, all labels) with 1 and 2 workers,
-  pinned to a CPU each (the default) and unpinned (``HANDSIM_PIN_WORKERS=0``), and their ratio
-  (``--worker-frames``, long enough that a worker's start-up, about 1 s, is a small part), and
-  their frames per CPU-second (the workers' start-up included): on a loaded machine the
-  wall-clock ratio says how many free cores there were, the CPU ratio what 2 workers cost per
-  frame;
+- kinematic generation (preset ``hand-only``, 320 x 240, all labels) with 1 and 2 workers, and
+  their ratio (``--worker-frames``, long enough that a worker's start-up, about 1 s, is a small
+  part), and their frames per CPU-second (the workers' start-up included): on a loaded machine
+  the wall-clock ratio says how many free cores there were, the CPU ratio what 2 workers cost
+  per frame;
 - Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - MuJoCo's plain depth render rate (``mujoco.Renderer`` with depth on) of the same scenes: the
   generated frames replayed from their labels (hand side, length and pose, camera pose; checked
@@ -27,7 +26,7 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--worker-frames 3000] [--only all|read|memory|workers|ratio]``; writes
+[--memory-frames 1000] [--worker-frames 10000] [--only all|read|memory|workers|ratio]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -42,7 +41,6 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from unittest import mock
 
 import numpy as np
 
@@ -278,7 +276,7 @@ def main() -> None:
         "--memory-frames", type=int, default=1000, help="M of the M vs 10 M memory runs"
     )
     parser.add_argument(
-        "--worker-frames", type=int, default=3000, help="frames per 1- and 2-worker run"
+        "--worker-frames", type=int, default=10000, help="frames per 1- and 2-worker run"
     )
     args = parser.parse_args()
     from handsim.data.manifest import Manifest
@@ -291,27 +289,16 @@ def main() -> None:
             results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
             results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
         if part in ("all", "workers"):
-            # Long runs: a worker's start-up (~1 s) is then a small part.
+            # Long runs: a worker's start-up (~1 s: imports, OpenGL, the hands' skins) is then
+            # a small part, as in a real dataset.
             n = args.worker_frames
-            for pinned in ("1", "0"):
-                suffix = "" if pinned == "1" else "_unpinned"
-                with mock.patch.dict(os.environ, {"HANDSIM_PIN_WORKERS": pinned}):
-                    one = _generate(n, 1, tmp / f"s1{suffix}")
-                    one_cpu = n / _CPU_S["last"]
-                    two = _generate(n, 2, tmp / f"s2{suffix}")
-                    two_cpu = n / _CPU_S["last"]
-                results[f"workers_1_fps{suffix}"] = one
-                results[f"workers_2_fps{suffix}"] = two
-                results[f"workers_2_over_1{suffix}"] = two / one
-                results[f"workers_1_cpu_fps{suffix}"] = one_cpu
-                # CPU per frame of 2 workers (start-up included) against 1: with two free
-                # cores, 2 workers would run at about 2x this of 1 worker's rate.
-                results[f"workers_2_cpu_efficiency{suffix}"] = two_cpu / one_cpu
-            # One worker runs in this process, pinned or not: the two 1-worker runs measure the
-            # same thing, so the faster one is the fair unit (a slow one would flatter 2 / 1).
-            best = max(results["workers_1_fps"], results["workers_1_fps_unpinned"])
-            results["workers_2_over_best_1"] = results["workers_2_fps"] / best
-            results["workers_2_unpinned_over_best_1"] = results["workers_2_fps_unpinned"] / best
+            results["workers_1_fps"] = _generate(n, 1, tmp / "s1")
+            one_cpu = n / _CPU_S["last"]
+            results["workers_2_fps"] = _generate(n, 2, tmp / "s2")
+            results["workers_2_over_1"] = results["workers_2_fps"] / results["workers_1_fps"]
+            # CPU per frame of 2 workers (start-up included) against 1: with two free cores,
+            # 2 workers would run at about 2x this of 1 worker's rate.
+            results["workers_2_cpu_efficiency"] = n / _CPU_S["last"] / one_cpu
         if part in ("all", "ratio"):
             # The target's unit: MuJoCo's plain render of the very frames generated.
             results["replayed_plain_render_fps"] = _replay_plain_render_fps(tmp / "w1")

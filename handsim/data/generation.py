@@ -759,23 +759,6 @@ def generate_shard(
     return writer.info
 
 
-def _pin_worker(started: Any) -> None:
-    """Pool initializer: pin the i-th worker started to the i-th CPU this process may use.
-
-    Unpinned, Linux often ran both workers of a 2-core machine on one CPU for seconds at a
-    time (as with vector envs, :mod:`handsim.envs.workers`). ``HANDSIM_PIN_WORKERS=0`` (the
-    same switch) leaves them unpinned.
-    """
-    with started.get_lock():
-        index = started.value
-        started.value += 1
-    if os.environ.get("HANDSIM_PIN_WORKERS", "1") == "0" or not hasattr(os, "sched_setaffinity"):
-        return
-    allowed = sorted(os.sched_getaffinity(0))
-    if len(allowed) > 1:
-        os.sched_setaffinity(0, {allowed[index % len(allowed)]})
-
-
 def _worker(args: tuple[dict, int, str]) -> tuple[int, ShardInfo]:
     config_json, index, folder = args
     config = GenerationConfig.from_mapping(config_json)
@@ -928,13 +911,7 @@ def generate(
     else:
         # Spawned workers get fresh GL contexts; a worker that dies breaks the pool (an
         # error), where multiprocessing.Pool would replace it and wait forever.
-        context = get_context("spawn")
-        pool = ProcessPoolExecutor(
-            min(workers, len(jobs)),
-            mp_context=context,
-            initializer=_pin_worker,
-            initargs=(context.Value("i", 0),),
-        )
+        pool = ProcessPoolExecutor(min(workers, len(jobs)), mp_context=get_context("spawn"))
         results = (f.result() for f in as_completed([pool.submit(_worker, j) for j in jobs]))
     try:
         for index, info in results:

@@ -245,41 +245,6 @@ def test_scenes_kept_between_shards_change_no_frame(tmp_path):
     assert not generation._KEPT_SOURCE
 
 
-def _affinity(_: int) -> tuple[int, tuple[int, ...]]:
-    time.sleep(0.2)  # room for the other worker to take the next task
-    return os.getpid(), tuple(sorted(os.sched_getaffinity(0)))
-
-
-@pytest.mark.skipif(
-    not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
-    reason="needs two CPUs",
-)
-@pytest.mark.parametrize("pin", ["1", "0"])
-def test_generation_workers_are_pinned_to_distinct_cpus(pin, monkeypatch):
-    """Each pool worker gets a CPU of its own; HANDSIM_PIN_WORKERS=0 leaves them free."""
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
-
-    from handsim.data.generation import _pin_worker
-
-    monkeypatch.setenv("HANDSIM_PIN_WORKERS", pin)
-    context = get_context("spawn")
-    cpus: dict[int, tuple[int, ...]] = {}
-    with ProcessPoolExecutor(
-        2, mp_context=context, initializer=_pin_worker, initargs=(context.Value("i", 0),)
-    ) as pool:
-        for _ in range(20):  # until both workers have answered
-            cpus.update(pool.map(_affinity, range(2)))
-            if len(cpus) == 2:
-                break
-    allowed = tuple(sorted(os.sched_getaffinity(0)))
-    assert len(cpus) == 2
-    if pin == "0":
-        assert list(cpus.values()) == [allowed, allowed]
-    else:
-        assert sorted(cpus.values()) == [(allowed[0],), (allowed[1],)]
-
-
 def test_two_workers_make_the_shards_one_worker_makes(tmp_path):
     """From the CLI with 2 spawned workers: the same shards as in-process, a clean exit."""
     config = {**PRESETS["hand-only"], "frames": 8, "frames_per_shard": 2, "frames_per_episode": 2}
