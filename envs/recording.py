@@ -113,7 +113,8 @@ def record_minari(
     kwargs = dict(env_kwargs or {})
     if max_episode_steps is not None:
         kwargs["max_episode_steps"] = int(max_episode_steps)
-    out = None if out_dir is None else Path(out_dir)
+    # Absolute: Minari joins the datasets path with paths it has already joined with it.
+    out = None if out_dir is None else Path(out_dir).resolve()
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     with _datasets_path(out):

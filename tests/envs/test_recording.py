@@ -54,15 +54,20 @@ def test_grasp_rollouts_load_back_with_labels_in_infos(tmp_path, monkeypatch):
 
 
 def test_cli_export_minari_refuses_a_folder_and_records_an_env(tmp_path):
-    """A folder is a one-line usage error (exit 2); an env id records and prints strict JSON."""
+    """A folder is a one-line usage error (exit 2); an env id records and prints strict JSON.
+
+    The output folder is given relative to the working directory, as a user types it.
+    """
     cmd = [sys.executable, "-m", "handsim.cli.main", "export", "minari"]
     bad = subprocess.run([*cmd, str(tmp_path), str(tmp_path / "m")], capture_output=True, text=True)
     assert bad.returncode == 2 and "SOURCE must be one of handsim/Grasp-v0" in bad.stderr
     ok = subprocess.run(
-        [*cmd, "handsim/HandPose-v0", str(tmp_path / "m"), "--episodes", "1"],
+        [*cmd, "handsim/HandPose-v0", "m", "--episodes", "1"],
         capture_output=True,
         text=True,
+        cwd=tmp_path,
     )
     assert ok.returncode == 0, ok.stderr
     report = json.loads(ok.stdout)
     assert report["dataset_id"] == "handsim/hand-pose-expert-v0" and report["episodes"] == 1
+    assert report["path"] == str(tmp_path / "m" / "handsim" / "hand-pose-expert-v0")
