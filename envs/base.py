@@ -68,6 +68,7 @@ from handsim.envs.config import (
 from handsim.envs.physics import (
     HandDriver,
     PhysicsDiverged,
+    set_skin_friction,
 )
 from handsim.envs.workers import pin_vector_worker
 from handsim.errors import HandSimError
@@ -395,6 +396,9 @@ class HandSimEnv(gym.Env, abc.ABC):
             )
             self.scene = Scene(spec)
             self._scene_key = key
+            friction = self.config.object_friction
+            if friction != "mujoco":
+                set_skin_friction(self.scene, None if friction == "skin" else friction)
         scene = self.scene
         mujoco.mj_resetData(scene.model, scene.data)
         cam = scene.model.camera("camera").id

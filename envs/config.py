@@ -31,6 +31,7 @@ __all__ = [
     "RENDER_SIZE_RANGE",
     "RENDER_QUALITIES",
     "RENDER_MODES",
+    "OBJECT_FRICTIONS",
 ]
 
 OBS_MODES: tuple[str, ...] = (
@@ -67,6 +68,10 @@ WORKSPACE_M: tuple[tuple[float, float], ...] = ((-0.5, 0.5), (-0.5, 0.5), (0.0, 
 """Bounds of the wrist target (x, y, z), world frame, metres (table top at z = 0)."""
 SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
 """Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
+OBJECT_FRICTIONS: tuple[str, ...] = ("mujoco", "skin")
+"""Named ``object_friction`` values (a number is valid too): MuJoCo's 1.0 for every contact,
+or measured skin friction on each object's material
+(:func:`~handsim.envs.physics.set_skin_friction`)."""
 
 
 class InvalidEnvConfig(HandSimError, ValueError):
@@ -96,6 +101,22 @@ def _choice(value: object, name: str, valid: tuple[str, ...]) -> str:
     if value not in valid:
         raise InvalidEnvConfig(f"{name}={value!r} is not valid; choose one of {', '.join(valid)}")
     return str(value)
+
+
+def _object_friction(value: object) -> str | float:
+    if isinstance(value, str) and value in OBJECT_FRICTIONS:
+        return value
+    if (
+        isinstance(value, (int, float, np.integer, np.floating))
+        and not isinstance(value, bool)
+        and np.isfinite(value)
+        and 0 < value <= 10
+    ):
+        return float(value)
+    raise InvalidEnvConfig(
+        f"object_friction={value!r} is not valid; choose one of {', '.join(OBJECT_FRICTIONS)} "
+        "or a sliding friction in (0, 10]"
+    )
 
 
 def _hand_size(value: object) -> tuple[float, float]:
@@ -172,6 +193,9 @@ class EnvConfig:
         render_height: height of ``render()`` images, pixels.
         render_quality: ``"fast"`` (default: no shadow pass, the cheapest colour image) or
             ``"high"`` (one light casts shadows, for pictures); see :data:`RENDER_QUALITIES`.
+        object_friction: hand-object sliding friction: ``"mujoco"`` (default: MuJoCo's 1.0),
+            ``"skin"`` (measured skin friction on each object's material, 0.42 to 0.6) or a
+            number > 0 for every object (:func:`~handsim.envs.physics.set_skin_friction`).
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
     :mod:`handsim.envs`).
@@ -196,6 +220,7 @@ class EnvConfig:
     render_width: int = 480
     render_height: int = 360
     render_quality: str = "fast"
+    object_friction: str | float = "mujoco"
 
     @classmethod
     def from_kwargs(
@@ -221,6 +246,7 @@ class EnvConfig:
         render_width: object = 480,
         render_height: object = 360,
         render_quality: object = "fast",
+        object_friction: object = "mujoco",
     ) -> EnvConfig:
         """Validate the keyword arguments of an env (each error lists the valid values)."""
         if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
@@ -273,4 +299,5 @@ class EnvConfig:
             render_width=_size(render_width, "render_width", RENDER_SIZE_RANGE),
             render_height=_size(render_height, "render_height", RENDER_SIZE_RANGE),
             render_quality=_choice(render_quality, "render_quality", RENDER_QUALITIES),
+            object_friction=_object_friction(object_friction),
         )

@@ -250,7 +250,14 @@ class GraspEnv(HandSimEnv):
             state: the state it plans from (default: the truth, :meth:`expert_state`).
         """
         obj = self.scene.objects[self.target_instance][1]
-        expert = GraspExpert(obj, self.scene.hand.params, rng=rng)
+        # A number is the physics' friction: the grip is sized for it (else for skin).
+        friction = self.config.object_friction
+        expert = GraspExpert(
+            obj,
+            self.scene.hand.params,
+            rng=rng,
+            friction=friction if isinstance(friction, float) else None,
+        )
         expert.reset(state if state is not None else self.expert_state())
         return expert
 

@@ -206,6 +206,8 @@ def test_info_has_one_structure_at_reset_step_and_divergence(env_id, reward_type
         ({"hand_size": 0.5}, "hand_length"),
         ({"frame_skip": 0}, "frame_skip must be a positive integer; received 0"),
         ({"render_mode": "video"}, "render_mode='video' is not valid; choose one of rgb_array"),
+        ({"object_friction": "ice"}, r"object_friction='ice' is not valid; choose one of mujoco"),
+        ({"object_friction": 0.0}, r"object_friction=0.0 .* or a sliding friction in \(0, 10\]"),
     ],
 )
 def test_invalid_arguments_say_what_is_valid(kwargs, message):

@@ -32,6 +32,27 @@ def test_grasp_expert_lifts_and_the_episode_terminates_with_success():
     env.close()
 
 
+@pytest.mark.parametrize("friction", ["mujoco", "skin", 0.5])
+def test_object_friction_reaches_the_physics_and_the_expert(friction):
+    """object_friction sets every object's contact friction; a number also sizes the grip."""
+    from handsim.envs.physics import skin_friction
+
+    env = gym.make("handsim/Grasp-v0", objects="cracker_box", object_friction=friction)
+    env.reset(seed=0)
+    scene = env.unwrapped.scene
+    body, obj = scene.objects[0]
+    model = scene.model
+    geoms = (model.geom_bodyid == model.body(body).id) & (model.geom_contype != 0)
+    expected = {"mujoco": 1.0, "skin": skin_friction(obj.name), 0.5: 0.5}[friction]
+    np.testing.assert_array_equal(model.geom_friction[geoms, 0], expected)
+    assert (model.geom_priority[geoms] == (0 if friction == "mujoco" else 1)).all()
+    expert = env.unwrapped.make_expert()
+    assert expert.friction == (0.5 if friction == 0.5 else skin_friction(obj.name))
+    env.reset(seed=1)  # the scene is kept between episodes: the friction stays
+    np.testing.assert_array_equal(scene.model.geom_friction[geoms, 0], expected)
+    env.close()
+
+
 def test_grasps_are_physical_in_the_env():
     """No equality constraint of the env's model involves an object body."""
     env = gym.make("handsim/GraspClutter-v0", num_objects=3)
