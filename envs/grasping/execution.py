@@ -602,9 +602,16 @@ class GraspExpert:
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
 
     def _grip_force_target(self, lifting: bool) -> float:
-        """Total normal force aimed at, newtons: safety factor x load / friction."""
+        """Total normal force aimed at, newtons: safety factor x load / friction.
+
+        The factor is :data:`GRIP_SAFETY_FACTOR` times the recipe's ``grip_margin``, and times
+        its ``lift_grip_margin`` while settling and lifting.
+        """
         accel = 9.81 + (LIFT_ACCELERATION_M_S2 if lifting else 0.0)
-        grip_n = GRIP_SAFETY_FACTOR * self.obj.mass_kg * accel / self.friction
+        factor = GRIP_SAFETY_FACTOR * self.recipe.grip_margin
+        if lifting:
+            factor *= self.recipe.lift_grip_margin
+        grip_n = factor * self.obj.mass_kg * accel / self.friction
         return max(grip_n, MIN_GRIP_FORCE_N)
 
     def _slipping(self, state: GraspState) -> bool:
