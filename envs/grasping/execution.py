@@ -88,7 +88,10 @@ _FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
 _MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered pose by this
 _SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the table rest on it
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
-_GRIP_EASE = 0.9  # the grip scale falls by at most 10 % per control step...
+# The grip scale falls by at most 3 % per control step (a gradual relaxation, so that the slip
+# check stops it before an eased grip lets go of a pinch; 10 % dropped the scissors and the large
+# clamp at skin friction within 0.1 s of the hold)...
+_GRIP_EASE = 0.97
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
 HOLD_SLIP_M = 0.0015
 """The hold's easing stops for good once the object has moved this far in the palm frame
