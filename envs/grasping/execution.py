@@ -99,6 +99,11 @@ HOLD_SLIP_M = 0.0015
 five), and the grip goes back to where it was three easing steps before: a grip eased until
 the object starts to slip is held there, not eased further (people stop relaxing their grip at
 the first slip; Johansson & Westling 1984)."""
+HOLD_TURN_RAD = float(np.deg2rad(2.0))
+"""Or once it has turned this far in the palm frame (the perceived orientation against that at
+the hold's first step): a pinch eased too far lets its object turn about the pinch before it
+slides (the large clamp at friction 0.5 turned 0.4 deg, then 3.4 deg within three control
+steps, while its origin had moved less than :data:`HOLD_SLIP_M`)."""
 _SLIP_WINDOW = 5
 MIN_GRIP_FORCE_N = 1.0
 """The least total grip force, newtons: for objects lighter than about 30 g people's
@@ -408,6 +413,7 @@ class GraspExpert:
         self._grip_force_n: float | None = None
         self._hold_palm: list[np.ndarray] = []  # perceived object positions in the palm frame
         self._hold_ref: np.ndarray | None = None
+        self._hold_turn_ref: np.ndarray | None = None  # object orientation in the palm frame
         self._eased: list[list[float]] = []  # grip scales of the last easing steps
         self._easing_stopped = False
 
@@ -442,6 +448,7 @@ class GraspExpert:
         self._grip_force_n = None
         self._hold_palm = []
         self._hold_ref = None
+        self._hold_turn_ref = None
         self._eased = []
         self._easing_stopped = False
         self._filter = _PoseFilter(self.obj)
@@ -618,12 +625,23 @@ class GraspExpert:
         return max(grip_n, MIN_GRIP_FORCE_N)
 
     def _slipping(self, state: GraspState) -> bool:
-        """Has the object moved :data:`HOLD_SLIP_M` in the palm frame since the hold began?"""
+        """Has the object slipped in the palm frame since the hold began?
+
+        Slipped: moved :data:`HOLD_SLIP_M` or turned :data:`HOLD_TURN_RAD`.
+        """
         hand = state.hand_pose
         quat = np.empty(4)
         mujoco.mju_negQuat(quat, hand.quat_wxyz)  # world -> palm
         in_palm = np.empty(3)
         mujoco.mju_rotVecQuat(in_palm, state.T_world_from_obj[:3, 3] - hand.wrist_pos, quat)
+        palm = np.empty(9)
+        mujoco.mju_quat2Mat(palm, hand.quat_wxyz)
+        turn = palm.reshape(3, 3).T @ state.T_world_from_obj[:3, :3]
+        if self._hold_turn_ref is None:
+            self._hold_turn_ref = turn
+        cos = (np.trace(self._hold_turn_ref.T @ turn) - 1.0) / 2.0
+        if math.acos(min(max(cos, -1.0), 1.0)) > HOLD_TURN_RAD:
+            return True
         self._hold_palm = [*self._hold_palm[1 - _SLIP_WINDOW :], in_palm]
         if len(self._hold_palm) < _SLIP_WINDOW:
             return False
