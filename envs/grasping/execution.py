@@ -89,8 +89,8 @@ _MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered
 _SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the table rest on it
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
 # The grip scale falls by at most 3 % per control step (a gradual relaxation, so that the slip
-# check stops it before an eased grip lets go of a pinch; 10 % dropped the scissors and the large
-# clamp at skin friction within 0.1 s of the hold)...
+# check stops it before an eased grip lets go of a pinch; at 10 % the scissors, seed 0, were
+# dropped at skin friction within 0.1 s of the hold)...
 _GRIP_EASE = 0.97
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
 HOLD_SLIP_M = 0.0015
@@ -331,8 +331,10 @@ class GraspExpert:
     the end of the squeeze) toward the squeeze targets, within :data:`MIN_GRIP_SCALE` and
     :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
     (target - angle)``, so the force follows the scale. The grip only tightens while lifting;
-    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` in the palm frame, and
-    never again after that. Without touch (``touch_forces_n`` is ``None``) the scale comes once
+    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` or turned
+    :data:`HOLD_TURN_RAD` in the palm frame, and never again after that. The recipe's margins
+    (:attr:`GraspRecipe.grip_margin`, :attr:`GraspRecipe.lift_grip_margin`) multiply the
+    factor. Without touch (``touch_forces_n`` is ``None``) the scale comes once
     from a joint-torque force model (:meth:`grip_targets`).
 
     Args:
