@@ -96,9 +96,9 @@ _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a g
 HOLD_SLIP_M = 0.0015
 """The hold's easing stops for good once the object has moved this far in the palm frame
 (metres; the median of the last five perceived positions against that of the hold's first
-five), and the grip goes back to where it was three easing steps before: a grip eased until
-the object starts to slip is held there, not eased further (people stop relaxing their grip at
-the first slip; Johansson & Westling 1984)."""
+five): a grip eased until the object starts to slip is held there, not eased further (people
+stop relaxing their grip at the first slip; Johansson & Westling 1984). (Going back three
+easing steps as well was tried and not kept: docs/grasping.md.)"""
 HOLD_TURN_RAD = float(np.deg2rad(3.0))
 """Or once it has turned this far in the palm frame (the perceived orientation against that at
 the hold's first step): a pinch eased too far lets its object turn about the pinch before it
