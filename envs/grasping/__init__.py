@@ -70,7 +70,9 @@ collisions with the table, the object and the state's ``obstacles`` (other objec
 private kinematic copy (the env's ``MjData`` is never read). The digits squeeze past contact,
 then the grip force is regulated from touch (:attr:`GraspState.touch_forces_n`) to
 :data:`GRIP_SAFETY_FACTOR` times the slip force of the load at skin friction on the object's
-material (people scale their grip with the load; :class:`GraspExpert`). Motions are
+material (people scale their grip with the load; :class:`GraspExpert`), with the recipe's
+margins (:class:`GraspRecipe`: pad pinches of boxes and tripods grip harder while lifting, and
+tripods in the hold as well). Motions are
 minimum-jerk segments with a peak wrist speed of :data:`EXPERT_WRIST_SPEED_M_S` (below
 :data:`MAX_WRIST_SPEED_M_S`).
 

@@ -88,14 +88,24 @@ _FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
 _MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered pose by this
 _SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the table rest on it
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
-_GRIP_EASE = 0.9  # the grip scale falls by at most 10 % per control step...
+# The grip scale falls by at most 3 % per control step (a gradual relaxation, so that the slip
+# check stops it before an eased grip lets go of a pinch; at 10 % the scissors, seed 0, were
+# dropped at skin friction within 0.1 s of the hold)...
+_GRIP_EASE = 0.97
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
 HOLD_SLIP_M = 0.0015
 """The hold's easing stops for good once the object has moved this far in the palm frame
 (metres; the median of the last five perceived positions against that of the hold's first
-five), and the grip goes back to where it was three easing steps before: a grip eased until
-the object starts to slip is held there, not eased further (people stop relaxing their grip at
-the first slip; Johansson & Westling 1984)."""
+five): a grip eased until the object starts to slip is held there, not eased further (people
+stop relaxing their grip at the first slip; Johansson & Westling 1984). (Going back three
+easing steps as well was tried and not kept: docs/grasping.md.)"""
+HOLD_TURN_RAD = float(np.deg2rad(3.0))
+"""Or once it has turned this far in the palm frame (the perceived orientation against that at
+the hold's first step): a pinch eased too far lets its object turn about the pinch before it
+slides (the large clamp at friction 0.5 turned 0.4 deg, then 3.4 deg within three control
+steps, while its origin had moved less than :data:`HOLD_SLIP_M`). 2 deg gave the same
+successes but stopped the easing of held objects early (the extra-large clamp held at 6.2 times
+its weight instead of 4.8 at the default friction)."""
 _SLIP_WINDOW = 5
 MIN_GRIP_FORCE_N = 1.0
 """The least total grip force, newtons: for objects lighter than about 30 g people's
@@ -321,8 +331,10 @@ class GraspExpert:
     the end of the squeeze) toward the squeeze targets, within :data:`MIN_GRIP_SCALE` and
     :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
     (target - angle)``, so the force follows the scale. The grip only tightens while lifting;
-    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` in the palm frame, and
-    never again after that. Without touch (``touch_forces_n`` is ``None``) the scale comes once
+    in the hold it eases until the object has moved :data:`HOLD_SLIP_M` or turned
+    :data:`HOLD_TURN_RAD` in the palm frame, and never again after that. The recipe's margins
+    (:attr:`GraspRecipe.grip_margin`, :attr:`GraspRecipe.lift_grip_margin`) multiply the
+    factor. Without touch (``touch_forces_n`` is ``None``) the scale comes once
     from a joint-torque force model (:meth:`grip_targets`).
 
     Args:
@@ -405,6 +417,7 @@ class GraspExpert:
         self._grip_force_n: float | None = None
         self._hold_palm: list[np.ndarray] = []  # perceived object positions in the palm frame
         self._hold_ref: np.ndarray | None = None
+        self._hold_turn_ref: np.ndarray | None = None  # object orientation in the palm frame
         self._eased: list[list[float]] = []  # grip scales of the last easing steps
         self._easing_stopped = False
 
@@ -439,6 +452,7 @@ class GraspExpert:
         self._grip_force_n = None
         self._hold_palm = []
         self._hold_ref = None
+        self._hold_turn_ref = None
         self._eased = []
         self._easing_stopped = False
         self._filter = _PoseFilter(self.obj)
@@ -602,18 +616,36 @@ class GraspExpert:
         return np.clip(targets, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
 
     def _grip_force_target(self, lifting: bool) -> float:
-        """Total normal force aimed at, newtons: safety factor x load / friction."""
+        """Total normal force aimed at, newtons: safety factor x load / friction.
+
+        The factor is :data:`GRIP_SAFETY_FACTOR` times the recipe's ``grip_margin``, and times
+        its ``lift_grip_margin`` while settling and lifting.
+        """
         accel = 9.81 + (LIFT_ACCELERATION_M_S2 if lifting else 0.0)
-        grip_n = GRIP_SAFETY_FACTOR * self.obj.mass_kg * accel / self.friction
+        factor = GRIP_SAFETY_FACTOR * self.recipe.grip_margin
+        if lifting:
+            factor *= self.recipe.lift_grip_margin
+        grip_n = factor * self.obj.mass_kg * accel / self.friction
         return max(grip_n, MIN_GRIP_FORCE_N)
 
     def _slipping(self, state: GraspState) -> bool:
-        """Has the object moved :data:`HOLD_SLIP_M` in the palm frame since the hold began?"""
+        """Has the object slipped in the palm frame since the hold began?
+
+        Slipped: moved :data:`HOLD_SLIP_M` or turned :data:`HOLD_TURN_RAD`.
+        """
         hand = state.hand_pose
         quat = np.empty(4)
         mujoco.mju_negQuat(quat, hand.quat_wxyz)  # world -> palm
         in_palm = np.empty(3)
         mujoco.mju_rotVecQuat(in_palm, state.T_world_from_obj[:3, 3] - hand.wrist_pos, quat)
+        palm = np.empty(9)
+        mujoco.mju_quat2Mat(palm, hand.quat_wxyz)
+        turn = palm.reshape(3, 3).T @ state.T_world_from_obj[:3, :3]
+        if self._hold_turn_ref is None:
+            self._hold_turn_ref = turn
+        cos = (np.trace(self._hold_turn_ref.T @ turn) - 1.0) / 2.0
+        if math.acos(min(max(cos, -1.0), 1.0)) > HOLD_TURN_RAD:
+            return True
         self._hold_palm = [*self._hold_palm[1 - _SLIP_WINDOW :], in_palm]
         if len(self._hold_palm) < _SLIP_WINDOW:
             return False

@@ -461,6 +461,25 @@ def test_grip_force_follows_weight_and_friction():
     assert slippery._grip_force_target(False) > drill._grip_force_target(False)
     marker = GraspExpert(get_object("040_large_marker"), params)
     assert marker._grip_force_target(False) == 1.0
+    # The drill (a tool) has no margins: the lift adds only its acceleration.
+    np.testing.assert_allclose(
+        drill._grip_force_target(lifting=True), 1.6 * drill.obj.mass_kg * 11.81 / 0.53
+    )
+
+
+def test_grip_margins_of_the_recipes():
+    """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting."""
+    params = hand_params("medium")
+    clamp = GraspExpert(get_object("051_large_clamp"), params)
+    mass = clamp.obj.mass_kg
+    np.testing.assert_allclose(clamp._grip_force_target(False), 1.6 * 1.25 * mass * 9.81 / 0.53)
+    np.testing.assert_allclose(
+        clamp._grip_force_target(True), 1.6 * 1.25 * 2.0 * mass * 11.81 / 0.53
+    )
+    box = GraspExpert(get_object("004_sugar_box"), params)
+    mass = box.obj.mass_kg
+    np.testing.assert_allclose(box._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
+    np.testing.assert_allclose(box._grip_force_target(True), 1.6 * 2.0 * mass * 11.81 / 0.42)
 
 
 def test_hold_stops_easing_at_the_first_slip():
