@@ -511,6 +511,36 @@ def test_hold_stops_easing_at_the_first_slip():
     assert np.all(np.diff(scales, axis=0) >= 0.0)  # never eased again
 
 
+@pytest.mark.parametrize(("turn_deg", "stops"), [(2.0, False), (4.0, True)])
+def test_hold_stops_easing_when_the_object_turns_in_the_palm(turn_deg, stops):
+    """A perceived turn beyond HOLD_TURN_RAD (3 deg) stops the easing at once; 2 deg does not."""
+    from scipy.spatial.transform import Rotation
+
+    from handsim.envs.grasping.execution import HOLD_TURN_RAD
+
+    assert np.isclose(np.rad2deg(HOLD_TURN_RAD), 3.0)
+    scene, rng = _scene("061_foam_brick")
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    hold_steps = []
+    turn = Rotation.from_euler("x", turn_deg, degrees=True).as_matrix()
+
+    def perceive(state):
+        if expert.phase == "hold" and len(hold_steps) > 10:
+            T = state.T_world_from_obj.copy()  # noqa: N806
+            T[:3, :3] = T[:3, :3] @ turn
+            return dataclasses.replace(state, T_world_from_obj=T)
+        return state
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold_steps.append(expert._easing_stopped)
+
+    run_episode(scene, 0, expert, rng, stop_on_success=False, on_step=record, perceive=perceive)
+    assert any(hold_steps) == stops
+    if stops:
+        assert hold_steps.index(True) in (11, 12)  # the first turned estimate
+
+
 # Closed loop: re-planning ---------------------------------------------------------------------
 
 
