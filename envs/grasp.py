@@ -11,6 +11,7 @@ from gymnasium import spaces
 from handsim.envs.base import HandSimEnv
 from handsim.envs.config import EnvConfig, InvalidEnvConfig
 from handsim.envs.grasping import (
+    FALL_HEIGHT_M,
     LIFT_HEIGHT_M,
     GraspExpert,
     GraspState,
@@ -29,8 +30,6 @@ from handsim.world.scene import (
 
 __all__ = ["GraspEnv", "GraspClutterEnv"]
 
-FALL_HEIGHT_M = -0.05
-"""An object whose origin drops below this height (world z) has fallen off the table."""
 _SINGLE_REGION_M = ((-0.08, 0.08), (-0.04, 0.08))
 _CLUTTER_REGION_M = ((-0.22, 0.22), (-0.08, 0.22))
 

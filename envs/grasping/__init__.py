@@ -80,6 +80,7 @@ Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
 
 from handsim.envs.grasping.execution import (
+    FALL_HEIGHT_M,
     GRIP_FRICTION,
     GRIP_SAFETY_FACTOR,
     MAX_GRIP_SCALE,
@@ -120,6 +121,7 @@ from handsim.envs.grasping.planning import (
 )
 
 __all__ = [
+    "FALL_HEIGHT_M",
     "FRAME_SKIP",
     "CONTROL_DT_S",
     "LIFT_HEIGHT_M",

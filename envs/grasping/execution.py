@@ -93,6 +93,8 @@ _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control 
 # dropped at skin friction within 0.1 s of the hold)...
 _GRIP_EASE = 0.97
 _GRIP_TIGHTEN = 1.25  # ...and rises by up to 25 % (people tighten fast when a grip slips)
+FALL_HEIGHT_M = -0.05
+"""An object whose origin drops below this height (world z) has fallen off the table."""
 HOLD_SLIP_M = 0.0015
 """The hold's easing stops for good once the object has moved this far in the palm frame
 (metres; the median of the last five perceived positions against that of the hold's first
@@ -1134,7 +1136,8 @@ def run_episode(
 
     Resets ``scene`` (objects at their placements, the hand at :func:`start_pose`), then per
     control step: state -> ``expert.act`` -> ``set_target`` -> :data:`FRAME_SKIP` physics steps
-    -> success tracking.
+    -> success tracking. As in ``handsim/Grasp-v0``, the episode ends when the object has
+    fallen off the table (its origin below :data:`FALL_HEIGHT_M`).
 
     Args:
         scene: a scene with a hand and the target object.
@@ -1188,5 +1191,7 @@ def run_episode(
             on_step(step, expert)
         if success and stop_on_success:
             break
+        if data.xpos[body_id][2] < FALL_HEIGHT_M:
+            break  # fallen off the table (falling on, it would pass the divergence speed)
         state = perceived(GraspState.from_sim(scene, instance, time_s))
     return tracker.outcome(diverged=diverged)

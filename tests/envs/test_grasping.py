@@ -12,6 +12,7 @@ from scipy.spatial.transform import Rotation
 from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.grasping import (
     CONTROL_DT_S,
+    FALL_HEIGHT_M,
     FRAME_SKIP,
     GRASP_RECIPES,
     HOLD_DURATION_S,
@@ -39,7 +40,7 @@ from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_frict
 from handsim.hand.model import hand_params
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
-from handsim.world.scene import Scene, SceneSpec, sample_placements
+from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, sample_placements
 
 REST_HEIGHT_M = 0.05
 
@@ -480,6 +481,22 @@ def test_grip_margins_of_the_recipes():
     mass = box.obj.mass_kg
     np.testing.assert_allclose(box._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
     np.testing.assert_allclose(box._grip_force_target(True), 1.6 * 2.0 * mass * 11.81 / 0.42)
+
+
+def test_an_episode_ends_when_the_object_falls_off_the_table():
+    """As in Grasp-v0, a fallen object ends the episode.
+
+    Falling on, it would pass the divergence speed bound and be reported as diverged physics.
+    """
+    placement = ObjectPlacement("061_foam_brick", pos_m=(0.0, 0.7, 0.2))  # beyond the table
+    scene = Scene(SceneSpec(hand=hand_params("medium"), objects=(placement,)))
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    steps = []
+    outcome = run_episode(
+        scene, 0, expert, np.random.default_rng(0), on_step=lambda step, _: steps.append(step)
+    )
+    assert outcome.failure == "not_lifted" and len(steps) < 20
+    assert scene.data.xpos[scene.model.body(scene.objects[0][0]).id][2] < FALL_HEIGHT_M
 
 
 def test_hold_stops_easing_at_the_first_slip():
