@@ -663,6 +663,7 @@ class _Acceptor:
 
 _KEPT_SOURCE: dict[str, FrameSource] = {}
 """This process's kinematic source, by its config, kept from shard to shard (its scenes)."""
+_kept_source_freed_at_exit = False
 
 
 def close_kept_source() -> None:
@@ -679,6 +680,7 @@ def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
     with (bitwise the same whatever the lengths before), and keeps a scene with objects only
     for the same objects at the same placements.
     """
+    global _kept_source_freed_at_exit
     key = json.dumps(config.to_json(), sort_keys=True)
     source = _KEPT_SOURCE.get(key)
     if source is None:
@@ -689,20 +691,18 @@ def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
     try:
         yield source
     except BaseException:
-        close_kept_source()  # an error may leave a scene half-changed
+        if _KEPT_SOURCE.get(key) is source:
+            del _KEPT_SOURCE[key]  # an error may leave a scene half-changed: not kept
         raise
     finally:
-        if key not in _KEPT_SOURCE:
+        if _KEPT_SOURCE.get(key) is not source:
             source.close()
-    if key in _KEPT_SOURCE and not _KEPT_SOURCE_AT_EXIT:
+    if key in _KEPT_SOURCE and not _kept_source_freed_at_exit:
         # Free the renderers before teardown (a pool worker keeps its source to the end).
         # Registered once a shard has made its OpenGL context: exit handlers run last
         # registered first, so this runs before MuJoCo's EGL display is terminated.
         atexit.register(close_kept_source)
-        _KEPT_SOURCE_AT_EXIT.append(True)
-
-
-_KEPT_SOURCE_AT_EXIT: list[bool] = []
+        _kept_source_freed_at_exit = True
 
 
 def generate_shard(

@@ -245,6 +245,31 @@ def test_scenes_kept_between_shards_change_no_frame(tmp_path):
     assert not generation._KEPT_SOURCE
 
 
+def test_a_failed_shard_keeps_no_scene(tmp_path, monkeypatch):
+    """An error in the middle of a shard frees its source instead of keeping it."""
+    from handsim.data import generation
+
+    config = GenerationConfig.from_mapping(PRESETS["hand-only"], frames=2, frames_per_shard=2)
+    closed = []
+    close = generation.KinematicSource.close
+
+    def recording_close(self):
+        closed.append(self)
+        close(self)  # the renderers are freed, not left to the garbage collector
+
+    monkeypatch.setattr(generation.KinematicSource, "close", recording_close)
+
+    def broken(self, rng, accept, frames):
+        self._scene(rng)  # a scene is made and kept
+        raise RuntimeError("broken episode")
+
+    monkeypatch.setattr(generation.KinematicSource, "episode", broken)
+    with pytest.raises(RuntimeError, match="broken episode"):
+        generate_shard(config, 0, tmp_path)
+    assert not generation._KEPT_SOURCE and len(closed) == 1
+    assert not list(tmp_path.glob("*.h5*"))  # the partial shard is removed
+
+
 def test_two_workers_make_the_shards_one_worker_makes(tmp_path):
     """From the CLI with 2 spawned workers: the same shards as in-process, a clean exit."""
     config = {**PRESETS["hand-only"], "frames": 8, "frames_per_shard": 2, "frames_per_episode": 2}
