@@ -484,7 +484,8 @@ class Scene:
         """Meshes of the hand (its skin), for renderers to upload again after a rescale."""
         self.hand_rescaled = False
         """:meth:`set_hand_length` changed the hand: kinematic use only."""
-        self._built_hand_geometry: tuple | None = None
+        self._built_hand_params = None if self.hand is None else self.hand.params
+        self._built_hand_geometry: list | None = None
         self.hand_geometry_version = 0
         """Counts :meth:`set_hand_length` calls (renderers compare it to upload the skin)."""
         self.reset()
@@ -556,7 +557,7 @@ class Scene:
         vertices. Keypoints, collision geoms and depth images are then those of a scene built
         for that length, up to the skin's triangulation (built on a fixed grid in metres, so a
         rescaled skin's triangles are scaled too). It costs about a millisecond, against tens
-        of milliseconds for a new scene (and a second for a new length's skin).
+        of milliseconds for a new scene (and about 0.15 s for a new length's skin).
 
         Renderers made before the call upload the rescaled skin on their next frame
         (:class:`~handsim.frame.FrameRenderer` does it itself; a bare
@@ -577,20 +578,20 @@ class Scene:
         """
         if self.hand is None:
             raise InvalidScene("set_hand_length needs a scene with a hand; SceneSpec(hand=None)")
-        old = self.hand.params
-        scale = float(hand_length_m) / old.hand_length if is_real(hand_length_m) else 1.0
+        built_params = self._built_hand_params  # every value from the built ones: no drift
+        factor = float(hand_length_m) / built_params.hand_length if is_real(hand_length_m) else 1
         params = dataclasses.replace(
-            old,
+            built_params,
             hand_length=hand_length_m,  # validated here
-            palm_breadth=None if old.palm_breadth is None else old.palm_breadth * scale,
+            palm_breadth=None
+            if built_params.palm_breadth is None
+            else built_params.palm_breadth * factor,
         )
-        if scale == 1.0:
+        if params == self.hand.params:
             return
         if self._built_hand_geometry is None:
             self._built_hand_geometry = self._hand_geometry()
-        built_length, built = self._built_hand_geometry
-        factor = params.hand_length / built_length  # from the built values: no drift
-        for name, rows, values in built:
+        for name, rows, values in self._built_hand_geometry:
             getattr(self.model, name)[rows] = values * factor
         self.hand = self.hand.rescaled(params)
         self.binding.hand = self.hand
@@ -599,8 +600,8 @@ class Scene:
         self.hand_geometry_version += 1
         mujoco.mj_forward(self.model, self.data)
 
-    def _hand_geometry(self) -> tuple[float, list[tuple[str, np.ndarray, np.ndarray]]]:
-        """The built hand length and ``(model field, rows, values)`` of what scales with it."""
+    def _hand_geometry(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """``(model field, rows, built values)`` of what scales with the hand length."""
         model = self.model
         hand_bodies = np.zeros(model.nbody, dtype=bool)
         hand_bodies[self._hand_body_ids] = True
@@ -627,9 +628,7 @@ class Scene:
             "bvh_aabb": np.concatenate(bvh) if bvh else np.zeros(0, dtype=np.intp),
             "mesh_vert": np.concatenate(verts) if verts else np.zeros(0, dtype=np.intp),
         }
-        return self.hand.params.hand_length, [
-            (name, index, getattr(model, name)[index].copy()) for name, index in rows.items()
-        ]
+        return [(name, index, getattr(model, name)[index].copy()) for name, index in rows.items()]
 
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)
