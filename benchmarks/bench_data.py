@@ -111,7 +111,7 @@ def _replay_plain_render_fps(folder: Path) -> float:
     from handsim.data.shards import ShardReader
     from handsim.hand.model import hand_params
     from handsim.hand.pose import HandPose
-    from handsim.world.camera import camera_preset
+    from handsim.world.camera import R_MJCAM_FROM_CV, camera_preset
     from handsim.world.scene import CameraSpec, Scene, SceneSpec
 
     manifest = Manifest.read(folder)
@@ -139,7 +139,6 @@ def _replay_plain_render_fps(folder: Path) -> float:
         )
         renderers[side] = mujoco.Renderer(scenes[side].model, intr.height, intr.width)
         renderers[side].enable_depth_rendering()
-    flip = np.diag([1.0, -1.0, -1.0])  # OpenCV camera axes to MuJoCo's (y up, looking along -z)
     elapsed, cpu = 0.0, 0.0
     for i in range(len(labels["hand_pose"])):
         side = "left" if labels["is_left"][i] else "right"
@@ -150,7 +149,7 @@ def _replay_plain_render_fps(folder: Path) -> float:
             for mesh in scene.hand_mesh_ids:
                 mujoco.mjr_uploadMesh(scene.model, renderer._mjr_context, mesh)
         T = labels["T_cam_from_world"][i]  # noqa: N806
-        R = T[:3, :3].T @ flip  # noqa: N806
+        R = T[:3, :3].T @ R_MJCAM_FROM_CV  # noqa: N806 (world from MuJoCo's camera axes)
         camera_id = scene.model.camera("camera").id
         scene.model.cam_pos[camera_id] = -T[:3, :3].T @ T[:3, 3]
         scene.model.cam_quat[camera_id] = np.roll(Rotation.from_matrix(R).as_quat(), 1)

@@ -164,8 +164,7 @@ class DepthRenderer:
             self._gl.make_current()
         if spare is not None and spare[3] == self._key:
             self._context = spare[2]
-            for mesh in range(model.nmesh):
-                mujoco.mjr_uploadMesh(model, self._context, mesh)
+            self.upload_meshes(range(model.nmesh))
         else:
             if spare is not None:
                 spare[2].free()

@@ -482,8 +482,6 @@ class Scene:
             int(m) for m in np.unique(self.model.geom_dataid[mesh_geoms])
         )
         """Meshes of the hand (its skin), for renderers to upload again after a rescale."""
-        self.hand_rescaled = False
-        """:meth:`set_hand_length` changed the hand: kinematic use only."""
         self._built_hand_params = None if self.hand is None else self.hand.params
         self._built_hand_geometry: list | None = None
         self.hand_geometry_version = 0
@@ -522,6 +520,11 @@ class Scene:
         """
         self._check_not_rescaled("save")
         return save_spec(self.mjspec, path, assets_dir=assets_dir)
+
+    @property
+    def hand_rescaled(self) -> bool:
+        """:meth:`set_hand_length` changed the hand from the one built: kinematic use only."""
+        return self.hand is not None and self.hand.params != self._built_hand_params
 
     def _check_not_rescaled(self, what: str) -> None:
         if self.hand_rescaled:
@@ -596,7 +599,6 @@ class Scene:
         self.hand = self.hand.rescaled(params)
         self.binding.hand = self.hand
         self.spec = dataclasses.replace(self.spec, hand=params)
-        self.hand_rescaled = True
         self.hand_geometry_version += 1
         mujoco.mj_forward(self.model, self.data)
 
