@@ -19,6 +19,7 @@ from handsim.envs.grasping import (
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
     MAX_WRIST_SPEED_M_S,
+    OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
     TOUCH_PARTS,
     ContactMetrics,
@@ -29,6 +30,7 @@ from handsim.envs.grasping import (
     LiftTracker,
     contact_metrics,
     evaluate_lift,
+    grasp_recipe,
     plan_grasp,
     run_episode,
     shape_class,
@@ -222,6 +224,19 @@ def test_every_object_has_a_shape_class_and_a_known_grasp_type():
     for name in OBJECTS:
         recipe = GRASP_RECIPES[shape_class(get_object(name))]
         assert recipe.grasp_type in GRASP_TYPES
+
+
+def test_object_recipes_override_their_shape_class():
+    """The banana's pads go below its equator; the tripods oppose the thumb to two fingers."""
+    banana, marker = get_object("011_banana"), get_object("040_large_marker")
+    assert set(OBJECT_RECIPES) <= set(OBJECTS)
+    assert grasp_recipe(banana).height_fraction == pytest.approx(0.35)
+    assert grasp_recipe(marker) is GRASP_RECIPES["elongated"]
+    assert grasp_recipe(marker).height_fraction == pytest.approx(0.5)
+    expert = GraspExpert(banana, hand_params(0.189))
+    assert expert.recipe is grasp_recipe(banana)
+    for shape in ("flat_tool", "clamp", "elongated"):
+        assert GRASP_RECIPES[shape].fingers == ("index", "middle")
 
 
 def test_state_from_sim_and_errors():
