@@ -227,7 +227,8 @@ def test_every_object_has_a_shape_class_and_a_known_grasp_type():
 
 
 def test_object_recipes_override_their_shape_class():
-    """The banana's pads go below its equator; the tripods oppose the thumb to two fingers."""
+    """The banana's pads go below its equator; clamps and elongated objects are pinched between
+    the thumb and two fingers, the scissors' loops take one finger."""
     banana, marker = get_object("011_banana"), get_object("040_large_marker")
     assert set(OBJECT_RECIPES) <= set(OBJECTS)
     assert grasp_recipe(banana).height_fraction == pytest.approx(0.35)
@@ -235,8 +236,9 @@ def test_object_recipes_override_their_shape_class():
     assert grasp_recipe(marker).height_fraction == pytest.approx(0.5)
     expert = GraspExpert(banana, hand_params(0.189))
     assert expert.recipe is grasp_recipe(banana)
-    for shape in ("flat_tool", "clamp", "elongated"):
+    for shape in ("clamp", "elongated"):
         assert GRASP_RECIPES[shape].fingers == ("index", "middle")
+    assert GRASP_RECIPES["flat_tool"].fingers == ("index",)
 
 
 def test_state_from_sim_and_errors():
