@@ -227,8 +227,11 @@ def test_every_object_has_a_shape_class_and_a_known_grasp_type():
 
 
 def test_object_recipes_override_their_shape_class():
-    """The banana's pads go below its equator; clamps and elongated objects are pinched between
-    the thumb and two fingers, the scissors' loops take one finger."""
+    """Per-object recipes override the shape class's; tripod fingers per class.
+
+    The banana's pads go below its equator; clamps and elongated objects are pinched between
+    the thumb and two fingers, the scissors' loops take one finger.
+    """
     banana, marker = get_object("011_banana"), get_object("040_large_marker")
     assert set(OBJECT_RECIPES) <= set(OBJECTS)
     assert grasp_recipe(banana).height_fraction == pytest.approx(0.35)
