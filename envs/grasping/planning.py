@@ -445,8 +445,8 @@ _LIFT_MARGIN = 2.0
 # mass: the weight also turns the object about the pinch, which point contacts hold by friction
 # alone. Their grip has a larger margin in the hold as well.
 _TRIPOD_MARGIN = 1.25
-# Clamps (and the banana, OBJECT_RECIPES): the thumb opposes the index and the middle finger
-# together, so the planned pinch passes between them. With the index alone the middle finger,
+# Clamps: the thumb opposes the index and the middle finger together, so the planned pinch
+# passes between them. With the index alone the middle finger,
 # which closes beside it and pressed hardest, put the pinch 2-3 cm off the centre of mass (the
 # extra-large clamp turned out of it in the lift).
 _TRIPOD_FINGERS = ("index", "middle")
@@ -522,14 +522,11 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
 """The grasp of each shape class."""
 
 OBJECT_RECIPES: dict[str, GraspRecipe] = {
-    # The banana is thick and round (38 mm high): the thumb opposes two fingers, and the pads
-    # go below its equator (0.35 of its height) to press up under its flanks. At its equator
-    # the thumb met the upper flank (normal 12-18 deg downward) and the pinch let go as the
-    # hold eased (seeds 9, 15, 19 at skin friction). The 19 mm marker keeps the elongated
-    # recipe: pads at its axis, the index alone (lower: 17/20, higher: 11/20).
-    "011_banana": dataclasses.replace(
-        GRASP_RECIPES["elongated"], fingers=_TRIPOD_FINGERS, height_fraction=0.35
-    ),
+    # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
+    # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg
+    # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The
+    # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
+    "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
 }
 """Objects whose grasp differs from that of their shape class."""
 

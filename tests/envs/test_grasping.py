@@ -229,8 +229,8 @@ def test_every_object_has_a_shape_class_and_a_known_grasp_type():
 def test_object_recipes_override_their_shape_class():
     """Per-object recipes override the shape class's; tripod fingers per class.
 
-    The banana's pads go below its equator; clamps and the banana are pinched between the
-    thumb and two fingers, the scissors' loops and the thin marker take one finger.
+    The banana's pads go below its equator; the clamps are pinched between the thumb and two
+    fingers, the other tripods between the thumb and the index.
     """
     banana, marker = get_object("011_banana"), get_object("040_large_marker")
     assert set(OBJECT_RECIPES) <= set(OBJECTS)
@@ -239,8 +239,8 @@ def test_object_recipes_override_their_shape_class():
     assert grasp_recipe(marker).height_fraction == pytest.approx(0.5)
     expert = GraspExpert(banana, hand_params(0.189))
     assert expert.recipe is grasp_recipe(banana)
-    assert GRASP_RECIPES["clamp"].fingers == grasp_recipe(banana).fingers == ("index", "middle")
-    assert GRASP_RECIPES["flat_tool"].fingers == grasp_recipe(marker).fingers == ("index",)
+    assert GRASP_RECIPES["clamp"].fingers == ("index", "middle")
+    assert GRASP_RECIPES["flat_tool"].fingers == grasp_recipe(banana).fingers == ("index",)
 
 
 def test_state_from_sim_and_errors():
