@@ -55,7 +55,8 @@ bowl        024 bowl                            palmar pinch; as vessel
 flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
                                                 the material between them
 clamp       051, 052 clamps                     tripod; fingertips at the table, across the
-                                                arms at the pivot
+                                                arms at the pivot, the thumb opposite the
+                                                index and the middle finger
 elongated   011 banana, 040 large marker        tripod; fingertips at the table, across the
                                                 body (the banana's below its equator:
                                                 :data:`OBJECT_RECIPES`)
