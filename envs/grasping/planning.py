@@ -886,7 +886,7 @@ top edges (the hand's widest span)."""
 _HOOK_DEPTHS_M = (0.010, 0.008, 0.012)
 _HOOK_FINGERS = ("middle", "ring")
 _HOOK_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
-_HOOK_SQUEEZE_RAD = np.deg2rad(40.0)
+_HOOK_SQUEEZE_RAD = np.deg2rad(20.0)
 
 
 def _top_candidates(
