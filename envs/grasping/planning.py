@@ -673,8 +673,8 @@ class GraspPlan:
             grasp while the digits close (an open hand reaches lower than a closed one).
         width_m: object width between the opposing pads, metres.
         contact_closure: closure of ``grasp_type`` at which the pads meet the object.
-        hooked: the fingertips hook under the far top edge of a wide box (the hooks carry
-            the load by their shape, so the squeeze is kept during the hold).
+        hooked: a wide box's span grasp (the thumb tip and the middle and ring pads on the side
+            walls just under the top edges).
     """
 
     grasp_type: str
@@ -846,15 +846,16 @@ def _closing(
     return _Closing(angles, spheres, contact_vec, gap, squeeze)
 
 
-def _hook_path() -> np.ndarray:
-    # Boxes wider than _HOOK_WIDTH_M: the thumb at its widest (full palmar abduction and
+def _span_path() -> np.ndarray:
+    # Boxes wider than _SPAN_WIDTH_M: the thumb at its widest (full palmar abduction and
     # extension at the CMC), its tip on the near wall; the middle and ring fingers hyperextended
     # at the MCPs and curled at the PIPs and DIPs, so their distal pads meet the far wall about
     # vertically below the top edge; the shorter index and little fingers stay straighter, clear
-    # of the top face. Closing curls the fingers and flexes the thumb's IP. The joint angles at
-    # closure 0 and 1 came from a search (over the pads' and segments' distances to a 0.164 m
-    # box) for which every hand from 0.165 to 0.22 m long meets both walls 1 cm below the top
-    # with no other segment within 3 mm of the box (the closure of contact varies with size).
+    # of the top face. Closing curls the middle and ring fingers and flexes the thumb's IP. The
+    # angles came from a search over the path (the pads' and segments' distances to a 0.164 m
+    # wide box at the closure where the pads span it) for which hands from 0.18 to 0.22 m meet
+    # both walls 1 cm below the top with no other segment within 3 mm of the box; at 0.165 m
+    # the thumb's distal segment and the middle finger still cross the top edges by 3 mm.
     open_angles = _wide_open()
     delta = np.zeros(NUM_ANGLES)
     for name, deg in (
@@ -868,25 +869,27 @@ def _hook_path() -> np.ndarray:
     delta[joint_index("thumb_ip_flex")] = np.deg2rad(50.0)
     for finger in ("index", "middle", "ring", "little"):
         # (MCP, PIP, DIP) at closure 0, degrees; the index and little fingers straighter.
-        mcp, pip, dip = (-36.0, 1.0, 19.4) if finger in ("index", "little") else (-17.4, 20.0, 39.4)
+        mcp, pip, dip = (-20.0, 0.0, 20.0) if finger in ("index", "little") else (-17.0, 20.0, 39.0)
         open_angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(mcp)
         open_angles[joint_index(f"{finger}_pip_flex")] = np.deg2rad(pip)
         open_angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(dip)
         if finger in ("middle", "ring"):
-            delta[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(39.9)
+            delta[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(40.0)
             delta[joint_index(f"{finger}_pip_flex")] = np.deg2rad(71.0)
-            delta[joint_index(f"{finger}_dip_flex")] = np.deg2rad(39.9)
+            delta[joint_index(f"{finger}_dip_flex")] = np.deg2rad(40.0)
     path = open_angles + _CLOSURES[:, None] * delta
     return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
 
 
-_HOOK_WIDTH_M = 0.13
+_SPAN_WIDTH_M = 0.13
 """Boxes wider than this are held with the thumb and finger tips on the walls just under the
 top edges (the hand's widest span)."""
-_HOOK_DEPTHS_M = (0.010, 0.008, 0.012)
-_HOOK_FINGERS = ("middle", "ring")
-_HOOK_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
-_HOOK_SQUEEZE_RAD = np.deg2rad(20.0)
+_SPAN_DEPTHS_M = (0.010, 0.008, 0.012)
+_SPAN_FINGERS = ("middle", "ring")
+_SPAN_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
+# Less than the pinch's 45 deg: squeezed 40 deg past contact, the large hand's pads dragged one
+# wall up as they rolled on it and tilted the box 5 deg (not lifted at skin friction).
+_SPAN_SQUEEZE_RAD = np.deg2rad(30.0)
 
 
 def _top_candidates(
@@ -917,18 +920,18 @@ def _top_candidates(
             deepest,
         )
     ]
-    hook = None
+    span = None
     if recipe.wide:
-        # Too wide to reach down both sides: hook the fingertips under the far top edge.
-        hook = _closing(
+        # Too wide for the pinch: the hand's widest span, tips on the walls under the top edges.
+        span = _closing(
             params,
-            dataclasses.replace(recipe, fingers=_HOOK_FINGERS),
-            _hook_path(),
-            _HOOK_FINGER_FRACTION,
-            _HOOK_SQUEEZE_RAD * _grip_scale(obj),
+            dataclasses.replace(recipe, fingers=_SPAN_FINGERS),
+            _span_path(),
+            _SPAN_FINGER_FRACTION,
+            _SPAN_SQUEEZE_RAD * _grip_scale(obj),
             thumb_fraction=1.0,
         )
-        closings.append((hook, [top - d for d in _HOOK_DEPTHS_M], top - _HOOK_DEPTHS_M[0]))
+        closings.append((span, [top - d for d in _SPAN_DEPTHS_M], top - _SPAN_DEPTHS_M[0]))
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
     centres = []
@@ -1003,7 +1006,7 @@ def _top_candidates(
                     hover_m=float(hovering[2] - wrist[2]),
                     width_m=width,
                     contact_closure=float(_CLOSURES[k]),
-                    hooked=c is hook,
+                    hooked=c is span,
                 )
                 if _approach_is_clear(plan, obj, T, params):
                     return plan
@@ -1034,8 +1037,8 @@ def _top_candidates(
                     if s is None:
                         continue
                 width = float(s.max() - s.min())
-                # Wide recipes: the pinch up to _HOOK_WIDTH_M, the hook beyond.
-                if recipe.wide and (width > _HOOK_WIDTH_M) != (index == 1):
+                # Wide recipes: the pinch up to _SPAN_WIDTH_M, the span beyond.
+                if recipe.wide and (width > _SPAN_WIDTH_M) != (index == 1):
                     continue
                 if width + 0.004 > closing.gap.max() - 0.005:
                     continue
