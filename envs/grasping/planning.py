@@ -673,7 +673,7 @@ class GraspPlan:
             grasp while the digits close (an open hand reaches lower than a closed one).
         width_m: object width between the opposing pads, metres.
         contact_closure: closure of ``grasp_type`` at which the pads meet the object.
-        hooked: a wide box's span grasp (the thumb tip and the middle and ring pads on the side
+        span: a wide box's span grasp (the thumb tip and the middle and ring pads on the side
             walls just under the top edges).
     """
 
@@ -688,7 +688,7 @@ class GraspPlan:
     hover_m: float
     width_m: float
     contact_closure: float
-    hooked: bool = False
+    span: bool = False
 
     @property
     def approach_end(self) -> np.ndarray:
@@ -1006,7 +1006,7 @@ def _top_candidates(
                     hover_m=float(hovering[2] - wrist[2]),
                     width_m=width,
                     contact_closure=float(_CLOSURES[k]),
-                    hooked=c is span,
+                    span=c is span,
                 )
                 if _approach_is_clear(plan, obj, T, params):
                     return plan

@@ -511,7 +511,7 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
 
     outcome = run_episode(scene, 0, expert, rng, on_step=record)
     assert outcome.success, outcome
-    assert expert.plan.hooked
+    assert expert.plan.span
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
 
