@@ -43,9 +43,9 @@ bottle      006 mustard, 021 bleach cleanser    large diameter; side wrap, palm 
                                                 face
 box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; from the top, thumb and
                                                 finger pads across the narrowest side; boxes
-                                                wider than 0.13 m (003) with the widest span
-                                                and the fingertips hooked under the far top
-                                                edge
+                                                wider than 0.13 m (003) with the widest span:
+                                                the thumb tip and the middle and ring pads on
+                                                the side walls just under the top edges
 disk        007 tuna fish can                   prismatic 4 finger; from the top
 tool        035 power drill                     prismatic 4 finger; from the top, across the
                                                 grip

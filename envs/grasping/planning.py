@@ -701,8 +701,8 @@ class GraspPlan:
             grasp while the digits close (an open hand reaches lower than a closed one).
         width_m: object width between the opposing pads, metres.
         contact_closure: closure of ``grasp_type`` at which the pads meet the object.
-        hooked: the fingertips hook under the far top edge of a wide box (the hooks carry
-            the load by their shape, so the squeeze is kept during the hold).
+        span: a wide box's span grasp (the thumb tip and the middle and ring pads on the side
+            walls just under the top edges).
     """
 
     grasp_type: str
@@ -716,7 +716,7 @@ class GraspPlan:
     hover_m: float
     width_m: float
     contact_closure: float
-    hooked: bool = False
+    span: bool = False
 
     @property
     def approach_end(self) -> np.ndarray:
@@ -856,37 +856,68 @@ class _Closing:
 
 
 def _closing(
-    params: HandParams, recipe: GraspRecipe, angles: np.ndarray, fraction: float, squeeze: float
+    params: HandParams,
+    recipe: GraspRecipe,
+    angles: np.ndarray,
+    fraction: float,
+    squeeze: float,
+    thumb_fraction: float | None = None,
 ) -> _Closing:
     geometry = _hand_geometry(params)
     digits = ("thumb", *recipe.fingers)
     spheres = geometry.contacts(angles, digits, fraction)
+    if thumb_fraction is not None:
+        spheres[:, 0] = geometry.contacts(angles, ("thumb",), thumb_fraction)[:, 0]
     radii = np.array([geometry.distal_radius[d] for d in digits])
     contact_vec = spheres[:, 1:].mean(axis=1) - spheres[:, 0]
     gap = np.linalg.norm(contact_vec, axis=-1) - radii[0] - radii[1:].mean()
     return _Closing(angles, spheres, contact_vec, gap, squeeze)
 
 
-def _hook_path() -> np.ndarray:
-    # Boxes wider than _HOOK_WIDTH_M: the widest span, with the fingers straight and their
-    # distal segments hooked 60 deg over the far top edge; closing flexes the MCPs (by 30 deg
-    # at closure 1) and the thumb (60 deg per joint) and keeps the hooks.
+def _span_path() -> np.ndarray:
+    # Boxes wider than _SPAN_WIDTH_M: the thumb at its widest (full palmar abduction and
+    # extension at the CMC), its tip on the near wall; the middle and ring fingers hyperextended
+    # at the MCPs and curled at the PIPs and DIPs, so their distal pads meet the far wall about
+    # vertically below the top edge; the shorter index and little fingers stay straighter, clear
+    # of the top face. Closing curls the middle and ring fingers and flexes the thumb's IP. The
+    # angles came from a search over the path (the pads' and segments' distances to a 0.164 m
+    # wide box at the closure where the pads span it) for which hands from 0.18 to 0.22 m meet
+    # both walls 1 cm below the top with no other segment within 3 mm of the box; at 0.165 m
+    # the thumb's distal segment and the middle finger still cross the top edges by 3 mm.
     open_angles = _wide_open()
     delta = np.zeros(NUM_ANGLES)
+    for name, deg in (
+        ("thumb_cmc_flex", -40.0),
+        ("thumb_cmc_abd", 60.0),
+        ("thumb_mcp_flex", -10.0),
+        ("thumb_mcp_abd", 10.0),
+        ("thumb_ip_flex", 30.0),
+    ):
+        open_angles[joint_index(name)] = np.deg2rad(deg)
+    delta[joint_index("thumb_ip_flex")] = np.deg2rad(50.0)
     for finger in ("index", "middle", "ring", "little"):
-        open_angles[joint_index(f"{finger}_pip_flex")] = 0.0
-        open_angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(60.0)
-        delta[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(30.0)
-    for name in ("thumb_cmc_flex", "thumb_mcp_flex", "thumb_ip_flex"):
-        delta[joint_index(name)] = np.deg2rad(60.0)
+        # (MCP, PIP, DIP) at closure 0, degrees; the index and little fingers straighter.
+        mcp, pip, dip = (-20.0, 0.0, 20.0) if finger in ("index", "little") else (-17.0, 20.0, 39.0)
+        open_angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(mcp)
+        open_angles[joint_index(f"{finger}_pip_flex")] = np.deg2rad(pip)
+        open_angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(dip)
+        if finger in ("middle", "ring"):
+            delta[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(40.0)
+            delta[joint_index(f"{finger}_pip_flex")] = np.deg2rad(71.0)
+            delta[joint_index(f"{finger}_dip_flex")] = np.deg2rad(40.0)
     path = open_angles + _CLOSURES[:, None] * delta
     return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
 
 
-_HOOK_WIDTH_M = 0.13
-"""Boxes wider than this are held with hooked fingertips just under the far top edge."""
-_HOOK_DEPTHS_M = (0.010, 0.005, 0.015)
-_HOOK_SQUEEZE_RAD = np.deg2rad(40.0)
+_SPAN_WIDTH_M = 0.13
+"""Boxes wider than this are held with the thumb and finger tips on the walls just under the
+top edges (the hand's widest span)."""
+_SPAN_DEPTHS_M = (0.010, 0.008, 0.012)
+_SPAN_FINGERS = ("middle", "ring")
+_SPAN_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
+# Less than the pinch's 45 deg: squeezed 40 deg past contact, the large hand's pads dragged one
+# wall up as they rolled on it and tilted the box 5 deg (not lifted at skin friction).
+_SPAN_SQUEEZE_RAD = np.deg2rad(30.0)
 
 
 def _top_candidates(
@@ -917,11 +948,18 @@ def _top_candidates(
             deepest,
         )
     ]
-    hook = None
+    span = None
     if recipe.wide:
-        # Too wide to reach down both sides: hook the fingertips under the far top edge.
-        hook = _closing(params, recipe, _hook_path(), 1.0, _HOOK_SQUEEZE_RAD * _grip_scale(obj))
-        closings.append((hook, [top - d for d in _HOOK_DEPTHS_M], top - _HOOK_DEPTHS_M[0]))
+        # Too wide for the pinch: the hand's widest span, tips on the walls under the top edges.
+        span = _closing(
+            params,
+            dataclasses.replace(recipe, fingers=_SPAN_FINGERS),
+            _span_path(),
+            _SPAN_FINGER_FRACTION,
+            _SPAN_SQUEEZE_RAD * _grip_scale(obj),
+            thumb_fraction=1.0,
+        )
+        closings.append((span, [top - d for d in _SPAN_DEPTHS_M], top - _SPAN_DEPTHS_M[0]))
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
     centres = []
@@ -996,7 +1034,7 @@ def _top_candidates(
                     hover_m=float(hovering[2] - wrist[2]),
                     width_m=width,
                     contact_closure=float(_CLOSURES[k]),
-                    hooked=c is hook,
+                    span=c is span,
                 )
                 if _approach_is_clear(plan, obj, T, params):
                     return plan
@@ -1027,15 +1065,12 @@ def _top_candidates(
                     if s is None:
                         continue
                 width = float(s.max() - s.min())
-                # Wide recipes: the pinch up to _HOOK_WIDTH_M, the hook beyond.
-                if recipe.wide and (width > _HOOK_WIDTH_M) != (index == 1):
+                # Wide recipes: the pinch up to _SPAN_WIDTH_M, the span beyond.
+                if recipe.wide and (width > _SPAN_WIDTH_M) != (index == 1):
                     continue
                 if width + 0.004 > closing.gap.max() - 0.005:
                     continue
                 k = int(np.argmin(np.abs(closing.gap - (width + 0.004))))
-                if index == 1:
-                    # The hook is placed open (the thumb then sweeps down the near side).
-                    k = 0
                 grasp_point = centre + u * 0.5 * (s.max() + s.min())
                 grasp_point[2] = height
                 # A narrow grip (pads square to the surface) near the COM, the fingers pointing

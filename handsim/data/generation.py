@@ -38,8 +38,8 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Protocol
 
+import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.data.arrays import frame_to_arrays
 from handsim.data.manifest import InvalidManifest, Manifest
@@ -53,6 +53,7 @@ from handsim.data.shards import (
 from handsim.errors import HandSimError
 from handsim.frame import FrameRenderer
 from handsim.hand.model import hand_params
+from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
     GESTURES,
     gesture,
@@ -112,6 +113,8 @@ MAX_TRIES_PER_FRAME = 200
 KEPT_SCENES = 2
 """Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
 MIN_KEYPOINTS_IN_FRAME = 15
+_PALM_OFFSET_M = 0.07
+"""The palm centre lies about this far along the hand's +y (distal) from the wrist."""
 """Fewest of the 21 keypoints inside the image for a frame to be kept."""
 MAX_EMPTY_EPISODES = 5
 """Episodes in a row without an accepted frame before generation stops with a clear error."""
@@ -458,6 +461,13 @@ of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (p
 contact)."""
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ~10x more for one pair)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
 class KinematicSource:
     """Frames of a kinematically posed hand among objects (no physics).
 
@@ -520,22 +530,33 @@ class KinematicSource:
         kept[0].set_hand_length(length)
         return kept
 
-    def _pose(self, rng: np.random.Generator, source: str):
+    def _postures(self, rng: np.random.Generator, source: str, n: int) -> np.ndarray:
+        """(n, 21) finger angles from the pose source ``source``, radians."""
         if source == "gesture":
-            return gesture(str(rng.choice(list(GESTURES))), rng=rng, noise_deg=5.0)
+            names = list(GESTURES)
+            return np.stack(
+                [gesture(str(rng.choice(names)), rng=rng, noise_deg=5.0).angles for _ in range(n)]
+            )
         if source == "grasp":
-            return sample_grasp(rng, 1)[0][0]
+            return sample_grasp(rng, n)[0].angles
         if source == "synergy":
-            return sample_synergy(rng, 1, num_synergies=3)[0]
-        return sample_uniform(rng, 1)[0]
+            return sample_synergy(rng, n, num_synergies=3).angles
+        return sample_uniform(rng, n).angles
 
     def _wrist(
         self, rng: np.random.Generator, scene: Scene, beside: bool
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Wrist position, rotation vector, and the object it is near (world, metres)."""
-        rotation = Rotation.random(random_state=rng)
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Wrist position, rotation vector, palm centre and the object it is near (world, m)."""
         if not scene.objects:
-            return np.array([0.0, 0.0, 0.3]), rotation.as_rotvec(), None
+            # A uniform rotation: a normalized 4-D Gaussian quaternion.
+            quat = rng.normal(size=4)
+            quat /= np.linalg.norm(quat)
+            R = np.empty(9)  # noqa: N806
+            mujoco.mju_quat2Mat(R, quat)
+            rotvec = np.empty(3)
+            mujoco.mju_quat2Vel(rotvec, quat, 1.0)
+            wrist = np.array([0.0, 0.0, 0.3])
+            return wrist, rotvec, wrist + R.reshape(3, 3)[:, 1] * _PALM_OFFSET_M, None
         k = int(rng.integers(len(scene.objects)))
         body_name, obj = scene.objects[k]
         body = scene.model.body(body_name).id
@@ -550,23 +571,27 @@ class KinematicSource:
         # Hand +z (palmar) toward the object, random roll about it.
         z = obj_pos - palm
         z /= np.linalg.norm(z)
-        x = np.cross(rng.normal(size=3), z)
+        x = _cross(rng.normal(size=3), z)
         x /= np.linalg.norm(x)
-        R = np.column_stack([x, np.cross(z, x), z])
-        wrist = palm - R @ np.array([0.0, 0.07, 0.0])  # palm centre ~7 cm distal of the wrist
-        return wrist, Rotation.from_matrix(R).as_rotvec(), obj_pos
+        R = np.column_stack([x, _cross(z, x), z])  # noqa: N806
+        wrist = palm - R[:, 1] * _PALM_OFFSET_M
+        rotvec = np.empty(3)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, R.reshape(-1))
+        mujoco.mju_quat2Vel(rotvec, quat, 1.0)
+        return wrist, rotvec, palm, obj_pos
 
     def _camera(
         self, rng: np.random.Generator, view: str, target: np.ndarray, obj: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         c = self.config
         distance = rng.uniform(*c.distance_range_m)
-        up = np.array([0.0, 0.0, 1.0])
+        up = (0.0, 0.0, 1.0)
         if view == "third_person":
             direction = np.array([0.0, 1.0, 0.6])
         elif view == "egocentric":
             direction = np.array([0.0, -0.35, 0.45])
-            up = np.array([0.0, 1.0, 0.0])
+            up = (0.0, 1.0, 0.0)
         elif view == "through_object" and obj is not None:
             # Beyond the object as seen from the hand, turned a little so that the object hides
             # anything from a sliver to all of the hand; never below the table top.
@@ -580,7 +605,7 @@ class KinematicSource:
         eye = target + distance * direction
         eye[2] = max(eye[2], 0.03)
         # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
-        return eye, look_at_quat_wxyz(eye, np.asarray(target, dtype=float), tuple(up))
+        return eye, look_at_quat_wxyz(eye, target, up)
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -610,12 +635,19 @@ class KinematicSource:
         scene, renderer = self._scene(rng)
         source = str(rng.choice(self.config.pose_sources))
         cam = scene.model.camera("camera").id
+        viewpoints = list(self.config.viewpoints)
+        # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
+        # more than the frames for the draws that are refused.
+        batch = frames + 8
+        postures, used = self._postures(rng, source, batch), 0
         for _ in range(frames):
             for _ in range(MAX_TRIES_PER_FRAME):
-                view = str(rng.choice(self.config.viewpoints))
-                wrist, rotvec, obj = self._wrist(rng, scene, view == "through_object")
-                pose = self._pose(rng, source).replace(wrist_pos=wrist, wrist_rotvec=rotvec)
-                palm = wrist + Rotation.from_rotvec(rotvec).apply([0.0, 0.07, 0.0])
+                if used == batch:
+                    postures, used = self._postures(rng, source, batch), 0
+                view = viewpoints[int(rng.integers(len(viewpoints)))]
+                wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
+                pose = HandPose(wrist, rotvec, postures[used])
+                used += 1
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = self._camera(
                     rng, view, palm, obj
                 )

@@ -15,6 +15,7 @@ rendering small spheres, and pinned by a projection test for every preset), so O
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import mujoco
 import numpy as np
@@ -229,23 +230,29 @@ def look_at_quat_wxyz(eye: np.ndarray, target: np.ndarray, up=(0.0, 0.0, 1.0)) -
     Raises:
         InvalidCamera: if eye and target coincide or the view is parallel to ``up``.
     """
-    forward = np.asarray(target, float) - np.asarray(eye, float)
-    norm = np.linalg.norm(forward)
+    # Scalar arithmetic: a camera is placed per generated frame, and NumPy's per-call cost on
+    # 3-vectors is most of the time.
+    ex, ey, ez = (float(v) for v in np.asarray(eye, float).reshape(3))
+    tx, ty, tz = (float(v) for v in np.asarray(target, float).reshape(3))
+    ux, uy, uz = (float(v) for v in np.asarray(up, float).reshape(3))
+    fx, fy, fz = tx - ex, ty - ey, tz - ez
+    norm = math.sqrt(fx * fx + fy * fy + fz * fz)
     if norm < 1e-9:
         raise InvalidCamera(f"camera eye and target coincide at {np.asarray(eye).tolist()}")
-    forward /= norm
-    right = np.cross(forward, np.asarray(up, float))
-    if np.linalg.norm(right) < 1e-6:
+    fx, fy, fz = fx / norm, fy / norm, fz / norm
+    rx, ry, rz = fy * uz - fz * uy, fz * ux - fx * uz, fx * uy - fy * ux  # forward x up
+    norm = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if norm < 1e-6:
         raise InvalidCamera(
-            f"the viewing direction {forward.tolist()} is parallel to up {list(up)}; pass "
+            f"the viewing direction {[fx, fy, fz]} is parallel to up {list(up)}; pass "
             "another up vector"
         )
-    right /= np.linalg.norm(right)
-    cam_up = np.cross(right, forward)
-    # MuJoCo camera axes in world: x right, y up, z backward.
-    rot = np.stack([right, cam_up, -forward], axis=1)
+    rx, ry, rz = rx / norm, ry / norm, rz / norm
+    cx, cy, cz = ry * fz - rz * fy, rz * fx - rx * fz, rx * fy - ry * fx  # right x forward
+    # MuJoCo camera axes in world (the matrix's columns): x right, y up, z backward.
+    rot = np.array([rx, cx, -fx, ry, cy, -fy, rz, cz, -fz])
     quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, rot.flatten())
+    mujoco.mju_mat2Quat(quat, rot)
     return quat
 
 

@@ -159,6 +159,7 @@ class DepthRenderer:
         spare, _SPARE.spare = _SPARE.spare, None
         if spare is not None and spare[0] != os.getpid():
             spare = None  # made before a fork: not this process's to use
+        self._geom_scale: tuple[np.ndarray, np.float32] | None = None
         self._gl = _make_gl_context(w, h) if spare is None else spare[1]
         if self._gl is not None:
             self._gl.make_current()
@@ -219,6 +220,24 @@ class DepthRenderer:
         for mesh in mesh_ids:
             mujoco.mjr_uploadMesh(self.model, self._context, int(mesh))
 
+    def scale_geoms(self, geom_ids: Sequence[int], factor: float) -> None:
+        """Draw mesh geoms scaled by ``factor`` about their own frames, from now on.
+
+        Meshes whose vertices were scaled in the model by ``factor`` since their upload (a
+        rescaled hand, :meth:`Scene.set_hand_length
+        <handsim.world.scene.Scene.set_hand_length>`) then draw as uploaded again would, without
+        the upload (tens of milliseconds for a hand's skin): the factor goes into each geom's
+        drawn rotation matrix. Depth and segmentation use no normals, so this is exact up to
+        float32 rounding. ``factor = 1`` draws them as uploaded.
+
+        Args:
+            geom_ids: mesh geom indices in the model (the others keep their scale).
+            factor: positive scale factor relative to the uploaded vertices.
+        """
+        mask = np.zeros(self.model.ngeom, dtype=bool)
+        mask[np.asarray(geom_ids, dtype=int)] = True
+        self._geom_scale = (mask, np.float32(factor)) if factor != 1.0 and mask.any() else None
+
     def _draw(self, data: mujoco.MjData) -> None:
         if self._context is None:
             raise RenderError("render() called after close()")
@@ -228,6 +247,11 @@ class DepthRenderer:
             self.model, data, self._option, None, self._camera,
             mujoco.mjtCatBit.mjCAT_ALL, self._scene,
         )  # fmt: skip
+        if self._geom_scale is not None:
+            mask, factor = self._geom_scale
+            for g in self._scene.geoms[: self._scene.ngeom]:
+                if g.objtype == _OBJ_GEOM and mask[g.objid]:
+                    g.mat *= factor
         mujoco.mjr_render(self._rect, self._scene, self._context)
 
     def _segment_lut(self) -> np.ndarray:

@@ -562,14 +562,14 @@ class Scene:
         rescaled skin's triangles are scaled too). It costs about a millisecond, against tens
         of milliseconds for a new scene (and about 0.15 s for a new length's skin).
 
-        Renderers made before the call upload the rescaled skin on their next frame
-        (:class:`~handsim.frame.FrameRenderer` does it itself; a bare
-        :class:`~handsim.world.render.DepthRenderer` needs
-        :meth:`~handsim.world.render.DepthRenderer.upload_meshes` with
-        :attr:`hand_mesh_ids`). Masses, inertias and actuator gains are not rescaled, so a
-        rescaled scene cannot be simulated: :class:`~handsim.envs.physics.HandDriver` refuses
-        it, and :meth:`to_xml` and :meth:`save` too (the ``MjSpec`` still holds the built
-        length).
+        Renderers made before the call draw the rescaled skin from their next frame on
+        (:class:`~handsim.frame.FrameRenderer` does it itself, scaling the skin it uploaded
+        as it draws; a bare :class:`~handsim.world.render.DepthRenderer` needs
+        :meth:`~handsim.world.render.DepthRenderer.upload_meshes` with :attr:`hand_mesh_ids`,
+        or :meth:`~handsim.world.render.DepthRenderer.scale_geoms`). Masses, inertias and
+        actuator gains are not rescaled, so a rescaled scene cannot be simulated:
+        :class:`~handsim.envs.physics.HandDriver` refuses it, and :meth:`to_xml` and
+        :meth:`save` too (the ``MjSpec`` still holds the built length).
 
         Args:
             hand_length_m: the new hand length, metres (the range of

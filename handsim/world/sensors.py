@@ -354,6 +354,11 @@ def _pixel_grid(intrinsics: CameraIntrinsics) -> _PixelGrid:
 _UNDECIDED = np.array([[-32768, -32768]], dtype=np.int16).view(np.int32)[0, 0]
 
 
+def _jitter_reach(sigma: float, limit: int) -> int:
+    """Largest displacement drawn: ``min(limit, ceil(10 s + 1/2))``, at least 1 (pixels)."""
+    return max(1, min(int(limit), math.ceil(10.0 * sigma + 0.5)))
+
+
 @functools.lru_cache(maxsize=16)
 def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
     """Tables to draw a displacement pair ``(rint(N(0, s)), rint(N(0, s)))`` from random bytes.
@@ -376,7 +381,7 @@ def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
         map) or ``_UNDECIDED``; cdf, the cumulative probabilities; pairs, the packed pairs in
         that order.
     """
-    k_max = max(1, min(limit, math.ceil(10.0 * sigma + 0.5)))
+    k_max = _jitter_reach(sigma, limit)
     scale = 1.0 / (sigma * math.sqrt(2.0))
     below = [0.5 * math.erfc(-(j + 0.5) * scale) for j in range(-k_max, k_max)]
     p_axis = np.diff([0.0, *below, 1.0])  # P(k), k = -K..K, with the tails at +-K
@@ -401,7 +406,11 @@ def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
 
 
 def _jitter_offsets(
-    rng: np.random.Generator, sigma: float, out: np.ndarray, scratch: _Scratch
+    rng: np.random.Generator,
+    sigma: float,
+    out: np.ndarray,
+    scratch: _Scratch,
+    limit: int | None = None,
 ) -> np.ndarray:
     """Fill ``out`` with independent ``(rint(N(0, s)), rint(N(0, s)))`` displacement pairs.
 
@@ -413,20 +422,23 @@ def _jitter_offsets(
     Args:
         rng: random generator.
         sigma: standard deviation, pixels.
-        out: (H, W, 2) C-contiguous int16, filled with (du, dv), each in ``[-max(H, W),
-            max(H, W)]``.
+        out: (H, W, 2) C-contiguous int16, filled with (du, dv), each in ``[-K, K]``,
+            ``K =`` :func:`_jitter_reach` ``(sigma, limit)``.
         scratch: scratch arrays.
+        limit: largest useful displacement, pixels (the image's larger side); default
+            ``max(H, W)``.
 
     Returns:
         ``out``.
     """
     h, w, _ = out.shape
-    limit = max(h, w)
+    limit = max(h, w) if limit is None else int(limit)
     tables = _jitter_table(float(sigma), limit)
     if tables is None:
         normal = _standard_normal(rng, scratch.get("jitter", (out.size,)), scratch)
         normal *= np.float32(sigma)
-        np.clip(np.rint(normal, out=normal), -limit, limit, out=normal)
+        reach = _jitter_reach(float(sigma), limit)
+        np.clip(np.rint(normal, out=normal), -reach, reach, out=normal)
         np.copyto(out.reshape(-1), normal, casting="unsafe")
         return out
     table, fine_table, cdf, pairs = tables
@@ -579,32 +591,31 @@ class StructuredLight:
         grid = _pixel_grid(intrinsics)
         scratch = _scratch(full_h * full_w)
         fb = np.float32(intrinsics.fx * self.baseline_m)
-        # 1. Lateral jitter: nearest-neighbour resampling at rounded Gaussian displacements
-        # (drawn for the whole image, whatever is processed below).
-        pixel_map, reach = None, 0
-        if self.lateral_jitter_px > 0:
-            pixel_map = scratch.get("pixel_map", (full_h, full_w, 2), np.int16)
-            _jitter_offsets(rng, self.lateral_jitter_px, pixel_map, scratch)
-            reach = int(np.abs(pixel_map).max())
-            pixel_map += grid.pixel_map
         # Only the box around the pixels with depth is processed (a hand alone covers a few
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
-        # and by one more pixel, the neighbours of each (normals), so that every step below
-        # gives what it gives on the whole image. Pixels without depth change nothing: they
-        # cast no projector shadow and get no noise.
+        # and by one more pixel, the neighbours of each (normals). Outside it no pixel can get
+        # depth; pixels without depth cast no projector shadow and get no noise.
         rows = np.flatnonzero(clean.any(axis=1))
         if rows.size == 0:
             return np.zeros((full_h, full_w), dtype=np.float32)
         cols = np.flatnonzero(clean.any(axis=0))
+        jitter = self.lateral_jitter_px > 0
+        limit = max(full_h, full_w)
+        reach = _jitter_reach(self.lateral_jitter_px, limit) if jitter else 0
         r0, r1 = max(int(rows[0]) - reach - 1, 0), min(int(rows[-1]) + reach + 2, full_h)
         c0, c1 = max(int(cols[0]) - reach - 1, 0), min(int(cols[-1]) + reach + 2, full_w)
         h, w = r1 - r0, c1 - c0
         box = (slice(r0, r1), slice(c0, c1))
         depth = scratch.get("jittered", (h, w))
-        if pixel_map is not None:
+        if jitter:
+            # 1. Lateral jitter: nearest-neighbour resampling at rounded Gaussian displacements,
+            # drawn for the box's pixels only.
+            pixel_map = scratch.get("pixel_map", (h, w, 2), np.int16)
+            _jitter_offsets(rng, self.lateral_jitter_px, pixel_map, scratch, limit)
+            pixel_map += grid.pixel_map[box]
             depth = cv2.remap(
                 clean,
-                np.ascontiguousarray(pixel_map[box]),
+                pixel_map,
                 None,
                 cv2.INTER_NEAREST,
                 dst=depth,

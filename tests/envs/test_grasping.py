@@ -502,6 +502,39 @@ def test_grip_margins_of_the_recipes():
     np.testing.assert_allclose(box._grip_force_target(True), 1.6 * 2.0 * mass * 11.81 / 0.42)
 
 
+def test_the_wide_box_is_held_by_pads_on_its_side_walls():
+    """The cracker box (164 mm across) is lifted at skin friction by pads under its top edges.
+
+    A contact on a top edge has a normal far below the horizontal and pushes the box down at
+    any friction up to 1; the span grasp's thumb and finger contacts press on the walls.
+    """
+    scene, rng = _scene("003_cracker_box")
+    set_skin_friction(scene)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    body = scene.model.body(scene.objects[0][0]).id
+    table = scene.model.geom("table").id
+    hold = []
+
+    def record(step, expert):
+        if expert.phase != "hold":
+            return
+        force = np.zeros(6)
+        for k, contact in enumerate(scene.data.contact[: scene.data.ncon]):
+            g1, g2 = int(contact.geom1), int(contact.geom2)
+            bodies = (scene.model.geom_bodyid[g1], scene.model.geom_bodyid[g2])
+            if body not in bodies or table in (g1, g2):
+                continue
+            mujoco.mj_contactForce(scene.model, scene.data, k, force)
+            elevation = np.degrees(np.arcsin(abs(contact.frame[2])))
+            hold.append((force[0], elevation))
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    assert outcome.success, outcome
+    assert expert.plan.span
+    pressing = [elevation for force, elevation in hold if force > 0.5]
+    assert pressing and max(pressing) < 25.0
+
+
 def test_an_episode_ends_when_the_object_falls_off_the_table():
     """As in Grasp-v0, a fallen object ends the episode.
 

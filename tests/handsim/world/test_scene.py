@@ -225,6 +225,28 @@ def test_a_rescaled_hand_is_the_hand_built_at_that_length(side, length_m):
     assert np.median(np.abs(depth_a[both] - depth_b[both])) < 2e-4
 
 
+def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
+    """FrameRenderer scales the skin it uploaded as it draws: an upload's pixels and depth."""
+    from handsim.frame import FrameRenderer
+    from handsim.hand.pose_sources import gesture
+    from handsim.world.render import DepthRenderer
+
+    intr = camera_preset("icvl")
+    cam = CameraSpec.look_at("camera", intr, (0.0, -0.45, 0.5), (0, 0, 0.3))
+    scene = Scene(SceneSpec(hand=hand_params("medium", "left"), cameras=(cam,), table=False))
+    scene.reset(gesture("fist").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2)))
+    built_m = scene.hand.params.hand_length
+    with FrameRenderer(scene, "camera") as kept:
+        for length_m in (0.15, 0.22, built_m):
+            scene.set_hand_length(length_m)
+            depth_kept = kept.render(np.random.default_rng(0)).depth
+            with DepthRenderer(scene.model, "camera", intr) as fresh:  # uploads the new skin
+                depth_fresh, _ = fresh.render(scene.data)
+            np.testing.assert_array_equal(depth_kept > 0, depth_fresh > 0)
+            assert np.count_nonzero(depth_fresh) > 500
+            np.testing.assert_allclose(depth_kept, depth_fresh, rtol=0, atol=2e-6)
+
+
 def test_a_rescaled_scene_is_for_kinematic_use_only():
     """Physics, MJCF export and a second spec of the rescaled hand are refused, saying why."""
     from handsim.envs.physics import HandDriver
