@@ -55,9 +55,11 @@ bowl        024 bowl                            palmar pinch; as vessel
 flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
                                                 the material between them
 clamp       051, 052 clamps                     tripod; fingertips at the table, across the
-                                                arms at the pivot
+                                                arms at the pivot, the thumb opposite the
+                                                index and the middle finger
 elongated   011 banana, 040 large marker        tripod; fingertips at the table, across the
-                                                body
+                                                body (the banana's below its equator:
+                                                :data:`OBJECT_RECIPES`)
 ==========  ==================================  ============================================
 
 Planning (at :meth:`GraspExpert.reset`, and again during the reach and the approach when the
@@ -106,6 +108,7 @@ from handsim.envs.grasping.planning import (
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
     MAX_WRIST_SPEED_M_S,
+    OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
     TOUCH_PARTS,
     GraspPlan,
@@ -114,6 +117,7 @@ from handsim.envs.grasping.planning import (
     GraspState,
     InvalidGraspState,
     ShapeClass,
+    grasp_recipe,
     plan_grasp,
     shape_class,
     start_pose,
@@ -139,6 +143,8 @@ __all__ = [
     "OBJECT_SHAPE_CLASSES",
     "GraspRecipe",
     "GRASP_RECIPES",
+    "OBJECT_RECIPES",
+    "grasp_recipe",
     "shape_class",
     "GraspPlan",
     "plan_grasp",

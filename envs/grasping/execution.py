@@ -27,7 +27,6 @@ from handsim.envs.grasping.planning import (
     CONTROL_DT_S,
     EXPERT_WRIST_SPEED_M_S,
     FRAME_SKIP,
-    GRASP_RECIPES,
     HOLD_DURATION_S,
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
@@ -39,8 +38,8 @@ from handsim.envs.grasping.planning import (
     _check_transform,
     _checker,
     _object_body_id,
+    grasp_recipe,
     plan_grasp,
-    shape_class,
     start_pose,
 )
 from handsim.envs.physics import HandDriver, skin_friction
@@ -395,7 +394,7 @@ class GraspExpert:
         self._torque[checker.binding.actuated] = checker.model.actuator_forcerange[
             checker.binding.actuator_ids, 1
         ]
-        self.recipe = GRASP_RECIPES[shape_class(obj)]
+        self.recipe = grasp_recipe(obj)
         self.plan: GraspPlan | None = None
         self.planning_error: GraspPlanningError | None = None
         """The last planning failure (``None`` once a plan exists)."""

@@ -19,6 +19,7 @@ from handsim.envs.grasping import (
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
     MAX_WRIST_SPEED_M_S,
+    OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
     TOUCH_PARTS,
     ContactMetrics,
@@ -29,6 +30,7 @@ from handsim.envs.grasping import (
     LiftTracker,
     contact_metrics,
     evaluate_lift,
+    grasp_recipe,
     plan_grasp,
     run_episode,
     shape_class,
@@ -224,6 +226,23 @@ def test_every_object_has_a_shape_class_and_a_known_grasp_type():
         assert recipe.grasp_type in GRASP_TYPES
 
 
+def test_object_recipes_override_their_shape_class():
+    """Per-object recipes override the shape class's; tripod fingers per class.
+
+    The banana's pads go below its equator; the clamps are pinched between the thumb and two
+    fingers, the other tripods between the thumb and the index.
+    """
+    banana, marker = get_object("011_banana"), get_object("040_large_marker")
+    assert set(OBJECT_RECIPES) <= set(OBJECTS)
+    assert grasp_recipe(banana).height_fraction == pytest.approx(0.35)
+    assert grasp_recipe(marker) is GRASP_RECIPES["elongated"]
+    assert grasp_recipe(marker).height_fraction == pytest.approx(0.5)
+    expert = GraspExpert(banana, hand_params(0.189))
+    assert expert.recipe is grasp_recipe(banana)
+    assert GRASP_RECIPES["clamp"].fingers == ("index", "middle")
+    assert GRASP_RECIPES["flat_tool"].fingers == grasp_recipe(banana).fingers == ("index",)
+
+
 def test_state_from_sim_and_errors():
     """from_sim reads the truth; bad instances, objects and call orders raise."""
     scene, _ = _scene("025_mug")
@@ -357,7 +376,10 @@ def _measured_episode(name: str, hand: str = "medium", side: str = "right", seed
         ("061_foam_brick", "medium", "right", 4.5),  # box, the lightest but one (28 g)
         ("005_tomato_soup_can", "medium", "right", 4.0),  # can, side wrap
         ("025_mug", "small", "left", 4.0),  # vessel, rim pinch
-        ("011_banana", "large", "right", 4.0),  # elongated, tripod at the table
+        # Elongated, tripod at the table: its aim is exactly 4.0 x (1.25 x 1.6 / 0.5) and the
+        # loop settles within 0.1 % of it either side (seeds 0-3: 3.99998-4.0004 before the
+        # banana's lower pads, 4.0001-4.005 with them), so the bound is the aim plus that.
+        ("011_banana", "large", "right", 4.02),
         ("035_power_drill", "medium", "left", 4.0),  # tool, the heaviest but one (895 g)
         ("037_scissors", "medium", "right", 8.0),  # flat tool: a floor on the easing
     ],
