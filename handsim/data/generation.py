@@ -113,9 +113,9 @@ MAX_TRIES_PER_FRAME = 200
 KEPT_SCENES = 2
 """Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
 MIN_KEYPOINTS_IN_FRAME = 15
+"""Fewest of the 21 keypoints inside the image for a frame to be kept."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
-"""Fewest of the 21 keypoints inside the image for a frame to be kept."""
 MAX_EMPTY_EPISODES = 5
 """Episodes in a row without an accepted frame before generation stops with a clear error."""
 

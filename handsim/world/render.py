@@ -13,6 +13,7 @@ no display).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import threading
 from collections.abc import Iterator, Sequence
@@ -22,6 +23,7 @@ import mujoco
 import numpy as np
 from mujoco import gl_context
 
+from handsim._validate import is_real
 from handsim.errors import HandSimError, UnknownName
 from handsim.world.camera import CameraIntrinsics
 
@@ -212,6 +214,8 @@ class DepthRenderer:
 
         Args:
             mesh_ids: mesh indices in the model.
+
+        The meshes are then drawn as uploaded: a :meth:`scale_geoms` factor is dropped.
         """
         if self._context is None:
             raise RenderError("upload_meshes() called after close()")
@@ -219,6 +223,7 @@ class DepthRenderer:
             self._gl.make_current()
         for mesh in mesh_ids:
             mujoco.mjr_uploadMesh(self.model, self._context, int(mesh))
+        self._geom_scale = None
 
     def scale_geoms(self, geom_ids: Sequence[int], factor: float) -> None:
         """Draw mesh geoms scaled by ``factor`` about their own frames, from now on.
@@ -233,9 +238,21 @@ class DepthRenderer:
         Args:
             geom_ids: mesh geom indices in the model (the others keep their scale).
             factor: positive scale factor relative to the uploaded vertices.
+
+        Raises:
+            RenderError: for a factor that is not a positive finite number or a geom index
+                outside the model.
         """
+        if not is_real(factor) or not 0.0 < float(factor) < math.inf:
+            raise RenderError(f"scale_geoms: factor must be a positive number; received {factor!r}")
+        ids = np.asarray(geom_ids, dtype=int).reshape(-1)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.model.ngeom):
+            raise RenderError(
+                f"scale_geoms: geom ids must be in [0, {self.model.ngeom}); received "
+                f"{ids.min()}..{ids.max()}"
+            )
         mask = np.zeros(self.model.ngeom, dtype=bool)
-        mask[np.asarray(geom_ids, dtype=int)] = True
+        mask[ids] = True
         self._geom_scale = (mask, np.float32(factor)) if factor != 1.0 and mask.any() else None
 
     def _draw(self, data: mujoco.MjData) -> None:

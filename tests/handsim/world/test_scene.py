@@ -229,7 +229,7 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
     """FrameRenderer scales the skin it uploaded as it draws: an upload's pixels and depth."""
     from handsim.frame import FrameRenderer
     from handsim.hand.pose_sources import gesture
-    from handsim.world.render import DepthRenderer
+    from handsim.world.render import DepthRenderer, RenderError
 
     intr = camera_preset("icvl")
     cam = CameraSpec.look_at("camera", intr, (0.0, -0.45, 0.5), (0, 0, 0.3))
@@ -245,6 +245,11 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
             np.testing.assert_array_equal(depth_kept > 0, depth_fresh > 0)
             assert np.count_nonzero(depth_fresh) > 500
             np.testing.assert_allclose(depth_kept, depth_fresh, rtol=0, atol=2e-6)
+        renderer = kept.renderer
+        with pytest.raises(RenderError, match=r"factor must be a positive number; received 0"):
+            renderer.scale_geoms([0], 0)
+        with pytest.raises(RenderError, match=r"geom ids must be in \[0, \d+\); received -1"):
+            renderer.scale_geoms([-1], 1.1)
 
 
 def test_a_rescaled_scene_is_for_kinematic_use_only():
