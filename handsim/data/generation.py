@@ -116,6 +116,9 @@ MIN_KEYPOINTS_IN_FRAME = 15
 """Fewest of the 21 keypoints inside the image for a frame to be kept."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
+_BOX_CORNER_SIGNS = np.array(np.meshgrid([-1.0, 1.0], [-1.0, 1.0], [-1.0, 1.0])).reshape(3, 8).T
+_MIN_EYE_HEIGHT_M = 0.03
+"""Cameras stay this far above the table top (world z = 0), metres."""
 MAX_EMPTY_EPISODES = 5
 """Episodes in a row without an accepted frame before generation stops with a clear error."""
 
@@ -236,7 +239,9 @@ class GenerationConfig:
         seed: base seed; shard ``i`` uses ``default_rng([seed, i])``.
         camera: camera preset (intrinsics), e.g. ``"icvl"`` (320 x 240).
         viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`).
-        distance_range_m: camera distance from the hand, metres (random and through-object).
+        distance_range_m: camera distance from the hand, metres (random and through-object);
+            the camera moves back along its line of sight when the hand or an object would be
+            nearer than the camera's or the sensor's working range (a hole in the depth).
         sensor: depth sensor model (:data:`SENSORS`).
         paired_clean: also store the noise-free depth of every frame.
         hand_length_range_m: hand length drawn per episode, metres (0.140 to 0.235).
@@ -479,6 +484,10 @@ class KinematicSource:
         self.config = config
         self.intrinsics = camera_preset(config.camera)
         self.sensor = sensor_model(config.sensor)
+        # The nearest distance that gets depth: the camera's and the sensor's working range.
+        self._near_m = max(
+            self.intrinsics.range_m[0], float(getattr(self.sensor, "min_range_m", 0.0))
+        )
         # A new scene's renderer takes over the OpenGL context of the one it replaces (its
         # meshes uploaded again): ~10 ms less than a new context.
         self._render_context = contextlib.ExitStack()
@@ -603,9 +612,39 @@ class KinematicSource:
             direction[2] = abs(direction[2]) + 0.2
         direction /= np.linalg.norm(direction)
         eye = target + distance * direction
-        eye[2] = max(eye[2], 0.03)
+        eye[2] = max(eye[2], _MIN_EYE_HEIGHT_M)
         # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
         return eye, look_at_quat_wxyz(eye, target, up)
+
+    def _beyond_near(self, scene: Scene, eye: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+        """The eye moved back along its line of sight until the hand and objects are in range.
+
+        Nothing nearer than the camera's or the sensor's working range gets depth (a
+        structured-light sensor measures from 0.35 m): a hand or an occluder there would be a
+        hole in the depth image. The bounding boxes of the hand's skin meshes and every
+        object's bounding sphere are kept beyond that range. None when the moved eye would be
+        below the table top.
+        """
+        forward = target - eye
+        forward /= np.linalg.norm(forward)
+        model, data = scene.model, scene.data
+        skin = np.flatnonzero(
+            (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+            & np.isin(model.geom_dataid, scene.hand_mesh_ids)
+        )
+        # The corners of the skin meshes' bounding boxes (in their geom frames), in the world.
+        aabb = model.geom_aabb[skin]
+        local = aabb[:, None, :3] + aabb[:, None, 3:] * _BOX_CORNER_SIGNS
+        corners = np.einsum("nij,nkj->nki", data.geom_xmat[skin].reshape(-1, 3, 3), local)
+        corners += data.geom_xpos[skin][:, None]
+        nearest = float(np.min((corners.reshape(-1, 3) - eye) @ forward))
+        for body_name, obj in scene.objects:
+            centre = scene.data.xpos[scene.model.body(body_name).id]
+            nearest = min(nearest, float((centre - eye) @ forward) - 0.5 * obj.diameter_m)
+        if nearest >= self._near_m:
+            return eye
+        eye = eye - forward * (self._near_m - nearest)
+        return eye if eye[2] >= _MIN_EYE_HEIGHT_M else None
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -648,12 +687,15 @@ class KinematicSource:
                 wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
                 pose = HandPose(wrist, rotvec, postures[used])
                 used += 1
-                scene.model.cam_pos[cam], scene.model.cam_quat[cam] = self._camera(
-                    rng, view, palm, obj
-                )
-                scene.binding.set_pose(scene.data, pose)  # forwards: camera and hand placed
+                scene.binding.set_pose(scene.data, pose)  # forwards: the hand placed
                 if self._penetration_m(scene) > MAX_PENETRATION_M:
                     continue
+                eye, quat = self._camera(rng, view, palm, obj)
+                eye = self._beyond_near(scene, eye, palm)
+                if eye is None:
+                    continue
+                scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
+                mujoco.mj_camlight(scene.model, scene.data)
                 frame = renderer.render(
                     rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
                 )

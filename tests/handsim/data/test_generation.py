@@ -20,6 +20,7 @@ from handsim.data.generation import (
 )
 from handsim.data.manifest import Manifest, check_dataset
 from handsim.data.shards import PARTIAL_SUFFIX, ShardReader, file_sha256
+from handsim.world.scene import SEGMENT_LABELS
 
 # Tiny and fast: 2 frames per shard and per episode, hand sizes fixed, noise-free depth.
 TINY = {
@@ -288,3 +289,33 @@ def test_two_workers_make_the_shards_one_worker_makes(tmp_path):
     assert "Traceback" not in run.stderr and "Exception ignored" not in run.stderr, run.stderr
     one = generate(GenerationConfig.from_mapping(config), tmp_path / "one")
     assert Manifest.read(tmp_path / "two").shards == one.shards
+
+
+@pytest.mark.parametrize("preset", ["hand-only", "occlusion-heavy"])
+def test_the_hand_and_objects_lie_within_the_sensors_range(tmp_path, preset):
+    """No hand or object pixel is nearer than the structured-light sensor's 0.35 m (a hole).
+
+    The camera moves back along its line of sight from draws that would bring the hand or an
+    occluder nearer (with the presets' distances, before: a quarter of the hand's pixels in
+    ``hand-only`` and three quarters of the occluders' in ``occlusion-heavy`` had no depth).
+    """
+    config = GenerationConfig.from_mapping(
+        PRESETS[preset],
+        frames=16,
+        frames_per_shard=16,
+        frames_per_episode=4,
+        occlusion_buckets=None,
+        paired_clean=True,
+        distance_range_m=(0.3, 0.45),  # the nearest draws, the ones that would reach too near
+    )
+    assert config.sensor == "structured_light"
+    generate(config, tmp_path)
+    reader = ShardReader(tmp_path / "shard-00000.h5")
+    labelled = seen = 0
+    for i in range(len(reader)):
+        frame = reader[i]
+        mask = frame["segmentation"] >= SEGMENT_LABELS.index("palm")  # the hand and objects
+        labelled += np.count_nonzero(mask)
+        assert not np.any(mask & (frame["depth_clean"] < 0.35)), i
+        seen += np.count_nonzero(mask & (frame["depth"] > 0))
+    assert seen > 0.8 * labelled  # the rest: projector shadows, grazing angles
