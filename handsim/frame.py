@@ -373,11 +373,6 @@ class FrameRenderer:
         self.renderer = DepthRenderer(scene.model, camera, self.intrinsics)
         self._hand_version = scene.hand_geometry_version
         self._uploaded_hand_length_m = scene.hand.params.hand_length
-        model = scene.model
-        self._skin_geoms = np.flatnonzero(
-            (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
-            & np.isin(model.geom_dataid, scene.hand_mesh_ids)
-        )
         self._kp_radius = _keypoint_radii(scene)
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
@@ -614,7 +609,8 @@ class FrameRenderer:
         if scene.hand_geometry_version != self._hand_version:  # Scene.set_hand_length
             # The skin is drawn scaled from the vertices uploaded: no upload per new length.
             self.renderer.scale_geoms(
-                self._skin_geoms, scene.hand.params.hand_length / self._uploaded_hand_length_m
+                scene.hand_skin_geom_ids,
+                scene.hand.params.hand_length / self._uploaded_hand_length_m,
             )
             self._kp_radius = _keypoint_radii(scene)
             self._hand_version = scene.hand_geometry_version

@@ -466,13 +466,6 @@ of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (p
 contact)."""
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (np.cross costs ~10x more for one pair)."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
-
-
 class KinematicSource:
     """Frames of a kinematically posed hand among objects (no physics).
 
@@ -580,9 +573,11 @@ class KinematicSource:
         # Hand +z (palmar) toward the object, random roll about it.
         z = obj_pos - palm
         z /= np.linalg.norm(z)
-        x = _cross(rng.normal(size=3), z)
+        x, y = np.empty(3), np.empty(3)
+        mujoco.mju_cross(x, rng.normal(size=3), z)
         x /= np.linalg.norm(x)
-        R = np.column_stack([x, _cross(z, x), z])  # noqa: N806
+        mujoco.mju_cross(y, z, x)
+        R = np.column_stack([x, y, z])  # noqa: N806
         wrist = palm - R[:, 1] * _PALM_OFFSET_M
         rotvec = np.empty(3)
         quat = np.empty(4)
@@ -628,10 +623,7 @@ class KinematicSource:
         forward = target - eye
         forward /= np.linalg.norm(forward)
         model, data = scene.model, scene.data
-        skin = np.flatnonzero(
-            (model.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
-            & np.isin(model.geom_dataid, scene.hand_mesh_ids)
-        )
+        skin = scene.hand_skin_geom_ids
         # The corners of the skin meshes' bounding boxes (in their geom frames), in the world.
         aabb = model.geom_aabb[skin]
         local = aabb[:, None, :3] + aabb[:, None, 3:] * _BOX_CORNER_SIGNS

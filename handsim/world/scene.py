@@ -482,6 +482,9 @@ class Scene:
             int(m) for m in np.unique(self.model.geom_dataid[mesh_geoms])
         )
         """Meshes of the hand (its skin), for renderers to upload again after a rescale."""
+        self.hand_skin_geom_ids: np.ndarray = np.flatnonzero(mesh_geoms)
+        """The geoms that draw the hand's skin (those meshes), read-only."""
+        self.hand_skin_geom_ids.setflags(write=False)
         self._built_hand_params = None if self.hand is None else self.hand.params
         self._built_hand_geometry: list | None = None
         self.hand_geometry_version = 0

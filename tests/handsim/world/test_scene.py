@@ -236,6 +236,9 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
     scene = Scene(SceneSpec(hand=hand_params("medium", "left"), cameras=(cam,), table=False))
     scene.reset(gesture("fist").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2)))
     built_m = scene.hand.params.hand_length
+    skin = scene.hand_skin_geom_ids
+    assert len(skin) == len(scene.hand_mesh_ids) == 16
+    assert set(scene.model.geom_dataid[skin]) == set(scene.hand_mesh_ids)
     with FrameRenderer(scene, "camera") as kept:
         for length_m in (0.15, 0.22, built_m):
             scene.set_hand_length(length_m)
