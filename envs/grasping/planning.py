@@ -731,9 +731,12 @@ class GraspPlan:
 
 def _side_preshape() -> np.ndarray:
     # Fingers straight (slightly hyperextended at the MCPs) and the thumb in full palmar
-    # abduction and extension, so the open "C" of the hand passes around a thick object.
+    # abduction and extension, so the open "C" of the hand passes around a thick object. The
+    # CMC at its extension limit (-40 deg): at -20 the thumb tip of hands shorter than about
+    # 0.18 m met the 102 mm master chef can first and kept the palm 36-40 mm off it (the
+    # digits then closed on its near half only and squeezed it out of the hand).
     angles = np.zeros(NUM_ANGLES)
-    angles[joint_index("thumb_cmc_flex")] = np.deg2rad(-20.0)
+    angles[joint_index("thumb_cmc_flex")] = np.deg2rad(-40.0)
     angles[joint_index("thumb_cmc_abd")] = np.deg2rad(60.0)
     for finger in ("index", "middle", "ring", "little"):
         angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(-10.0)
