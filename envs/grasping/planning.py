@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError
 from handsim.hand.kinematics import ForwardKinematics
-from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
+from handsim.hand.model import HAND_PHYSICS_OPTIONS, HAND_SIZES, Hand, HandParams
 from handsim.hand.pose import JOINT_LIMITS, NUM_ANGLES, HandPose, joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.objects import YCBObject, add_object
@@ -402,6 +402,8 @@ class GraspRecipe:
         height_fraction: pad height as a fraction of the object's height (top, rim: from the
             table; side: height of the palm centre line).
         max_depth_m: top grasps: the pads go at most this far below the object's top, metres.
+        depth_scales: ``max_depth_m`` is the medium hand's; other hands' pads go as deep in
+            proportion to their length.
         squeeze_rad: how far past first contact the fingers are driven (the joint that
             closes most; the others in proportion), radians.
         band_m: half width of the strip of object surface the pads close on, metres.
@@ -426,6 +428,7 @@ class GraspRecipe:
     fingers: tuple[str, ...] = ("index", "middle")
     height_fraction: float = 0.5
     max_depth_m: float = 0.035
+    depth_scales: bool = False
     squeeze_rad: float = np.deg2rad(45.0)
     band_m: float = 0.012
     contact_fraction: float = 0.5
@@ -467,11 +470,16 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         lift_grip_margin=_LIFT_MARGIN,
     ),
     "disk": GraspRecipe("top", "prismatic_4_finger", lift_grip_margin=_LIFT_MARGIN),
+    # The vessels' pads go as deep as the hand is long: 2 cm under the rim, the index of hands
+    # under about 0.16 m pressed its proximal segment down on the pitcher's rim and the pitcher
+    # swung out of the pinch (skin friction). The bowl keeps 2 cm: its small hands slipped more
+    # with shallower pads.
     "vessel": GraspRecipe(
         "rim",
         "palmar_pinch",
         fingers=("index",),
         max_depth_m=0.02,
+        depth_scales=True,
         squeeze_rad=float(np.deg2rad(25.0)),
     ),
     "bowl": GraspRecipe(
@@ -729,14 +737,17 @@ class GraspPlan:
         return HandPose(pos, self.rotation.as_rotvec(), angles)
 
 
-def _side_preshape() -> np.ndarray:
+def _side_preshape(hand_length_m: float) -> np.ndarray:
     # Fingers straight (slightly hyperextended at the MCPs) and the thumb in full palmar
-    # abduction and extension, so the open "C" of the hand passes around a thick object. The
-    # CMC at its extension limit (-40 deg): at -20 the thumb tip of hands shorter than about
-    # 0.18 m met the 102 mm master chef can first and kept the palm 36-40 mm off it (the
-    # digits then closed on its near half only and squeezed it out of the hand).
+    # abduction and extension, so the open "C" of the hand passes around a thick object.
+    # Hands shorter than the medium one open the thumb's CMC to its extension limit (-40 deg,
+    # not -20): at -20 the thumb tip of a 0.152-0.165 m hand met the 102 mm master chef can
+    # first and kept the palm 36-40 mm off it (the digits then closed on its near half only
+    # and squeezed it out of the hand). Longer hands keep -20: at -40 the large left hand let
+    # the mustard bottle slip (seed 14, skin friction).
     angles = np.zeros(NUM_ANGLES)
-    angles[joint_index("thumb_cmc_flex")] = np.deg2rad(-40.0)
+    cmc_flex_deg = -40.0 if hand_length_m < HAND_SIZES["medium"] else -20.0
+    angles[joint_index("thumb_cmc_flex")] = np.deg2rad(cmc_flex_deg)
     angles[joint_index("thumb_cmc_abd")] = np.deg2rad(60.0)
     for finger in ("index", "middle", "ring", "little"):
         angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(-10.0)
@@ -923,6 +934,12 @@ _SPAN_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
 _SPAN_SQUEEZE_RAD = np.deg2rad(30.0)
 
 
+# In 5 mm steps: the tuna can (34 mm high) left hands under about 0.156 m no pads 1 cm higher
+# than half its height (the limit 8 mm below the top), and at half its height the index's
+# middle segment crossed its top edge (no plan).
+_PAD_RAISES_M = np.array([0.0, 0.005, 0.01, 0.015, 0.02])
+
+
 def _top_candidates(
     obj: YCBObject,
     T: np.ndarray,
@@ -935,9 +952,12 @@ def _top_candidates(
     points = _world_points(obj, T)
     com = T[:3, :3] @ obj.com_m + T[:3, 3]
     top = float(points[:, 2].max())
-    deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
+    max_depth = recipe.max_depth_m
+    if recipe.depth_scales:
+        max_depth *= params.hand_length / HAND_SIZES["medium"]
+    deepest = max(recipe.height_fraction * top, top - max_depth, 0.0)
     # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
-    heights = [h for h in deepest + np.array([0.0, 0.01, 0.02]) if h <= top - 0.008] or [deepest]
+    heights = [h for h in deepest + _PAD_RAISES_M if h <= top - 0.008] or [deepest]
     closings = [
         (
             _closing(
@@ -1094,7 +1114,7 @@ def _side_candidates(
     """Side wraps (palm against an upright object, thumb up): (cost, builder) per direction."""
     checker = _checker(obj, params)
     grasp = GRASP_TYPES[recipe.grasp_type]
-    preshape = _side_preshape()
+    preshape = _side_preshape(params.hand_length)
     # Targets past the fully closed posture, so that a hand large for the object still
     # presses on it (the grip force loop then scales the deflections).
     closed = np.clip(

@@ -538,6 +538,30 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
     assert pressing and max(pressing) < 25.0
 
 
+@pytest.mark.parametrize(
+    ("name", "friction"),
+    [("002_master_chef_can", None), ("007_tuna_fish_can", None), ("019_pitcher_base", "skin")],
+    ids=["can", "tuna", "pitcher-skin"],
+)
+def test_a_short_hand_lifts_the_can_the_tuna_can_and_the_pitcher(name, friction):
+    """A 0.152 m hand, shorter than the small preset (seed 12's placement).
+
+    Its side wrap brings the palm to the master chef can (the thumb opened wide, so its tip
+    does not meet the can first) and the digits close across the can's diameter; it has a plan
+    for the tuna can (pads 5 mm higher) and its pitcher's rim pinch is as deep as the hand is
+    long.
+    """
+    rng = np.random.default_rng(12)
+    placements = sample_placements(rng, [name])
+    scene = Scene(SceneSpec(hand=hand_params(0.152), objects=placements))
+    if friction:
+        set_skin_friction(scene)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    outcome = run_episode(scene, 0, expert, rng)
+    assert outcome.success, outcome
+    assert outcome.slip_m < MAX_SLIP_M
+
+
 def test_an_episode_ends_when_the_object_falls_off_the_table():
     """As in Grasp-v0, a fallen object ends the episode.
 
