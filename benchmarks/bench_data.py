@@ -62,9 +62,9 @@ def _generate(
 ) -> float:
     from handsim.data.generation import PRESETS, GenerationConfig, generate
 
-    config = GenerationConfig.from_mapping(
-        PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8), **overrides
-    )
+    # 8 shards for the worker runs (work for both workers) unless the caller gives the size.
+    overrides.setdefault("frames_per_shard", max(1, frames // 8))
+    config = GenerationConfig.from_mapping(PRESETS[preset], frames=frames, **overrides)
     cpu, start = _cpu_s(), time.perf_counter()
     generate(config, out, workers=workers)
     _CPU_S["last"] = _cpu_s() - cpu
@@ -275,17 +275,27 @@ def main() -> None:
         "--memory-frames", type=int, default=1000, help="M of the M vs 10 M memory runs"
     )
     parser.add_argument(
+        "--rounds",
+        type=int,
+        default=5,
+        help="--only ratio: rounds of a warm run and the replay of its frames",
+    )
+    parser.add_argument(
         "--worker-frames", type=int, default=10000, help="frames per 1- and 2-worker run"
     )
     args = parser.parse_args()
+    from handsim.data.generation import PRESETS, GenerationConfig
     from handsim.data.manifest import Manifest
 
     results: dict[str, float] = {"load_average_1min_start": os.getloadavg()[0]}
     part = args.only
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        # The ratio runs write shards of the preset's size, as `handsim generate` does.
+        preset = GenerationConfig.from_mapping(PRESETS["hand-only"])
+        shard = {"frames_per_shard": preset.frames_per_shard}
         if part in ("all", "read", "ratio"):
-            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1", **shard)
             results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
         if part in ("all", "workers"):
             # Long runs: a worker's start-up (~1 s: imports, OpenGL, the hands' skins) is then
@@ -321,7 +331,9 @@ def main() -> None:
             )
             # A second run in the same process: its imports, OpenGL and the hands' skins (one
             # per side) are ready, as in a long run.
-            results["generate_1_worker_warm_fps"] = _generate(args.frames, 1, tmp / "w1_warm")
+            results["generate_1_worker_warm_fps"] = _generate(
+                args.frames, 1, tmp / "w1_warm", **shard
+            )
             results["generate_warm_over_plain_render"] = (
                 results["generate_1_worker_warm_fps"] / results["plain_depth_render_fps"]
             )
@@ -332,9 +344,19 @@ def main() -> None:
                 results["generate_1_worker_warm_fps"] / results["replayed_plain_render_fps"]
             )
         if part == "ratio":
+            # Rounds of a warm generation run and the replay of its frames, one after the
+            # other: each round's ratio is measured under the same machine load.
+            ratios = []
+            for k in range(args.rounds):
+                fps = _generate(args.frames, 1, tmp / f"round{k}", **shard)
+                ratios.append(fps / _replay_plain_render_fps(tmp / f"round{k}"))
+            results["rounds"] = args.rounds
+            results["generate_warm_over_replayed_render_rounds_median"] = float(np.median(ratios))
+            results["generate_warm_over_replayed_render_rounds_min"] = min(ratios)
+            results["generate_warm_over_replayed_render_rounds_max"] = max(ratios)
             # Without the structured-light noise model: what the rest of the pipeline costs.
             results["generate_1_worker_warm_no_noise_fps"] = _generate(
-                args.frames, 1, tmp / "w1_none", sensor="none"
+                args.frames, 1, tmp / "w1_none", sensor="none", **shard
             )
             results["generate_warm_no_noise_over_plain_render"] = (
                 results["generate_1_worker_warm_no_noise_fps"] / results["plain_depth_render_fps"]
