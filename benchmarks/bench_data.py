@@ -11,9 +11,12 @@ Measured in one run, on this machine:
 - MuJoCo's plain depth render rate (``mujoco.Renderer`` with depth on) of the same scenes: the
   generated frames replayed from their labels (hand side, length and pose, camera pose; checked
   against the stored depth), and the ratio of generation with one worker to it: cold (a fresh
-  process) and warm (a second run in the same process); also a fixed view of an open hand, the
-  unit used before the replay; ``--only ratio`` measures just these, and the warm rate without
-  sensor noise;
+  process), warm (a second run in the same process) and in ``--rounds`` rounds of a warm run
+  and the replay of its frames one after the other (median, min, max: the machine's speed
+  varies from second to second, so a ratio is best taken from runs close in time); these runs
+  write shards of the preset's size (250 frames), as ``handsim generate`` does; also a fixed
+  view of an open hand, the unit used before the replay; ``--only ratio`` measures just these,
+  and the warm rate without sensor noise;
 - bytes per stored frame against raw float32 depth + labels;
 - read rate of :class:`~handsim.data.torch_dataset.HandSimDataset` through a ``DataLoader``
   with 2 workers and batches of 32: a plain shuffle, the block batch sampler
@@ -26,7 +29,8 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--worker-frames 10000] [--only all|read|memory|workers|ratio]``; writes
+[--memory-frames 1000] [--worker-frames 10000] [--rounds 5]
+[--only all|read|memory|workers|ratio]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -278,7 +282,7 @@ def main() -> None:
         "--rounds",
         type=int,
         default=5,
-        help="--only ratio: rounds of a warm run and the replay of its frames",
+        help="rounds of a warm generation run and the replay of its frames",
     )
     parser.add_argument(
         "--worker-frames", type=int, default=10000, help="frames per 1- and 2-worker run"
@@ -343,7 +347,7 @@ def main() -> None:
             results["generate_warm_over_replayed_render"] = (
                 results["generate_1_worker_warm_fps"] / results["replayed_plain_render_fps"]
             )
-        if part == "ratio":
+        if part in ("all", "ratio"):
             # Rounds of a warm generation run and the replay of its frames, one after the
             # other: each round's ratio is measured under the same machine load.
             ratios = []
@@ -354,6 +358,7 @@ def main() -> None:
             results["generate_warm_over_replayed_render_rounds_median"] = float(np.median(ratios))
             results["generate_warm_over_replayed_render_rounds_min"] = min(ratios)
             results["generate_warm_over_replayed_render_rounds_max"] = max(ratios)
+        if part == "ratio":
             # Without the structured-light noise model: what the rest of the pipeline costs.
             results["generate_1_worker_warm_no_noise_fps"] = _generate(
                 args.frames, 1, tmp / "w1_none", sensor="none", **shard
