@@ -246,14 +246,22 @@ def _read_cpu_rate(folder: Path, labels_only: bool, passes: int = 3) -> float:
 
 
 def _peak_rss_mib(frames: int, out: Path) -> float:
-    """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB."""
+    """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB.
+
+    The child's own high-water mark (``VmHWM``, reset by ``exec``): Linux's ``ru_maxrss`` keeps
+    the RSS the forked child shared with this process, which after the read runs is larger.
+    """
     code = (
         "import resource, sys\n"
         "from handsim.data.generation import PRESETS, GenerationConfig, generate\n"
         f"c = GenerationConfig.from_mapping(PRESETS['hand-only'], frames={frames}, "
         "frames_per_shard=250)\n"
         "generate(c, sys.argv[1])\n"
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
+        "try:\n"
+        "    hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0]\n"
+        "    print(int(hwm.split()[1]) / 1024)\n"
+        "except OSError:\n"
+        "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
     )
     out_text = subprocess.run(
         [sys.executable, "-c", code, str(out)], capture_output=True, text=True, check=True
