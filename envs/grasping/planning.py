@@ -419,6 +419,8 @@ class GraspRecipe:
             friction), in every phase.
         lift_grip_margin: and this multiple of it (on top of ``grip_margin``) while the grip
             settles and the object is lifted; the hold eases back.
+        across_long_axis: top grasps: the pinch axis only square to the object's long axis
+            (horizontal), not every direction.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -435,6 +437,7 @@ class GraspRecipe:
     min_grip_scale: float = 0.02
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
+    across_long_axis: bool = False
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -527,6 +530,20 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The
     # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
     "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
+    # The scissors: the thumb and the index and middle pads across the loops' outer walls,
+    # square to the long axis through the centre of mass (97 mm: the hand opens wide). The
+    # pinch inside the loops was 19 mm off the centre of mass on walls slanted to it, and the
+    # scissors turned out of it. Pads at 0.4 of the height: raised clear of the table, they
+    # stay 4 mm under the top. The loops' pinch (the shape class's) where no hand fits.
+    "037_scissors": dataclasses.replace(
+        GRASP_RECIPES["flat_tool"],
+        fingers=("index", "middle"),
+        height_fraction=0.4,
+        wide=True,
+        max_offset_m=0.0,
+        finger_holes=False,
+        across_long_axis=True,
+    ),
 }
 """Objects whose grasp differs from that of their shape class."""
 
@@ -963,6 +980,7 @@ def _top_candidates(
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
     centres = []
+    axis_angles = np.deg2rad(np.arange(0.0, 360.0, 10.0))
     if recipe.strategy == "rim":
         # The rim point nearest the user; the pads pinch its wall radially.
         rim = points[points[:, 2] > top - 0.01]
@@ -970,6 +988,9 @@ def _top_candidates(
     else:
         xy = points[:, :2] - com[:2]
         long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+        if recipe.across_long_axis:
+            across = math.atan2(long_axis[0], -long_axis[1])
+            axis_angles = np.array([across, across + math.pi])
         offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
         for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
             target = com[:2] + offset * long_axis
@@ -1047,7 +1068,7 @@ def _top_candidates(
         for (centre, offset), height in itertools.product(centres, variant_heights):
             near = np.abs(points[:, 2] - height) < 0.01
             rel = points[near] - centre
-            for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
+            for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]
@@ -1247,14 +1268,18 @@ def plan_grasp(
     T = _check_transform(T_world_from_obj, "T_world_from_obj")
     recipe = grasp_recipe(obj)
     preferred = np.array([0.0, 1.0, 0.0])
-    make = _side_candidates if recipe.strategy == "side" else _top_candidates
-    scored = make(obj, T, params, recipe, preferred)
-    scored.sort(key=lambda c: c[0])
-    # First with the hand opened wide, then (a second pass) opened just enough.
-    for narrow, (_, build) in itertools.product((False, True), scored):
-        plan = build(narrow)
-        if plan is not None and _clear_of_obstacles(plan, params, obstacles):
-            return plan
+    # An object's own recipe first; its shape class's where that finds no grasp.
+    recipes = dict.fromkeys([recipe, GRASP_RECIPES.get(OBJECT_SHAPE_CLASSES.get(obj.name), recipe)])
+    scored = []
+    for r in recipes:
+        make = _side_candidates if r.strategy == "side" else _top_candidates
+        scored = make(obj, T, params, r, preferred)
+        scored.sort(key=lambda c: c[0])
+        # First with the hand opened wide, then (a second pass) opened just enough.
+        for narrow, (_, build) in itertools.product((False, True), scored):
+            plan = build(narrow)
+            if plan is not None and _clear_of_obstacles(plan, params, obstacles):
+                return plan
     raise GraspPlanningError(
         f"no collision-free {recipe.strategy} grasp ({recipe.grasp_type}) found for "
         f"{obj.name} at {np.round(T[:3, 3], 3).tolist()} m ({len(scored)} candidates"
