@@ -420,7 +420,8 @@ class GraspRecipe:
         lift_grip_margin: and this multiple of it (on top of ``grip_margin``) while the grip
             settles and the object is lifted; the hold eases back.
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
-            (horizontal), not every direction.
+            (horizontal), the fingers away from the user and the object's longer end on the
+            thumb's side of the hand; no other direction.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -531,10 +532,13 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
     "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
     # The scissors: the thumb and the index and middle pads across the loops' outer walls,
-    # square to the long axis through the centre of mass (97 mm: the hand opens wide). The
-    # pinch inside the loops was 19 mm off the centre of mass on walls slanted to it, and the
-    # scissors turned out of it. Pads at 0.4 of the height: raised clear of the table, they
-    # stay 4 mm under the top. The loops' pinch (the shape class's) where no hand fits.
+    # square to the long axis through the centre of mass (97 mm: the hand opens wide), when
+    # the blades lie on the thumb's side of the hand. With the blades on the little finger's
+    # side the middle finger meets the wall where it turns 31 deg toward the pivot and the
+    # thumb presses down on the top edge, and at skin friction none of those were lifted;
+    # there (and for the large hands, which find no such grasp clear of the table) the
+    # shape class's pinch inside the loops. Pads planned at 0.4 of the height (the table
+    # clearance raises the tips to about 11 mm).
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -991,6 +995,8 @@ def _top_candidates(
         if recipe.across_long_axis:
             across = math.atan2(long_axis[0], -long_axis[1])
             axis_angles = np.array([across, across + math.pi])
+            s_long = xy @ long_axis
+            long_end = long_axis if s_long.max() > -s_long.min() else -long_axis
         offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
         for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
             target = com[:2] + offset * long_axis
@@ -1070,6 +1076,12 @@ def _top_candidates(
             rel = points[near] - centre
             for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
+                if recipe.across_long_axis:
+                    # Palm down, the fingers away from the user, the object's long end on the
+                    # thumb's side (left of u for a right hand).
+                    thumb_side = np.array([-u[1], u[0]]) * (1.0 if params.side == "right" else -1.0)
+                    if u @ preferred_dir < 0.0 or thumb_side @ long_end < 0.0:
+                        continue
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]
                     if u[:2] @ inward < np.cos(np.deg2rad(25.0)) * np.linalg.norm(inward):
