@@ -11,9 +11,12 @@ Measured in one run, on this machine:
 - MuJoCo's plain depth render rate (``mujoco.Renderer`` with depth on) of the same scenes: the
   generated frames replayed from their labels (hand side, length and pose, camera pose; checked
   against the stored depth), and the ratio of generation with one worker to it: cold (a fresh
-  process) and warm (a second run in the same process); also a fixed view of an open hand, the
-  unit used before the replay; ``--only ratio`` measures just these, and the warm rate without
-  sensor noise;
+  process), warm (a second run in the same process) and in ``--rounds`` rounds of a warm run
+  and the replay of its frames one after the other (median, min, max: the machine's speed
+  varies from second to second, so a ratio is best taken from runs close in time); these runs
+  write shards of the preset's size (250 frames), as ``handsim generate`` does; also a fixed
+  view of an open hand, the unit used before the replay; ``--only ratio`` measures just these,
+  and the warm rate without sensor noise;
 - bytes per stored frame against raw float32 depth + labels;
 - read rate of :class:`~handsim.data.torch_dataset.HandSimDataset` through a ``DataLoader``
   with 2 workers and batches of 32: a plain shuffle, the block batch sampler
@@ -26,7 +29,8 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--worker-frames 10000] [--only all|read|memory|workers|ratio]``; writes
+[--memory-frames 1000] [--worker-frames 10000] [--rounds 5]
+[--only all|read|memory|workers|ratio]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -62,9 +66,9 @@ def _generate(
 ) -> float:
     from handsim.data.generation import PRESETS, GenerationConfig, generate
 
-    config = GenerationConfig.from_mapping(
-        PRESETS[preset], frames=frames, frames_per_shard=max(1, frames // 8), **overrides
-    )
+    # 8 shards for the worker runs (work for both workers) unless the caller gives the size.
+    overrides.setdefault("frames_per_shard", max(1, frames // 8))
+    config = GenerationConfig.from_mapping(PRESETS[preset], frames=frames, **overrides)
     cpu, start = _cpu_s(), time.perf_counter()
     generate(config, out, workers=workers)
     _CPU_S["last"] = _cpu_s() - cpu
@@ -242,14 +246,22 @@ def _read_cpu_rate(folder: Path, labels_only: bool, passes: int = 3) -> float:
 
 
 def _peak_rss_mib(frames: int, out: Path) -> float:
-    """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB."""
+    """Peak RSS of a child process that generates ``frames`` frames (hand-only), MiB.
+
+    The child's own high-water mark (``VmHWM``, reset by ``exec``): Linux's ``ru_maxrss`` keeps
+    the RSS the forked child shared with this process, which after the read runs is larger.
+    """
     code = (
         "import resource, sys\n"
         "from handsim.data.generation import PRESETS, GenerationConfig, generate\n"
         f"c = GenerationConfig.from_mapping(PRESETS['hand-only'], frames={frames}, "
         "frames_per_shard=250)\n"
         "generate(c, sys.argv[1])\n"
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
+        "try:\n"
+        "    hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM:')][0]\n"
+        "    print(int(hwm.split()[1]) / 1024)\n"
+        "except OSError:\n"
+        "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
     )
     out_text = subprocess.run(
         [sys.executable, "-c", code, str(out)], capture_output=True, text=True, check=True
@@ -275,17 +287,27 @@ def main() -> None:
         "--memory-frames", type=int, default=1000, help="M of the M vs 10 M memory runs"
     )
     parser.add_argument(
+        "--rounds",
+        type=int,
+        default=5,
+        help="rounds of a warm generation run and the replay of its frames",
+    )
+    parser.add_argument(
         "--worker-frames", type=int, default=10000, help="frames per 1- and 2-worker run"
     )
     args = parser.parse_args()
+    from handsim.data.generation import PRESETS, GenerationConfig
     from handsim.data.manifest import Manifest
 
     results: dict[str, float] = {"load_average_1min_start": os.getloadavg()[0]}
     part = args.only
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
+        # The ratio runs write shards of the preset's size, as `handsim generate` does.
+        preset = GenerationConfig.from_mapping(PRESETS["hand-only"])
+        shard = {"frames_per_shard": preset.frames_per_shard}
         if part in ("all", "read", "ratio"):
-            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1")
+            results["generate_1_worker_fps"] = _generate(args.frames, 1, tmp / "w1", **shard)
             results["generate_1_worker_frames_per_cpu_s"] = args.frames / _CPU_S["last"]
         if part in ("all", "workers"):
             # Long runs: a worker's start-up (~1 s: imports, OpenGL, the hands' skins) is then
@@ -321,7 +343,9 @@ def main() -> None:
             )
             # A second run in the same process: its imports, OpenGL and the hands' skins (one
             # per side) are ready, as in a long run.
-            results["generate_1_worker_warm_fps"] = _generate(args.frames, 1, tmp / "w1_warm")
+            results["generate_1_worker_warm_fps"] = _generate(
+                args.frames, 1, tmp / "w1_warm", **shard
+            )
             results["generate_warm_over_plain_render"] = (
                 results["generate_1_worker_warm_fps"] / results["plain_depth_render_fps"]
             )
@@ -331,10 +355,21 @@ def main() -> None:
             results["generate_warm_over_replayed_render"] = (
                 results["generate_1_worker_warm_fps"] / results["replayed_plain_render_fps"]
             )
+        if part in ("all", "ratio"):
+            # Rounds of a warm generation run and the replay of its frames, one after the
+            # other: each round's ratio is measured under the same machine load.
+            ratios = []
+            for k in range(args.rounds):
+                fps = _generate(args.frames, 1, tmp / f"round{k}", **shard)
+                ratios.append(fps / _replay_plain_render_fps(tmp / f"round{k}"))
+            results["rounds"] = args.rounds
+            results["generate_warm_over_replayed_render_rounds_median"] = float(np.median(ratios))
+            results["generate_warm_over_replayed_render_rounds_min"] = min(ratios)
+            results["generate_warm_over_replayed_render_rounds_max"] = max(ratios)
         if part == "ratio":
             # Without the structured-light noise model: what the rest of the pipeline costs.
             results["generate_1_worker_warm_no_noise_fps"] = _generate(
-                args.frames, 1, tmp / "w1_none", sensor="none"
+                args.frames, 1, tmp / "w1_none", sensor="none", **shard
             )
             results["generate_warm_no_noise_over_plain_render"] = (
                 results["generate_1_worker_warm_no_noise_fps"] / results["plain_depth_render_fps"]

@@ -667,6 +667,7 @@ class KinematicSource:
         source = str(rng.choice(self.config.pose_sources))
         cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
+        alone = not scene.objects and not scene.spec.table
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -679,9 +680,12 @@ class KinematicSource:
                 wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
                 pose = HandPose(wrist, rotvec, postures[used])
                 used += 1
-                scene.binding.set_pose(scene.data, pose)  # forwards: the hand placed
-                if self._penetration_m(scene) > MAX_PENETRATION_M:
-                    continue
+                if alone:  # nothing to touch: no contacts to find or label
+                    scene.binding.set_pose(scene.data, pose, kinematics_only=True)
+                else:  # forwards: the hand placed, its contacts found
+                    scene.binding.set_pose(scene.data, pose)
+                    if self._penetration_m(scene) > MAX_PENETRATION_M:
+                        continue
                 eye, quat = self._camera(rng, view, palm, obj)
                 eye = self._beyond_near(scene, eye, palm)
                 if eye is None:

@@ -1011,10 +1011,19 @@ class HandBinding:
             ) from None
         self.actuated = np.array(hand.actuated, dtype=np.intp)
 
-    def set_pose(self, data: mujoco.MjData, pose: HandPose) -> None:
+    def set_pose(
+        self, data: mujoco.MjData, pose: HandPose, *, kinematics_only: bool = False
+    ) -> None:
         """Kinematic mode: write the pose into qpos (and mocap, ctrl), zero velocities, forward.
 
         Angles are clamped to the joint limits.
+
+        Args:
+            data: the simulation data.
+            pose: the hand pose.
+            kinematics_only: compute only the positions and orientations of bodies, geoms and
+                sites (``mj_kinematics``), not contacts and forces (``mj_forward``): what
+                keypoints and rendering need, at a fraction of the cost.
         """
         pose = pose.clip()
         q = self.root_qpos
@@ -1024,7 +1033,10 @@ class HandBinding:
         data.qvel[self.root_dof : self.root_dof + 6] = 0.0
         data.qvel[self.joint_dof] = 0.0
         self.set_target(data, pose)
-        mujoco.mj_forward(self.model, data)
+        if kinematics_only:
+            mujoco.mj_kinematics(self.model, data)
+        else:
+            mujoco.mj_forward(self.model, data)
 
     def set_target(self, data: mujoco.MjData, pose: HandPose) -> None:
         """Physics mode: move the mocap target to the wrist pose and set the finger targets.

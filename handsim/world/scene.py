@@ -598,14 +598,14 @@ class Scene:
         if self._built_hand_geometry is None:
             self._built_hand_geometry = self._hand_geometry()
         for name, rows, values in self._built_hand_geometry:
-            getattr(self.model, name)[rows] = values * factor
+            np.multiply(values, factor, out=getattr(self.model, name)[rows])
         self.hand = self.hand.rescaled(params)
         self.binding.hand = self.hand
         self.spec = dataclasses.replace(self.spec, hand=params)
         self.hand_geometry_version += 1
         mujoco.mj_forward(self.model, self.data)
 
-    def _hand_geometry(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    def _hand_geometry(self) -> list[tuple[str, slice, np.ndarray]]:
         """``(model field, rows, built values)`` of what scales with the hand length."""
         model = self.model
         hand_bodies = np.zeros(model.nbody, dtype=bool)
@@ -633,7 +633,16 @@ class Scene:
             "bvh_aabb": np.concatenate(bvh) if bvh else np.zeros(0, dtype=np.intp),
             "mesh_vert": np.concatenate(verts) if verts else np.zeros(0, dtype=np.intp),
         }
-        return [(name, index, getattr(model, name)[index].copy()) for name, index in rows.items()]
+        # Contiguous runs of rows as slices: views to scale into in place (the skin's meshes
+        # and their bounding-volume hierarchies are long runs; fancy indexing cost ~1.8 ms).
+        out = []
+        for name, index in rows.items():
+            index = np.sort(index)
+            breaks = np.flatnonzero(np.diff(index) != 1) + 1
+            for run in np.split(index, breaks) if index.size else []:
+                rows_run = slice(int(run[0]), int(run[-1]) + 1)
+                out.append((name, rows_run, getattr(model, name)[rows_run].copy()))
+        return out
 
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)

@@ -595,15 +595,15 @@ class StructuredLight:
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
         # and by one more pixel, the neighbours of each (normals). Outside it no pixel can get
         # depth; pixels without depth cast no projector shadow and get no noise.
-        rows = np.flatnonzero(clean.any(axis=1))
-        if rows.size == 0:
+        # (OpenCV's bounding box of the nonzero mask: a third of the cost of numpy's any().)
+        u, v, seen_w, seen_h = cv2.boundingRect(np.not_equal(clean, 0).view(np.uint8))
+        if seen_w == 0:
             return np.zeros((full_h, full_w), dtype=np.float32)
-        cols = np.flatnonzero(clean.any(axis=0))
         jitter = self.lateral_jitter_px > 0
         limit = max(full_h, full_w)
         reach = _jitter_reach(self.lateral_jitter_px, limit) if jitter else 0
-        r0, r1 = max(int(rows[0]) - reach - 1, 0), min(int(rows[-1]) + reach + 2, full_h)
-        c0, c1 = max(int(cols[0]) - reach - 1, 0), min(int(cols[-1]) + reach + 2, full_w)
+        r0, r1 = max(v - reach - 1, 0), min(v + seen_h + reach + 1, full_h)
+        c0, c1 = max(u - reach - 1, 0), min(u + seen_w + reach + 1, full_w)
         h, w = r1 - r0, c1 - c0
         box = (slice(r0, r1), slice(c0, c1))
         depth = scratch.get("jittered", (h, w))

@@ -65,6 +65,25 @@ def test_round_trip_labels_exact_depth_within_half_a_unit(tmp_path, frame_arrays
     assert reader[-1]["step"] == 2
 
 
+def test_image_chunks_are_zlib_streams_hdf5s_gzip_filter_declares(tmp_path, frame_arrays):
+    """Each image is one chunk, a zlib stream (what any HDF5 reader's gzip filter inflates)."""
+    import zlib
+
+    import h5py
+
+    _write(tmp_path / "s.h5", frame_arrays, paired_clean=True)
+    with h5py.File(tmp_path / "s.h5") as f:
+        for key in ("depth", "depth_clean", "segmentation"):
+            dataset = f[key]
+            assert dataset.compression == "gzip" and not dataset.shuffle
+            assert dataset.chunks == (1, *dataset.shape[1:])
+            for i in range(len(frame_arrays)):
+                mask, chunk = dataset.id.read_direct_chunk((i, 0, 0))
+                assert mask == 0  # the filter applied
+                image = np.frombuffer(zlib.decompress(chunk), dtype=dataset.dtype)
+                np.testing.assert_array_equal(image.reshape(dataset.shape[1:]), dataset[i])
+
+
 def test_depth_scale_sets_the_unit_and_the_range(tmp_path, frame_arrays):
     """With 1 mm units the error is <= 0.5 mm; depth past 65535 units is stored as none."""
     arrays = dict(frame_arrays[0])

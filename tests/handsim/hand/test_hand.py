@@ -110,6 +110,26 @@ def test_hand_length_matches_request(preset_hand):
     assert tip_reach == pytest.approx(hand.params.hand_length, rel=0.01)
 
 
+def test_a_kinematics_only_pose_places_the_hand_as_a_forwarded_one(preset_hand):
+    """set_pose(kinematics_only=True) gives mj_forward's bodies, geoms and sites exactly."""
+    hand, model = preset_hand
+    binding = hand.bind(model)
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        pose = HandPose(
+            rng.uniform(-0.1, 0.1, 3),
+            rng.uniform(-1, 1, 3),
+            rng.uniform(JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1]),
+        )
+        full, kinematic = mujoco.MjData(model), mujoco.MjData(model)
+        binding.set_pose(full, pose)
+        binding.set_pose(kinematic, pose, kinematics_only=True)
+        for field in ("xpos", "xmat", "geom_xpos", "geom_xmat", "site_xpos"):
+            np.testing.assert_array_equal(getattr(kinematic, field), getattr(full, field))
+        np.testing.assert_array_equal(binding.keypoints(kinematic), binding.keypoints(full))
+        assert kinematic.ncon == 0  # no collision detection ran
+
+
 def test_mass_is_human(preset_hand):
     """The hand with its forearm stub weighs what a human one does."""
     hand, model = preset_hand
