@@ -402,6 +402,8 @@ class GraspRecipe:
         height_fraction: pad height as a fraction of the object's height (top, rim: from the
             table; side: height of the palm centre line).
         max_depth_m: top grasps: the pads go at most this far below the object's top, metres.
+        min_depth_m: top grasps: and at least this far (the wrist rises to clear the table
+            until the pads are there), metres.
         squeeze_rad: how far past first contact the fingers are driven (the joint that
             closes most; the others in proportion), radians.
         band_m: half width of the strip of object surface the pads close on, metres.
@@ -429,6 +431,7 @@ class GraspRecipe:
     fingers: tuple[str, ...] = ("index", "middle")
     height_fraction: float = 0.5
     max_depth_m: float = 0.035
+    min_depth_m: float = 0.004
     squeeze_rad: float = np.deg2rad(45.0)
     band_m: float = 0.012
     contact_fraction: float = 0.5
@@ -536,9 +539,9 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # the blades lie on the thumb's side of the hand. With the blades on the little finger's
     # side the middle finger meets the wall where it turns 31 deg toward the pivot and the
     # thumb presses down on the top edge, and at skin friction none of those were lifted;
-    # there (and for the large hands, which find no such grasp clear of the table) the
-    # shape class's pinch inside the loops. Pads planned at 0.4 of the height (the table
-    # clearance raises the tips to about 11 mm).
+    # there the shape class's pinch inside the loops. Pads planned at 0.4 of the height (the
+    # table clearance raises the tips to about 11 mm); the large hands' longer fingers need
+    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across).
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -547,6 +550,7 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         max_offset_m=0.0,
         finger_holes=False,
         across_long_axis=True,
+        min_depth_m=0.002,
     ),
 }
 """Objects whose grasp differs from that of their shape class."""
@@ -1031,7 +1035,7 @@ def _top_candidates(
                 grasp_point - rotation.apply(mid),
                 rotation,
                 [contact],
-                max_raise_m=max(0.0, top - 0.004 - grasp_point[2]),
+                max_raise_m=max(0.0, top - recipe.min_depth_m - grasp_point[2]),
             )
             if wrist is None:
                 return None

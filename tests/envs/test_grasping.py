@@ -248,8 +248,8 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
 
     The thumb and the index and middle pads meet the loops' outer walls (97 mm apart) when the
     blades lie on the thumb's side of the hand. Where the object's own recipe finds no grasp
-    (blades on the little finger's side, or without the wide opening, too narrow for 97 mm),
-    the planner takes the shape class's pinch inside the loops.
+    (blades on the little finger's side, or here a recipe without candidates), the planner
+    takes the shape class's pinch inside the loops.
     """
     obj = get_object("037_scissors")
     assert grasp_recipe(obj).across_long_axis
@@ -266,13 +266,14 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
     xy = points[:, :2] - points[:, :2].mean(axis=0)
     long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
     assert abs(pinch[:2] @ long_axis) / np.linalg.norm(pinch[:2]) < np.sin(np.deg2rad(5.0))
+    assert plan_grasp(obj, T, hand_params("large")).width_m > 0.09
     # Seed 5: the blades point to +x, the right hand's little-finger side, the left's thumb side.
     scene, _ = _scene("037_scissors", seed=5)
     T_blades_right = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
     assert plan_grasp(obj, T_blades_right, params).width_m < 0.04
     assert plan_grasp(obj, T_blades_right, hand_params("medium", "left")).width_m > 0.09
-    narrow = dataclasses.replace(grasp_recipe(obj), wide=False)
-    monkeypatch.setitem(OBJECT_RECIPES, obj.name, narrow)
+    no_strip = dataclasses.replace(grasp_recipe(obj), band_m=0.0)
+    monkeypatch.setitem(OBJECT_RECIPES, obj.name, no_strip)
     assert plan_grasp(obj, T, params).width_m < 0.04
 
 
