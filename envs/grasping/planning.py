@@ -402,6 +402,8 @@ class GraspRecipe:
         height_fraction: pad height as a fraction of the object's height (top, rim: from the
             table; side: height of the palm centre line).
         max_depth_m: top grasps: the pads go at most this far below the object's top, metres.
+        min_depth_m: top grasps: and at least this far (the wrist rises to clear the table
+            until the pads are there), metres.
         squeeze_rad: how far past first contact the fingers are driven (the joint that
             closes most; the others in proportion), radians.
         band_m: half width of the strip of object surface the pads close on, metres.
@@ -419,6 +421,9 @@ class GraspRecipe:
             friction), in every phase.
         lift_grip_margin: and this multiple of it (on top of ``grip_margin``) while the grip
             settles and the object is lifted; the hold eases back.
+        across_long_axis: top grasps: the pinch axis only square to the object's long axis
+            (horizontal), the fingers away from the user and the object's longer end on the
+            thumb's side of the hand; no other direction.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -426,6 +431,7 @@ class GraspRecipe:
     fingers: tuple[str, ...] = ("index", "middle")
     height_fraction: float = 0.5
     max_depth_m: float = 0.035
+    min_depth_m: float = 0.004
     squeeze_rad: float = np.deg2rad(45.0)
     band_m: float = 0.012
     contact_fraction: float = 0.5
@@ -435,6 +441,7 @@ class GraspRecipe:
     min_grip_scale: float = 0.02
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
+    across_long_axis: bool = False
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -527,6 +534,24 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The
     # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
     "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
+    # The scissors: the thumb and the index and middle pads across the loops' outer walls,
+    # square to the long axis through the centre of mass (97 mm: the hand opens wide), when
+    # the blades lie on the thumb's side of the hand. With the blades on the little finger's
+    # side the middle finger meets the wall where it turns 31 deg toward the pivot and the
+    # thumb presses down on the top edge, and at skin friction none of those were lifted;
+    # there the shape class's pinch inside the loops. Pads planned at 0.4 of the height (the
+    # table clearance raises the tips to about 11 mm); the large hands' longer fingers need
+    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across).
+    "037_scissors": dataclasses.replace(
+        GRASP_RECIPES["flat_tool"],
+        fingers=("index", "middle"),
+        height_fraction=0.4,
+        wide=True,
+        max_offset_m=0.0,
+        finger_holes=False,
+        across_long_axis=True,
+        min_depth_m=0.002,
+    ),
 }
 """Objects whose grasp differs from that of their shape class."""
 
@@ -986,6 +1011,7 @@ def _top_candidates(
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
     centres = []
+    axis_angles = np.deg2rad(np.arange(0.0, 360.0, 10.0))
     if recipe.strategy == "rim":
         # The rim point nearest the user; the pads pinch its wall radially.
         rim = points[points[:, 2] > top - 0.01]
@@ -993,6 +1019,11 @@ def _top_candidates(
     else:
         xy = points[:, :2] - com[:2]
         long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+        if recipe.across_long_axis:
+            across = math.atan2(long_axis[0], -long_axis[1])
+            axis_angles = np.array([across, across + math.pi])
+            s_long = xy @ long_axis
+            long_end = long_axis if s_long.max() > -s_long.min() else -long_axis
         offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
         for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
             target = com[:2] + offset * long_axis
@@ -1027,7 +1058,7 @@ def _top_candidates(
                 grasp_point - rotation.apply(mid),
                 rotation,
                 [contact],
-                max_raise_m=max(0.0, top - 0.004 - grasp_point[2]),
+                max_raise_m=max(0.0, top - recipe.min_depth_m - grasp_point[2]),
             )
             if wrist is None:
                 return None
@@ -1070,8 +1101,14 @@ def _top_candidates(
         for (centre, offset), height in itertools.product(centres, variant_heights):
             near = np.abs(points[:, 2] - height) < 0.01
             rel = points[near] - centre
-            for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
+            for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
+                if recipe.across_long_axis:
+                    # Palm down, the fingers away from the user, the object's long end on the
+                    # thumb's side (left of u for a right hand).
+                    thumb_side = np.array([-u[1], u[0]]) * (1.0 if params.side == "right" else -1.0)
+                    if u @ preferred_dir < 0.0 or thumb_side @ long_end < 0.0:
+                        continue
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]
                     if u[:2] @ inward < np.cos(np.deg2rad(25.0)) * np.linalg.norm(inward):
@@ -1270,13 +1307,18 @@ def plan_grasp(
     T = _check_transform(T_world_from_obj, "T_world_from_obj")
     recipe = grasp_recipe(obj)
     preferred = np.array([0.0, 1.0, 0.0])
-    if recipe.strategy == "side":
-        candidate_sets = [functools.partial(_side_candidates, obj, T, params, recipe, preferred)]
-    else:
-        candidate_sets = [
-            functools.partial(_top_candidates, obj, T, params, recipe, preferred, raises)
-            for raises in (_PAD_RAISES_M, _FALLBACK_PAD_RAISES_M)
-        ]
+    # An object's own recipe first; its shape class's where that finds no grasp; then, for top
+    # grasps, the same with the pads at the half steps.
+    recipes = dict.fromkeys([recipe, GRASP_RECIPES.get(OBJECT_SHAPE_CLASSES.get(obj.name), recipe)])
+    candidate_sets = [
+        functools.partial(_side_candidates, obj, T, params, r, preferred)
+        if r.strategy == "side"
+        else functools.partial(_top_candidates, obj, T, params, r, preferred, raises)
+        for raises in (_PAD_RAISES_M, _FALLBACK_PAD_RAISES_M)
+        for r in recipes
+        if r.strategy != "side" or raises is _PAD_RAISES_M
+    ]
+    scored = []
     for candidates in candidate_sets:
         scored = sorted(candidates(), key=lambda c: c[0])
         # First with the hand opened wide, then (a second pass) opened just enough.

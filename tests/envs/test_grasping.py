@@ -37,7 +37,7 @@ from handsim.envs.grasping import (
     start_pose,
     touch_forces,
 )
-from handsim.envs.grasping.planning import _clear_of_obstacles
+from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry
 from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
 from handsim.hand.pose_sources import GRASP_TYPES
@@ -241,6 +241,40 @@ def test_object_recipes_override_their_shape_class():
     assert expert.recipe is grasp_recipe(banana)
     assert GRASP_RECIPES["clamp"].fingers == ("index", "middle")
     assert GRASP_RECIPES["flat_tool"].fingers == grasp_recipe(banana).fingers == ("index",)
+
+
+def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch):
+    """The scissors' pinch runs square to their long axis through the centre of mass.
+
+    The thumb and the index and middle pads meet the loops' outer walls (97 mm apart) when the
+    blades lie on the thumb's side of the hand. Where the object's own recipe finds no grasp
+    (blades on the little finger's side, or here a recipe without candidates), the planner
+    takes the shape class's pinch inside the loops.
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).across_long_axis
+    assert not GRASP_RECIPES["flat_tool"].across_long_axis
+    scene, _ = _scene("037_scissors", seed=3)
+    T = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    params = hand_params("medium")
+    plan = plan_grasp(obj, T, params)
+    assert plan.width_m == pytest.approx(0.097, abs=0.002)
+    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    pinch = world[1:].mean(axis=0) - world[0]
+    points = np.asarray(obj.model_points_m) @ T[:3, :3].T
+    xy = points[:, :2] - points[:, :2].mean(axis=0)
+    long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+    assert abs(pinch[:2] @ long_axis) / np.linalg.norm(pinch[:2]) < np.sin(np.deg2rad(5.0))
+    assert plan_grasp(obj, T, hand_params("large")).width_m > 0.09
+    # Seed 5: the blades point to +x, the right hand's little-finger side, the left's thumb side.
+    scene, _ = _scene("037_scissors", seed=5)
+    T_blades_right = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    assert plan_grasp(obj, T_blades_right, params).width_m < 0.04
+    assert plan_grasp(obj, T_blades_right, hand_params("medium", "left")).width_m > 0.09
+    no_strip = dataclasses.replace(grasp_recipe(obj), band_m=0.0)
+    monkeypatch.setitem(OBJECT_RECIPES, obj.name, no_strip)
+    assert plan_grasp(obj, T, params).width_m < 0.04
 
 
 def test_state_from_sim_and_errors():
