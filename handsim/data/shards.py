@@ -197,17 +197,17 @@ class ShardWriter:
             format=SHARD_FORMAT, depth_scale_mm=self.depth_scale_mm, image_shape=(h, w), frames=0
         )
         images = ["depth", "segmentation"] + (["depth_clean"] if self.paired_clean else [])
-        self._pending_chunks = {key: [] for key in images}
+        # Each image of a frame is converted into its buffer, then compressed to a chunk.
         self._image_buffers = {
             key: np.empty((h, w), np.uint8 if key == "segmentation" else np.uint16)
             for key in images
         }
-        for key in images:
-            dtype = np.uint8 if key == "segmentation" else np.uint16
+        self._pending_chunks = {key: [] for key in images}
+        for key, buffer in self._image_buffers.items():
             self._datasets[key] = f.create_dataset(
                 key,
                 (0, h, w),
-                dtype,
+                buffer.dtype,
                 maxshape=(None, h, w),
                 chunks=(1, h, w),
                 **_IMAGE_COMPRESSION,
