@@ -966,12 +966,13 @@ def _top_candidates(
     params: HandParams,
     recipe: GraspRecipe,
     preferred_dir: np.ndarray,
-    pad_raises_m: Sequence[float] = _PAD_RAISES_M,
+    fallback: bool = False,
 ) -> list[tuple[float, Callable[[bool], GraspPlan | None]]]:
     """Top and rim grasps across horizontal axes: (cost, plan builder) per axis.
 
-    The pads go as deep as the recipe allows, or higher by ``pad_raises_m`` (metres; at most
-    8 mm under the top).
+    The pads go as deep as the recipe allows, or higher by :data:`_PAD_RAISES_M` (at most 8 mm
+    under the top); ``fallback``: only at the half steps :data:`_FALLBACK_PAD_RAISES_M`, with
+    no span grasp (for where the usual heights leave no plan).
     """
     checker = _checker(obj, params)
     points = _world_points(obj, T)
@@ -979,8 +980,9 @@ def _top_candidates(
     top = float(points[:, 2].max())
     deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
     # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
-    heights = [deepest + r for r in pad_raises_m if deepest + r <= top - 0.008]
-    if not heights and pad_raises_m[0] == 0.0:
+    raises_m = _FALLBACK_PAD_RAISES_M if fallback else _PAD_RAISES_M
+    heights = [deepest + r for r in raises_m if deepest + r <= top - 0.008]
+    if not heights and not fallback:
         heights = [deepest]
     closings = [
         (
@@ -1006,7 +1008,7 @@ def _top_candidates(
             _SPAN_SQUEEZE_RAD * _grip_scale(obj),
             thumb_fraction=1.0,
         )
-        span_heights = [top - d for d in _SPAN_DEPTHS_M] if pad_raises_m[0] == 0.0 else []
+        span_heights = [] if fallback else [top - d for d in _SPAN_DEPTHS_M]
         closings.append((span, span_heights, top - _SPAN_DEPTHS_M[0]))
     # Grasp through the COM if the object is there, else through the nearest surface point;
     # with ``max_offset_m``, also at points along the object's long axis (narrower there).
@@ -1313,10 +1315,10 @@ def plan_grasp(
     candidate_sets = [
         functools.partial(_side_candidates, obj, T, params, r, preferred)
         if r.strategy == "side"
-        else functools.partial(_top_candidates, obj, T, params, r, preferred, raises)
-        for raises in (_PAD_RAISES_M, _FALLBACK_PAD_RAISES_M)
+        else functools.partial(_top_candidates, obj, T, params, r, preferred, fallback)
+        for fallback in (False, True)
         for r in recipes
-        if r.strategy != "side" or raises is _PAD_RAISES_M
+        if r.strategy != "side" or not fallback
     ]
     scored = []
     for candidates in candidate_sets:
