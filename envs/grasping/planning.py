@@ -424,6 +424,7 @@ class GraspRecipe:
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
             (horizontal), the fingers away from the user and the object's longer end on the
             thumb's side of the hand; no other direction.
+        pad_raises_m: top grasps: the pad heights tried above the deepest, metres.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -442,6 +443,7 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
+    pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -508,6 +510,10 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         grip_margin=_TRIPOD_MARGIN,
         lift_grip_margin=_LIFT_MARGIN,
     ),
+    # Pads 5 mm above the deepest before 1 cm: where the arms of the extra-large clamp's X
+    # keep the open hand from the deepest pinch, the large hands' thumbs pressed 1 cm higher
+    # on the top edge (normal 18-37 deg above the horizontal) and the clamp turned out of the
+    # pinch in the lift (large right and left hands, 13/20 each at skin friction; 20/20 each).
     "clamp": GraspRecipe(
         "top",
         "tripod",
@@ -515,6 +521,7 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         contact_fraction=1.0,
         grip_margin=_TRIPOD_MARGIN,
         lift_grip_margin=_LIFT_MARGIN,
+        pad_raises_m=(0.0, 0.005, 0.01, 0.02),
     ),
     "elongated": GraspRecipe(
         "top",
@@ -951,12 +958,12 @@ _SPAN_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
 _SPAN_SQUEEZE_RAD = np.deg2rad(30.0)
 
 
-_PAD_RAISES_M = (0.0, 0.01, 0.02)
-# Half steps only where the 1 cm steps leave no plan: the tuna can (34 mm high) leaves no room
-# for pads 1 cm higher than half its height (the limit 8 mm under the top), and at half its
-# height the index's middle segment of hands under about 0.156 m crossed its top edge. (Among
-# the others, the half steps changed 66 of the other top grasps' 2380 plans of seeds 0-19 and
-# seven hands, 53 of them the clamps'.)
+# Half steps only where the recipe's steps (`GraspRecipe.pad_raises_m`) leave no plan: the tuna
+# can (34 mm high) leaves no room for pads 1 cm higher than half its height (the limit 8 mm
+# under the top), and at half its height the index's middle segment of hands under about
+# 0.156 m crossed its top edge. (Among the others, the half steps changed 66 of the other top
+# grasps' 2380 plans of seeds 0-19 and seven hands, 53 of them the clamps', which now try 5 mm
+# among their own steps.)
 _FALLBACK_PAD_RAISES_M = (0.005, 0.015)
 
 
@@ -970,7 +977,7 @@ def _top_candidates(
 ) -> list[tuple[float, Callable[[bool], GraspPlan | None]]]:
     """Top and rim grasps across horizontal axes: (cost, plan builder) per axis.
 
-    The pads go as deep as the recipe allows, or higher by :data:`_PAD_RAISES_M` (at most 8 mm
+    The pads go as deep as the recipe allows, or higher by its ``pad_raises_m`` (at most 8 mm
     under the top); ``fallback``: only at the half steps :data:`_FALLBACK_PAD_RAISES_M`, with
     no span grasp (for where the usual heights leave no plan).
     """
@@ -979,8 +986,8 @@ def _top_candidates(
     com = T[:3, :3] @ obj.com_m + T[:3, 3]
     top = float(points[:, 2].max())
     deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
-    # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
-    raises_m = _FALLBACK_PAD_RAISES_M if fallback else _PAD_RAISES_M
+    # Shallower pads if the hand cannot reach that deep (up to 2 cm higher, 8 mm below the top).
+    raises_m = _FALLBACK_PAD_RAISES_M if fallback else recipe.pad_raises_m
     heights = [deepest + r for r in raises_m if deepest + r <= top - 0.008]
     if not heights and not fallback:
         heights = [deepest]
