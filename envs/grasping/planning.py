@@ -539,8 +539,14 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
     # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg
     # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The
-    # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
-    "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
+    # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20). Squeezed 30 deg
+    # past contact, not 45: the fingertips under the far flank and the thumb's proximal segment
+    # on the near one rolled the banana 25-27 deg and raised it 6 mm off the table in the
+    # squeeze, and it turned out of the pinch in the lift or the hold (the medium left hand,
+    # 15/20 at skin friction and at 0.5; 17 deg, 3 mm and 20/20 at 30 deg).
+    "011_banana": dataclasses.replace(
+        GRASP_RECIPES["elongated"], height_fraction=0.35, squeeze_rad=float(np.deg2rad(30.0))
+    ),
     # The scissors: the thumb and the index and middle pads across the loops' outer walls,
     # square to the long axis through the centre of mass (97 mm: the hand opens wide), when
     # the blades lie on the thumb's side of the hand. With the blades on the little finger's
