@@ -5,10 +5,11 @@ output are (H, W) float32 depth along the optical axis in metres, ``0.0`` = no m
 input is not modified, so the clean and the noisy depth of a frame can both be kept. Models
 compose with :class:`Compose`. Each step below names the paper it follows.
 
-The models compute in float32 (OpenCV for remapping and morphology, per-thread scratch arrays
-instead of fresh temporaries) and draw random numbers only where they are used: per valid
-pixel, per edge pixel. Gaussian draws use Box-Muller (float64 radius, so the tails reach
-8.5 sigma). Outputs are deterministic for a seed.
+The models compute in float32 (the structured-light model's per-pixel steps in compiled
+loops, the rest with OpenCV and per-thread scratch arrays instead of fresh temporaries) and
+draw random numbers only where they are used: per valid pixel, per edge pixel. Gaussian
+draws use Box-Muller (float64 radius, so the tails reach 8.5 sigma). Outputs are
+deterministic for a seed.
 
 :class:`StructuredLight` (PrimeSense Carmine / Kinect v1 style), in this order:
 
@@ -25,9 +26,9 @@ pixel, per edge pixel. Gaussian draws use Box-Muller (float64 radius, so the tai
    pixel u is ``u - fx b / z``; scanning from the right, a pixel is lit only if its projector
    column is left of every column claimed to its right. A pixel more than
    ``d_max - d_min + 1`` columns to the right (``d = fx b / z``, the disparity, over the image)
-   can never claim it, so the scan is a running maximum of ``d - u`` over that many columns,
-   built by doubling. The band lies on the ``-x`` side of foreground objects and is
-   ``fx b (1/z_fg - 1/z_bg)`` pixels wide;
+   can never claim it: the scan is a running maximum of ``d - u`` from the right. The band
+   lies on the ``-x`` side of foreground objects and is ``fx b (1/z_fg - 1/z_bg)`` pixels
+   wide;
 3. disparity noise and quantization: disparity ``d = fx b / z`` gets Gaussian noise and is
    rounded to ``disparity_step_px`` (1/8 px). The Gaussian's sigma is chosen so that the total
    axial noise (Gaussian plus quantization, ``step^2 / 12``) equals Nguyen, Izadi & Lovell 2012's
@@ -327,8 +328,6 @@ def _check_probability(name: str, value: float) -> None:
 class _PixelGrid:
     """Per-camera constants (read-only arrays, cached by :func:`_pixel_grid`)."""
 
-    columns: np.ndarray  # (W,) float32 u
-    pixel_map: np.ndarray  # (H, W, 2) int16 (u, v): the identity map of cv2.remap
     x: np.ndarray  # (H, W) float32 (u - cx) / fx
     y: np.ndarray  # (H, W) float32 (v - cy) / fy
     ray2: np.ndarray  # (H, W) float32 1 + x^2 + y^2
@@ -340,13 +339,7 @@ def _pixel_grid(intrinsics: CameraIntrinsics) -> _PixelGrid:
     v, u = np.indices((h, w), dtype=np.int16)
     x = ((u - intrinsics.cx) / intrinsics.fx).astype(np.float32)
     y = ((v - intrinsics.cy) / intrinsics.fy).astype(np.float32)
-    grid = _PixelGrid(
-        columns=np.arange(w, dtype=np.float32),
-        pixel_map=np.stack([u, v], axis=-1),
-        x=x,
-        y=y,
-        ray2=1.0 + x * x + y * y,
-    )
+    grid = _PixelGrid(x=x, y=y, ray2=1.0 + x * x + y * y)
     for field in dataclasses.fields(grid):
         getattr(grid, field.name).setflags(write=False)
     return grid
@@ -378,9 +371,9 @@ def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
     Returns:
         ``(table, fine_table, cdf, pairs)`` or ``None`` when over a quarter of the first bytes
         would not decide (a wide jitter): table (256,) and fine_table (65536,) int32, the pair
-        for each byte or byte pair (two int16 packed as the (..., 2) int16 layout of a cv2.remap
-        map) or ``_UNDECIDED``; cdf, the cumulative probabilities; pairs, the packed pairs in
-        that order.
+        for each byte or byte pair (two int16 packed as the (..., 2) int16 layout of the
+        offsets) or ``_UNDECIDED``; cdf, the cumulative probabilities; pairs, the packed pairs
+        in that order.
     """
     k_max = _jitter_reach(sigma, limit)
     scale = 1.0 / (sigma * math.sqrt(2.0))
