@@ -85,6 +85,7 @@ __all__ = [
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
     "MAX_EMPTY_EPISODES",
+    "MAX_EMPTY_EPISODES_STARTED",
     "MIN_KEYPOINTS_IN_FRAME",
     "SOURCES",
     "FrameSource",
@@ -120,7 +121,11 @@ _BOX_CORNER_SIGNS = np.array(np.meshgrid([-1.0, 1.0], [-1.0, 1.0], [-1.0, 1.0]))
 _MIN_EYE_HEIGHT_M = 0.03
 """Cameras stay this far above the table top (world z = 0), metres."""
 MAX_EMPTY_EPISODES = 5
-"""Episodes in a row without an accepted frame before generation stops with a clear error."""
+"""Episodes in a row without an accepted frame, before a shard's first frame, after which
+generation stops with a clear error (the config cannot give a frame)."""
+MAX_EMPTY_EPISODES_STARTED = 50
+"""The same once the shard has frames: the occlusion buckets left may only be rare (3 % of the
+``occlusion-heavy`` draws fall in its least occluded bucket), not out of reach."""
 
 
 class InvalidGenerationConfig(HandSimError, ValueError):
@@ -717,6 +722,17 @@ class _Acceptor:
             quotas[np.argsort(-(fractions * frames - quotas))[: frames - quotas.sum()]] += 1
             self.edges, self.left = edges, quotas
 
+    def describe_left(self) -> str:
+        """``"; frames still wanted per bucket: [lo, hi) n, ..."``, or nothing without buckets."""
+        if self.edges is None:
+            return ""
+        left = [
+            f"[{lo:g}, {hi:g}) {n}"
+            for lo, hi, n in zip(self.edges[:-1], self.edges[1:], self.left, strict=True)
+            if n > 0
+        ]
+        return "; frames still wanted per bucket: " + ", ".join(left)
+
     def __call__(self, ratio: float) -> bool:
         if not self.lo <= ratio <= self.hi:
             return False
@@ -818,10 +834,12 @@ def generate_shard(
             done += got
             episode += 1
             empty = 0 if got else empty + 1
-            if empty == MAX_EMPTY_EPISODES:
+            limit = MAX_EMPTY_EPISODES_STARTED if done else MAX_EMPTY_EPISODES
+            if empty == limit:
                 raise GenerationError(
-                    f"{MAX_EMPTY_EPISODES} episodes in a row gave no accepted frame in "
-                    f"{MAX_TRIES_PER_FRAME} draws each: the occlusion range "
+                    f"{limit} episodes in a row gave no accepted frame in "
+                    f"{MAX_TRIES_PER_FRAME} draws each ({done} of the shard's {frames} frames "
+                    f"made{accept.describe_left()}): the occlusion range "
                     f"{config.occlusion_range} or buckets {config.occlusion_buckets} are out of "
                     "reach of this config (add objects, use the 'through_object' viewpoint, or "
                     "widen the range)"
