@@ -616,32 +616,41 @@ class KinematicSource:
         # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
         return eye, look_at_quat_wxyz(eye, target, up)
 
-    def _beyond_near(self, scene: Scene, eye: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    def _beyond_near(
+        self, scene: Scene, geoms: np.ndarray, eye: np.ndarray, target: np.ndarray
+    ) -> np.ndarray | None:
         """The eye moved back along its line of sight until the hand and objects are in range.
 
         Nothing nearer than the camera's or the sensor's working range gets depth (a
         structured-light sensor measures from 0.35 m): a hand or an occluder there would be a
-        hole in the depth image. The bounding boxes of the hand's skin meshes and every
-        object's bounding sphere are kept beyond that range. None when the moved eye would be
-        below the table top.
+        hole in the depth image. The bounding boxes of ``geoms`` (the hand's skin meshes and
+        every geom of the objects) are kept beyond that range. None when the moved eye would
+        be below the table top.
         """
         forward = target - eye
         forward /= np.linalg.norm(forward)
         model, data = scene.model, scene.data
-        skin = scene.hand_skin_geom_ids
-        # The corners of the skin meshes' bounding boxes (in their geom frames), in the world.
-        aabb = model.geom_aabb[skin]
+        # The corners of the geoms' bounding boxes (in their geom frames), in the world.
+        aabb = model.geom_aabb[geoms]
         local = aabb[:, None, :3] + aabb[:, None, 3:] * _BOX_CORNER_SIGNS
-        corners = np.einsum("nij,nkj->nki", data.geom_xmat[skin].reshape(-1, 3, 3), local)
-        corners += data.geom_xpos[skin][:, None]
+        corners = np.einsum("nij,nkj->nki", data.geom_xmat[geoms].reshape(-1, 3, 3), local)
+        corners += data.geom_xpos[geoms][:, None]
         nearest = float(np.min((corners.reshape(-1, 3) - eye) @ forward))
-        for body_name, obj in scene.objects:
-            centre = scene.data.xpos[scene.model.body(body_name).id]
-            nearest = min(nearest, float((centre - eye) @ forward) - 0.5 * obj.diameter_m)
         if nearest >= self._near_m:
             return eye
         eye = eye - forward * (self._near_m - nearest)
         return eye if eye[2] >= _MIN_EYE_HEIGHT_M else None
+
+    @staticmethod
+    def _near_geoms(scene: Scene) -> np.ndarray:
+        """The geoms kept beyond the near range: the hand's skin and every object geom.
+
+        (An object's half diameter around its body origin does not bound every object: the
+        extra-large clamp reached 1.4 mm nearer than that.)
+        """
+        bodies = [scene.model.body(name).id for name, _ in scene.objects]
+        objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
+        return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -673,6 +682,7 @@ class KinematicSource:
         cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
+        near_geoms = self._near_geoms(scene)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -692,7 +702,7 @@ class KinematicSource:
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
                 eye, quat = self._camera(rng, view, palm, obj)
-                eye = self._beyond_near(scene, eye, palm)
+                eye = self._beyond_near(scene, near_geoms, eye, palm)
                 if eye is None:
                     continue
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
@@ -702,8 +712,13 @@ class KinematicSource:
                 )
                 ratio = frame.hand_occlusion_ratio or 0.0
                 if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
-                    arrays = frame_to_arrays(frame, images=True)
+                    arrays = frame_to_arrays(frame)
                     arrays["hand_occlusion_ratio"][()] = ratio
+                    # The frame's own images, not copies: the writer only reads them, and
+                    # before the next frame is rendered.
+                    arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
+                    if frame.depth_clean is not None:
+                        arrays["depth_clean"] = frame.depth_clean
                     yield arrays
                     break
             else:
