@@ -377,7 +377,6 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
-        self._below_near_m = float(np.nextafter(self._near_m, np.float32(0.0)))
         # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
         self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
@@ -401,7 +400,6 @@ class FrameRenderer:
         # Buffers reused by every frame (no image-sized allocation per frame but the Frame's).
         h, w = self.intrinsics.height, self.intrinsics.width
         self._depth_buffer = np.empty((h, w), dtype=np.float32)
-        self._mask_buffer = np.empty((h, w), dtype=bool)
         # Each object's silhouette and its box corners in the camera frame when it was made
         # (NaN: none yet); see _silhouettes.
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
@@ -616,18 +614,15 @@ class FrameRenderer:
             self._hand_version = scene.hand_geometry_version
         intr = self.intrinsics
         labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
-        depth_clean, labels = self.renderer.render(
-            data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
-        )
         # The camera's working range: nothing is measured outside it (the far clip plane of
-        # the scene may serve a camera with a longer range). OpenCV's thresholds zero depth
-        # below `near` (kept: above the float32 just below it) and beyond `far`; then every
-        # pixel without depth, background (label 0 already) or out of range, gets label 0.
-        cv2.threshold(depth_clean, self._below_near_m, 0.0, cv2.THRESH_TOZERO, dst=depth_clean)
-        if self._check_far:
-            far = float(self._far_m)
-            cv2.threshold(depth_clean, far, 0.0, cv2.THRESH_TOZERO_INV, dst=depth_clean)
-        np.multiply(labels, np.not_equal(depth_clean, 0.0, out=self._mask_buffer), out=labels)
+        # the scene may serve a camera with a longer range); those pixels get label 0.
+        depth_clean, labels = self.renderer.render(
+            data,
+            out=(self._depth_buffer, labels),
+            geom_values=self._geom_labels,
+            fill=0,
+            depth_range_m=(self._near_m, self._far_m if self._check_far else np.inf),
+        )
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:

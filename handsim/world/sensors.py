@@ -65,7 +65,7 @@ import numpy as np
 
 from handsim._validate import boolean, real_scalar, show
 from handsim.errors import HandSimError, UnknownName
-from handsim.world import _sensor_kernels as _kernels
+from handsim.world import _kernels
 from handsim.world.camera import CameraIntrinsics
 
 __all__ = [

@@ -1,11 +1,11 @@
-"""Compiled per-pixel loops of :class:`handsim.world.sensors.StructuredLight` (numba).
+"""Compiled per-pixel loops (numba): the renderer's read-back and the structured-light noise.
 
-NumPy's version of these steps made some forty passes over the image, each a call of a few
-microseconds and a temporary array: most of a frame's noise time went to the calls and the
-memory traffic, not to the arithmetic. Each function here is one or two passes. They compute
-in float32 as NumPy did (every constant is cast first: numba promotes float32 with a Python
-float to float64), and draw no random numbers: the caller draws them with the frame's
-generator, in the same order as before.
+NumPy's version of these steps made a pass over the image per operation (some forty for the
+noise, ten for the read-back), each a call of a few microseconds and a temporary array: most
+of their time went to the calls and the memory traffic, not to the arithmetic. Each function
+here is one or two passes. They compute in float32 as NumPy did (every constant is cast first:
+numba promotes float32 with a Python float to float64), and draw no random numbers: the caller
+draws them with the frame's generator, in the same order as before.
 
 The first call in a process compiles them (about 2 s), or loads them from numba's cache
 (``__pycache__`` beside this file, or ``NUMBA_CACHE_DIR``).
@@ -17,6 +17,53 @@ import numba
 import numpy as np
 
 _JIT = {"nogil": True, "cache": True}
+
+
+@numba.njit(**_JIT)
+def depth_and_labels(
+    rgb: np.ndarray,
+    zbuffer: np.ndarray,
+    c: np.float32,
+    d: np.float32,
+    table: np.ndarray,
+    near_m: np.float32,
+    far_m: np.float32,
+    depth_m: np.ndarray,
+    labels: np.ndarray,
+) -> None:
+    """Metric depth and a label per pixel from a segmentation render's read-back.
+
+    Rows are flipped (OpenGL's buffer is bottom-up). A pixel whose red byte (segmentation
+    colour index, fewer than 255 scene geoms) is 0 saw no geom; the others get the depth
+    ``d / (buffer + c)`` and ``table[index]``. Background and depth outside
+    ``[near_m, far_m]`` get depth 0 and ``table[0]``.
+
+    Args:
+        rgb: (H, W, 3) uint8 colour buffer, bottom-up.
+        zbuffer: (H, W) float32 reversed-Z depth buffer, bottom-up.
+        c: the depth map's offset (see ``render.DepthRenderer``).
+        d: the depth map's scale, metres.
+        table: (256,) label of each colour index, ``table[0]`` for background.
+        near_m: nearest depth kept, metres.
+        far_m: farthest depth kept, metres.
+        depth_m: (H, W) float32, written, top-down.
+        labels: (H, W) of ``table``'s dtype, written, top-down.
+    """
+    h, w = depth_m.shape
+    zero = np.float32(0.0)
+    background = table[0]
+    for row in range(h):
+        src = h - 1 - row
+        for col in range(w):
+            index = rgb[src, col, 0]
+            if index != 0:
+                z = d / (zbuffer[src, col] + c)
+                if z >= near_m and z <= far_m:
+                    depth_m[row, col] = z
+                    labels[row, col] = table[index]
+                    continue
+            depth_m[row, col] = zero
+            labels[row, col] = background
 
 
 @numba.njit(**_JIT)
