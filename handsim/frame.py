@@ -57,6 +57,7 @@ import numpy as np
 from handsim.errors import UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import HandPose
+from handsim.world import _kernels
 from handsim.world.camera import T_cam_from_world
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, InvalidScene, Scene
@@ -277,7 +278,6 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
 
 # Offsets of a pixel and its 8 neighbours (the centre first).
 _NEIGHBOURS = np.array([(0, 0)] + [(dv, du) for dv in (-1, 0, 1) for du in (-1, 0, 1) if dv or du])
-_NEIGHBOUR_ROWS, _NEIGHBOUR_COLS = _NEIGHBOURS[:, 0].copy(), _NEIGHBOURS[:, 1].copy()
 
 
 def _equal(a: object, b: object) -> bool:
@@ -560,30 +560,11 @@ class FrameRenderer:
         """Per-keypoint ``visible`` and ``occluder`` from the clean render (module docstring)."""
         visible = np.zeros(21, dtype=bool)
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
-        k = np.nonzero(in_frame)[0]
-        if k.size == 0:
-            return visible, occluder
-        h, w = depth_m.shape
-        # Clamped into the image (np.clip's wrapper costs more than the two ufuncs).
-        rows = np.minimum(np.maximum(row[k, None].astype(np.intp) + _NEIGHBOUR_ROWS, 0), h - 1)
-        cols = np.minimum(np.maximum(col[k, None].astype(np.intp) + _NEIGHBOUR_COLS, 0), w - 1)
-        seen = depth_m[rows, cols]  # (n, 9), the keypoint's own pixel first
-        label = labels[rows, cols]
-        band = (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)[:, None]
-        own = (label[..., None] == self._kp_parts[k, None, :]).any(axis=-1)
-        confirms = own & (seen > 0) & (np.abs(seen - z[k, None]) <= band)
-        blocked = (seen[:, 0] > 0) & (seen[:, 0] < z[k] - band[:, 0])
-        # The pixel itself, or a neighbour when nothing nearer covers the keypoint's pixel.
-        vis = confirms[:, 0] | (~blocked & confirms[:, 1:].any(axis=1))
-        visible[k] = vis
-        hidden = blocked & ~vis
-        centre = label[:, 0].astype(np.int32)
-        code = np.where(
-            centre >= OBJECT_LABEL_OFFSET,
-            centre - OBJECT_LABEL_OFFSET,
-            np.where(centre >= _PALM_LABEL, OCCLUDER_SELF, OCCLUDER_SCENE),
-        )
-        occluder[k[hidden]] = code[hidden]
+        _kernels.keypoint_visibility(
+            depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
+            OCCLUDER_SCENE, visible, occluder,
+        )  # fmt: skip
         return visible, occluder
 
     def render(

@@ -258,3 +258,81 @@ def disparity_noise(
             if min_range_m <= measured <= max_range_m:
                 i, j = divmod(index[k], w)
                 out[r0 + i, c0 + j] = measured
+
+
+@numba.njit(**_JIT)
+def keypoint_visibility(
+    depth_m: np.ndarray,
+    labels: np.ndarray,
+    z: np.ndarray,
+    row: np.ndarray,
+    col: np.ndarray,
+    in_frame: np.ndarray,
+    band: np.ndarray,
+    parts: np.ndarray,
+    neighbours: np.ndarray,
+    object_offset: int,
+    palm: int,
+    occluder_self: int,
+    occluder_scene: int,
+    visible: np.ndarray,
+    occluder: np.ndarray,
+) -> None:
+    """Per-keypoint visibility and occluder from the clean render (``handsim.frame``).
+
+    A pixel confirms keypoint k when it carries one of the keypoint's part labels and its depth
+    lies within ``band[k]`` of the keypoint's; it blocks it when its depth is nearer than that.
+    The keypoint is visible when its own pixel confirms it, or a neighbour does and its own
+    pixel does not block it; a blocked, invisible keypoint's occluder is its pixel's object
+    instance, ``occluder_self`` (the hand) or ``occluder_scene``.
+
+    Args:
+        depth_m: (H, W) float32 clean depth, metres, 0 = none.
+        labels: (H, W) int16 segmentation labels.
+        z: (21,) keypoint depths, metres.
+        row: (21,) keypoint pixel rows (integral floats).
+        col: (21,) keypoint pixel columns (integral floats).
+        in_frame: (21,) bool, keypoints inside the image.
+        band: (21,) depth tolerance of each keypoint, metres.
+        parts: (21, P) int16 labels each keypoint's surface may carry.
+        neighbours: (9, 2) int (row, column) offsets, the pixel itself first.
+        object_offset: label of object instance 0.
+        palm: the palm's label (the hand's labels are ``palm .. object_offset - 1``).
+        occluder_self: occluder code of the hand itself.
+        occluder_scene: occluder code of the table or anything else.
+        visible: (21,) bool, written where ``in_frame`` (the caller fills False).
+        occluder: (21,) int32, written where ``in_frame`` and hidden.
+    """
+    h, w = depth_m.shape
+    for k in range(z.size):
+        if not in_frame[k]:
+            continue
+        centre_blocked = False
+        vis = False
+        neighbour_confirms = False
+        centre_label = 0
+        for n in range(neighbours.shape[0]):
+            r = min(max(np.intp(row[k]) + neighbours[n, 0], 0), h - 1)
+            c = min(max(np.intp(col[k]) + neighbours[n, 1], 0), w - 1)
+            seen = np.float64(depth_m[r, c])
+            label = labels[r, c]
+            own = False
+            for p in range(parts.shape[1]):
+                if label == parts[k, p]:
+                    own = True
+            confirms = own and seen > 0 and abs(seen - z[k]) <= band[k]
+            if n == 0:
+                centre_label = label
+                centre_blocked = seen > 0 and seen < z[k] - band[k]
+                vis = confirms
+            elif confirms:
+                neighbour_confirms = True
+        vis = vis or (not centre_blocked and neighbour_confirms)
+        visible[k] = vis
+        if centre_blocked and not vis:
+            if centre_label >= object_offset:
+                occluder[k] = centre_label - object_offset
+            elif centre_label >= palm:
+                occluder[k] = occluder_self
+            else:
+                occluder[k] = occluder_scene
