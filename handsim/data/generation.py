@@ -41,6 +41,7 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 
+from handsim.data import _kernels
 from handsim.data.arrays import frame_to_arrays
 from handsim.data.manifest import InvalidManifest, Manifest
 from handsim.data.shards import (
@@ -117,7 +118,6 @@ MIN_KEYPOINTS_IN_FRAME = 15
 """Fewest of the 21 keypoints inside the image for a frame to be kept."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
-_BOX_CORNER_SIGNS = np.array(np.meshgrid([-1.0, 1.0], [-1.0, 1.0], [-1.0, 1.0])).reshape(3, 8).T
 _MIN_EYE_HEIGHT_M = 0.03
 """Cameras stay this far above the table top (world z = 0), metres."""
 MAX_EMPTY_EPISODES = 5
@@ -630,12 +630,10 @@ class KinematicSource:
         forward = target - eye
         forward /= np.linalg.norm(forward)
         model, data = scene.model, scene.data
-        # The corners of the geoms' bounding boxes (in their geom frames), in the world.
-        aabb = model.geom_aabb[geoms]
-        local = aabb[:, None, :3] + aabb[:, None, 3:] * _BOX_CORNER_SIGNS
-        corners = np.einsum("nij,nkj->nki", data.geom_xmat[geoms].reshape(-1, 3, 3), local)
-        corners += data.geom_xpos[geoms][:, None]
-        nearest = float(np.min((corners.reshape(-1, 3) - eye) @ forward))
+        # The nearest corner of the geoms' bounding boxes (in their geom frames).
+        nearest = _kernels.nearest_box_depth(
+            model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, forward
+        )
         if nearest >= self._near_m:
             return eye
         eye = eye - forward * (self._near_m - nearest)

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from isal import isal_zlib
 
-from handsim.data import _shard_kernels as _kernels
+from handsim.data import _kernels
 from handsim.data.arrays import LABEL_SCHEMA, check_label_arrays
 from handsim.errors import HandSimError
 
