@@ -271,6 +271,8 @@ def _divide_scaled(numerator: np.ndarray, denominator: np.ndarray, scale: float)
 
 
 _INVALID_DEPTH = "depth must be finite and >= 0 m (0 = no measurement)"
+_NORMAL_MAX_STEP = 0.05
+"""A neighbour more than this fraction of the depth away lies on another surface (no normal)."""
 
 
 def _depth_shape(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
@@ -575,7 +577,7 @@ class StructuredLight:
         r0, r1 = max(v - reach - 1, 0), min(v + seen_h + reach + 1, full_h)
         c0, c1 = max(u - reach - 1, 0), min(u + seen_w + reach + 1, full_w)
         h, w = r1 - r0, c1 - c0
-        offsets = scratch.get("pixel_map", (h, w, 2), np.int16)
+        offsets = scratch.get("offsets", (h, w, 2), np.int16)
         if jitter:
             # 1. Lateral jitter: rounded Gaussian displacements, drawn for the box's pixels only.
             _jitter_offsets(rng, self.lateral_jitter_px, offsets, scratch, limit)
@@ -590,7 +592,7 @@ class StructuredLight:
         jittered = scratch.get("jittered", (h, w))
         n = _kernels.lit_pixels(
             clean, r0, c0, offsets, jitter, self.shadow, fb, fx, fy, grid.x, grid.y, grid.ray2,
-            0.05, np.float32(max_secant2), jittered, index, z, secant2,
+            _NORMAL_MAX_STEP, np.float32(max_secant2), jittered, index, z, secant2,
         )  # fmt: skip
         # 3 and 5, compiled: disparity noise and quantization, range limits. Nguyen's formula
         # caps theta at 89 deg (as nguyen_sigma_z); lower limits have dropped those pixels.
