@@ -424,6 +424,9 @@ class GraspRecipe:
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
             (horizontal), the fingers away from the user and the object's longer end on the
             thumb's side of the hand; no other direction.
+        hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
+            bent, the MCPs closing), so their distal pads come down the far wall about
+            vertically; the index and little fingers stay straight above the top face.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -442,6 +445,7 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
+    hook: bool = False
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -551,6 +555,21 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         finger_holes=False,
         across_long_axis=True,
         min_depth_m=0.002,
+    ),
+    # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
+    # over the far wall, their pads on it with the thumb's on the near wall, 0.7 of the
+    # height up (above the centre of mass, so the box hangs from the pinch). The box's
+    # pinch closed the fingers along the prismatic grasp's curl: for the small hands their
+    # middle segments met the far top edge first (normals 10-45 deg above the horizontal,
+    # pushing the box down) and the index met the top face; at skin friction every episode
+    # dropped it. The pads square on the walls need no lift margin (with the margin of 2 the
+    # hold stopped easing at 7.9 times the weight, as the pinch turned in the compliant hand).
+    "004_sugar_box": dataclasses.replace(
+        GRASP_RECIPES["box"],
+        fingers=("middle", "ring"),
+        height_fraction=0.7,
+        lift_grip_margin=1.0,
+        hook=True,
     ),
 }
 """Objects whose grasp differs from that of their shape class."""
@@ -831,7 +850,30 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
     c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
     lower = np.floor(np.minimum(c, 1.999)).astype(int)
     frac = (c - lower)[:, None]
-    return anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+    path = anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+    if recipe.hook:
+        # The thumb as above; the fingers as hooks (GraspRecipe.hook).
+        mcp_open, mcp_closed = _HOOK_MCP_DEG
+        for finger in ("index", "middle", "ring", "little"):
+            if finger in ("middle", "ring"):
+                mcp = mcp_open + _CLOSURES * (mcp_closed - mcp_open)
+                pip, dip = _HOOK_PIP_DIP_DEG
+            else:
+                mcp, pip, dip = _HOOK_STRAIGHT_DEG
+            path[:, joint_index(f"{finger}_mcp_flex")] = np.deg2rad(mcp)
+            path[:, joint_index(f"{finger}_pip_flex")] = np.deg2rad(pip)
+            path[:, joint_index(f"{finger}_dip_flex")] = np.deg2rad(dip)
+    return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+
+# The hooked fingers: PIP and DIP fixed, the MCP closing from its hyperextension limit. Chosen
+# from a grid of PIP 40-100 and DIP 0-40 deg (the planner's contact posture for the sugar box,
+# small right hand, seeds 0-1): at 40 / 40 every proximal and middle segment stays off the box
+# and the pads meet the walls; straighter DIPs or more bent PIPs put the middle segments
+# 1-11 mm into the far top edge.
+_HOOK_MCP_DEG = (-20.0, 90.0)
+_HOOK_PIP_DIP_DEG = (40.0, 40.0)
+_HOOK_STRAIGHT_DEG = (-20.0, 0.0, 20.0)  # index and little MCP, PIP, DIP (the span path's)
 
 
 def _squeeze(path: np.ndarray, k: int, squeeze_rad: float) -> np.ndarray:

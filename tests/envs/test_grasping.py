@@ -525,7 +525,10 @@ def test_grip_force_follows_weight_and_friction():
 
 
 def test_grip_margins_of_the_recipes():
-    """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting."""
+    """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting.
+
+    The sugar box's hooked pads press square on its walls and need no lift margin.
+    """
     params = hand_params("medium")
     clamp = GraspExpert(get_object("051_large_clamp"), params)
     mass = clamp.obj.mass_kg
@@ -533,10 +536,14 @@ def test_grip_margins_of_the_recipes():
     np.testing.assert_allclose(
         clamp._grip_force_target(True), 1.6 * 1.25 * 2.0 * mass * 11.81 / 0.53
     )
-    box = GraspExpert(get_object("004_sugar_box"), params)
+    box = GraspExpert(get_object("009_gelatin_box"), params)
     mass = box.obj.mass_kg
     np.testing.assert_allclose(box._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
     np.testing.assert_allclose(box._grip_force_target(True), 1.6 * 2.0 * mass * 11.81 / 0.42)
+    sugar = GraspExpert(get_object("004_sugar_box"), params)
+    mass = sugar.obj.mass_kg
+    np.testing.assert_allclose(sugar._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
+    np.testing.assert_allclose(sugar._grip_force_target(True), 1.6 * mass * 11.81 / 0.42)
 
 
 def test_the_wide_box_is_held_by_pads_on_its_side_walls():
@@ -568,6 +575,43 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
     outcome = run_episode(scene, 0, expert, rng, on_step=record)
     assert outcome.success, outcome
     assert expert.plan.span
+    pressing = [elevation for force, elevation in hold if force > 0.5]
+    assert pressing and max(pressing) < 25.0
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_the_small_hand_hooks_its_fingers_over_the_sugar_box(side):
+    """The small hand lifts the sugar box at skin friction with pads on its side walls.
+
+    The middle and ring fingers close as hooks down the far wall; with the prismatic grasp's
+    curl their middle segments pressed down on the top edge and the box was dropped.
+    """
+    obj = get_object("004_sugar_box")
+    assert grasp_recipe(obj).hook and not GRASP_RECIPES["box"].hook
+    rng = np.random.default_rng(0)
+    placements = sample_placements(rng, [obj.name])
+    scene = Scene(SceneSpec(hand=hand_params("small", side), objects=placements))
+    set_skin_friction(scene)
+    expert = GraspExpert(obj, scene.hand.params)
+    body = scene.model.body(scene.objects[0][0]).id
+    table = scene.model.geom("table").id
+    hold = []
+
+    def record(step, expert):
+        if expert.phase != "hold":
+            return
+        force = np.zeros(6)
+        for k, contact in enumerate(scene.data.contact[: scene.data.ncon]):
+            g1, g2 = int(contact.geom1), int(contact.geom2)
+            bodies = (scene.model.geom_bodyid[g1], scene.model.geom_bodyid[g2])
+            if body not in bodies or table in (g1, g2):
+                continue
+            mujoco.mj_contactForce(scene.model, scene.data, k, force)
+            elevation = np.degrees(np.arcsin(abs(contact.frame[2])))
+            hold.append((force[0], elevation))
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    assert outcome.success, outcome
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
 
