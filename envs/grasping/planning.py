@@ -426,7 +426,9 @@ class GraspRecipe:
             thumb's side of the hand; no other direction.
         hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
             bent, the MCPs closing), so their distal pads come down the far wall about
-            vertically; the index and little fingers stay straight above the top face.
+            vertically.
+        straight_fingers: fingers outside the pinch that stay straight above the object
+            (slightly hyperextended at the MCP) instead of closing with the others.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -446,6 +448,7 @@ class GraspRecipe:
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
     hook: bool = False
+    straight_fingers: tuple[str, ...] = ()
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -570,6 +573,15 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         height_fraction=0.7,
         lift_grip_margin=1.0,
         hook=True,
+        straight_fingers=("index", "little"),
+    ),
+    # The extra-large clamp (an X of 52 mm high walls): the ring and little fingers, outside
+    # the tripod, stay straight above it. Closing with the others, the ring finger's proximal
+    # segment of the small hands pressed on the X's top edge (34 N in the squeeze) while the
+    # thumb met it with its proximal segment, and at skin friction the clamp fell as the hold
+    # eased; the large hands did not lift it in 7 of 20 episodes.
+    "052_extra_large_clamp": dataclasses.replace(
+        GRASP_RECIPES["clamp"], straight_fingers=("ring", "little")
     ),
 }
 """Objects whose grasp differs from that of their shape class."""
@@ -844,25 +856,25 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
     """(len(_CLOSURES), 21) postures from open to closed for a recipe."""
     grasp = GRASP_TYPES[recipe.grasp_type]
     if not recipe.wide:
-        return grasp.angles(_CLOSURES)
-    # Open wider than the type's preshape: wide span -> largest object -> smallest object.
-    anchors = np.stack([_wide_open(), grasp.large, grasp.small])
-    c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
-    lower = np.floor(np.minimum(c, 1.999)).astype(int)
-    frac = (c - lower)[:, None]
-    path = anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+        path = grasp.angles(_CLOSURES)
+    else:
+        # Open wider than the type's preshape: wide span -> largest object -> smallest object.
+        anchors = np.stack([_wide_open(), grasp.large, grasp.small])
+        c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
+        lower = np.floor(np.minimum(c, 1.999)).astype(int)
+        frac = (c - lower)[:, None]
+        path = anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+    if not recipe.hook and not recipe.straight_fingers:
+        return path
+    fingers = {f: _STRAIGHT_FINGER_DEG for f in recipe.straight_fingers}
     if recipe.hook:
-        # The thumb as above; the fingers as hooks (GraspRecipe.hook).
         mcp_open, mcp_closed = _HOOK_MCP_DEG
-        for finger in ("index", "middle", "ring", "little"):
-            if finger in ("middle", "ring"):
-                mcp = mcp_open + _CLOSURES * (mcp_closed - mcp_open)
-                pip, dip = _HOOK_PIP_DIP_DEG
-            else:
-                mcp, pip, dip = _HOOK_STRAIGHT_DEG
-            path[:, joint_index(f"{finger}_mcp_flex")] = np.deg2rad(mcp)
-            path[:, joint_index(f"{finger}_pip_flex")] = np.deg2rad(pip)
-            path[:, joint_index(f"{finger}_dip_flex")] = np.deg2rad(dip)
+        hooked = (mcp_open + _CLOSURES * (mcp_closed - mcp_open), *_HOOK_PIP_DIP_DEG)
+        fingers |= {"middle": hooked, "ring": hooked}
+    path = path.copy()
+    for finger, degrees in fingers.items():
+        for joint, deg in zip(("mcp", "pip", "dip"), degrees, strict=True):
+            path[:, joint_index(f"{finger}_{joint}_flex")] = np.deg2rad(deg)
     return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
 
 
@@ -873,7 +885,7 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
 # 1-11 mm into the far top edge.
 _HOOK_MCP_DEG = (-20.0, 90.0)
 _HOOK_PIP_DIP_DEG = (40.0, 40.0)
-_HOOK_STRAIGHT_DEG = (-20.0, 0.0, 20.0)  # index and little MCP, PIP, DIP (the span path's)
+_STRAIGHT_FINGER_DEG = (-20.0, 0.0, 20.0)  # MCP, PIP, DIP: the span path's index and little
 
 
 def _squeeze(path: np.ndarray, k: int, squeeze_rad: float) -> np.ndarray:

@@ -40,6 +40,7 @@ from handsim.envs.grasping import (
 from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry
 from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
+from handsim.hand.pose import joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, sample_placements
@@ -614,6 +615,34 @@ def test_the_small_hand_hooks_its_fingers_over_the_sugar_box(side):
     assert outcome.success, outcome
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
+
+
+def test_the_small_hand_lifts_the_extra_large_clamp_with_the_ring_and_little_fingers_straight():
+    """At skin friction (seed 0: dropped in the hold before), only the tripod's digits touch.
+
+    Closing with the others, the ring finger's proximal segment pressed on the X's top edge.
+    """
+    obj = get_object("052_extra_large_clamp")
+    recipe = grasp_recipe(obj)
+    assert recipe.straight_fingers == ("ring", "little")
+    assert not GRASP_RECIPES["clamp"].straight_fingers
+    rng = np.random.default_rng(0)
+    placements = sample_placements(rng, [obj.name])
+    scene = Scene(SceneSpec(hand=hand_params("small"), objects=placements))
+    set_skin_friction(scene)
+    expert = GraspExpert(obj, scene.hand.params)
+    ring_little = [TOUCH_PARTS.index("ring"), TOUCH_PARTS.index("little")]
+    hold_touch = []
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold_touch.append(GraspState.from_sim(scene, 0, 0.0).touch_forces_n[ring_little])
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    assert outcome.success, outcome
+    for finger in recipe.straight_fingers:
+        assert expert.plan.contact[joint_index(f"{finger}_pip_flex")] == pytest.approx(0.0)
+    assert hold_touch and np.max(hold_touch) < 0.5
 
 
 @pytest.mark.parametrize(
