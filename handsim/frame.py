@@ -57,6 +57,7 @@ import numpy as np
 from handsim.errors import UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import HandPose
+from handsim.world import _kernels
 from handsim.world.camera import T_cam_from_world
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, InvalidScene, Scene
@@ -277,7 +278,6 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
 
 # Offsets of a pixel and its 8 neighbours (the centre first).
 _NEIGHBOURS = np.array([(0, 0)] + [(dv, du) for dv in (-1, 0, 1) for du in (-1, 0, 1) if dv or du])
-_NEIGHBOUR_ROWS, _NEIGHBOUR_COLS = _NEIGHBOURS[:, 0].copy(), _NEIGHBOURS[:, 1].copy()
 
 
 def _equal(a: object, b: object) -> bool:
@@ -377,7 +377,6 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
-        self._below_near_m = float(np.nextafter(self._near_m, np.float32(0.0)))
         # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
         self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
@@ -401,7 +400,6 @@ class FrameRenderer:
         # Buffers reused by every frame (no image-sized allocation per frame but the Frame's).
         h, w = self.intrinsics.height, self.intrinsics.width
         self._depth_buffer = np.empty((h, w), dtype=np.float32)
-        self._mask_buffer = np.empty((h, w), dtype=bool)
         # Each object's silhouette and its box corners in the camera frame when it was made
         # (NaN: none yet); see _silhouettes.
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
@@ -562,30 +560,11 @@ class FrameRenderer:
         """Per-keypoint ``visible`` and ``occluder`` from the clean render (module docstring)."""
         visible = np.zeros(21, dtype=bool)
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
-        k = np.nonzero(in_frame)[0]
-        if k.size == 0:
-            return visible, occluder
-        h, w = depth_m.shape
-        # Clamped into the image (np.clip's wrapper costs more than the two ufuncs).
-        rows = np.minimum(np.maximum(row[k, None].astype(np.intp) + _NEIGHBOUR_ROWS, 0), h - 1)
-        cols = np.minimum(np.maximum(col[k, None].astype(np.intp) + _NEIGHBOUR_COLS, 0), w - 1)
-        seen = depth_m[rows, cols]  # (n, 9), the keypoint's own pixel first
-        label = labels[rows, cols]
-        band = (self._kp_radius[k] + VISIBILITY_TOLERANCE_M)[:, None]
-        own = (label[..., None] == self._kp_parts[k, None, :]).any(axis=-1)
-        confirms = own & (seen > 0) & (np.abs(seen - z[k, None]) <= band)
-        blocked = (seen[:, 0] > 0) & (seen[:, 0] < z[k] - band[:, 0])
-        # The pixel itself, or a neighbour when nothing nearer covers the keypoint's pixel.
-        vis = confirms[:, 0] | (~blocked & confirms[:, 1:].any(axis=1))
-        visible[k] = vis
-        hidden = blocked & ~vis
-        centre = label[:, 0].astype(np.int32)
-        code = np.where(
-            centre >= OBJECT_LABEL_OFFSET,
-            centre - OBJECT_LABEL_OFFSET,
-            np.where(centre >= _PALM_LABEL, OCCLUDER_SELF, OCCLUDER_SCENE),
-        )
-        occluder[k[hidden]] = code[hidden]
+        _kernels.keypoint_visibility(
+            depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
+            OCCLUDER_SCENE, visible, occluder,
+        )  # fmt: skip
         return visible, occluder
 
     def render(
@@ -616,18 +595,15 @@ class FrameRenderer:
             self._hand_version = scene.hand_geometry_version
         intr = self.intrinsics
         labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
-        depth_clean, labels = self.renderer.render(
-            data, out=(self._depth_buffer, labels), geom_values=self._geom_labels, fill=0
-        )
         # The camera's working range: nothing is measured outside it (the far clip plane of
-        # the scene may serve a camera with a longer range). OpenCV's thresholds zero depth
-        # below `near` (kept: above the float32 just below it) and beyond `far`; then every
-        # pixel without depth, background (label 0 already) or out of range, gets label 0.
-        cv2.threshold(depth_clean, self._below_near_m, 0.0, cv2.THRESH_TOZERO, dst=depth_clean)
-        if self._check_far:
-            far = float(self._far_m)
-            cv2.threshold(depth_clean, far, 0.0, cv2.THRESH_TOZERO_INV, dst=depth_clean)
-        np.multiply(labels, np.not_equal(depth_clean, 0.0, out=self._mask_buffer), out=labels)
+        # the scene may serve a camera with a longer range); those pixels get label 0.
+        depth_clean, labels = self.renderer.render(
+            data,
+            out=(self._depth_buffer, labels),
+            geom_values=self._geom_labels,
+            fill=0,
+            depth_range_m=(self._near_m, self._far_m if self._check_far else np.inf),
+        )
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:

@@ -41,6 +41,7 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 
+from handsim.data import _kernels
 from handsim.data.arrays import frame_to_arrays
 from handsim.data.manifest import InvalidManifest, Manifest
 from handsim.data.shards import (
@@ -85,6 +86,7 @@ __all__ = [
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
     "MAX_EMPTY_EPISODES",
+    "MAX_EMPTY_EPISODES_STARTED",
     "MIN_KEYPOINTS_IN_FRAME",
     "SOURCES",
     "FrameSource",
@@ -116,11 +118,14 @@ MIN_KEYPOINTS_IN_FRAME = 15
 """Fewest of the 21 keypoints inside the image for a frame to be kept."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
-_BOX_CORNER_SIGNS = np.array(np.meshgrid([-1.0, 1.0], [-1.0, 1.0], [-1.0, 1.0])).reshape(3, 8).T
 _MIN_EYE_HEIGHT_M = 0.03
 """Cameras stay this far above the table top (world z = 0), metres."""
 MAX_EMPTY_EPISODES = 5
-"""Episodes in a row without an accepted frame before generation stops with a clear error."""
+"""Episodes in a row without an accepted frame, before a shard's first frame, after which
+generation stops with a clear error (the config cannot give a frame)."""
+MAX_EMPTY_EPISODES_STARTED = 50
+"""The same once the shard has frames: the occlusion buckets left may only be rare (3 % of the
+``occlusion-heavy`` draws fall in its least occluded bucket), not out of reach."""
 
 
 class InvalidGenerationConfig(HandSimError, ValueError):
@@ -611,32 +616,39 @@ class KinematicSource:
         # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
         return eye, look_at_quat_wxyz(eye, target, up)
 
-    def _beyond_near(self, scene: Scene, eye: np.ndarray, target: np.ndarray) -> np.ndarray | None:
+    def _beyond_near(
+        self, scene: Scene, geoms: np.ndarray, eye: np.ndarray, target: np.ndarray
+    ) -> np.ndarray | None:
         """The eye moved back along its line of sight until the hand and objects are in range.
 
         Nothing nearer than the camera's or the sensor's working range gets depth (a
         structured-light sensor measures from 0.35 m): a hand or an occluder there would be a
-        hole in the depth image. The bounding boxes of the hand's skin meshes and every
-        object's bounding sphere are kept beyond that range. None when the moved eye would be
-        below the table top.
+        hole in the depth image. The bounding boxes of ``geoms`` (the hand's skin meshes and
+        every geom of the objects) are kept beyond that range. None when the moved eye would
+        be below the table top.
         """
         forward = target - eye
         forward /= np.linalg.norm(forward)
         model, data = scene.model, scene.data
-        skin = scene.hand_skin_geom_ids
-        # The corners of the skin meshes' bounding boxes (in their geom frames), in the world.
-        aabb = model.geom_aabb[skin]
-        local = aabb[:, None, :3] + aabb[:, None, 3:] * _BOX_CORNER_SIGNS
-        corners = np.einsum("nij,nkj->nki", data.geom_xmat[skin].reshape(-1, 3, 3), local)
-        corners += data.geom_xpos[skin][:, None]
-        nearest = float(np.min((corners.reshape(-1, 3) - eye) @ forward))
-        for body_name, obj in scene.objects:
-            centre = scene.data.xpos[scene.model.body(body_name).id]
-            nearest = min(nearest, float((centre - eye) @ forward) - 0.5 * obj.diameter_m)
+        # The nearest corner of the geoms' bounding boxes (in their geom frames).
+        nearest = _kernels.nearest_box_depth(
+            model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, forward
+        )
         if nearest >= self._near_m:
             return eye
         eye = eye - forward * (self._near_m - nearest)
         return eye if eye[2] >= _MIN_EYE_HEIGHT_M else None
+
+    @staticmethod
+    def _near_geoms(scene: Scene) -> np.ndarray:
+        """The geoms kept beyond the near range: the hand's skin and every object geom.
+
+        (An object's half diameter around its body origin does not bound every object: the
+        extra-large clamp reached 1.4 mm nearer than that.)
+        """
+        bodies = [scene.model.body(name).id for name, _ in scene.objects]
+        objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
+        return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -668,6 +680,7 @@ class KinematicSource:
         cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
+        near_geoms = self._near_geoms(scene)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -687,7 +700,7 @@ class KinematicSource:
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
                 eye, quat = self._camera(rng, view, palm, obj)
-                eye = self._beyond_near(scene, eye, palm)
+                eye = self._beyond_near(scene, near_geoms, eye, palm)
                 if eye is None:
                     continue
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
@@ -697,8 +710,13 @@ class KinematicSource:
                 )
                 ratio = frame.hand_occlusion_ratio or 0.0
                 if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
-                    arrays = frame_to_arrays(frame, images=True)
+                    arrays = frame_to_arrays(frame)
                     arrays["hand_occlusion_ratio"][()] = ratio
+                    # The frame's own images, not copies: the writer only reads them, and
+                    # before the next frame is rendered.
+                    arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
+                    if frame.depth_clean is not None:
+                        arrays["depth_clean"] = frame.depth_clean
                     yield arrays
                     break
             else:
@@ -716,6 +734,17 @@ class _Acceptor:
             quotas = np.floor(fractions * frames).astype(int)
             quotas[np.argsort(-(fractions * frames - quotas))[: frames - quotas.sum()]] += 1
             self.edges, self.left = edges, quotas
+
+    def describe_left(self) -> str:
+        """``"; frames still wanted per bucket: [lo, hi) n, ..."``, or nothing without buckets."""
+        if self.edges is None:
+            return ""
+        left = [
+            f"[{lo:g}, {hi:g}) {n}"
+            for lo, hi, n in zip(self.edges[:-1], self.edges[1:], self.left, strict=True)
+            if n > 0
+        ]
+        return "; frames still wanted per bucket: " + ", ".join(left)
 
     def __call__(self, ratio: float) -> bool:
         if not self.lo <= ratio <= self.hi:
@@ -818,10 +847,12 @@ def generate_shard(
             done += got
             episode += 1
             empty = 0 if got else empty + 1
-            if empty == MAX_EMPTY_EPISODES:
+            limit = MAX_EMPTY_EPISODES_STARTED if done else MAX_EMPTY_EPISODES
+            if empty == limit:
                 raise GenerationError(
-                    f"{MAX_EMPTY_EPISODES} episodes in a row gave no accepted frame in "
-                    f"{MAX_TRIES_PER_FRAME} draws each: the occlusion range "
+                    f"{limit} episodes in a row gave no accepted frame in "
+                    f"{MAX_TRIES_PER_FRAME} draws each ({done} of the shard's {frames} frames "
+                    f"made{accept.describe_left()}): the occlusion range "
                     f"{config.occlusion_range} or buckets {config.occlusion_buckets} are out of "
                     "reach of this config (add objects, use the 'through_object' viewpoint, or "
                     "widen the range)"

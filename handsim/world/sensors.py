@@ -5,10 +5,11 @@ output are (H, W) float32 depth along the optical axis in metres, ``0.0`` = no m
 input is not modified, so the clean and the noisy depth of a frame can both be kept. Models
 compose with :class:`Compose`. Each step below names the paper it follows.
 
-The models compute in float32 (OpenCV for remapping and morphology, per-thread scratch arrays
-instead of fresh temporaries) and draw random numbers only where they are used: per valid
-pixel, per edge pixel. Gaussian draws use Box-Muller (float64 radius, so the tails reach
-8.5 sigma). Outputs are deterministic for a seed.
+The models compute in float32 (the structured-light model's per-pixel steps in compiled
+loops, the rest with OpenCV and per-thread scratch arrays instead of fresh temporaries) and
+draw random numbers only where they are used: per valid pixel, per edge pixel. Gaussian
+draws use Box-Muller (float64 radius, so the tails reach 8.5 sigma). Outputs are
+deterministic for a seed.
 
 :class:`StructuredLight` (PrimeSense Carmine / Kinect v1 style), in this order:
 
@@ -25,9 +26,9 @@ pixel, per edge pixel. Gaussian draws use Box-Muller (float64 radius, so the tai
    pixel u is ``u - fx b / z``; scanning from the right, a pixel is lit only if its projector
    column is left of every column claimed to its right. A pixel more than
    ``d_max - d_min + 1`` columns to the right (``d = fx b / z``, the disparity, over the image)
-   can never claim it, so the scan is a running maximum of ``d - u`` over that many columns,
-   built by doubling. The band lies on the ``-x`` side of foreground objects and is
-   ``fx b (1/z_fg - 1/z_bg)`` pixels wide;
+   can never claim it: the scan is a running maximum of ``d - u`` from the right. The band
+   lies on the ``-x`` side of foreground objects and is ``fx b (1/z_fg - 1/z_bg)`` pixels
+   wide;
 3. disparity noise and quantization: disparity ``d = fx b / z`` gets Gaussian noise and is
    rounded to ``disparity_step_px`` (1/8 px). The Gaussian's sigma is chosen so that the total
    axial noise (Gaussian plus quantization, ``step^2 / 12``) equals Nguyen, Izadi & Lovell 2012's
@@ -64,6 +65,7 @@ import numpy as np
 
 from handsim._validate import boolean, real_scalar, show
 from handsim.errors import HandSimError, UnknownName
+from handsim.world import _kernels
 from handsim.world.camera import CameraIntrinsics
 
 __all__ = [
@@ -268,6 +270,10 @@ def _divide_scaled(numerator: np.ndarray, denominator: np.ndarray, scale: float)
     return numerator
 
 
+_NORMAL_MAX_STEP = 0.05
+"""A neighbour more than this fraction of the depth away lies on another surface (no normal)."""
+
+
 def _check_depth(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
     """The depth as float32 (the caller's array itself when it already is one: never write)."""
     depth = np.asarray(depth_m)
@@ -326,8 +332,6 @@ def _check_probability(name: str, value: float) -> None:
 class _PixelGrid:
     """Per-camera constants (read-only arrays, cached by :func:`_pixel_grid`)."""
 
-    columns: np.ndarray  # (W,) float32 u
-    pixel_map: np.ndarray  # (H, W, 2) int16 (u, v): the identity map of cv2.remap
     x: np.ndarray  # (H, W) float32 (u - cx) / fx
     y: np.ndarray  # (H, W) float32 (v - cy) / fy
     ray2: np.ndarray  # (H, W) float32 1 + x^2 + y^2
@@ -339,13 +343,7 @@ def _pixel_grid(intrinsics: CameraIntrinsics) -> _PixelGrid:
     v, u = np.indices((h, w), dtype=np.int16)
     x = ((u - intrinsics.cx) / intrinsics.fx).astype(np.float32)
     y = ((v - intrinsics.cy) / intrinsics.fy).astype(np.float32)
-    grid = _PixelGrid(
-        columns=np.arange(w, dtype=np.float32),
-        pixel_map=np.stack([u, v], axis=-1),
-        x=x,
-        y=y,
-        ray2=1.0 + x * x + y * y,
-    )
+    grid = _PixelGrid(x=x, y=y, ray2=1.0 + x * x + y * y)
     for field in dataclasses.fields(grid):
         getattr(grid, field.name).setflags(write=False)
     return grid
@@ -377,9 +375,9 @@ def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
     Returns:
         ``(table, fine_table, cdf, pairs)`` or ``None`` when over a quarter of the first bytes
         would not decide (a wide jitter): table (256,) and fine_table (65536,) int32, the pair
-        for each byte or byte pair (two int16 packed as the (..., 2) int16 layout of a cv2.remap
-        map) or ``_UNDECIDED``; cdf, the cumulative probabilities; pairs, the packed pairs in
-        that order.
+        for each byte or byte pair (two int16 packed as the (..., 2) int16 layout of the
+        offsets) or ``_UNDECIDED``; cdf, the cumulative probabilities; pairs, the packed pairs
+        in that order.
     """
     k_max = _jitter_reach(sigma, limit)
     scale = 1.0 / (sigma * math.sqrt(2.0))
@@ -403,6 +401,14 @@ def _jitter_table(sigma: float, limit: int) -> tuple[np.ndarray, ...] | None:
     for array in (*tables, cdf, pairs):
         array.setflags(write=False)
     return (*tables, cdf, pairs)
+
+
+def _random_bytes(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` uniform random bytes (uint8) from the generator's raw 64-bit outputs.
+
+    A quarter of the cost of ``rng.bytes`` (which draws 32-bit integers, then copies them twice).
+    """
+    return rng.bit_generator.random_raw((n + 7) // 8).view(np.uint8)[:n]
 
 
 def _jitter_offsets(
@@ -442,17 +448,14 @@ def _jitter_offsets(
         np.copyto(out.reshape(-1), normal, casting="unsafe")
         return out
     table, fine_table, cdf, pairs = tables
-    cells = np.frombuffer(rng.bytes(h * w), dtype=np.uint8).reshape(h, w)
-    packed = out.view(np.int32).reshape(h, w)
-    filled = cv2.LUT(cells, table, dst=packed)
-    if filled is not packed:
-        packed[...] = filled
-    flat = packed.reshape(-1)
-    pending = np.flatnonzero(flat == _UNDECIDED)
+    cells = _random_bytes(rng, h * w)
+    flat = out.view(np.int32).reshape(-1)
+    pending = scratch.get("pending", (h * w,), np.int64)
+    pending = pending[: _kernels.jitter_lookup(cells, table, _UNDECIDED, flat, pending)]
     if pending.size:
-        fine = cells.reshape(-1)[pending].astype(np.int32)
+        fine = cells[pending].astype(np.int32)
         fine <<= 8
-        fine += np.frombuffer(rng.bytes(pending.size), dtype=np.uint8)
+        fine += _random_bytes(rng, pending.size)
         chosen = fine_table[fine]
         rare = np.flatnonzero(chosen == _UNDECIDED)
         if rare.size:
@@ -481,49 +484,6 @@ def _standard_normal(rng: np.random.Generator, out: np.ndarray, scratch: _Scratc
     rest = n - half
     np.multiply(np.sin(angle[:rest], out=out[half:]), radius[:rest], out=out[half:])
     return out
-
-
-def _projector_lit(
-    disparity: np.ndarray, columns: np.ndarray, window: int, scratch: _Scratch
-) -> np.ndarray:
-    """Pixels whose projector column is left of that of every pixel to their right in the row.
-
-    With ``g = d - u`` (d the disparity, 0 where there is no depth), pixel u is lit iff
-    ``g(u) > max(g(u + 1 : u + 1 + L))`` for any ``L >= window`` (the caller's bound on the
-    reach of a shadow). The running maximum is built by doubling: each pass takes the maximum
-    of the array and itself shifted by s columns. Rows are padded on the right with ``L``
-    columns of ``-inf``, so that each pass is one contiguous operation over the flat array and
-    no window reaches into the next row.
-
-    Args:
-        disparity: (H, W) disparity, pixels, 0 where there is no depth.
-        columns: (W,) column index u.
-        window: number of columns to the right that can shadow a pixel.
-        scratch: scratch arrays (the result is a view into them).
-
-    Returns:
-        (H, W) bool view: lit.
-    """
-    h, w = disparity.shape
-    passes = max(0, (window - 1).bit_length())  # L = 2**passes >= window
-    span = 1 << passes
-    padded = scratch.get("tmp", (h, w + span))
-    np.subtract(disparity, columns, out=padded[:, :w])
-    padded[:, w:] = -np.inf
-    g = padded.reshape(-1)
-    buffers = [scratch.get(name, g.shape) for name in ("near", "far")]
-    running = g  # running[i] = max(g[i : i + 2**pass]), the flat array cut at its end
-    shift = 1
-    for index in range(passes):
-        out = buffers[index % 2]
-        np.maximum(running[:-shift], running[shift:], out=out[:-shift])
-        out[-shift:] = running[-shift:]
-        running = out
-        shift *= 2
-    lit = scratch.get("test", g.shape, np.bool_)
-    np.greater(g[:-1], running[1:], out=lit[:-1])
-    lit[-1] = True
-    return lit.reshape(h, w + span)[:, :w]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -587,16 +547,16 @@ class StructuredLight:
             (H, W) float32 noisy depth, metres, 0 = no measurement.
         """
         clean = _check_depth(depth_m, intrinsics)
-        full_h, full_w = clean.shape
-        grid = _pixel_grid(intrinsics)
-        scratch = _scratch(full_h * full_w)
-        fb = np.float32(intrinsics.fx * self.baseline_m)
         # Only the box around the pixels with depth is processed (a hand alone covers a few
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
         # and by one more pixel, the neighbours of each (normals). Outside it no pixel can get
         # depth; pixels without depth cast no projector shadow and get no noise.
         # (OpenCV's bounding box of the nonzero mask: a third of the cost of numpy's any().)
         u, v, seen_w, seen_h = cv2.boundingRect(np.not_equal(clean, 0).view(np.uint8))
+        full_h, full_w = clean.shape
+        grid = _pixel_grid(intrinsics)
+        scratch = _scratch(full_h * full_w)
+        fb = np.float32(intrinsics.fx * self.baseline_m)
         if seen_w == 0:
             return np.zeros((full_h, full_w), dtype=np.float32)
         jitter = self.lateral_jitter_px > 0
@@ -605,100 +565,33 @@ class StructuredLight:
         r0, r1 = max(v - reach - 1, 0), min(v + seen_h + reach + 1, full_h)
         c0, c1 = max(u - reach - 1, 0), min(u + seen_w + reach + 1, full_w)
         h, w = r1 - r0, c1 - c0
-        box = (slice(r0, r1), slice(c0, c1))
-        depth = scratch.get("jittered", (h, w))
+        offsets = scratch.get("offsets", (h, w, 2), np.int16)
         if jitter:
-            # 1. Lateral jitter: nearest-neighbour resampling at rounded Gaussian displacements,
-            # drawn for the box's pixels only.
-            pixel_map = scratch.get("pixel_map", (h, w, 2), np.int16)
-            _jitter_offsets(rng, self.lateral_jitter_px, pixel_map, scratch, limit)
-            pixel_map += grid.pixel_map[box]
-            depth = cv2.remap(
-                clean,
-                pixel_map,
-                None,
-                cv2.INTER_NEAREST,
-                dst=depth,
-                borderMode=cv2.BORDER_REPLICATE,
-            )
-        else:
-            np.copyto(depth, clean[box])
-        valid = np.greater(depth, 0, out=scratch.get("valid", (h, w), np.bool_))
-        if not valid.any():
-            return np.zeros((full_h, full_w), dtype=np.float32)
-        # 2. Projector shadow. Pixel u is lit iff g(u) = d(u) - u exceeds g of every pixel to its
-        # right (its projector column u - d(u) is left of theirs). Pixels without depth have
-        # d = 0, so g = -u is below g of any pixel to their left: they claim nothing. A pixel
-        # u' > u + range + 1 has g(u') < d_min - u <= g(u), so a window of range + 1 suffices.
-        if self.shadow:
-            disparity = scratch.get("q", (h, w))
-            disparity.fill(0.0)
-            np.divide(fb, depth, out=disparity, where=valid)
-            window = math.ceil(float(disparity.max()) - fb / float(depth.max())) + 1
-            window = min(window, w)  # a window of w columns already reaches every row's end
-            valid &= _projector_lit(disparity, grid.columns[c0:c1], window, scratch)
-            lit_depth = scratch.get("lit_depth", (h, w))
-            lit_depth.fill(0.0)
-            depth = cv2.copyTo(depth, valid.view(np.uint8), lit_depth)
-        # 4. Grazing-angle dropout, on the lit pixels' normals (1 / cos^2 of the incidence; 1
-        # where there is no normal). The box's border is the image's or has no depth.
-        if h >= 3 and w >= 3:
-            x, y, ray2 = (np.ascontiguousarray(a[box]) for a in (grid.x, grid.y, grid.ray2))
-            _, secant2 = _secant2_incidence(depth, intrinsics, x, y, ray2, 0.05, scratch)
-        else:
-            secant2 = scratch.get("secant2", (h, w))
-            secant2.fill(1.0)
+            # 1. Lateral jitter: rounded Gaussian displacements, drawn for the box's pixels only.
+            _jitter_offsets(rng, self.lateral_jitter_px, offsets, scratch, limit)
+        # 2 and 4, compiled: the jittered depth's lit pixels, less those seen at a grazing
+        # angle; their flat index in the box, depth and 1 / cos^2 of the incidence.
+        index = scratch.get("index", (h * w,), np.int64)
+        z, secant2 = scratch.get("z", (h * w,)), scratch.get("secant2", (h * w,))
+        max_secant2 = np.inf
         if self.max_incidence_deg < 90:
-            limit = np.float32(1.0 / math.cos(math.radians(self.max_incidence_deg)) ** 2)
-            valid &= np.less_equal(secant2, limit, out=scratch.get("test", (h, w), bool))
-        # 3. Disparity noise and quantization, per valid pixel.
-        n = int(np.count_nonzero(valid))
-        z = depth[valid]
-        d = np.divide(fb, z, out=scratch.get("near", (n,)))
-        # theta = arccos(1 / sqrt(secant2)) = arctan(sqrt(secant2 - 1)); secant2 >= 1 but for
-        # rounding, hence the abs.
-        theta = secant2[valid]
-        theta -= 1.0
-        np.arctan(np.sqrt(np.abs(theta, out=theta), out=theta), out=theta)
-        if self.max_incidence_deg > 89:  # nguyen_sigma_z's cap; lower limits have dropped those
-            np.minimum(theta, np.float32(np.deg2rad(89.0)), out=theta)
-        # Nguyen's sigma_z (as nguyen_sigma_z), times fb / z^2 = d^2 / fb: disparity pixels.
-        sigma = scratch.get("far", (n,))
-        tmp = scratch.get("tmp", (n,))
-        np.subtract(np.float32(np.pi / 2), theta, out=tmp)
-        np.divide(theta, tmp, out=sigma)
-        np.square(sigma, out=sigma)
-        sigma /= np.sqrt(z, out=tmp)
-        sigma *= np.float32(0.0001)
-        np.subtract(z, np.float32(0.4), out=tmp)
-        np.square(tmp, out=tmp)
-        tmp *= np.float32(0.0019)
-        tmp += np.float32(0.0012)
-        sigma += tmp
-        sigma *= np.square(d, out=tmp)
-        sigma /= fb
-        # The Gaussian's variance is the total minus the quantization's step^2 / 12.
+            max_secant2 = 1.0 / math.cos(math.radians(self.max_incidence_deg)) ** 2
+        fx, fy = np.float32(intrinsics.fx), np.float32(intrinsics.fy)
+        jittered = scratch.get("jittered", (h, w))
+        n = _kernels.lit_pixels(
+            clean, r0, c0, offsets, jitter, self.shadow, fb, fx, fy, grid.x, grid.y, grid.ray2,
+            _NORMAL_MAX_STEP, np.float32(max_secant2), jittered, index, z, secant2,
+        )  # fmt: skip
+        # 3 and 5, compiled: disparity noise and quantization, range limits. Nguyen's formula
+        # caps theta at 89 deg (as nguyen_sigma_z); lower limits have dropped those pixels.
+        normal = _standard_normal(rng, scratch.get("normal", (n,)), scratch)
+        max_theta = np.float32(np.deg2rad(89.0) if self.max_incidence_deg > 89 else np.inf)
         step = np.float32(self.disparity_step_px)
-        np.square(sigma, out=sigma)
-        sigma -= step * step / np.float32(12.0)
-        np.maximum(sigma, 0.0, out=sigma)
-        np.sqrt(sigma, out=sigma)
-        noisy = _standard_normal(rng, tmp, scratch)
-        noisy *= sigma
-        noisy += d
-        noisy /= step
-        np.rint(noisy, out=noisy)
-        noisy *= step
-        with np.errstate(divide="ignore"):
-            measured = np.divide(fb, noisy, out=noisy)
-        # 5. Range limits. A disparity <= 0 gives no measurement: its depth is < 0 or +-inf,
-        # out of range (min_range_m >= 0).
-        drop = scratch.get("drop", (n,), np.bool_)
-        np.less(measured, self.min_range_m, out=drop)
-        drop |= np.greater(measured, self.max_range_m, out=scratch.get("far", (n,), bool))
-        np.copyto(measured, 0.0, where=drop)
+        min_m, max_m = np.float32(self.min_range_m), np.float32(self.max_range_m)
         out = np.zeros((full_h, full_w), dtype=np.float32)
-        out[box][valid] = measured
+        _kernels.disparity_noise(
+            index[:n], z[:n], secant2[:n], normal, fb, step, max_theta, min_m, max_m, r0, c0, w, out
+        )
         return out
 
 

@@ -174,6 +174,18 @@ def test_an_unreachable_occlusion_range_fails_clearly(tmp_path, monkeypatch):
         GenerationConfig.from_mapping(PRESETS["hand-only"], occlusion_range=(0.5, 1.0))
 
 
+def test_the_occlusion_heavy_preset_fills_its_rare_bucket_in_a_small_shard(tmp_path):
+    """150 frames in one shard: the last bucket to fill (least occluded) is rare, not unreachable.
+
+    Five empty episodes in a row once stopped this run at frame 139.
+    """
+    config = GenerationConfig.from_mapping(
+        PRESETS["occlusion-heavy"], frames=150, frames_per_shard=150
+    )
+    manifest = generate(config, tmp_path)
+    assert manifest.occlusion_histogram["counts"] == [38, 38, 37, 37]
+
+
 def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
     """A run killed with SIGKILL mid-way resumes to the same dataset as an uninterrupted run."""
     values = dict(TINY, frames=8)

@@ -98,6 +98,44 @@ def test_background_has_zero_depth_and_no_geom():
     assert depth[120, 160] == pytest.approx(0.95, abs=1e-3)
 
 
+@pytest.mark.parametrize("extra_geoms", [0, 300])
+def test_both_read_back_paths_give_depth_ids_values_and_the_depth_range(extra_geoms):
+    """Under 255 scene geoms (compiled pass over the red byte) and over (24-bit colour index).
+
+    Two balls at 0.95 m and 0.65 m: their depth, ids and ``geom_values``; a ``depth_range_m``
+    that leaves out the nearer one makes its pixels background (depth 0, the fill value).
+    """
+    intrinsics = camera_preset("icvl")
+    spec = _scene(intrinsics)
+    sphere = mujoco.mjtGeom.mjGEOM_SPHERE
+    spec.worldbody.add_geom(name="far", type=sphere, size=[0.05, 0, 0], pos=[0.1, 0, 0.5])
+    spec.worldbody.add_geom(name="near", type=sphere, size=[0.05, 0, 0], pos=[-0.1, -0.3, 0.5])
+    for k in range(extra_geoms):  # out of view, behind the camera
+        spec.worldbody.add_geom(type=sphere, size=[0.001, 0, 0], pos=[0.001 * k, -2.0, 0.5])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    far, near = model.geom("far").id, model.geom("near").id
+    values = np.arange(model.ngeom, dtype=np.int16) + 10
+    with DepthRenderer(model, "cam", intrinsics) as renderer:
+        depth, geom_id = renderer.render(data)
+        depth_v, labels = renderer.render(data, geom_values=values, fill=3)
+        depth_r, labels_r = renderer.render(
+            data, geom_values=values, fill=3, depth_range_m=(0.8, 2.0)
+        )
+        assert renderer._scene.ngeom > 255 if extra_geoms else renderer._scene.ngeom < 255
+    assert set(np.unique(geom_id)) == {-1, far, near}
+    assert np.all(depth[geom_id == -1] == 0.0)
+    assert depth[geom_id == far].min() == pytest.approx(0.95, abs=2e-3)
+    assert depth[geom_id == near].min() == pytest.approx(0.65, abs=2e-3)
+    np.testing.assert_array_equal(depth_v, depth)
+    np.testing.assert_array_equal(labels, np.where(geom_id >= 0, values[geom_id], 3))
+    assert labels.dtype == np.int16
+    kept = geom_id == far
+    np.testing.assert_array_equal(depth_r, np.where(kept, depth, 0.0))
+    np.testing.assert_array_equal(labels_r, np.where(kept, labels, 3))
+
+
 def test_collision_group_is_invisible():
     """Geoms in group 3 (the hand's collision geoms) are not rendered."""
     intrinsics = camera_preset("icvl")

@@ -151,6 +151,15 @@ def test_errors():
         NoNoise().apply(np.zeros((10, 10)), ICVL, np.random.default_rng())
     with pytest.raises(InvalidSensor, match=r"finite and >= 0 m"):
         NoNoise().apply(np.full((240, 320), np.nan), ICVL, np.random.default_rng())
+    for bad in (np.nan, np.inf, -0.5):  # one pixel anywhere, among valid depth
+        depth = np.zeros((240, 320), dtype=np.float32)
+        depth[100:140, 100:140] = 0.8
+        depth[239, 0] = bad
+        for model in (StructuredLight(), TimeOfFlight()):
+            with pytest.raises(InvalidSensor, match=r"finite and >= 0 m"):
+                model.apply(depth, ICVL, np.random.default_rng())
+    with pytest.raises(InvalidSensor, match=r"shape \(H, W\) = \(240, 320\)"):
+        StructuredLight().apply(np.zeros((240, 321)), ICVL, np.random.default_rng())
 
 
 def _scan_from_the_right(depth, intrinsics, baseline_m):
