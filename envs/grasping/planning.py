@@ -429,6 +429,7 @@ class GraspRecipe:
             vertically.
         straight_fingers: fingers outside the pinch that stay straight above the object
             (slightly hyperextended at the MCP) instead of closing with the others.
+        pad_raises_m: top grasps: the pad heights tried above the deepest, metres.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -449,6 +450,7 @@ class GraspRecipe:
     across_long_axis: bool = False
     hook: bool = False
     straight_fingers: tuple[str, ...] = ()
+    pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -515,6 +517,10 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         grip_margin=_TRIPOD_MARGIN,
         lift_grip_margin=_LIFT_MARGIN,
     ),
+    # Pads 5 mm above the deepest before 1 cm: where the arms of the extra-large clamp's X
+    # keep the open hand from the deepest pinch, the large hands' thumbs pressed 1 cm higher
+    # on the top edge (normal 18-37 deg above the horizontal) and the clamp turned out of the
+    # pinch in the lift (large right and left hands, 13/20 each at skin friction; 20/20 each).
     "clamp": GraspRecipe(
         "top",
         "tripod",
@@ -522,6 +528,7 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         contact_fraction=1.0,
         grip_margin=_TRIPOD_MARGIN,
         lift_grip_margin=_LIFT_MARGIN,
+        pad_raises_m=(0.0, 0.005, 0.01, 0.02),
     ),
     "elongated": GraspRecipe(
         "top",
@@ -539,8 +546,14 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
     # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg
     # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The
-    # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20).
-    "011_banana": dataclasses.replace(GRASP_RECIPES["elongated"], height_fraction=0.35),
+    # 19 mm marker keeps its pads at its axis (lower: 17/20, higher: 11/20). Squeezed 30 deg
+    # past contact, not 45: the fingertips under the far flank and the thumb's proximal segment
+    # on the near one rolled the banana 25-27 deg and raised it 6 mm off the table in the
+    # squeeze, and it turned out of the pinch in the lift or the hold (the medium left hand,
+    # 15/20 at skin friction and at 0.5; 17 deg, 3 mm and 20/20 at 30 deg).
+    "011_banana": dataclasses.replace(
+        GRASP_RECIPES["elongated"], height_fraction=0.35, squeeze_rad=float(np.deg2rad(30.0))
+    ),
     # The scissors: the thumb and the index and middle pads across the loops' outer walls,
     # square to the long axis through the centre of mass (97 mm: the hand opens wide), when
     # the blades lie on the thumb's side of the hand. With the blades on the little finger's
@@ -1005,12 +1018,12 @@ _SPAN_FINGER_FRACTION = 0.75  # the finger pads; the thumb touches with its tip
 _SPAN_SQUEEZE_RAD = np.deg2rad(30.0)
 
 
-_PAD_RAISES_M = (0.0, 0.01, 0.02)
-# Half steps only where the 1 cm steps leave no plan: the tuna can (34 mm high) leaves no room
-# for pads 1 cm higher than half its height (the limit 8 mm under the top), and at half its
-# height the index's middle segment of hands under about 0.156 m crossed its top edge. (Among
-# the others, the half steps changed 66 of the other top grasps' 2380 plans of seeds 0-19 and
-# seven hands, 53 of them the clamps'.)
+# Half steps only where the recipe's steps (`GraspRecipe.pad_raises_m`) leave no plan: the tuna
+# can (34 mm high) leaves no room for pads 1 cm higher than half its height (the limit 8 mm
+# under the top), and at half its height the index's middle segment of hands under about
+# 0.156 m crossed its top edge. (Among the others, the half steps changed 66 of the other top
+# grasps' 2380 plans of seeds 0-19 and seven hands, 53 of them the clamps', which now try 5 mm
+# among their own steps.)
 _FALLBACK_PAD_RAISES_M = (0.005, 0.015)
 
 
@@ -1024,7 +1037,7 @@ def _top_candidates(
 ) -> list[tuple[float, Callable[[bool], GraspPlan | None]]]:
     """Top and rim grasps across horizontal axes: (cost, plan builder) per axis.
 
-    The pads go as deep as the recipe allows, or higher by :data:`_PAD_RAISES_M` (at most 8 mm
+    The pads go as deep as the recipe allows, or higher by its ``pad_raises_m`` (at most 8 mm
     under the top); ``fallback``: only at the half steps :data:`_FALLBACK_PAD_RAISES_M`, with
     no span grasp (for where the usual heights leave no plan).
     """
@@ -1033,8 +1046,8 @@ def _top_candidates(
     com = T[:3, :3] @ obj.com_m + T[:3, 3]
     top = float(points[:, 2].max())
     deepest = max(recipe.height_fraction * top, top - recipe.max_depth_m, 0.0)
-    # Shallower pads if the hand cannot reach that deep (0 to 2 cm higher, 8 mm below the top).
-    raises_m = _FALLBACK_PAD_RAISES_M if fallback else _PAD_RAISES_M
+    # Shallower pads if the hand cannot reach that deep (up to 2 cm higher, 8 mm below the top).
+    raises_m = _FALLBACK_PAD_RAISES_M if fallback else recipe.pad_raises_m
     heights = [deepest + r for r in raises_m if deepest + r <= top - 0.008]
     if not heights and not fallback:
         heights = [deepest]

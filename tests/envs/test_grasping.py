@@ -242,6 +242,35 @@ def test_object_recipes_override_their_shape_class():
     assert expert.recipe is grasp_recipe(banana)
     assert GRASP_RECIPES["clamp"].fingers == ("index", "middle")
     assert GRASP_RECIPES["flat_tool"].fingers == grasp_recipe(banana).fingers == ("index",)
+    # The banana is squeezed less far past contact than the marker (it rolled in the squeeze).
+    assert grasp_recipe(banana).squeeze_rad == pytest.approx(np.deg2rad(30.0))
+    assert grasp_recipe(marker).squeeze_rad == pytest.approx(np.deg2rad(45.0))
+
+
+def test_the_large_hand_pinches_the_extra_large_clamp_5_mm_above_the_deepest():
+    """Where the open hand cannot reach the deepest pinch, the clamps try pads 5 mm higher.
+
+    Seed 5: the arms of the X keep the large right hand from the deepest pinch; 1 cm higher its
+    thumb pressed on the top edge and the clamp turned out of the pinch in the lift (skin
+    friction). Other top grasps keep the 1 cm steps.
+    """
+    assert GRASP_RECIPES["clamp"].pad_raises_m == (0.0, 0.005, 0.01, 0.02)
+    assert GRASP_RECIPES["box"].pad_raises_m == (0.0, 0.01, 0.02)
+    obj = get_object("052_extra_large_clamp")
+    params = hand_params("large")
+    rng = np.random.default_rng(5)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [obj.name])))
+    set_skin_friction(scene)
+    scene.reset()
+    T = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    plan = plan_grasp(obj, T, params)
+    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    pinch_z = 0.5 * (world[0, 2] + world[1:, 2].mean())
+    top = (np.asarray(obj.model_points_m) @ T[:3, :3].T + T[:3, 3])[:, 2].max()
+    assert 0.003 < pinch_z - 0.5 * top < 0.007
+    outcome = run_episode(scene, 0, GraspExpert(obj, params), rng)
+    assert outcome.success, outcome
 
 
 def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch):
