@@ -45,7 +45,9 @@ box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; from the top
                                                 finger pads across the narrowest side; boxes
                                                 wider than 0.13 m (003) with the widest span:
                                                 the thumb tip and the middle and ring pads on
-                                                the side walls just under the top edges
+                                                the side walls just under the top edges; the
+                                                sugar box (004) with the middle and ring
+                                                fingers hooked over its far wall
 disk        007 tuna fish can                   prismatic 4 finger; from the top
 tool        035 power drill                     prismatic 4 finger; from the top, across the
                                                 grip
@@ -56,7 +58,8 @@ flat_tool   037 scissors                        tripod; fingertips into the loop
                                                 the material between them
 clamp       051, 052 clamps                     tripod; fingertips at the table, across the
                                                 arms at the pivot, the thumb opposite the
-                                                index and the middle finger
+                                                index and the middle finger (052: the ring
+                                                and little fingers straight above it)
 elongated   011 banana, 040 large marker        tripod; fingertips at the table, across the
                                                 body (the banana's below its equator:
                                                 :data:`OBJECT_RECIPES`)

@@ -424,6 +424,11 @@ class GraspRecipe:
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
             (horizontal), the fingers away from the user and the object's longer end on the
             thumb's side of the hand; no other direction.
+        hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
+            bent, the MCPs closing), so their distal pads come down the far wall about
+            vertically.
+        straight_fingers: fingers outside the pinch that stay straight above the object
+            (slightly hyperextended at the MCP) instead of closing with the others.
         pad_raises_m: top grasps: the pad heights tried above the deepest, metres.
     """
 
@@ -443,6 +448,8 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
+    hook: bool = False
+    straight_fingers: tuple[str, ...] = ()
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
 
 
@@ -564,6 +571,30 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         finger_holes=False,
         across_long_axis=True,
         min_depth_m=0.002,
+    ),
+    # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
+    # over the far wall, their pads on it with the thumb's on the near wall, 0.7 of the
+    # height up (above the centre of mass, so the box hangs from the pinch). The box's
+    # pinch closed the fingers along the prismatic grasp's curl: for the small hands their
+    # middle segments met the far top edge first (normals 10-45 deg above the horizontal,
+    # pushing the box down) and the index met the top face; at skin friction every episode
+    # dropped it. The pads square on the walls need no lift margin (with the margin of 2 the
+    # hold stopped easing at 7.9 times the weight, as the pinch turned in the compliant hand).
+    "004_sugar_box": dataclasses.replace(
+        GRASP_RECIPES["box"],
+        fingers=("middle", "ring"),
+        height_fraction=0.7,
+        lift_grip_margin=1.0,
+        hook=True,
+        straight_fingers=("index", "little"),
+    ),
+    # The extra-large clamp (an X of 52 mm high walls): the ring and little fingers, outside
+    # the tripod, stay straight above it. Closing with the others, the ring finger's proximal
+    # segment of the small hands pressed on the X's top edge (34 N in the squeeze) while the
+    # thumb met it with its proximal segment, and at skin friction the clamp fell as the hold
+    # eased; the large hands did not lift it in 7 of 20 episodes.
+    "052_extra_large_clamp": dataclasses.replace(
+        GRASP_RECIPES["clamp"], straight_fingers=("ring", "little")
     ),
 }
 """Objects whose grasp differs from that of their shape class."""
@@ -838,13 +869,36 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
     """(len(_CLOSURES), 21) postures from open to closed for a recipe."""
     grasp = GRASP_TYPES[recipe.grasp_type]
     if not recipe.wide:
-        return grasp.angles(_CLOSURES)
-    # Open wider than the type's preshape: wide span -> largest object -> smallest object.
-    anchors = np.stack([_wide_open(), grasp.large, grasp.small])
-    c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
-    lower = np.floor(np.minimum(c, 1.999)).astype(int)
-    frac = (c - lower)[:, None]
-    return anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+        path = grasp.angles(_CLOSURES)
+    else:
+        # Open wider than the type's preshape: wide span -> largest object -> smallest object.
+        anchors = np.stack([_wide_open(), grasp.large, grasp.small])
+        c = np.clip(_CLOSURES * 2.0, 0.0, 2.0)
+        lower = np.floor(np.minimum(c, 1.999)).astype(int)
+        frac = (c - lower)[:, None]
+        path = anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
+    if not recipe.hook and not recipe.straight_fingers:
+        return path
+    fingers = {f: _STRAIGHT_FINGER_DEG for f in recipe.straight_fingers}
+    if recipe.hook:
+        mcp_open, mcp_closed = _HOOK_MCP_DEG
+        hooked = (mcp_open + _CLOSURES * (mcp_closed - mcp_open), *_HOOK_PIP_DIP_DEG)
+        fingers |= {"middle": hooked, "ring": hooked}
+    path = path.copy()
+    for finger, degrees in fingers.items():
+        for joint, deg in zip(("mcp", "pip", "dip"), degrees, strict=True):
+            path[:, joint_index(f"{finger}_{joint}_flex")] = np.deg2rad(deg)
+    return np.clip(path, JOINT_LIMITS[:, 0], JOINT_LIMITS[:, 1])
+
+
+# The hooked fingers: PIP and DIP fixed, the MCP closing from its hyperextension limit. Chosen
+# from a grid of PIP 40-100 and DIP 0-40 deg (the planner's contact posture for the sugar box,
+# small right hand, seeds 0-1): at 40 / 40 every proximal and middle segment stays off the box
+# and the pads meet the walls; straighter DIPs or more bent PIPs put the middle segments
+# 1-11 mm into the far top edge.
+_HOOK_MCP_DEG = (-20.0, 90.0)
+_HOOK_PIP_DIP_DEG = (40.0, 40.0)
+_STRAIGHT_FINGER_DEG = (-20.0, 0.0, 20.0)  # MCP, PIP, DIP: the span path's index and little
 
 
 def _squeeze(path: np.ndarray, k: int, squeeze_rad: float) -> np.ndarray:

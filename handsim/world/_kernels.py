@@ -336,38 +336,3 @@ def keypoint_visibility(
                 occluder[k] = occluder_self
             else:
                 occluder[k] = occluder_scene
-
-
-@numba.njit(**_JIT)
-def depth_box(depth_m: np.ndarray) -> tuple[int, int, int, int, bool]:
-    """The box of the pixels with depth, and whether every depth is finite and >= 0.
-
-    Args:
-        depth_m: (H, W) float32 depth, metres, 0 = none.
-
-    Returns:
-        ``(u, v, width, height, valid)``: the box's first column and row and its size
-        (0, 0, 0, 0 when no pixel has depth); ``valid`` is False for a NaN, an infinity or
-        a negative depth anywhere (then the box is not computed).
-    """
-    h, w = depth_m.shape
-    top, bottom, left, right = h, -1, w, -1
-    zero, inf = np.float32(0.0), np.float32(np.inf)
-    for row in range(h):
-        first, last = -1, -1
-        for col in range(w):
-            z = depth_m[row, col]
-            if not (z >= zero and z < inf):
-                return 0, 0, 0, 0, False
-            if z != zero:
-                if first < 0:
-                    first = col
-                last = col
-        if first >= 0:
-            top = min(top, row)
-            bottom = row
-            left = min(left, first)
-            right = max(right, last)
-    if bottom < 0:
-        return 0, 0, 0, 0, True
-    return left, top, right - left + 1, bottom - top + 1, True

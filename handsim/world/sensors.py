@@ -270,32 +270,22 @@ def _divide_scaled(numerator: np.ndarray, denominator: np.ndarray, scale: float)
     return numerator
 
 
-_INVALID_DEPTH = "depth must be finite and >= 0 m (0 = no measurement)"
 _NORMAL_MAX_STEP = 0.05
 """A neighbour more than this fraction of the depth away lies on another surface (no normal)."""
 
 
-def _depth_shape(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
-    """The depth as C-contiguous float32 of the camera's shape, its values not checked.
-
-    The caller's array itself when it already is one: never write.
-    """
+def _check_depth(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
+    """The depth as float32 (the caller's array itself when it already is one: never write)."""
     depth = np.asarray(depth_m)
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise InvalidSensor(
             f"depth must have shape (H, W) = ({intrinsics.height}, {intrinsics.width}) to match "
             f"the camera; received {depth.shape}"
         )
-    return np.ascontiguousarray(depth, dtype=np.float32)
-
-
-def _check_depth(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
-    """The depth as float32 (the caller's array itself when it already is one: never write)."""
-    depth = _depth_shape(depth_m, intrinsics)
     # min and max propagate NaN, so this also rejects NaN and +-inf.
     if not (depth.min() >= 0 and depth.max() < np.inf):
-        raise InvalidSensor(_INVALID_DEPTH)
-    return depth
+        raise InvalidSensor("depth must be finite and >= 0 m (0 = no measurement)")
+    return np.ascontiguousarray(depth, dtype=np.float32)
 
 
 # Sane upper bounds of the sensor parameters (beyond them a value is a mistake).
@@ -556,15 +546,13 @@ class StructuredLight:
         Returns:
             (H, W) float32 noisy depth, metres, 0 = no measurement.
         """
-        clean = _depth_shape(depth_m, intrinsics)
+        clean = _check_depth(depth_m, intrinsics)
         # Only the box around the pixels with depth is processed (a hand alone covers a few
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
         # and by one more pixel, the neighbours of each (normals). Outside it no pixel can get
-        # depth; pixels without depth cast no projector shadow and get no noise. The same
-        # compiled pass checks the depth.
-        u, v, seen_w, seen_h, valid = _kernels.depth_box(clean)
-        if not valid:
-            raise InvalidSensor(_INVALID_DEPTH)
+        # depth; pixels without depth cast no projector shadow and get no noise.
+        # (OpenCV's bounding box of the nonzero mask: a third of the cost of numpy's any().)
+        u, v, seen_w, seen_h = cv2.boundingRect(np.not_equal(clean, 0).view(np.uint8))
         full_h, full_w = clean.shape
         grid = _pixel_grid(intrinsics)
         scratch = _scratch(full_h * full_w)

@@ -40,6 +40,7 @@ from handsim.envs.grasping import (
 from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry
 from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
+from handsim.hand.pose import joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, sample_placements
@@ -554,7 +555,10 @@ def test_grip_force_follows_weight_and_friction():
 
 
 def test_grip_margins_of_the_recipes():
-    """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting."""
+    """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting.
+
+    The sugar box's hooked pads press square on its walls and need no lift margin.
+    """
     params = hand_params("medium")
     clamp = GraspExpert(get_object("051_large_clamp"), params)
     mass = clamp.obj.mass_kg
@@ -562,10 +566,14 @@ def test_grip_margins_of_the_recipes():
     np.testing.assert_allclose(
         clamp._grip_force_target(True), 1.6 * 1.25 * 2.0 * mass * 11.81 / 0.53
     )
-    box = GraspExpert(get_object("004_sugar_box"), params)
+    box = GraspExpert(get_object("009_gelatin_box"), params)
     mass = box.obj.mass_kg
     np.testing.assert_allclose(box._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
     np.testing.assert_allclose(box._grip_force_target(True), 1.6 * 2.0 * mass * 11.81 / 0.42)
+    sugar = GraspExpert(get_object("004_sugar_box"), params)
+    mass = sugar.obj.mass_kg
+    np.testing.assert_allclose(sugar._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
+    np.testing.assert_allclose(sugar._grip_force_target(True), 1.6 * mass * 11.81 / 0.42)
 
 
 def test_the_wide_box_is_held_by_pads_on_its_side_walls():
@@ -599,6 +607,71 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
     assert expert.plan.span
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_the_small_hand_hooks_its_fingers_over_the_sugar_box(side):
+    """The small hand lifts the sugar box at skin friction with pads on its side walls.
+
+    The middle and ring fingers close as hooks down the far wall; with the prismatic grasp's
+    curl their middle segments pressed down on the top edge and the box was dropped.
+    """
+    obj = get_object("004_sugar_box")
+    assert grasp_recipe(obj).hook and not GRASP_RECIPES["box"].hook
+    rng = np.random.default_rng(0)
+    placements = sample_placements(rng, [obj.name])
+    scene = Scene(SceneSpec(hand=hand_params("small", side), objects=placements))
+    set_skin_friction(scene)
+    expert = GraspExpert(obj, scene.hand.params)
+    body = scene.model.body(scene.objects[0][0]).id
+    table = scene.model.geom("table").id
+    hold = []
+
+    def record(step, expert):
+        if expert.phase != "hold":
+            return
+        force = np.zeros(6)
+        for k, contact in enumerate(scene.data.contact[: scene.data.ncon]):
+            g1, g2 = int(contact.geom1), int(contact.geom2)
+            bodies = (scene.model.geom_bodyid[g1], scene.model.geom_bodyid[g2])
+            if body not in bodies or table in (g1, g2):
+                continue
+            mujoco.mj_contactForce(scene.model, scene.data, k, force)
+            elevation = np.degrees(np.arcsin(abs(contact.frame[2])))
+            hold.append((force[0], elevation))
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    assert outcome.success, outcome
+    pressing = [elevation for force, elevation in hold if force > 0.5]
+    assert pressing and max(pressing) < 25.0
+
+
+def test_the_small_hand_lifts_the_extra_large_clamp_with_the_ring_and_little_fingers_straight():
+    """At skin friction (seed 0: dropped in the hold before), only the tripod's digits touch.
+
+    Closing with the others, the ring finger's proximal segment pressed on the X's top edge.
+    """
+    obj = get_object("052_extra_large_clamp")
+    recipe = grasp_recipe(obj)
+    assert recipe.straight_fingers == ("ring", "little")
+    assert not GRASP_RECIPES["clamp"].straight_fingers
+    rng = np.random.default_rng(0)
+    placements = sample_placements(rng, [obj.name])
+    scene = Scene(SceneSpec(hand=hand_params("small"), objects=placements))
+    set_skin_friction(scene)
+    expert = GraspExpert(obj, scene.hand.params)
+    ring_little = [TOUCH_PARTS.index("ring"), TOUCH_PARTS.index("little")]
+    hold_touch = []
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold_touch.append(GraspState.from_sim(scene, 0, 0.0).touch_forces_n[ring_little])
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    assert outcome.success, outcome
+    for finger in recipe.straight_fingers:
+        assert expert.plan.contact[joint_index(f"{finger}_pip_flex")] == pytest.approx(0.0)
+    assert hold_touch and np.max(hold_touch) < 0.5
 
 
 @pytest.mark.parametrize(
