@@ -247,17 +247,20 @@ def test_object_recipes_override_their_shape_class():
     assert grasp_recipe(marker).squeeze_rad == pytest.approx(np.deg2rad(45.0))
 
 
-def test_the_large_hand_pinches_the_extra_large_clamp_5_mm_above_the_deepest():
+def test_the_clamps_are_pinched_5_mm_above_the_deepest_where_that_is_blocked():
     """Where the open hand cannot reach the deepest pinch, the clamps try pads 5 mm higher.
 
-    Seed 5: the arms of the X keep the large right hand from the deepest pinch; 1 cm higher its
-    thumb pressed on the top edge and the clamp turned out of the pinch in the lift (skin
-    friction). Other top grasps keep the 1 cm steps.
+    The large clamp, small right hand, seed 5: the deepest pinch is blocked; 1 cm higher a
+    thumb meets a clamp's top edge (the extra-large clamp with the large hands before its
+    straight ring and little fingers). Other top grasps keep the 1 cm steps.
     """
     assert GRASP_RECIPES["clamp"].pad_raises_m == (0.0, 0.005, 0.01, 0.02)
+    assert grasp_recipe(get_object("052_extra_large_clamp")).pad_raises_m == (
+        GRASP_RECIPES["clamp"].pad_raises_m
+    )
     assert GRASP_RECIPES["box"].pad_raises_m == (0.0, 0.01, 0.02)
-    obj = get_object("052_extra_large_clamp")
-    params = hand_params("large")
+    obj = get_object("051_large_clamp")
+    params = hand_params("small")
     rng = np.random.default_rng(5)
     scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [obj.name])))
     set_skin_friction(scene)
