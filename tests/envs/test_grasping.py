@@ -579,15 +579,12 @@ def test_grip_margins_of_the_recipes():
     np.testing.assert_allclose(sugar._grip_force_target(True), 1.6 * mass * 11.81 / 0.42)
 
 
-def test_the_wide_box_is_held_by_pads_on_its_side_walls():
-    """The cracker box (164 mm across) is lifted at skin friction by pads under its top edges.
+def _run_recording_hold_contacts(scene, expert, rng):
+    """Run seed 0 and record the hold's hand-object contacts.
 
-    A contact on a top edge has a normal far below the horizontal and pushes the box down at
-    any friction up to 1; the span grasp's thumb and finger contacts press on the walls.
+    Returns ``(outcome, [(normal force N, normal's elevation above the horizontal deg), ...])``,
+    a pair per contact and control step of the hold.
     """
-    scene, rng = _scene("003_cracker_box")
-    set_skin_friction(scene)
-    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
     body = scene.model.body(scene.objects[0][0]).id
     table = scene.model.geom("table").id
     hold = []
@@ -605,7 +602,19 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
             elevation = np.degrees(np.arcsin(abs(contact.frame[2])))
             hold.append((force[0], elevation))
 
-    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    return run_episode(scene, 0, expert, rng, on_step=record), hold
+
+
+def test_the_wide_box_is_held_by_pads_on_its_side_walls():
+    """The cracker box (164 mm across) is lifted at skin friction by pads under its top edges.
+
+    A contact on a top edge has a normal far below the horizontal and pushes the box down at
+    any friction up to 1; the span grasp's thumb and finger contacts press on the walls.
+    """
+    scene, rng = _scene("003_cracker_box")
+    set_skin_friction(scene)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    outcome, hold = _run_recording_hold_contacts(scene, expert, rng)
     assert outcome.success, outcome
     assert expert.plan.span
     pressing = [elevation for force, elevation in hold if force > 0.5]
@@ -626,24 +635,7 @@ def test_the_small_hand_hooks_its_fingers_over_the_sugar_box(side):
     scene = Scene(SceneSpec(hand=hand_params("small", side), objects=placements))
     set_skin_friction(scene)
     expert = GraspExpert(obj, scene.hand.params)
-    body = scene.model.body(scene.objects[0][0]).id
-    table = scene.model.geom("table").id
-    hold = []
-
-    def record(step, expert):
-        if expert.phase != "hold":
-            return
-        force = np.zeros(6)
-        for k, contact in enumerate(scene.data.contact[: scene.data.ncon]):
-            g1, g2 = int(contact.geom1), int(contact.geom2)
-            bodies = (scene.model.geom_bodyid[g1], scene.model.geom_bodyid[g2])
-            if body not in bodies or table in (g1, g2):
-                continue
-            mujoco.mj_contactForce(scene.model, scene.data, k, force)
-            elevation = np.degrees(np.arcsin(abs(contact.frame[2])))
-            hold.append((force[0], elevation))
-
-    outcome = run_episode(scene, 0, expert, rng, on_step=record)
+    outcome, hold = _run_recording_hold_contacts(scene, expert, rng)
     assert outcome.success, outcome
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
