@@ -377,9 +377,7 @@ class FrameRenderer:
         self._kp_parts = _keypoint_parts(scene)
         self._near_m = np.float32(self.intrinsics.range_m[0])
         self._far_m = np.float32(self.intrinsics.range_m[1])
-        # The far clip plane already ends this camera's range unless another camera's is longer.
         model = scene.model
-        self._check_far = model.vis.map.zfar * model.stat.extent > self._far_m * (1 + 1e-6)
         self._object_geoms = [
             np.nonzero(scene.geom_labels == OBJECT_LABEL_OFFSET + k)[0]
             for k in range(len(scene.objects))
@@ -602,7 +600,7 @@ class FrameRenderer:
             out=(self._depth_buffer, labels),
             geom_values=self._geom_labels,
             fill=0,
-            depth_range_m=(self._near_m, self._far_m if self._check_far else np.inf),
+            depth_range_m=(self._near_m, self._far_m),
         )
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
