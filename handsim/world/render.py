@@ -199,7 +199,6 @@ class DepthRenderer:
         self._rect = mujoco.MjrRect(0, 0, w, h)
         self._rgb = np.empty((h, w, 3), dtype=np.uint8)
         self._zbuffer = np.empty((h, w), dtype=np.float32)
-        self._foreground = np.empty((h, w), dtype=bool)
         self._lut = np.empty(256, dtype=np.int32)  # segmentation colour index -> geom id
         self._lut_key: tuple | None = None
         self._red: np.ndarray | None = None
