@@ -81,6 +81,32 @@ def test_grazing_surfaces_are_dropped():
     assert np.mean(mild[centre] == 0) < 0.01
 
 
+@pytest.mark.parametrize("limit_deg", [45.0, 60.0, 75.0])
+def test_the_dropout_keeps_exactly_the_pixels_incidence_angle_allows(limit_deg):
+    """The compiled dropout computes the normals :func:`incidence_angle` (NumPy) does.
+
+    Random boxes and slopes, no jitter or shadow: a pixel keeps depth iff it has depth and its
+    incidence angle is within the limit (pixels within 1e-4 rad of the limit not compared).
+    """
+    rng = np.random.default_rng(11)
+    v, u = np.indices((ICVL.height, ICVL.width))
+    depth = np.zeros((ICVL.height, ICVL.width))
+    for _ in range(12):
+        r, c = rng.integers(0, ICVL.height - 40), rng.integers(0, ICVL.width - 60)
+        slope_u, slope_v = rng.uniform(-0.01, 0.01, 2)  # m per pixel
+        box = (slice(r, r + rng.integers(10, 40)), slice(c, c + rng.integers(10, 60)))
+        depth[box] = rng.uniform(0.8, 1.5) + slope_u * (u[box] - c) + slope_v * (v[box] - r)
+    depth = depth.astype(np.float32)
+    sensor = StructuredLight(lateral_jitter_px=0.0, shadow=False, max_incidence_deg=limit_deg)
+    out = sensor.apply(depth, ICVL, np.random.default_rng(0))
+    angle = incidence_angle(depth, ICVL)
+    limit = np.deg2rad(limit_deg)
+    compared = np.abs(angle - limit) > 1e-4
+    expected = (depth > 0) & (angle <= limit)
+    assert np.count_nonzero(expected) > 1000 and np.count_nonzero(~expected & (depth > 0)) > 100
+    np.testing.assert_array_equal((out > 0)[compared], expected[compared])
+
+
 def test_range_limits_and_missing_depth_stay_missing():
     """Depth beyond the range and pixels without depth come out as 0."""
     depth = _plane(NYU, 5.0)
