@@ -37,10 +37,10 @@ from handsim.envs.grasping import (
     start_pose,
     touch_forces,
 )
-from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry
+from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry, _nominal_stiffness
 from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
-from handsim.hand.pose import joint_index
+from handsim.hand.pose import JOINT_NAMES, joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, sample_placements
@@ -273,6 +273,55 @@ def test_the_clamps_are_pinched_5_mm_above_the_deepest_where_that_is_blocked():
     top = (np.asarray(obj.model_points_m) @ T[:3, :3].T + T[:3, 3])[:, 2].max()
     assert 0.003 < pinch_z - 0.5 * top < 0.007
     outcome = run_episode(scene, 0, GraspExpert(obj, params), rng)
+    assert outcome.success, outcome
+
+
+def test_the_drill_is_squeezed_with_the_thumbs_nominal_stiffness():
+    """The drill's squeeze presses the large hands' thumb with its nominal torque.
+
+    Their thumb CMC is stiffer than nominal (for its bandwidth), so the squeeze's deflection
+    there is scaled down by the ratio of the stiffnesses.
+
+    Large right hand, seed 3, skin friction: squeezed by the full angle the thumb pressed 33 N
+    against the index's 13 N, rolled the drill 15 deg and it was dropped in the lift.
+    """
+    drill = get_object("035_power_drill")
+    assert grasp_recipe(drill).nominal_squeeze
+    assert not GRASP_RECIPES["clamp"].nominal_squeeze
+    cmc = JOINT_NAMES.index("thumb_cmc_flex")
+    flexion = [i for i, name in enumerate(JOINT_NAMES) if name.endswith("_flex")]
+    np.testing.assert_array_equal(_nominal_stiffness(drill, hand_params("medium"))[flexion], 1.0)
+    params = hand_params("large")
+    ratio = _nominal_stiffness(drill, params)
+    expert = GraspExpert(drill, params)
+    assert ratio[cmc] * expert._kp[cmc] == pytest.approx(3.0)
+    assert ratio[cmc] < 0.7
+    assert np.all((ratio > 0.0) & (ratio <= 1.0))
+    rng = np.random.default_rng(3)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [drill.name])))
+    set_skin_friction(scene)
+    outcome = run_episode(scene, 0, expert, rng)
+    assert outcome.success, outcome
+
+
+def test_the_large_clamp_is_held_at_a_larger_margin():
+    """The large clamp's hold aims at 1.5 times the expert's grip (the tripods: 1.25).
+
+    Its lift at the same 4 times; the medium left hand (seed 15, skin friction) dropped it as
+    the hold eased toward 1.25 (its thumb's proximal segment on the top edge).
+    """
+    clamp = get_object("051_large_clamp")
+    params = hand_params("medium", "left")
+    expert = GraspExpert(clamp, params)
+    recipe = grasp_recipe(clamp)
+    assert recipe.grip_margin == pytest.approx(1.5)
+    assert recipe.grip_margin * recipe.lift_grip_margin == pytest.approx(
+        GRASP_RECIPES["clamp"].grip_margin * GRASP_RECIPES["clamp"].lift_grip_margin
+    )
+    rng = np.random.default_rng(15)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [clamp.name])))
+    set_skin_friction(scene)
+    outcome = run_episode(scene, 0, expert, rng)
     assert outcome.success, outcome
 
 
