@@ -437,6 +437,9 @@ class GraspRecipe:
         straight_fingers: fingers outside the pinch that stay straight above the object
             (slightly hyperextended at the MCP) instead of closing with the others.
         pad_raises_m: top grasps: the pad heights tried above the deepest, metres.
+        nominal_squeeze: top grasps: each joint's squeeze deflection times its nominal
+            stiffness over its actuator's (at most 1), so that actuators stiffened for their
+            bandwidth press with the nominal torque past contact.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -508,6 +511,9 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
     ),
     # The pads at 0.3 of the height, not 0.5: with skin friction the drill turned out of a
     # pinch higher on its body (seeds 0-1 not lifted or dropped; held with 0.3, seeds 0-9).
+    # Squeezed with the nominal stiffnesses: the large hands' thumb CMC (4.9 N m/rad, not 3)
+    # pressed 33 N against the index's 13 N, rolled the drill 15 deg in the squeeze and it
+    # turned out of the pinch in the lift (large right hand, 17/20 at skin friction; 20/20).
     "tool": GraspRecipe("top", "prismatic_4_finger", height_fraction=0.3, nominal_squeeze=True),
     # The scissors keep the index alone: one finger enters a loop (with the index and the
     # middle finger together, 51 instead of 60 of 120 episodes over the six preset hands at
