@@ -611,8 +611,8 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     "052_extra_large_clamp": dataclasses.replace(
         GRASP_RECIPES["clamp"], straight_fingers=("ring", "little")
     ),
-    # The large clamp (125 g): the hold aims at 1.5 times the expert's grip, not 1.25 (the
-    # lift's aim unchanged, 4 times). With the medium left hand the thumb's proximal segment
+    # The large clamp (125 g): the hold's margin 1.5, not the tripods' 1.25 (the lift's aim
+    # unchanged, 4 times the slip force). With the medium left hand the thumb's proximal segment
     # presses on the top edge, 20 mm above the centre of mass, and its pad at about 0.6 N:
     # the clamp hangs from three contacts above it and, with no torsional friction at skin
     # friction, turned out of the pinch as the hold eased from 12 N toward its 4.6 N aim

@@ -305,10 +305,10 @@ def test_the_drill_is_squeezed_with_the_thumbs_nominal_stiffness():
 
 
 def test_the_large_clamp_is_held_at_a_larger_margin():
-    """The large clamp's hold aims at 1.5 times the expert's grip (the tripods: 1.25).
+    """The large clamp's hold has the grip margin 1.5 (the tripods: 1.25), its lift the same aim.
 
-    Its lift at the same 4 times; the medium left hand (seed 15, skin friction) dropped it as
-    the hold eased toward 1.25 (its thumb's proximal segment on the top edge).
+    The medium left hand (seed 15, skin friction) dropped it as the hold eased toward the
+    margin 1.25 (its thumb's proximal segment on the top edge).
     """
     clamp = get_object("051_large_clamp")
     params = hand_params("medium", "left")
