@@ -932,8 +932,8 @@ def _nominal_stiffness(obj: YCBObject, params: HandParams) -> np.ndarray:
 
     Where a hand's links are heavy its position actuators are stiffer than the nominal ones
     (:data:`~handsim.hand.model.ACTUATOR_GAINS`), to keep their bandwidth: the fingers' MCP
-    abduction of every preset hand (0.17-0.9 of nominal over them), and the thumb CMC of the
-    large hands (4.9 N m/rad instead of 3), so a squeeze by the same angle pressed harder.
+    abduction of every preset hand (1.1-5.9 times nominal), and the thumb CMC of the large
+    hands (4.9 N m/rad instead of 3), so a squeeze by the same angle pressed harder.
     Scaling the squeeze's deflection by this ratio presses with the nominal torques.
     """
     checker = _checker(obj, params)
