@@ -737,6 +737,53 @@ def test_hold_stops_easing_at_the_first_slip():
     assert np.all(np.diff(scales, axis=0) >= 0.0)  # never eased again
 
 
+def test_pose_filter_spread_is_the_estimates_noise():
+    """The filter's robust spread is the norm of the per-axis sigmas (0 for fewer than 10)."""
+    from handsim.envs.grasping.execution import _PoseFilter
+
+    noise = np.random.default_rng(0).normal(0.0, [0.010, 0.005, 0.002], size=(100, 3))
+    pose_filter = _PoseFilter(get_object("061_foam_brick"))
+    for k, offset in enumerate(noise):
+        pose_filter.add(_shifted(np.eye(4), [0.0, 0.0, 0.5] + offset))  # off the table
+        if k < 9:
+            assert pose_filter.spread_m() == 0.0
+    expected = np.linalg.norm([0.010, 0.005, 0.002])
+    assert abs(pose_filter.spread_m() - expected) < 0.15 * expected
+    still = _PoseFilter(get_object("061_foam_brick"))
+    for _ in range(20):
+        still.add(_shifted(np.eye(4), [0.0, 0.0, 0.5]))
+    assert still.spread_m() == 0.0
+
+
+def test_perception_noise_is_not_read_as_slip():
+    """10 mm of noise per axis: the hold eases to the grip it aims at.
+
+    The truth's slip gate of 1.5 mm would stop the easing in the hold's first steps.
+    """
+    from handsim.envs.grasping.execution import HOLD_SLIP_M
+
+    scene, rng = _scene("008_pudding_box")
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    noise_rng = np.random.default_rng(1)
+    hold = []
+
+    def perceive(state):
+        offset = noise_rng.normal(0.0, 0.010, 3)
+        return dataclasses.replace(state, T_world_from_obj=_shifted(state.T_world_from_obj, offset))
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold.append((expert._easing_stopped, expert._grip_force_n))
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record, perceive=perceive)
+    assert outcome.success, outcome
+    assert not any(stopped for stopped, _ in hold)
+    weight_n = scene.objects[0][1].mass_kg * 9.81
+    aim_n = expert._grip_force_target(lifting=False)
+    assert hold[-1][1] < 1.2 * aim_n < 8 * weight_n
+    assert expert._hold_slip_gate_m > 10 * HOLD_SLIP_M
+
+
 @pytest.mark.parametrize(("turn_deg", "stops"), [(2.0, False), (4.0, True)])
 def test_hold_stops_easing_when_the_object_turns_in_the_palm(turn_deg, stops):
     """A perceived turn beyond HOLD_TURN_RAD (3 deg) stops the easing at once; 2 deg does not."""
