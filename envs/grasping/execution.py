@@ -18,7 +18,6 @@ from scipy.spatial import ConvexHull, QhullError
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
-    _LIFT_SPEED_M_S,
     _LIFT_TARGET_M,
     _PREGRASP_DIST_M,
     _SETTLE_S,
@@ -317,7 +316,8 @@ class GraspExpert:
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
     actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),
-    ``"lift"`` (0.15 m up, peak 0.25 m/s) and ``"hold"`` (until the episode ends).
+    ``"lift"`` (0.15 m up, peak speed the recipe's ``lift_speed_m_s``, 0.25 m/s but for the
+    cracker box) and ``"hold"`` (until the episode ends).
     :attr:`grasp_type` is the grasp taxonomy type and ``plan.strategy`` how it is applied
     (:class:`GraspRecipe`).
 
@@ -533,7 +533,7 @@ class GraspExpert:
             if segment.duration_s == 0.0:
                 speed, jitter = {
                     "reach": (EXPERT_WRIST_SPEED_M_S, self._scale[0]),
-                    "lift": (_LIFT_SPEED_M_S, self._scale[2]),
+                    "lift": (self.recipe.lift_speed_m_s, self._scale[2]),
                 }.get(segment.name, (_SLOW_SPEED_M_S, self._scale[1]))
                 segment.duration_s = jitter * _duration(
                     previous.pos, segment.pos, previous.quat, segment.quat, speed, 0.4
