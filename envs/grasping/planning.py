@@ -490,13 +490,10 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         max_depth_m=0.02,
         squeeze_rad=float(np.deg2rad(25.0)),
     ),
-    # The bowl: the index and the middle finger inside the rim. Pinched by the index alone it
-    # hangs from one point and swings about the pinch (skin friction, large hands: 25-46 deg,
-    # slipped); two pads side by side along the rim hold it against that turn.
     "bowl": GraspRecipe(
         "rim",
         "palmar_pinch",
-        fingers=("index", "middle"),
+        fingers=("index",),
         max_depth_m=0.02,
         squeeze_rad=float(np.deg2rad(25.0)),
     ),
