@@ -22,6 +22,9 @@ __all__ = [
     "SKIN_FRICTION",
     "OBJECT_MATERIALS",
     "skin_friction",
+    "SKIN_PATCH_RADIUS_M",
+    "SKIN_TORSION_FACTOR",
+    "skin_torsional_friction",
     "set_skin_friction",
     "divergence_speed_bounds",
     "DIVERGENCE_SPEED_M_S",
@@ -142,6 +145,28 @@ OBJECT_MATERIALS: dict[str, str] = {
 imported objects are ``"other"``."""
 
 
+SKIN_PATCH_RADIUS_M = 0.005
+"""Radius of the skin's contact patch on a held object, metres: a finger pad pressed on a flat
+surface with a few newtons touches about 1 cm^2 of it (an equivalent radius of 5-6 mm; the
+smaller end taken)."""
+
+SKIN_TORSION_FACTOR = 8.0 / 15.0
+"""Torsional friction of a patch over its sliding friction and radius: a circular patch of
+radius ``a`` under a paraboloid pressure (the finger pad's, Pawluk & Howe 1999, J. Biomech.
+Eng. 121(6):605-611) resists turning about its normal up to ``mu * (8/15) * a`` times its
+normal force (``2/3`` for a uniform pressure, ``3 pi/16`` for Hertz's)."""
+
+
+def skin_torsional_friction(sliding: float) -> float:
+    """Torsional friction of a skin contact, metres (MuJoCo's second friction coefficient).
+
+    :data:`SKIN_TORSION_FACTOR` x ``sliding`` x :data:`SKIN_PATCH_RADIUS_M`: the most torque
+    about the contact normal, per newton of normal force, that a finger pad's patch holds by
+    friction.
+    """
+    return SKIN_TORSION_FACTOR * sliding * SKIN_PATCH_RADIUS_M
+
+
 def skin_friction(name: str) -> float:
     """Hand-object sliding friction of an object, by name.
 
@@ -157,7 +182,10 @@ def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
     Writes the sliding friction (:func:`skin_friction`, or ``friction`` for every object) onto
     the collision geoms of every object and raises their ``priority`` to 1, so that MuJoCo
     takes the object's friction for its contacts with the hand (and with the table and other
-    objects) instead of the larger of the two geoms' values. Opt-in: by default the hand and
+    objects) instead of the larger of the two geoms' values. The priority also gives those
+    contacts the object's ``condim``: 4, with the torsional friction of the skin's contact
+    patch (:func:`skin_torsional_friction`), so that every skin contact resists turning about
+    its normal as a finger pad does. Opt-in: by default the hand and
     the objects keep MuJoCo's friction of 1.0 (with skin friction the scripted expert does not
     yet lift every object; docs/grasping.md).
 
@@ -181,7 +209,12 @@ def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
         geoms = (model.geom_bodyid == body) & (
             (model.geom_contype != 0) | (model.geom_conaffinity != 0)
         )
-        model.geom_friction[geoms, 0] = skin_friction(obj.name) if friction is None else friction
+        sliding = skin_friction(obj.name) if friction is None else friction
+        model.geom_friction[geoms, 0] = sliding
+        # The object's condim governs too: 4 with the skin patch's torsional friction (a pinch
+        # of two pads then resists the object's turning about the line through them).
+        model.geom_friction[geoms, 1] = skin_torsional_friction(sliding)
+        model.geom_condim[geoms] = 4
         model.geom_priority[geoms] = 1
 
 

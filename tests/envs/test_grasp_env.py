@@ -46,6 +46,7 @@ def test_object_friction_reaches_the_physics_and_the_expert(friction):
     expected = {"mujoco": 1.0, "skin": skin_friction(obj.name), 0.5: 0.5}[friction]
     np.testing.assert_array_equal(model.geom_friction[geoms, 0], expected)
     assert (model.geom_priority[geoms] == (0 if friction == "mujoco" else 1)).all()
+    assert (model.geom_condim[geoms] == (3 if friction == "mujoco" else 4)).all()
     expert = env.unwrapped.make_expert()
     assert expert.friction == (0.5 if friction == 0.5 else skin_friction(obj.name))
     env.reset(seed=1)  # the scene is kept between episodes: the friction stays

@@ -38,7 +38,13 @@ from handsim.envs.grasping import (
     touch_forces,
 )
 from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry, _nominal_stiffness
-from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
+from handsim.envs.physics import (
+    OBJECT_MATERIALS,
+    SKIN_FRICTION,
+    set_skin_friction,
+    skin_friction,
+    skin_torsional_friction,
+)
 from handsim.hand.model import hand_params
 from handsim.hand.pose import JOINT_NAMES, joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
@@ -583,6 +589,10 @@ def test_skin_friction_per_material():
     geoms = (model.geom_bodyid == body) & (model.geom_contype != 0)
     assert np.all(model.geom_friction[geoms, 0] == 0.5)
     assert np.all(model.geom_priority[geoms] == 1)
+    # The skin's contact patch: torsional friction (8/15) mu a, a = 5 mm, with condim 4.
+    assert skin_torsional_friction(0.5) == pytest.approx(0.5 * 8.0 / 15.0 * 0.005)
+    np.testing.assert_allclose(model.geom_friction[geoms, 1], skin_torsional_friction(0.5))
+    assert np.all(model.geom_condim[geoms] == 4)
     with pytest.raises(InvalidEnvConfig, match="friction must be a finite number > 0"):
         set_skin_friction(scene, -1.0)
     with pytest.raises(InvalidGraspState, match="friction must be a finite number > 0"):
