@@ -424,6 +424,8 @@ class GraspRecipe:
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
             (horizontal), the fingers away from the user and the object's longer end on the
             thumb's side of the hand; no other direction.
+        max_yaw_rad: with ``across_long_axis``: the pinch axis (about the fingers' direction)
+            turned at most this far from pointing away from the user, either way, radians.
         hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
             bent, the MCPs closing), so their distal pads come down the far wall about
             vertically.
@@ -448,6 +450,7 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
+    max_yaw_rad: float = math.pi / 2.0
     hook: bool = False
     straight_fingers: tuple[str, ...] = ()
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
@@ -561,7 +564,9 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # thumb presses down on the top edge, and at skin friction none of those were lifted;
     # there the shape class's pinch inside the loops. Pads planned at 0.4 of the height (the
     # table clearance raises the tips to about 11 mm); the large hands' longer fingers need
-    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across).
+    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across). The
+    # wrist turns the fingers up to 120 deg from pointing away from the user (not 90) to keep
+    # the blades on the thumb's side: 30 deg more of the poses are held across.
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -570,6 +575,7 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         max_offset_m=0.0,
         finger_holes=False,
         across_long_axis=True,
+        max_yaw_rad=float(np.deg2rad(120.0)),
         min_depth_m=0.002,
     ),
     # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
@@ -1173,10 +1179,13 @@ def _top_candidates(
             for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
                 if recipe.across_long_axis:
-                    # Palm down, the fingers away from the user, the object's long end on the
-                    # thumb's side (left of u for a right hand).
+                    # Palm down, the object's long end on the thumb's side (left of u for a right
+                    # hand), the fingers turned at most max_yaw_rad from pointing away from the
+                    # user.
                     thumb_side = np.array([-u[1], u[0]]) * (1.0 if params.side == "right" else -1.0)
-                    if u @ preferred_dir < 0.0 or thumb_side @ long_end < 0.0:
+                    if u @ preferred_dir < math.cos(recipe.max_yaw_rad) - 1e-9:
+                        continue
+                    if thumb_side @ long_end < 0.0:
                         continue
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]
