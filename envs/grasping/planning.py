@@ -424,8 +424,9 @@ class GraspRecipe:
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
             (horizontal), the fingers away from the user and the object's longer end on the
             thumb's side of the hand; no other direction.
-        max_yaw_rad: with ``across_long_axis``: the pinch axis (about the fingers' direction)
-            turned at most this far from pointing away from the user, either way, radians.
+        max_yaw_rad: with ``across_long_axis``: how far the pinch axis (about the fingers'
+            direction) may turn from pointing away from the user, (toward the thumb, away from
+            it), radians.
         hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
             bent, the MCPs closing), so their distal pads come down the far wall about
             vertically.
@@ -450,7 +451,7 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
-    max_yaw_rad: float = math.pi / 2.0
+    max_yaw_rad: tuple[float, float] = (math.pi / 2.0, math.pi / 2.0)
     hook: bool = False
     straight_fingers: tuple[str, ...] = ()
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
@@ -564,9 +565,10 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # thumb presses down on the top edge, and at skin friction none of those were lifted;
     # there the shape class's pinch inside the loops. Pads planned at 0.4 of the height (the
     # table clearance raises the tips to about 11 mm); the large hands' longer fingers need
-    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across). The
-    # wrist turns the fingers up to 120 deg from pointing away from the user (not 90) to keep
-    # the blades on the thumb's side: 30 deg more of the poses are held across.
+    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across). To keep
+    # the blades on the thumb's side the wrist turns the fingers up to 135 deg from pointing
+    # away from the user toward the thumb (the forearm across the body) and 120 deg the other
+    # way, not 90: most pinches in the loops that failed lay there.
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -575,7 +577,7 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         max_offset_m=0.0,
         finger_holes=False,
         across_long_axis=True,
-        max_yaw_rad=float(np.deg2rad(120.0)),
+        max_yaw_rad=(float(np.deg2rad(135.0)), float(np.deg2rad(120.0))),
         min_depth_m=0.002,
     ),
     # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
@@ -1182,10 +1184,14 @@ def _top_candidates(
                     # Palm down, the object's long end on the thumb's side (left of u for a right
                     # hand), the fingers turned at most max_yaw_rad from pointing away from the
                     # user.
-                    thumb_side = np.array([-u[1], u[0]]) * (1.0 if params.side == "right" else -1.0)
-                    if u @ preferred_dir < math.cos(recipe.max_yaw_rad) - 1e-9:
-                        continue
+                    handed = 1.0 if params.side == "right" else -1.0
+                    thumb_side = np.array([-u[1], u[0]]) * handed
                     if thumb_side @ long_end < 0.0:
+                        continue
+                    toward_thumb = handed * math.atan2(
+                        preferred_dir[0] * u[1] - preferred_dir[1] * u[0], u @ preferred_dir
+                    )
+                    if not -recipe.max_yaw_rad[1] <= toward_thumb <= recipe.max_yaw_rad[0]:
                         continue
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]

@@ -311,16 +311,17 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
 
 
 def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(monkeypatch):
-    """The scissors: the pinch across their loops turns the fingers up to 120 deg from ahead.
+    """The scissors: the pinch across their loops turns the fingers up to 120-135 deg from ahead.
 
     Seed 14, medium right hand: the blades point to the right and away (73 deg from +x), so
     with the blades on the thumb's side the pinch axis points 107 deg from +y, to the right
-    and back toward the user; at 90 deg at most (every other recipe's limit) the planner took
-    the pinch in the loops, which dropped them. The scissors are lifted at skin friction.
+    and back toward the user (away from the thumb); at 90 deg at most (every other recipe's
+    limit) the planner took the pinch in the loops, which dropped them. The scissors are
+    lifted at skin friction. Seed 6: 133 deg toward the thumb, within its 135 deg.
     """
     obj = get_object("037_scissors")
-    assert grasp_recipe(obj).max_yaw_rad == pytest.approx(np.deg2rad(120.0))
-    assert all(r.max_yaw_rad == pytest.approx(np.pi / 2) for r in GRASP_RECIPES.values())
+    assert grasp_recipe(obj).max_yaw_rad == pytest.approx(np.deg2rad([135.0, 120.0]))
+    assert all(r.max_yaw_rad == pytest.approx([np.pi / 2] * 2) for r in GRASP_RECIPES.values())
     scene, rng = _scene("037_scissors", seed=14)
     set_skin_friction(scene)
     scene.reset()
@@ -343,9 +344,13 @@ def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(
     assert np.array([-pinch[1], pinch[0]]) @ blades > 0.0
     outcome = run_episode(scene, 0, GraspExpert(obj, params), rng)
     assert outcome.success, outcome
-    square = dataclasses.replace(grasp_recipe(obj), max_yaw_rad=np.pi / 2)
+    scene, _ = _scene("037_scissors", seed=6)
+    T_toward_thumb = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    assert plan_grasp(obj, T_toward_thumb, params).width_m > 0.09
+    square = dataclasses.replace(grasp_recipe(obj), max_yaw_rad=(np.pi / 2, np.pi / 2))
     monkeypatch.setitem(OBJECT_RECIPES, obj.name, square)
     assert plan_grasp(obj, T, params).width_m < 0.04
+    assert plan_grasp(obj, T_toward_thumb, params).width_m < 0.04
 
 
 def test_state_from_sim_and_errors():
