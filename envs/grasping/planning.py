@@ -422,8 +422,8 @@ class GraspRecipe:
         lift_grip_margin: and this multiple of it (on top of ``grip_margin``) while the grip
             settles and the object is lifted; the hold eases back.
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
-            (horizontal), the fingers away from the user and the object's longer end on the
-            thumb's side of the hand; no other direction.
+            (horizontal), the fingers away from the user (within ``max_yaw_rad``) and the
+            object's longer end on the thumb's side of the hand; no other direction.
         max_yaw_rad: with ``across_long_axis``: how far the pinch axis (about the fingers'
             direction) may turn from pointing away from the user, (toward the thumb, away from
             it), radians.
