@@ -427,6 +427,8 @@ class GraspRecipe:
         max_yaw_rad: with ``across_long_axis``: how far the pinch axis (about the fingers'
             direction) may turn from pointing away from the user, (toward the thumb, away from
             it), radians.
+        across_shift_m: with ``across_long_axis``: the pinch centre this far from the centre
+            of mass toward the object's longer end, metres.
         hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
             bent, the MCPs closing), so their distal pads come down the far wall about
             vertically.
@@ -452,6 +454,7 @@ class GraspRecipe:
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
     max_yaw_rad: tuple[float, float] = (math.pi / 2.0, math.pi / 2.0)
+    across_shift_m: float = 0.0
     hook: bool = False
     straight_fingers: tuple[str, ...] = ()
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
@@ -568,7 +571,10 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across). To keep
     # the blades on the thumb's side the wrist turns the fingers up to 135 deg from pointing
     # away from the user toward the thumb (the forearm across the body) and 120 deg the other
-    # way, not 90: most pinches in the loops that failed lay there.
+    # way, not 90: most pinches in the loops that failed lay there. The planned centre 3 mm
+    # toward the pivot: the contacts land 3-4 mm toward the ends of the loops from it, and
+    # at the centre of mass the pinch line passed behind it (the small hands dropped them at
+    # friction 0.5, hands under 0.162 m at skin friction).
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -578,6 +584,7 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         finger_holes=False,
         across_long_axis=True,
         max_yaw_rad=(float(np.deg2rad(135.0)), float(np.deg2rad(120.0))),
+        across_shift_m=0.003,
         min_depth_m=0.002,
     ),
     # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
@@ -1104,6 +1111,8 @@ def _top_candidates(
         offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
         for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
             target = com[:2] + offset * long_axis
+            if recipe.across_long_axis:
+                target = target + recipe.across_shift_m * long_end
             xy_dist = np.linalg.norm(points[:, :2] - target, axis=1)
             if xy_dist.min() < 0.005:
                 centres.append((np.array([*target, com[2]]), abs(offset)))

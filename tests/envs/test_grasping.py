@@ -353,6 +353,23 @@ def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(
     assert plan_grasp(obj, T_toward_thumb, params).width_m < 0.04
 
 
+def test_scissors_pinch_across_passes_through_the_centre_of_mass():
+    """The pinch across the loops is planned 3 mm toward the pivot, so that it passes the COM.
+
+    Planned at the centre of mass, the contacts land 3-4 mm toward the ends of the loops and
+    the small hands dropped the scissors at friction 0.5 (small right hand, seed 0).
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).across_shift_m == pytest.approx(0.003)
+    assert all(r.across_shift_m == 0.0 for r in GRASP_RECIPES.values())
+    params = hand_params("small")
+    rng = np.random.default_rng(0)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [obj.name])))
+    set_skin_friction(scene, 0.5)
+    outcome = run_episode(scene, 0, GraspExpert(obj, params, friction=0.5), rng)
+    assert outcome.success, outcome
+
+
 def test_state_from_sim_and_errors():
     """from_sim reads the truth; bad instances, objects and call orders raise."""
     scene, _ = _scene("025_mug")
