@@ -573,8 +573,8 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # away from the user toward the thumb (the forearm across the body) and 120 deg the other
     # way, not 90: most pinches in the loops that failed lay there. The planned centre 3 mm
     # toward the pivot: the contacts land 3-4 mm toward the ends of the loops from it, and
-    # at the centre of mass the pinch line passed behind it (the small hands dropped them at
-    # friction 0.5, hands under 0.162 m at skin friction).
+    # planned at the centre of mass the pinch line passed behind it (the small hands dropped
+    # them at friction 0.5, a 0.160 m hand at skin friction).
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
