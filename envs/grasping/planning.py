@@ -429,8 +429,13 @@ class GraspRecipe:
         lift_grip_margin: and this multiple of it (on top of ``grip_margin``) while the grip
             settles and the object is lifted; the hold eases back.
         across_long_axis: top grasps: the pinch axis only square to the object's long axis
-            (horizontal), the fingers away from the user and the object's longer end on the
-            thumb's side of the hand; no other direction.
+            (horizontal), the fingers away from the user (within ``max_yaw_rad``) and the
+            object's longer end on the thumb's side of the hand; no other direction.
+        max_yaw_rad: with ``across_long_axis``: how far the pinch axis (about the fingers'
+            direction) may turn from pointing away from the user, (toward the thumb, away from
+            it), radians.
+        across_shift_m: with ``across_long_axis``: the pinch centre this far from the centre
+            of mass toward the object's longer end, metres.
         hook: wide top grasps: the middle and ring fingers close as hooks (their PIPs and DIPs
             bent, the MCPs closing), so their distal pads come down the far wall about
             vertically.
@@ -459,6 +464,8 @@ class GraspRecipe:
     grip_margin: float = 1.0
     lift_grip_margin: float = 1.0
     across_long_axis: bool = False
+    max_yaw_rad: tuple[float, float] = (math.pi / 2.0, math.pi / 2.0)
+    across_shift_m: float = 0.0
     hook: bool = False
     straight_fingers: tuple[str, ...] = ()
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
@@ -578,7 +585,13 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # thumb presses down on the top edge, and at skin friction none of those were lifted;
     # there the shape class's pinch inside the loops. Pads planned at 0.4 of the height (the
     # table clearance raises the tips to about 11 mm); the large hands' longer fingers need
-    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across).
+    # them 12-14 mm up, up to 2 mm under the top (at 4 mm they found no plan across). To keep
+    # the blades on the thumb's side the wrist turns the fingers up to 135 deg from pointing
+    # away from the user toward the thumb (the forearm across the body) and 120 deg the other
+    # way, not 90: most pinches in the loops that failed lay there. The planned centre 3 mm
+    # toward the pivot: the contacts land 3-4 mm toward the ends of the loops from it, and
+    # planned at the centre of mass the pinch line passed behind it (the small hands dropped
+    # them at friction 0.5, a 0.160 m hand at skin friction).
     "037_scissors": dataclasses.replace(
         GRASP_RECIPES["flat_tool"],
         fingers=("index", "middle"),
@@ -587,6 +600,8 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         max_offset_m=0.0,
         finger_holes=False,
         across_long_axis=True,
+        max_yaw_rad=(float(np.deg2rad(135.0)), float(np.deg2rad(120.0))),
+        across_shift_m=0.003,
         min_depth_m=0.002,
     ),
     # The sugar box (38 mm high, pinched across 89 mm): the middle and ring fingers hooked
@@ -1158,6 +1173,8 @@ def _top_candidates(
         offsets = np.arange(-recipe.max_offset_m, recipe.max_offset_m + 1e-9, 0.01)
         for offset in offsets[np.argsort(np.abs(offsets), kind="stable")]:
             target = com[:2] + offset * long_axis
+            if recipe.across_long_axis:
+                target = target + recipe.across_shift_m * long_end
             xy_dist = np.linalg.norm(points[:, :2] - target, axis=1)
             if xy_dist.min() < 0.005:
                 centres.append((np.array([*target, com[2]]), abs(offset)))
@@ -1235,10 +1252,17 @@ def _top_candidates(
             for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
                 if recipe.across_long_axis:
-                    # Palm down, the fingers away from the user, the object's long end on the
-                    # thumb's side (left of u for a right hand).
-                    thumb_side = np.array([-u[1], u[0]]) * (1.0 if params.side == "right" else -1.0)
-                    if u @ preferred_dir < 0.0 or thumb_side @ long_end < 0.0:
+                    # Palm down, the object's long end on the thumb's side (left of u for a right
+                    # hand), the fingers turned at most max_yaw_rad from pointing away from the
+                    # user.
+                    handed = 1.0 if params.side == "right" else -1.0
+                    thumb_side = np.array([-u[1], u[0]]) * handed
+                    if thumb_side @ long_end < 0.0:
+                        continue
+                    toward_thumb = handed * math.atan2(
+                        preferred_dir[0] * u[1] - preferred_dir[1] * u[0], u @ preferred_dir
+                    )
+                    if not -recipe.max_yaw_rad[1] <= toward_thumb <= recipe.max_yaw_rad[0]:
                         continue
                 if recipe.strategy == "rim":
                     inward = com[:2] - centre[:2]

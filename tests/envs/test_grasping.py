@@ -365,6 +365,66 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
     assert plan_grasp(obj, T, params).width_m < 0.04
 
 
+def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(monkeypatch):
+    """The scissors: the pinch across their loops turns the fingers up to 120-135 deg from ahead.
+
+    Seed 14, medium right hand: the blades point to the right and away (73 deg from +x), so
+    with the blades on the thumb's side the pinch axis points 107 deg from +y, to the right
+    and back toward the user (away from the thumb); at 90 deg at most (every other recipe's
+    limit) the planner took the pinch in the loops, which dropped them. The scissors are
+    lifted at skin friction. Seed 6: 133 deg toward the thumb, within its 135 deg.
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).max_yaw_rad == pytest.approx(np.deg2rad([135.0, 120.0]))
+    assert all(r.max_yaw_rad == pytest.approx([np.pi / 2] * 2) for r in GRASP_RECIPES.values())
+    scene, rng = _scene("037_scissors", seed=14)
+    set_skin_friction(scene)
+    scene.reset()
+    T = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    params = hand_params("medium")
+    plan = plan_grasp(obj, T, params)
+    assert plan.width_m == pytest.approx(0.097, abs=0.002)
+    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    pinch = world[1:].mean(axis=0) - world[0]
+    yaw_deg = np.degrees(np.arccos(pinch[1] / np.linalg.norm(pinch[:2])))
+    assert 90.0 < yaw_deg < 120.0
+    # The blades (the longer end from the centre of mass) on the thumb's side: left of the pinch.
+    points = np.asarray(obj.model_points_m) @ T[:3, :3].T + T[:3, 3]
+    com = T[:3, :3] @ obj.com_m + T[:3, 3]
+    xy = points[:, :2] - com[:2]
+    long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+    s = xy @ long_axis
+    blades = long_axis if s.max() > -s.min() else -long_axis
+    assert np.array([-pinch[1], pinch[0]]) @ blades > 0.0
+    outcome = run_episode(scene, 0, GraspExpert(obj, params), rng)
+    assert outcome.success, outcome
+    scene, _ = _scene("037_scissors", seed=6)
+    T_toward_thumb = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    assert plan_grasp(obj, T_toward_thumb, params).width_m > 0.09
+    square = dataclasses.replace(grasp_recipe(obj), max_yaw_rad=(np.pi / 2, np.pi / 2))
+    monkeypatch.setitem(OBJECT_RECIPES, obj.name, square)
+    assert plan_grasp(obj, T, params).width_m < 0.04
+    assert plan_grasp(obj, T_toward_thumb, params).width_m < 0.04
+
+
+def test_scissors_pinch_across_passes_through_the_centre_of_mass():
+    """The pinch across the loops is planned 3 mm toward the pivot, so that it passes the COM.
+
+    Planned at the centre of mass, the contacts land 3-4 mm toward the ends of the loops and
+    the small hands dropped the scissors at friction 0.5 (small right hand, seed 0).
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).across_shift_m == pytest.approx(0.003)
+    assert all(r.across_shift_m == 0.0 for r in GRASP_RECIPES.values())
+    params = hand_params("small")
+    rng = np.random.default_rng(0)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [obj.name])))
+    set_skin_friction(scene, 0.5)
+    outcome = run_episode(scene, 0, GraspExpert(obj, params, friction=0.5), rng)
+    assert outcome.success, outcome
+
+
 def test_state_from_sim_and_errors():
     """from_sim reads the truth; bad instances, objects and call orders raise."""
     scene, _ = _scene("025_mug")
