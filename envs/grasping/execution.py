@@ -18,7 +18,6 @@ from scipy.spatial import ConvexHull, QhullError
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
-    _LIFT_SPEED_M_S,
     _LIFT_TARGET_M,
     _PREGRASP_DIST_M,
     _SETTLE_S,
@@ -98,8 +97,10 @@ HOLD_SLIP_M = 0.0015
 """The hold's easing stops for good once the object has moved this far in the palm frame
 (metres; the median of the last five perceived positions against that of the hold's first
 five): a grip eased until the object starts to slip is held there, not eased further (people
-stop relaxing their grip at the first slip; Johansson & Westling 1984). (Going back three
-easing steps as well was tried and not kept: docs/grasping.md.)"""
+stop relaxing their grip at the first slip; Johansson & Westling 1984). With a noisy
+estimator the threshold is at least four times the noise of that difference (from the spread
+of the estimates before the grasp), so noise is not read as slip. (Going back three easing
+steps as well was tried and not kept: docs/grasping.md.)"""
 HOLD_TURN_RAD = float(np.deg2rad(3.0))
 """Or once it has turned this far in the palm frame (the perceived orientation against that at
 the hold's first step): a pinch eased too far lets its object turn about the pinch before it
@@ -273,6 +274,17 @@ class _PoseFilter:
             if np.linalg.norm(recent - centre) > gate:
                 self._start = self._end - 5
 
+    def spread_m(self) -> float:
+        """Robust spread of the position estimates (norm of the per-axis MAD sigmas), metres.
+
+        0 until ten estimates have come since the object last moved.
+        """
+        if len(self) < 10:
+            return 0.0
+        window = self._pos[self._start : self._end]
+        centre = _median_rows(window)
+        return float(np.linalg.norm(1.4826 * _median_rows(np.abs(window - centre))))
+
     def pose(self) -> np.ndarray:
         T = np.eye(4)
         T[:3, 3] = _median_rows(self._pos[self._start : self._end])
@@ -304,7 +316,8 @@ class GraspExpert:
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
     actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),
-    ``"lift"`` (0.15 m up, peak 0.25 m/s) and ``"hold"`` (until the episode ends).
+    ``"lift"`` (0.15 m up, peak speed the recipe's ``lift_speed_m_s``, 0.25 m/s but for the
+    cracker box) and ``"hold"`` (until the episode ends).
     :attr:`grasp_type` is the grasp taxonomy type and ``plan.strategy`` how it is applied
     (:class:`GraspRecipe`).
 
@@ -418,6 +431,7 @@ class GraspExpert:
         self._grip_force_n: float | None = None
         self._hold_palm: list[np.ndarray] = []  # perceived object positions in the palm frame
         self._hold_ref: np.ndarray | None = None
+        self._hold_slip_gate_m = HOLD_SLIP_M
         self._hold_turn_ref: np.ndarray | None = None  # object orientation in the palm frame
         self._eased: list[list[float]] = []  # grip scales of the last easing steps
         self._easing_stopped = False
@@ -519,7 +533,7 @@ class GraspExpert:
             if segment.duration_s == 0.0:
                 speed, jitter = {
                     "reach": (EXPERT_WRIST_SPEED_M_S, self._scale[0]),
-                    "lift": (_LIFT_SPEED_M_S, self._scale[2]),
+                    "lift": (self.recipe.lift_speed_m_s, self._scale[2]),
                 }.get(segment.name, (_SLOW_SPEED_M_S, self._scale[1]))
                 segment.duration_s = jitter * _duration(
                     previous.pos, segment.pos, previous.quat, segment.quat, speed, 0.4
@@ -653,8 +667,13 @@ class GraspExpert:
         recent = np.median(np.stack(self._hold_palm), axis=0)
         if self._hold_ref is None:
             self._hold_ref = recent
+            # Perception noise must not read as slip: the gate is four times the spread of
+            # the difference of two medians of five estimates (1.25 sigma / sqrt(5) each),
+            # sigma the estimates' spread while the object stood still before the grasp.
+            median_sigma_m = 1.25 * self._filter.spread_m() / np.sqrt(_SLIP_WINDOW)
+            self._hold_slip_gate_m = max(HOLD_SLIP_M, 4.0 * np.sqrt(2.0) * median_sigma_m)
             return False
-        return bool(np.linalg.norm(recent - self._hold_ref) > HOLD_SLIP_M)
+        return bool(np.linalg.norm(recent - self._hold_ref) > self._hold_slip_gate_m)
 
     def _grip_groups(self) -> list[tuple[np.ndarray, np.ndarray, float]]:
         """(joint indices, touch parts, share of the grip force) of each regulated group.

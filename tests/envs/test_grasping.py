@@ -37,10 +37,10 @@ from handsim.envs.grasping import (
     start_pose,
     touch_forces,
 )
-from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry
+from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry, _nominal_stiffness
 from handsim.envs.physics import OBJECT_MATERIALS, SKIN_FRICTION, set_skin_friction, skin_friction
 from handsim.hand.model import hand_params
-from handsim.hand.pose import joint_index
+from handsim.hand.pose import JOINT_NAMES, joint_index
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.scene import ObjectPlacement, Scene, SceneSpec, sample_placements
@@ -276,6 +276,55 @@ def test_the_clamps_are_pinched_5_mm_above_the_deepest_where_that_is_blocked():
     assert outcome.success, outcome
 
 
+def test_the_drill_is_squeezed_with_the_thumbs_nominal_stiffness():
+    """The drill's squeeze presses the large hands' thumb with its nominal torque.
+
+    Their thumb CMC is stiffer than nominal (for its bandwidth), so the squeeze's deflection
+    there is scaled down by the ratio of the stiffnesses.
+
+    Large right hand, seed 3, skin friction: squeezed by the full angle the thumb pressed 33 N
+    against the index's 13 N, rolled the drill 15 deg and it was dropped in the lift.
+    """
+    drill = get_object("035_power_drill")
+    assert grasp_recipe(drill).nominal_squeeze
+    assert not GRASP_RECIPES["clamp"].nominal_squeeze
+    cmc = JOINT_NAMES.index("thumb_cmc_flex")
+    flexion = [i for i, name in enumerate(JOINT_NAMES) if name.endswith("_flex")]
+    np.testing.assert_array_equal(_nominal_stiffness(drill, hand_params("medium"))[flexion], 1.0)
+    params = hand_params("large")
+    ratio = _nominal_stiffness(drill, params)
+    expert = GraspExpert(drill, params)
+    assert ratio[cmc] * expert._kp[cmc] == pytest.approx(3.0)
+    assert ratio[cmc] < 0.7
+    assert np.all((ratio > 0.0) & (ratio <= 1.0))
+    rng = np.random.default_rng(3)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [drill.name])))
+    set_skin_friction(scene)
+    outcome = run_episode(scene, 0, expert, rng)
+    assert outcome.success, outcome
+
+
+def test_the_large_clamp_is_held_at_a_larger_margin():
+    """The large clamp's hold has the grip margin 1.5 (the tripods: 1.25), its lift the same aim.
+
+    The medium left hand (seed 15, skin friction) dropped it as the hold eased toward the
+    margin 1.25 (its thumb's proximal segment on the top edge).
+    """
+    clamp = get_object("051_large_clamp")
+    params = hand_params("medium", "left")
+    expert = GraspExpert(clamp, params)
+    recipe = grasp_recipe(clamp)
+    assert recipe.grip_margin == pytest.approx(1.5)
+    assert recipe.grip_margin * recipe.lift_grip_margin == pytest.approx(
+        GRASP_RECIPES["clamp"].grip_margin * GRASP_RECIPES["clamp"].lift_grip_margin
+    )
+    rng = np.random.default_rng(15)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [clamp.name])))
+    set_skin_friction(scene)
+    outcome = run_episode(scene, 0, expert, rng)
+    assert outcome.success, outcome
+
+
 def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch):
     """The scissors' pinch runs square to their long axis through the centre of mass.
 
@@ -308,6 +357,66 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
     no_strip = dataclasses.replace(grasp_recipe(obj), band_m=0.0)
     monkeypatch.setitem(OBJECT_RECIPES, obj.name, no_strip)
     assert plan_grasp(obj, T, params).width_m < 0.04
+
+
+def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(monkeypatch):
+    """The scissors: the pinch across their loops turns the fingers up to 120-135 deg from ahead.
+
+    Seed 14, medium right hand: the blades point to the right and away (73 deg from +x), so
+    with the blades on the thumb's side the pinch axis points 107 deg from +y, to the right
+    and back toward the user (away from the thumb); at 90 deg at most (every other recipe's
+    limit) the planner took the pinch in the loops, which dropped them. The scissors are
+    lifted at skin friction. Seed 6: 133 deg toward the thumb, within its 135 deg.
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).max_yaw_rad == pytest.approx(np.deg2rad([135.0, 120.0]))
+    assert all(r.max_yaw_rad == pytest.approx([np.pi / 2] * 2) for r in GRASP_RECIPES.values())
+    scene, rng = _scene("037_scissors", seed=14)
+    set_skin_friction(scene)
+    scene.reset()
+    T = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    params = hand_params("medium")
+    plan = plan_grasp(obj, T, params)
+    assert plan.width_m == pytest.approx(0.097, abs=0.002)
+    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    pinch = world[1:].mean(axis=0) - world[0]
+    yaw_deg = np.degrees(np.arccos(pinch[1] / np.linalg.norm(pinch[:2])))
+    assert 90.0 < yaw_deg < 120.0
+    # The blades (the longer end from the centre of mass) on the thumb's side: left of the pinch.
+    points = np.asarray(obj.model_points_m) @ T[:3, :3].T + T[:3, 3]
+    com = T[:3, :3] @ obj.com_m + T[:3, 3]
+    xy = points[:, :2] - com[:2]
+    long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
+    s = xy @ long_axis
+    blades = long_axis if s.max() > -s.min() else -long_axis
+    assert np.array([-pinch[1], pinch[0]]) @ blades > 0.0
+    outcome = run_episode(scene, 0, GraspExpert(obj, params), rng)
+    assert outcome.success, outcome
+    scene, _ = _scene("037_scissors", seed=6)
+    T_toward_thumb = GraspState.from_sim(scene, 0, 0.0).T_world_from_obj
+    assert plan_grasp(obj, T_toward_thumb, params).width_m > 0.09
+    square = dataclasses.replace(grasp_recipe(obj), max_yaw_rad=(np.pi / 2, np.pi / 2))
+    monkeypatch.setitem(OBJECT_RECIPES, obj.name, square)
+    assert plan_grasp(obj, T, params).width_m < 0.04
+    assert plan_grasp(obj, T_toward_thumb, params).width_m < 0.04
+
+
+def test_scissors_pinch_across_passes_through_the_centre_of_mass():
+    """The pinch across the loops is planned 3 mm toward the pivot, so that it passes the COM.
+
+    Planned at the centre of mass, the contacts land 3-4 mm toward the ends of the loops and
+    the small hands dropped the scissors at friction 0.5 (small right hand, seed 0).
+    """
+    obj = get_object("037_scissors")
+    assert grasp_recipe(obj).across_shift_m == pytest.approx(0.003)
+    assert all(r.across_shift_m == 0.0 for r in GRASP_RECIPES.values())
+    params = hand_params("small")
+    rng = np.random.default_rng(0)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [obj.name])))
+    set_skin_friction(scene, 0.5)
+    outcome = run_episode(scene, 0, GraspExpert(obj, params, friction=0.5), rng)
+    assert outcome.success, outcome
 
 
 def test_state_from_sim_and_errors():
@@ -574,12 +683,19 @@ def test_grip_force_follows_weight_and_friction():
 def test_grip_margins_of_the_recipes():
     """Tripods grip 1.25x harder in every phase; boxes and tripods 2x harder while lifting.
 
-    The sugar box's hooked pads press square on its walls and need no lift margin.
+    The sugar box's hooked pads press square on its walls and need no lift margin. The large
+    clamp holds at 1.5x (its lift as the other tripods').
     """
     params = hand_params("medium")
-    clamp = GraspExpert(get_object("051_large_clamp"), params)
+    clamp = GraspExpert(get_object("052_extra_large_clamp"), params)
     mass = clamp.obj.mass_kg
     np.testing.assert_allclose(clamp._grip_force_target(False), 1.6 * 1.25 * mass * 9.81 / 0.53)
+    np.testing.assert_allclose(
+        clamp._grip_force_target(True), 1.6 * 1.25 * 2.0 * mass * 11.81 / 0.53
+    )
+    clamp = GraspExpert(get_object("051_large_clamp"), params)
+    mass = clamp.obj.mass_kg
+    np.testing.assert_allclose(clamp._grip_force_target(False), 1.6 * 1.5 * mass * 9.81 / 0.53)
     np.testing.assert_allclose(
         clamp._grip_force_target(True), 1.6 * 1.25 * 2.0 * mass * 11.81 / 0.53
     )
@@ -591,6 +707,15 @@ def test_grip_margins_of_the_recipes():
     mass = sugar.obj.mass_kg
     np.testing.assert_allclose(sugar._grip_force_target(False), 1.6 * mass * 9.81 / 0.42)
     np.testing.assert_allclose(sugar._grip_force_target(True), 1.6 * mass * 11.81 / 0.42)
+    # The cracker box: 1.25x in every phase, and a lift margin that keeps the lift's aim under
+    # 8 times the weight.
+    cracker = GraspExpert(get_object("003_cracker_box"), params)
+    mass = cracker.obj.mass_kg
+    np.testing.assert_allclose(cracker._grip_force_target(False), 1.6 * 1.25 * mass * 9.81 / 0.42)
+    np.testing.assert_allclose(
+        cracker._grip_force_target(True), 1.6 * 1.25 * 1.3 * mass * 11.81 / 0.42
+    )
+    assert cracker._grip_force_target(True) < 8.0 * mass * 9.81
 
 
 def _run_recording_hold_contacts(scene, expert, rng):
@@ -633,6 +758,27 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
     assert expert.plan.span
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
+
+
+def test_the_small_hand_lifts_the_cracker_box_slowly_at_skin_friction():
+    """The small hand's span grasp holds the cracker box at skin friction (seed 4).
+
+    Its thumb tip presses on the near wall's rounded top edge; eased to 3.8 times the weight
+    in the hold, the thumb slid at its friction limit and the box fell (and lifted at
+    0.25 m/s, other seeds turned out of the pinch in the lift).
+    """
+    obj = get_object("003_cracker_box")
+    assert grasp_recipe(obj).lift_speed_m_s < GRASP_RECIPES["box"].lift_speed_m_s
+    rng = np.random.default_rng(4)
+    placements = sample_placements(rng, [obj.name])
+    scene = Scene(SceneSpec(hand=hand_params("small"), objects=placements))
+    set_skin_friction(scene)
+    expert = GraspExpert(obj, scene.hand.params)
+    outcome = run_episode(scene, 0, expert, rng)
+    assert outcome.success, outcome
+    assert expert.plan.span
+    lift = next(segment for segment in expert._segments if segment.name == "lift")
+    assert lift.duration_s > 2.0  # 0.15 m at a peak of 0.12 m/s (minimum jerk): 2.3 s
 
 
 @pytest.mark.parametrize("side", ["right", "left"])
@@ -749,6 +895,53 @@ def test_hold_stops_easing_at_the_first_slip():
     assert 10 < first < 20  # the median of five shifted estimates reacts within a few steps
     scales = np.array([scale for _, scale in slipped[first:]])
     assert np.all(np.diff(scales, axis=0) >= 0.0)  # never eased again
+
+
+def test_pose_filter_spread_is_the_estimates_noise():
+    """The filter's robust spread is the norm of the per-axis sigmas (0 for fewer than 10)."""
+    from handsim.envs.grasping.execution import _PoseFilter
+
+    noise = np.random.default_rng(0).normal(0.0, [0.010, 0.005, 0.002], size=(100, 3))
+    pose_filter = _PoseFilter(get_object("061_foam_brick"))
+    for k, offset in enumerate(noise):
+        pose_filter.add(_shifted(np.eye(4), [0.0, 0.0, 0.5] + offset))  # off the table
+        if k < 9:
+            assert pose_filter.spread_m() == 0.0
+    expected = np.linalg.norm([0.010, 0.005, 0.002])
+    assert abs(pose_filter.spread_m() - expected) < 0.15 * expected
+    still = _PoseFilter(get_object("061_foam_brick"))
+    for _ in range(20):
+        still.add(_shifted(np.eye(4), [0.0, 0.0, 0.5]))
+    assert still.spread_m() == 0.0
+
+
+def test_perception_noise_is_not_read_as_slip():
+    """10 mm of noise per axis: the hold eases to the grip it aims at.
+
+    The truth's slip gate of 1.5 mm would stop the easing in the hold's first steps.
+    """
+    from handsim.envs.grasping.execution import HOLD_SLIP_M
+
+    scene, rng = _scene("008_pudding_box")
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    noise_rng = np.random.default_rng(1)
+    hold = []
+
+    def perceive(state):
+        offset = noise_rng.normal(0.0, 0.010, 3)
+        return dataclasses.replace(state, T_world_from_obj=_shifted(state.T_world_from_obj, offset))
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold.append((expert._easing_stopped, expert._grip_force_n))
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=record, perceive=perceive)
+    assert outcome.success, outcome
+    assert not any(stopped for stopped, _ in hold)
+    weight_n = scene.objects[0][1].mass_kg * 9.81
+    aim_n = expert._grip_force_target(lifting=False)
+    assert hold[-1][1] < 1.2 * aim_n < 8 * weight_n
+    assert expert._hold_slip_gate_m > 10 * HOLD_SLIP_M
 
 
 @pytest.mark.parametrize(("turn_deg", "stops"), [(2.0, False), (4.0, True)])
