@@ -157,9 +157,9 @@ def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
     Writes the sliding friction (:func:`skin_friction`, or ``friction`` for every object) onto
     the collision geoms of every object and raises their ``priority`` to 1, so that MuJoCo
     takes the object's friction for its contacts with the hand (and with the table and other
-    objects) instead of the larger of the two geoms' values. Opt-in: by default the hand and
-    the objects keep MuJoCo's friction of 1.0 (with skin friction the scripted expert does not
-    yet lift every object; docs/grasping.md).
+    objects) instead of the larger of the two geoms' values. Every env calls it at reset
+    (``object_friction="skin"``, the default); a bare :class:`~handsim.world.scene.Scene`
+    keeps MuJoCo's friction of 1.0 until it is called.
 
     Args:
         scene: the scene.
