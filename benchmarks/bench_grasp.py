@@ -12,7 +12,7 @@ the env's own placement and start pose, depth rendered every step, the expert fr
 
 Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
 [--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
-[--friction default|skin|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]] [--no-replan]
+[--friction skin|mujoco|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]] [--no-replan]
 [--workers N] [--out|--json benchmarks/results/bench_grasp.json]``. Prints one row per object
 (grasp type, successes, mean lift and slip, failure reasons) and writes every episode to JSON.
 
@@ -69,13 +69,21 @@ from handsim.world.scene import Scene, SceneSpec, sample_placements
 _MAX_STEPS = 400  # 8 s at 50 Hz
 
 
-def _env_episode(name: str, seed: int, hand_size_m: float = 0.189, side: str = "right") -> dict:
+def _env_episode(
+    name: str, seed: int, hand_size_m: float = 0.189, side: str = "right", friction: str = "skin"
+) -> dict:
     """One handsim/Grasp-v0 episode with the grasp expert."""
     import gymnasium as gym
 
     import handsim.envs  # noqa: F401 (registers the ids)
 
-    env = gym.make("handsim/Grasp-v0", objects=name, hand_size=hand_size_m, handedness=side)
+    env = gym.make(
+        "handsim/Grasp-v0",
+        objects=name,
+        hand_size=hand_size_m,
+        handedness=side,
+        object_friction=friction if friction in ("skin", "mujoco") else float(friction),
+    )
     try:
         _, info = env.reset(seed=seed)
         expert = env.unwrapped.make_expert()
@@ -210,7 +218,7 @@ def _episode(
     use_env: bool = False,
     hand_size: str = "medium",
     side: str = "right",
-    friction: str = "default",
+    friction: str = "skin",
     object_noise_mm: float = 0.0,
     noise_kind: str = "axis",
     replan: bool = True,
@@ -225,17 +233,17 @@ def _episode(
     params = hand_params(_size_length(hand_size, seed), side)
     if use_env:
         try:
-            episode = _env_episode(name, seed, params.hand_length, side)
+            episode = _env_episode(name, seed, params.hand_length, side, friction)
         except GraspPlanningError as err:
             episode = {"seed": seed, "success": False, "failure": "no_plan", "error": str(err)}
         return {**episode, "hand_length_m": params.hand_length, "wall_s": _since(start)}
     rng = np.random.default_rng(seed)
     placements = sample_placements(rng, [name])
     scene = Scene(SceneSpec(hand=params, objects=placements))
-    if friction != "default":
+    if friction != "mujoco":
         set_skin_friction(scene, None if friction == "skin" else float(friction))
     # A number is what the hand feels: the expert sizes its grip for it too.
-    assumed = None if friction in ("default", "skin") else float(friction)
+    assumed = None if friction in ("mujoco", "skin") else float(friction)
     expert = GraspExpert(obj, params, replan=replan, friction=assumed)
     records: list = []
 
@@ -321,14 +329,14 @@ def run_object(
     use_env: bool = False,
     hand_size: str = "medium",
     side: str = "right",
-    friction: str = "default",
+    friction: str = "skin",
     object_noise_mm: float = 0.0,
     noise_kind: str = "axis",
     replan: bool = True,
 ) -> dict:
     """Run ``seeds`` episodes with one object; return its row and the episodes.
 
-    ``friction``: ``"default"`` (MuJoCo's 1.0), ``"skin"`` (per material) or a number (every
+    ``friction``: ``"skin"`` (per material), ``"mujoco"`` (MuJoCo's 1.0) or a number (every
     object, and the expert sizes its grip for it; otherwise for skin on the material);
     ``object_noise_mm``/``noise_kind``: the expert perceives the object's position with that
     error at every step (see :func:`_noisy_perception`); ``replan=False``: the expert plans
@@ -516,8 +524,9 @@ def main() -> None:
     )
     parser.add_argument(
         "--friction",
-        default="default",
-        help="hand-object friction: default (1.0), skin (per material) or a number",
+        default="skin",
+        help="hand-object friction: skin (per material, the envs' default), mujoco (1.0) or a "
+        "number",
     )
     parser.add_argument(
         "--object-noise-mm",
@@ -552,6 +561,13 @@ def main() -> None:
     args = parser.parse_args()
     if args.workers < 1:
         parser.error(f"--workers must be at least 1, got {args.workers}")
+    if args.friction not in ("skin", "mujoco"):
+        try:
+            valid = float(args.friction) > 0
+        except ValueError:
+            valid = False
+        if not valid:
+            parser.error(f"--friction must be skin, mujoco or a number > 0, got {args.friction!r}")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     pool = None

@@ -69,9 +69,9 @@ WORKSPACE_M: tuple[tuple[float, float], ...] = ((-0.5, 0.5), (-0.5, 0.5), (0.0, 
 SENSORS: tuple[str, ...] = ("none", "structured_light", "tof")
 """Sensor model names (:func:`handsim.world.sensors.sensor_model`)."""
 OBJECT_FRICTIONS: tuple[str, ...] = ("mujoco", "skin")
-"""Named ``object_friction`` values (a number is valid too): MuJoCo's 1.0 for every contact,
-or measured skin friction on each object's material
-(:func:`~handsim.envs.physics.set_skin_friction`)."""
+"""Named ``object_friction`` values (a number is valid too): measured skin friction on each
+object's material (the default; :func:`~handsim.envs.physics.set_skin_friction`), or MuJoCo's
+1.0 for every contact."""
 
 
 class InvalidEnvConfig(HandSimError, ValueError):
@@ -193,8 +193,8 @@ class EnvConfig:
         render_height: height of ``render()`` images, pixels.
         render_quality: ``"fast"`` (default: no shadow pass, the cheapest colour image) or
             ``"high"`` (one light casts shadows, for pictures); see :data:`RENDER_QUALITIES`.
-        object_friction: hand-object sliding friction: ``"mujoco"`` (default: MuJoCo's 1.0),
-            ``"skin"`` (measured skin friction on each object's material, 0.42 to 0.6) or a
+        object_friction: hand-object sliding friction: ``"skin"`` (default: measured skin
+            friction on each object's material, 0.42 to 0.6), ``"mujoco"`` (MuJoCo's 1.0) or a
             number > 0 for every object (:func:`~handsim.envs.physics.set_skin_friction`).
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
@@ -220,7 +220,7 @@ class EnvConfig:
     render_width: int = 480
     render_height: int = 360
     render_quality: str = "fast"
-    object_friction: str | float = "mujoco"
+    object_friction: str | float = "skin"
 
     @classmethod
     def from_kwargs(
@@ -246,7 +246,7 @@ class EnvConfig:
         render_width: object = 480,
         render_height: object = 360,
         render_quality: object = "fast",
-        object_friction: object = "mujoco",
+        object_friction: object = "skin",
     ) -> EnvConfig:
         """Validate the keyword arguments of an env (each error lists the valid values)."""
         if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):

@@ -185,9 +185,9 @@ def set_skin_friction(scene: Scene, friction: float | None = None) -> None:
     objects) instead of the larger of the two geoms' values. The priority also gives those
     contacts the object's ``condim``: 4, with the torsional friction of the skin's contact
     patch (:func:`skin_torsional_friction`), so that every skin contact resists turning about
-    its normal as a finger pad does. Opt-in: by default the hand and
-    the objects keep MuJoCo's friction of 1.0 (with skin friction the scripted expert does not
-    yet lift every object; docs/grasping.md).
+    its normal as a finger pad does. Every env calls it at reset (``object_friction="skin"``,
+    the default); a bare :class:`~handsim.world.scene.Scene` keeps MuJoCo's friction of 1.0
+    and ``condim`` 3 until it is called.
 
     Args:
         scene: the scene.

@@ -32,6 +32,23 @@ def test_grasp_expert_lifts_and_the_episode_terminates_with_success():
     env.close()
 
 
+@pytest.mark.parametrize("env_id", sorted(k for k in gym.registry if k.startswith("handsim/")))
+def test_every_env_defaults_to_skin_friction(env_id):
+    """Without object_friction, each object's contacts have skin on its material."""
+    from handsim.envs.physics import skin_friction
+
+    env = gym.make(env_id, **({"num_objects": (3, 3)} if "Clutter" in env_id else {}))
+    assert env.unwrapped.config.object_friction == "skin"
+    env.reset(seed=0)
+    scene = env.unwrapped.scene
+    model = scene.model
+    for body, obj in scene.objects:  # none in HandPose-v0 and Press-v0
+        geoms = (model.geom_bodyid == model.body(body).id) & (model.geom_contype != 0)
+        np.testing.assert_array_equal(model.geom_friction[geoms, 0], skin_friction(obj.name))
+        assert (model.geom_priority[geoms] == 1).all()
+    env.close()
+
+
 @pytest.mark.parametrize("friction", ["mujoco", "skin", 0.5])
 def test_object_friction_reaches_the_physics_and_the_expert(friction):
     """object_friction sets every object's contact friction; a number also sizes the grip."""
