@@ -45,7 +45,7 @@ def test_every_env_defaults_to_skin_friction(env_id):
     for body, obj in scene.objects:  # none in HandPose-v0 and Press-v0
         geoms = (model.geom_bodyid == model.body(body).id) & (model.geom_contype != 0)
         np.testing.assert_array_equal(model.geom_friction[geoms, 0], skin_friction(obj.name))
-        assert (model.geom_priority[geoms] == 1).all()
+        assert (model.geom_priority[geoms] == 1).all() and (model.geom_condim[geoms] == 4).all()
     env.close()
 
 
