@@ -351,18 +351,24 @@ def run_object(
     return _object_row(name, episodes)
 
 
-def bench_physics(names: list[str], control_steps: int = 100, repeats: int = 7) -> dict:
+def bench_physics(
+    names: list[str], control_steps: int = 100, repeats: int = 7, friction: str = "skin"
+) -> dict:
     """Physics steps/s of held grasps: ``HandDriver.step`` against bare ``mj_step`` calls.
 
     Timed in process CPU time (MuJoCo runs on one thread), best of ``repeats`` interleaved
-    runs, so other processes on a shared machine distort the ratio less.
+    runs, so other processes on a shared machine distort the ratio less. ``friction`` as
+    for :func:`run_object`.
     """
     params = hand_params("medium")
     rows = []
     for name in names:
         rng = np.random.default_rng(0)
         scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [name])))
-        expert = GraspExpert(get_object(name), params)
+        if friction != "mujoco":
+            set_skin_friction(scene, None if friction == "skin" else float(friction))
+        assumed = None if friction in ("mujoco", "skin") else float(friction)
+        expert = GraspExpert(get_object(name), params, friction=assumed)
         held = []
 
         def stop(step: int, expert: GraspExpert, held=held) -> None:
@@ -596,7 +602,8 @@ def _run(args: argparse.Namespace, out: Path, pool) -> None:
         "mujoco": mujoco.__version__,
     }
     if args.physics:
-        out.write_text(json.dumps({**meta, **bench_physics(names)}, indent=2))
+        result = bench_physics(names, friction=args.friction)
+        out.write_text(json.dumps({**meta, "friction": args.friction, **result}, indent=2))
         print(f"written: {out}")
         return
     hands = (
