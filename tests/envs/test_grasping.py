@@ -331,6 +331,13 @@ def test_the_large_clamp_is_held_at_a_larger_margin():
     assert outcome.success, outcome
 
 
+def _pinch_vector(plan, params) -> np.ndarray:
+    """(3,) world vector, metres: the thumb's planned contact to its opposing pads' mean."""
+    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    return world[1:].mean(axis=0) - world[0]
+
+
 def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch):
     """The scissors' pinch runs square to their long axis through the centre of mass.
 
@@ -347,9 +354,7 @@ def test_scissors_are_pinched_across_the_outer_walls_of_their_loops(monkeypatch)
     params = hand_params("medium")
     plan = plan_grasp(obj, T, params)
     assert plan.width_m == pytest.approx(0.097, abs=0.002)
-    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
-    world = plan.rotation.apply(spheres) + plan.wrist_pos
-    pinch = world[1:].mean(axis=0) - world[0]
+    pinch = _pinch_vector(plan, params)
     points = np.asarray(obj.model_points_m) @ T[:3, :3].T
     xy = points[:, :2] - points[:, :2].mean(axis=0)
     long_axis = np.linalg.eigh(xy.T @ xy)[1][:, -1]
@@ -384,9 +389,7 @@ def test_scissors_wrist_turns_past_square_to_keep_the_blades_on_the_thumbs_side(
     params = hand_params("medium")
     plan = plan_grasp(obj, T, params)
     assert plan.width_m == pytest.approx(0.097, abs=0.002)
-    spheres = _hand_geometry(params).contacts(plan.contact, ("thumb", "index", "middle"), 1.0)
-    world = plan.rotation.apply(spheres) + plan.wrist_pos
-    pinch = world[1:].mean(axis=0) - world[0]
+    pinch = _pinch_vector(plan, params)
     yaw_deg = np.degrees(np.arccos(pinch[1] / np.linalg.norm(pinch[:2])))
     assert 90.0 < yaw_deg < 120.0
     # The blades (the longer end from the centre of mass) on the thumb's side: left of the pinch.
