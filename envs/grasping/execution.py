@@ -182,6 +182,14 @@ def _median_rows(values: np.ndarray) -> np.ndarray:
     return (ordered[n // 2 - 1] + ordered[n // 2]) / 2.0
 
 
+def _robust_sigma(values: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Per-column spread of an (n, k) array about ``centre``: 1.4826 x the MAD.
+
+    The standard deviation for Gaussian values, not moved by outliers.
+    """
+    return 1.4826 * _median_rows(np.abs(values - centre))
+
+
 @dataclasses.dataclass
 class _Segment:
     name: str
@@ -268,7 +276,7 @@ class _PoseFilter:
             window = self._pos[self._start : self._end - 5]
             centre = _median_rows(window)
             # Robust per-axis spread of the estimates (MAD), and that of a median of five.
-            sigma = 1.4826 * _median_rows(np.abs(window - centre))
+            sigma = _robust_sigma(window, centre)
             recent = _median_rows(self._pos[self._end - 5 : self._end])
             gate = max(_MOTION_MIN_M, 4.0 * float(np.linalg.norm(sigma)) * 1.25 / np.sqrt(5))
             if np.linalg.norm(recent - centre) > gate:
@@ -282,8 +290,7 @@ class _PoseFilter:
         if len(self) < 10:
             return 0.0
         window = self._pos[self._start : self._end]
-        centre = _median_rows(window)
-        return float(np.linalg.norm(1.4826 * _median_rows(np.abs(window - centre))))
+        return float(np.linalg.norm(_robust_sigma(window, _median_rows(window))))
 
     def pose(self) -> np.ndarray:
         T = np.eye(4)
