@@ -212,6 +212,17 @@ def _size_length(hand_size: str, seed: int = 0) -> float:
     return HAND_SIZES[hand_size] if hand_size in HAND_SIZES else float(hand_size)
 
 
+def _set_friction(scene: Scene, friction: str) -> float | None:
+    """Apply ``--friction`` to the scene; the friction the expert sizes its grip for.
+
+    A number is what the hand feels, so the expert sizes its grip for it too; otherwise
+    (``None``) for skin on the object's material.
+    """
+    if friction != "mujoco":
+        set_skin_friction(scene, None if friction == "skin" else float(friction))
+    return None if friction in ("mujoco", "skin") else float(friction)
+
+
 def _episode(
     name: str,
     seed: int,
@@ -240,11 +251,7 @@ def _episode(
     rng = np.random.default_rng(seed)
     placements = sample_placements(rng, [name])
     scene = Scene(SceneSpec(hand=params, objects=placements))
-    if friction != "mujoco":
-        set_skin_friction(scene, None if friction == "skin" else float(friction))
-    # A number is what the hand feels: the expert sizes its grip for it too.
-    assumed = None if friction in ("mujoco", "skin") else float(friction)
-    expert = GraspExpert(obj, params, replan=replan, friction=assumed)
+    expert = GraspExpert(obj, params, replan=replan, friction=_set_friction(scene, friction))
     records: list = []
 
     def record(step: int, expert: GraspExpert) -> None:
@@ -365,10 +372,7 @@ def bench_physics(
     for name in names:
         rng = np.random.default_rng(0)
         scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [name])))
-        if friction != "mujoco":
-            set_skin_friction(scene, None if friction == "skin" else float(friction))
-        assumed = None if friction in ("mujoco", "skin") else float(friction)
-        expert = GraspExpert(get_object(name), params, friction=assumed)
+        expert = GraspExpert(get_object(name), params, friction=_set_friction(scene, friction))
         held = []
 
         def stop(step: int, expert: GraspExpert, held=held) -> None:
