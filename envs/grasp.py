@@ -69,15 +69,18 @@ class GraspEnv(HandSimEnv):
     - ``reward_success = 10`` at the step the lift-and-hold succeeds.
 
     Sparse: ``reward_success = 1`` at that step, else 0. ``info`` also has ``is_success``,
-    ``lift_m``, ``slip_m``, ``hold_s``, ``n_contact_parts`` and ``target_instance``.
+    ``lift_m``, ``slip_m`` and ``turn_rad`` (the object's largest displacement and rotation in
+    the palm frame during the hold window, :class:`~handsim.envs.grasping.LiftTracker`),
+    ``hold_s``, ``n_contact_parts`` and ``target_instance``.
 
     ## Starting State
     :func:`handsim.envs.grasping.start_pose`: open hand, palm down, 0.22 m from the object
     toward the user, jittered by 2 cm and 5 deg; the physics then settles for 0.1 s.
 
     ## Episode End
-    Terminated when the lift succeeds (risen >= 0.10 m, then held 2 s with < 1 cm slip in the
-    palm frame; :class:`~handsim.envs.grasping.LiftTracker`) or when the target falls off the
+    Terminated when the lift succeeds (risen >= 0.10 m, then held 2 s with < 1 cm slip and
+    < 10 deg turn in the palm frame, both from the hold window's first step;
+    :class:`~handsim.envs.grasping.LiftTracker`) or when the target falls off the
     table (its origin below z = -0.05 m). Truncated after ``max_episode_steps`` (400 = 8 s) or
     on physics divergence (``info["physics_diverged"]``).
 
@@ -97,7 +100,11 @@ class GraspEnv(HandSimEnv):
       declared only with a display; in the state modes there are no labels unless
       ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
       reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
-      ``info["frame"]``; the Frame is ``env.unwrapped.frame``.
+      ``info["frame"]``; the Frame is ``env.unwrapped.frame``. Success test: the hold also
+      fails when the object turns 10 deg or more in the palm frame (``info["turn_rad"]``), and
+      slip and turn are measured over the whole window from its first step; a window that
+      slipped or turned is not restarted while the object stays lifted (before, a new window
+      with a new reference opened at the slipping step).
     """
 
     max_objects = 1
@@ -185,6 +192,7 @@ class GraspEnv(HandSimEnv):
                 self._object_pose(self.target_instance)[2, 3] - self.tracker.rest_height_m
             ),
             "slip_m": outcome.slip_m,
+            "turn_rad": outcome.turn_rad,
             "hold_s": outcome.hold_s,
             "n_contact_parts": self._contact_parts(),
             "target_instance": self.target_instance,
@@ -303,7 +311,8 @@ class GraspClutterEnv(GraspEnv):
       declared only with a display; in the state modes there are no labels unless
       ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
       reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
-      ``info["frame"]``; the Frame is ``env.unwrapped.frame``.
+      ``info["frame"]``; the Frame is ``env.unwrapped.frame``. Success test: as
+      :class:`GraspEnv` (slip and turn over the whole hold window).
     """
 
     max_objects = 6

@@ -23,12 +23,15 @@ Grasps are physical: contact and friction only. No equality constraint, adhesion
 the object's mass, gravity or friction is used.
 
 Success (:class:`LiftTracker`): the object origin rises at least :data:`LIFT_HEIGHT_M` = 0.10 m
-above its rest height, and then stays lifted for :data:`HOLD_DURATION_S` = 2 s while it moves
-less than :data:`MAX_SLIP_M` = 0.01 m in the palm frame (slip: displacement of the object origin
-expressed in the frame of the palm body, relative to where it was at the start of the hold
-window). The hold window opens at the first control step at which the object is lifted; if the
-object drops below the lift height or slips by ``MAX_SLIP_M`` or more, the window restarts at
-that step (a later 2 s window may still succeed).
+above its rest height, and then stays lifted for :data:`HOLD_DURATION_S` = 2 s while, in the
+palm frame, it moves less than :data:`MAX_SLIP_M` = 0.01 m (slip: displacement of the object
+origin expressed in the frame of the palm body) and turns less than :data:`MAX_TURN_RAD` = 10 deg
+(turn: angle of the rotation of the object's frame expressed in the palm's frame). Both are
+measured over the whole hold window against the object's pose in the palm frame at the
+window's first step, the first control step at which the object is lifted. A window that
+reaches either limit ends the hold ("slipped" or "turned"); a new window opens only after the
+object has been below the lift height again. If the object drops below the lift height the
+window ends too, and a later lift opens a new one.
 
 How the expert grasps (:data:`OBJECT_SHAPE_CLASSES`, :data:`GRASP_RECIPES`): the object's shape
 class selects a strategy and a grasp type of the GRASP taxonomy
@@ -110,6 +113,7 @@ from handsim.envs.grasping.planning import (
     HOLD_DURATION_S,
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
+    MAX_TURN_RAD,
     MAX_WRIST_SPEED_M_S,
     OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
@@ -134,6 +138,7 @@ __all__ = [
     "LIFT_HEIGHT_M",
     "HOLD_DURATION_S",
     "MAX_SLIP_M",
+    "MAX_TURN_RAD",
     "MAX_WRIST_SPEED_M_S",
     "EXPERT_WRIST_SPEED_M_S",
     "InvalidGraspState",

@@ -38,6 +38,7 @@ __all__ = [
     "LIFT_HEIGHT_M",
     "HOLD_DURATION_S",
     "MAX_SLIP_M",
+    "MAX_TURN_RAD",
     "MAX_WRIST_SPEED_M_S",
     "EXPERT_WRIST_SPEED_M_S",
     "InvalidGraspState",
@@ -68,6 +69,8 @@ HOLD_DURATION_S = 2.0
 """How long a lifted object must be held, seconds."""
 MAX_SLIP_M = 0.01
 """Largest displacement of the object origin in the palm frame during the hold, metres."""
+MAX_TURN_RAD = math.radians(10.0)
+"""Largest rotation of the object in the palm frame during the hold, radians (10 deg)."""
 MAX_WRIST_SPEED_M_S = 0.5
 """Largest wrist target speed the expert may command, m/s (the wrist follows a stiff weld)."""
 EXPERT_WRIST_SPEED_M_S = 0.3

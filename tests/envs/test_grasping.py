@@ -18,6 +18,7 @@ from handsim.envs.grasping import (
     HOLD_DURATION_S,
     LIFT_HEIGHT_M,
     MAX_SLIP_M,
+    MAX_TURN_RAD,
     MAX_WRIST_SPEED_M_S,
     OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
@@ -37,6 +38,7 @@ from handsim.envs.grasping import (
     start_pose,
     touch_forces,
 )
+from handsim.envs.grasping.execution import _rotation_angle_rad
 from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry, _nominal_stiffness
 from handsim.envs.physics import (
     OBJECT_MATERIALS,
@@ -61,15 +63,15 @@ def _scene(name: str, seed: int = 0) -> tuple[Scene, np.random.Generator]:
 
 
 def _trajectory(lift_m: np.ndarray, slip_m: np.ndarray | None = None):
-    """Times, object positions and palm poses: the palm rises with the object (+ slip in x)."""
+    """Times, object poses and palm poses: the palm rises with the object (+ slip in x)."""
     n = len(lift_m)
     times = CONTROL_DT_S * np.arange(1, n + 1)
-    obj = np.zeros((n, 3))
-    obj[:, 2] = REST_HEIGHT_M + lift_m
+    obj = np.tile(np.eye(4), (n, 1, 1))
+    obj[:, 2, 3] = REST_HEIGHT_M + lift_m
     palm = np.tile(np.eye(4), (n, 1, 1))
-    palm[:, 2, 3] = obj[:, 2] + 0.08
+    palm[:, 2, 3] = obj[:, 2, 3] + 0.08
     if slip_m is not None:
-        obj[:, 0] += slip_m
+        obj[:, 0, 3] += slip_m
     return times, obj, palm
 
 
@@ -150,7 +152,7 @@ def test_slip_is_measured_in_the_palm_frame():
     lift = _lift_then_hold(0.15, 2.5)
     times, obj, palm = _trajectory(lift)
     sideways = np.linspace(0.0, 0.2, len(lift))
-    obj[:, 0] += sideways
+    obj[:, 0, 3] += sideways
     palm[:, 0, 3] += sideways
     assert evaluate_lift(times, obj, palm, REST_HEIGHT_M).success
     # The palm (8 cm above the object) turns by 15 deg about x while the object stays put:
@@ -162,6 +164,92 @@ def test_slip_is_measured_in_the_palm_frame():
     assert not outcome.success and outcome.failure == "slipped"
 
 
+def _turn_about_z(angle_rad: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) rotations about z by ``angle_rad``."""
+    return Rotation.from_rotvec(np.outer(angle_rad, [0.0, 0.0, 1.0])).as_matrix()
+
+
+def test_rotation_angle_is_exact_at_every_angle():
+    """The turn measure: the angle of R(axis, a) is a, down to 1e-9 rad and up to pi."""
+    rng = np.random.default_rng(0)
+    for angle in (0.0, 1e-9, 1e-5, 0.1, np.deg2rad(10.0), 2.0, np.pi - 1e-6, np.pi):
+        axis = rng.normal(size=3)
+        R = Rotation.from_rotvec(angle * axis / np.linalg.norm(axis)).as_matrix()
+        assert _rotation_angle_rad(R) == pytest.approx(angle, rel=1e-9, abs=1e-12)
+    # The inverse turns by the same angle.
+    R = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix()
+    assert _rotation_angle_rad(R.T) == pytest.approx(_rotation_angle_rad(R), abs=1e-15)
+
+
+@pytest.mark.parametrize(("turn_deg", "success"), [(8.0, True), (12.0, False)])
+def test_turn_in_the_palm_frame_is_limited_to_ten_degrees(turn_deg, success):
+    """The object turns about its own origin (no slip) by 8 deg (held) or 12 deg (turned)."""
+    lift = _lift_then_hold(0.15, 2.5)
+    times, obj, palm = _trajectory(lift)
+    obj[:, :3, :3] = _turn_about_z(np.deg2rad(turn_deg) * _hold_slip(lift, 1.0))
+    outcome = evaluate_lift(times, obj, palm, REST_HEIGHT_M)
+    assert outcome.success is success
+    assert outcome.slip_m == pytest.approx(0.0, abs=1e-12)
+    if success:
+        assert outcome.turn_rad == pytest.approx(np.deg2rad(turn_deg))
+    else:
+        assert outcome.failure == "turned"
+        # The window ends at the first step at or past 10 deg (0.06 deg per step).
+        assert MAX_TURN_RAD <= outcome.turn_rad < MAX_TURN_RAD + np.deg2rad(0.1)
+        assert MAX_TURN_RAD == pytest.approx(np.deg2rad(10.0))
+
+
+def test_turn_is_measured_in_the_palm_frame():
+    """Hand and object turning together by 90 deg about the vertical is no turn and no slip."""
+    lift = _lift_then_hold(0.15, 2.5)
+    times, obj, palm = _trajectory(lift)
+    R = _turn_about_z(np.deg2rad(90.0) * _hold_slip(lift, 1.0))
+    # The palm holds the object 8 cm below and 3 cm beside its origin, rigidly.
+    offset_palm = np.array([0.03, 0.0, -0.08])
+    obj[:, :3, :3] = R
+    palm[:, :3, :3] = R
+    palm[:, :3, 3] = obj[:, :3, 3] - np.einsum("tij,j->ti", R, offset_palm)
+    outcome = evaluate_lift(times, obj, palm, REST_HEIGHT_M)
+    assert outcome.success
+    assert outcome.slip_m == pytest.approx(0.0, abs=1e-12)
+    assert outcome.turn_rad == pytest.approx(0.0, abs=1e-7)
+
+
+def test_slip_is_measured_from_the_first_step_of_the_window():
+    """An object still sliding when the window opens fails, even if it is still afterwards.
+
+    It slides 1.5 mm per step for 8 steps after the lift (12 mm), then stays still for 2.5 s.
+    A reference taken at a later, still-sliding step (the window restarted at the slip) would
+    see under 10 mm and pass.
+    """
+    lift = _lift_then_hold(0.15, 2.7)
+    start = int(np.argmax(lift >= LIFT_HEIGHT_M))
+    slide = np.zeros(len(lift))
+    slide[start : start + 9] = 0.0015 * np.arange(9)
+    slide[start + 9 :] = 0.012
+    outcome = evaluate_lift(*_trajectory(lift, slide), REST_HEIGHT_M)
+    assert not outcome.success and outcome.failure == "slipped"
+    assert outcome.slip_m == pytest.approx(0.0105)  # the first step at or past 10 mm
+    # Measured from the third step of the slide, it would be 9 mm and pass.
+    late = np.where(slide > 0.003, slide - 0.003, 0.0)
+    assert evaluate_lift(*_trajectory(lift, late), REST_HEIGHT_M).success
+
+
+def test_a_new_window_opens_only_after_the_object_is_lowered():
+    """After a slip, holding on does not restart the window; lowered and lifted again does."""
+    lift = _lift_then_hold(0.15, 2.5)
+    slip = _hold_slip(lift, 0.02)
+    held_on = np.concatenate([lift, np.full(150, 0.15)])
+    outcome = evaluate_lift(
+        *_trajectory(held_on, np.concatenate([slip, np.full(150, 0.02)])), REST_HEIGHT_M
+    )
+    assert not outcome.success and outcome.failure == "slipped"
+    lowered = np.concatenate([lift, np.linspace(0.15, 0.05, 5), _lift_then_hold(0.15, 2.5)])
+    slip_again = np.concatenate([slip, np.full(len(lowered) - len(slip), 0.02)])
+    outcome = evaluate_lift(*_trajectory(lowered, slip_again), REST_HEIGHT_M)
+    assert outcome.success and outcome.slip_m == pytest.approx(0.0)
+
+
 def test_tracker_success_is_sticky_and_rejects_bad_input():
     """Success stays true; non-increasing time and malformed poses raise."""
     tracker = LiftTracker(REST_HEIGHT_M)
@@ -169,11 +257,15 @@ def test_tracker_success_is_sticky_and_rejects_bad_input():
     for t, p, T in zip(times, obj, palm, strict=True):
         tracker.update(t, p, T)
     assert tracker.success
-    assert tracker.update(times[-1] + 1.0, [0.0, 0.0, 0.0], np.eye(4))
+    assert tracker.update(times[-1] + 1.0, np.eye(4), np.eye(4))
     with pytest.raises(InvalidGraspState, match="time_s must increase"):
         tracker.update(times[-1], obj[-1], palm[-1])
     with pytest.raises(InvalidGraspState, match="T_world_from_palm must be a finite"):
-        LiftTracker(0.0).update(0.02, [0.0, 0.0, 0.0], np.eye(3))
+        LiftTracker(0.0).update(0.02, np.eye(4), np.eye(3))
+    with pytest.raises(InvalidGraspState, match="T_world_from_obj must be a finite"):
+        LiftTracker(0.0).update(0.02, [0.0, 0.0, 0.0], np.eye(4))
+    with pytest.raises(InvalidGraspState, match=r"max_turn_rad must be > 0; received .*, 0.0"):
+        LiftTracker(0.0, max_turn_rad=0.0)
     with pytest.raises(InvalidGraspState, match=r"expected times_s \(T,\)"):
         evaluate_lift(times, obj[:-1], palm, REST_HEIGHT_M)
 
