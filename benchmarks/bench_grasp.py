@@ -4,7 +4,8 @@ For each object and seed: the object is placed by ``handsim.world.scene.sample_p
 position from the seed), a scene with the table, a medium right hand and that object is built,
 and :func:`handsim.envs.grasping.run_episode` runs the expert from a seeded start pose. Success
 is the definition of :mod:`handsim.envs.grasping`: lifted 0.10 m, then held 2 s with less than
-1 cm of slip in the palm frame.
+1 cm of slip and 10 deg of turn in the palm frame (both over the whole hold window, from its
+first step).
 
 With ``--env``, each episode is instead a full ``handsim/Grasp-v0`` episode (``reset(seed)``,
 the env's own placement and start pose, depth rendered every step, the expert from
@@ -14,7 +15,9 @@ Run: ``python benchmarks/bench_grasp.py [--env] [--objects NAME ...] [--seeds N]
 [--first-seed S] [--hand-size small|medium|large|LENGTH_M] [--side right|left] [--sizes all]
 [--friction skin|mujoco|MU] [--object-noise-mm SIGMA [--noise-kind axis|3d]] [--no-replan]
 [--workers N] [--out|--json benchmarks/results/bench_grasp.json]``. Prints one row per object
-(grasp type, successes, mean lift and slip, failure reasons) and writes every episode to JSON.
+(grasp type, successes, mean lift, largest slip and turn, failure reasons) and writes every
+episode to JSON (``slip_m`` and ``turn_rad`` per episode: of the successful window, or the
+largest of any window on failure).
 
 Contact quality (``run_episode`` mode), per object over its episodes:
 
@@ -24,7 +27,7 @@ Contact quality (``run_episode`` mode), per object over its episodes:
   deepest hand-table penetration;
 - ``F/W``: the median over the hold of the total hand-object normal force over the object's
   weight (the median over episodes; ``F/W max`` the largest episode median);
-- ``slip mm``: the largest slip in the palm frame of a successful hold.
+- ``slip mm`` / ``turn deg``: the largest slip / turn in the palm frame of a successful hold.
 
 ``--workers N`` runs the episodes in N processes; every episode depends only on its object,
 seed and options, so the records (and tables) are those of a serial run. The JSON's
@@ -107,6 +110,7 @@ def _env_episode(
             "failure": failure,
             "max_lift_m": max_lift,
             "slip_m": info.get("slip_m"),
+            "turn_rad": info.get("turn_rad"),
             "steps": env.unwrapped.elapsed_steps,
         }
     finally:
@@ -303,6 +307,7 @@ def _object_row(name: str, episodes: list[dict]) -> dict:
     ok = [e for e in episodes if e["success"]]
     lifts = [e["max_lift_m"] for e in episodes if "max_lift_m" in e]
     slips = [e["slip_m"] for e in ok]
+    turns = [e["turn_rad"] for e in ok if e.get("turn_rad") is not None]
     failures = collections.Counter(e["failure"] for e in episodes if not e["success"])
 
     def pooled(key: str, fn) -> float | None:
@@ -324,6 +329,7 @@ def _object_row(name: str, episodes: list[dict]) -> dict:
         "max_table_depth_mm": pooled("max_table_depth_mm", np.max),
         "force_over_weight": pooled("hold_force_over_weight", np.median),
         "max_slip_m": max(slips) if slips else None,
+        "max_turn_rad": max(turns) if turns else None,
         "wall_s": float(sum(e.get("wall_s", 0.0) for e in episodes)),
         "runs": episodes,
     }
@@ -463,8 +469,8 @@ def run_table(
     """
     header = (
         f"{'object':<24} {'class':<10} {'grasp type':<20} {'ok':>7} {'lift mm':>8} "
-        f"{'slip mm':>8} {'hold p95':>8} {'hold max':>8} {'all mm':>7} {'table':>6} "
-        f"{'F/W':>6}  failures"
+        f"{'slip mm':>8} {'turn deg':>8} {'hold p95':>8} {'hold max':>8} {'all mm':>7} "
+        f"{'table':>6} {'F/W':>6}  failures"
     )
     print(f"hand {hand_size} {side}")
     print(header)
@@ -484,6 +490,7 @@ def run_table(
             f"{name:<24} {row['shape_class']:<10} {row['grasp_type']:<20} "
             f"{row['successes']:>3}/{row['episodes']:<3} {1000 * row['mean_lift_m']:>8.0f} "
             f"{_fmt(row['max_slip_m'], 1000):>8} "
+            f"{_fmt(row['max_turn_rad'], 180 / np.pi):>8} "
             f"{_fmt(row.get('hold_depth_p95_mm'), 1, 2):>8} "
             f"{_fmt(row.get('hold_depth_max_mm'), 1, 2):>8} "
             f"{_fmt(row.get('max_depth_mm'), 1, 2):>7} "

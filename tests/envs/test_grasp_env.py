@@ -28,6 +28,7 @@ def test_grasp_expert_lifts_and_the_episode_terminates_with_success():
             break
     assert terminated and info["is_success"] and success_rewards == 10.0
     assert info["lift_m"] >= 0.10 and info["slip_m"] < 0.01 and info["hold_s"] >= 2.0 - 1e-9
+    assert 0.0 <= info["turn_rad"] < np.deg2rad(10.0)
     assert info["n_contact_parts"] >= 3
     env.close()
 
