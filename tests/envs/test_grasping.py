@@ -250,6 +250,47 @@ def test_a_new_window_opens_only_after_the_object_is_lowered():
     assert outcome.success and outcome.slip_m == pytest.approx(0.0)
 
 
+def test_an_episode_whose_object_turns_in_the_hand_fails():
+    """The banana turns out of its tripod pinch in the hold and hangs on, turned: a failure.
+
+    Medium right hand, seed 0, skin friction: half a second into the hold the banana turns
+    about the pinch by about 45 deg within 0.3 s, its origin moving under 2 cm, and is then
+    held still, lifted, to the end. The live tracker and :func:`evaluate_lift` on the
+    recorded poses agree.
+    """
+    scene, rng = _scene("011_banana", seed=0)
+    set_skin_friction(scene)
+    obj = get_object("011_banana")
+    body = scene.model.body(scene.objects[0][0]).id
+    palm = scene.model.body(scene.hand.root_body).id
+    poses: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def pose(i: int) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = scene.data.xmat[i].reshape(3, 3)
+        T[:3, 3] = scene.data.xpos[i]
+        return T
+
+    def record(step: int, expert: GraspExpert) -> None:
+        poses.append((pose(body), pose(palm)))
+
+    scene.reset()
+    rest_height_m = float(scene.data.xpos[body][2])
+    outcome = run_episode(scene, 0, GraspExpert(obj, hand_params("medium")), rng, on_step=record)
+    assert not outcome.success and outcome.failure == "turned", outcome
+    assert MAX_TURN_RAD <= outcome.turn_rad < MAX_TURN_RAD + np.deg2rad(3.0)
+    assert outcome.slip_m < MAX_SLIP_M
+    T_obj, T_palm = (np.array(a) for a in zip(*poses, strict=True))
+    # Still lifted at the end, turned far past the limit in the palm frame.
+    assert T_obj[-1, 2, 3] - rest_height_m >= LIFT_HEIGHT_M
+    R_palm_from_obj = np.einsum("tji,tjk->tik", T_palm[:, :3, :3], T_obj[:, :3, :3])
+    first = int(np.argmax(T_obj[:, 2, 3] - rest_height_m >= LIFT_HEIGHT_M))  # the window's
+    end_turn_rad = _rotation_angle_rad(R_palm_from_obj[first].T @ R_palm_from_obj[-1])
+    assert end_turn_rad > np.deg2rad(30.0)
+    times = CONTROL_DT_S * np.arange(1, len(poses) + 1)
+    assert evaluate_lift(times, T_obj, T_palm, rest_height_m) == outcome
+
+
 def test_tracker_success_is_sticky_and_rejects_bad_input():
     """Success stays true; non-increasing time and malformed poses raise."""
     tracker = LiftTracker(REST_HEIGHT_M)
