@@ -101,7 +101,7 @@ five): a grip eased until the object starts to slip is held there, not eased fur
 stop relaxing their grip at the first slip; Johansson & Westling 1984). With a noisy
 estimator the threshold is at least four times the noise of that difference (from the spread
 of the estimates before the grasp), so noise is not read as slip. (Going back three easing
-steps as well was tried and not kept: docs/grasping.md.)"""
+steps as well was tried and not kept: see the commit history.)"""
 HOLD_TURN_RAD = float(np.deg2rad(3.0))
 """Or once it has turned this far in the palm frame (the perceived orientation against that at
 the hold's first step): a pinch eased too far lets its object turn about the pinch before it
