@@ -19,7 +19,8 @@ kinematic source. Frames with fewer than
 
 An episode ends at the env's termination or truncation (success, a fallen object, the time
 limit, diverged physics), or when ``frames_per_episode`` frames are kept; an episode whose
-expert finds no plan gives no frames.
+expert finds no plan raises :class:`~handsim.data.config.CannotDraw` (``"grasp"``): the shard
+counts it and draws the next episode. The visible-keypoint cap applies as for kinematic frames.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.data.arrays import frame_to_arrays
-from handsim.data.generation import MIN_KEYPOINTS_IN_FRAME, InvalidGenerationConfig
+from handsim.data.generation import MIN_KEYPOINTS_IN_FRAME, CannotDraw, InvalidGenerationConfig
 from handsim.envs.config import VIEWPOINTS
 from handsim.errors import HandSimError
 from handsim.world.camera import camera_preset
@@ -120,14 +121,19 @@ class RolloutSource:
         return gym.make(c.env_id, **kwargs)
 
     def episode(
-        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
         """Yield the arrays (images included) of up to ``frames`` accepted frames of one episode.
 
         Args:
             rng: the episode's generator (episode draws, env seed, sensor noise).
-            accept: called with the hand occlusion ratio; False skips the step's frame.
+            accept: called with the hand occlusion ratio and the number of visible keypoints;
+                False skips the step's frame.
             frames: most frames to yield.
+
+        Raises:
+            CannotDraw: ``"grasp"`` when the expert finds no grasp of the episode's object
+                (the shard redraws the episode).
         """
         c = self.config
         if self._env is None:
@@ -145,8 +151,8 @@ class RolloutSource:
         env.reset(seed=seed)
         try:
             expert = base.make_expert(np.random.default_rng(seed))
-        except HandSimError:
-            return  # e.g. no collision-free grasp of this object: an episode without frames
+        except HandSimError as err:  # e.g. no collision-free grasp of this object
+            raise CannotDraw("grasp", str(err)) from err
         renderer = base.frame_renderer
         occlusion = bool(base.scene.objects)
         kept, step = 0, 0
@@ -154,7 +160,8 @@ class RolloutSource:
             if step % c.frame_stride == 0:
                 frame = renderer.render(rng, keep_clean=c.paired_clean, hand_occlusion=occlusion)
                 ratio = frame.hand_occlusion_ratio or 0.0
-                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
+                visible = int(frame.visible.sum())
+                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio, visible):
                     arrays = frame_to_arrays(frame, images=True)
                     arrays["hand_occlusion_ratio"][()] = ratio
                     kept += 1

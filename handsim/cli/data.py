@@ -4,8 +4,8 @@
   [--seed S] --out DIR``: make (or resume) a dataset; the same command again resumes a killed
   run.
 - ``handsim dataset check DIR``: name every truncated, corrupt or missing shard (exit 1 if any).
-- ``handsim dataset info DIR [--plot]``: frames, shards, sizes, occlusion histogram; with
-  ``--plot`` a contact sheet of random frames and histogram PNGs.
+- ``handsim dataset info DIR [--plot]``: frames, shards, sizes, episodes redrawn by cause,
+  occlusion histogram; with ``--plot`` a contact sheet of random frames and histogram PNGs.
 - ``handsim export hand-labels|bop DIR OUT``: the formats other tools read.
 - ``handsim export minari ENV_ID OUT [--episodes N]``: expert rollouts of an env recorded with
   Minari (observations, actions, rewards, labels in ``infos``).
@@ -55,6 +55,7 @@ def _generate(args: argparse.Namespace) -> int:
                 "out": str(args.out),
                 "frames": manifest.frames,
                 "shards": len(manifest.shards),
+                "redraws": manifest.redraws,
                 "occlusion_histogram": hist,
             }
         )
@@ -86,6 +87,7 @@ def _info(args: argparse.Namespace) -> int:
         "config": manifest.config,
         "versions": manifest.versions,
         "git_commit": manifest.git_commit,
+        "redraws": manifest.redraws,
         "occlusion_histogram": manifest.occlusion_histogram,
     }
     if args.plot:

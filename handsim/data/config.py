@@ -11,6 +11,7 @@ import dataclasses
 import importlib
 import json
 import os
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
@@ -38,6 +39,8 @@ __all__ = [
     "make_source",
     "InvalidGenerationConfig",
     "GenerationError",
+    "CannotDraw",
+    "REDRAW_REASONS",
     "GenerationConfig",
 ]
 
@@ -70,6 +73,42 @@ class GenerationError(HandSimError, RuntimeError):
     """Generation cannot go on (e.g. an occlusion range no frame reaches)."""
 
 
+REDRAW_REASONS = ("placement", "grasp", "frame")
+"""Causes of a redrawn episode that the built-in sources give (:class:`CannotDraw`):
+``"placement"``: the episode's objects do not fit on the table; ``"grasp"``: no feasible grasp
+of the episode's object; ``"frame"``: :data:`MAX_TRIES_PER_FRAME` draws of pose, wrist and view
+gave no accepted frame (the episode's hand and objects cannot reach what is asked). A source
+may give others (lowercase identifiers)."""
+_REASON = re.compile(r"[a-z][a-z0-9_]{0,39}")
+
+
+class CannotDraw(HandSimError, RuntimeError):
+    """An episode's draws cannot be satisfied: the episode is redrawn, not the run failed.
+
+    A source's :meth:`FrameSource.episode` raises it (before or after yielding frames) when
+    what it drew from the episode's generator cannot give a frame: objects that do not fit on
+    the table, a grasp that cannot be made, views that are never accepted. The shard keeps the
+    frames already yielded, counts the redraw under ``reason`` (the manifest's ``redraws``)
+    and draws the next episode from the same generator, so the shard stays a function of
+    ``(seed, index)``. Only :data:`MAX_EMPTY_EPISODES` frameless episodes in a row stop the
+    run (a :class:`GenerationError`: the config cannot give a frame).
+
+    Args:
+        reason: the cause, a lowercase identifier (:data:`REDRAW_REASONS` for the built-in
+            sources).
+        message: what could not be drawn, for the error raised if nothing can be.
+    """
+
+    def __init__(self, reason: str, message: str) -> None:
+        if not isinstance(reason, str) or not _REASON.fullmatch(reason):
+            raise GenerationError(
+                "CannotDraw reason must be a lowercase identifier of at most 40 characters, "
+                f"e.g. one of {', '.join(REDRAW_REASONS)}; received {reason!r}"
+            )
+        super().__init__(message)
+        self.reason = reason
+
+
 SOURCES: dict[str, str] = {
     "kinematic": "handsim.data.kinematic:KinematicSource",
     "rollout": "handsim.envs.rollouts:RolloutSource",
@@ -82,7 +121,10 @@ Add one with :func:`register_source`."""
 class FrameSource(Protocol):
     """What :func:`generate_shard` needs of a frame source.
 
-    A source is made per shard from the config (``cls(config)``) and closed after it.
+    A source is made per shard from the config (``cls(config)``) and closed after it. Its
+    :meth:`episode` draws everything from the generator it is given; when those draws cannot
+    be satisfied it raises :class:`CannotDraw` and the shard draws the next episode from the
+    same generator (counted by reason in the manifest), so no draw ever fails a run.
     """
 
     intrinsics: CameraIntrinsics
@@ -92,9 +134,21 @@ class FrameSource(Protocol):
         """Raise :class:`InvalidGenerationConfig` for a field this source cannot honour."""
 
     def episode(
-        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
-        """Yield the arrays (images included) of up to ``frames`` accepted frames."""
+        """Yield the arrays (images included) of up to ``frames`` accepted frames.
+
+        Args:
+            rng: the episode's generator (every draw of the episode comes from it).
+            accept: called with a candidate frame's hand occlusion ratio and its number of
+                visible keypoints (``visible.sum()``); False refuses the frame (occlusion
+                control and the visible-keypoint cap). True counts the frame as kept: yield it.
+            frames: most frames to yield.
+
+        Raises:
+            CannotDraw: when the episode's draws cannot give (more) frames; frames already
+                yielded are kept.
+        """
 
     def close(self) -> None:
         """Free what the source holds (renderers, envs)."""
@@ -159,6 +213,16 @@ def _int(name: str, value: object, lo: int, hi: int) -> int:
     return int(value)
 
 
+def _fraction(name: str, value: object) -> float:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not 0.0 <= value <= 1.0
+    ):
+        raise InvalidGenerationConfig(f"{name} must be a number in [0, 1]; received {value!r}")
+    return float(value)
+
+
 def _choice(name: str, value: object, valid: Sequence[str]) -> str:
     if value not in valid:
         raise InvalidGenerationConfig(
@@ -191,6 +255,10 @@ class GenerationConfig:
         occlusion_range: keep frames whose hand occlusion ratio lies in this range.
         occlusion_buckets: ``(edges, fractions)``: bucket edges of the occlusion ratio and the
             fraction of every shard each bucket must fill (``None``: no stratification).
+        min_visible_keypoints: a frame with fewer visible keypoints (of 21, ``visible`` of the
+            clean render) is *below the minimum*; see the next field.
+        max_fraction_below_min_visible: most frames of every shard below the minimum
+            (``floor(fraction * shard frames)``); others are redrawn. 1 keeps every frame.
         depth_scale_mm: stored depth unit, millimetres.
         source: where frames come from (:data:`SOURCES`): ``"kinematic"`` (posed hands, no
             physics) or ``"rollout"`` (an env driven by its expert, with physical contact).
@@ -215,6 +283,8 @@ class GenerationConfig:
     pose_sources: tuple[str, ...] = POSE_SOURCES
     occlusion_range: tuple[float, float] = (0.0, 1.0)
     occlusion_buckets: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    min_visible_keypoints: int = 1
+    max_fraction_below_min_visible: float = 1.0
     depth_scale_mm: float = DEFAULT_DEPTH_SCALE_MM
     source: str = "kinematic"
     env_id: str | None = None
@@ -278,6 +348,8 @@ class GenerationConfig:
                 raise InvalidGenerationConfig(
                     f"occlusion_buckets fractions must be >= 0 and sum to 1; received {fractions}"
                 )
+        _int("min_visible_keypoints", self.min_visible_keypoints, 0, 21)
+        _fraction("max_fraction_below_min_visible", self.max_fraction_below_min_visible)
         if self.source != "kinematic":
             # The source checks its own fields (e.g. the env id and the viewpoints it has).
             _source_class(self.source).check_config(self)
@@ -389,6 +461,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "viewpoints": ("through_object",),
         "distance_range_m": (0.4, 0.7),
         "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
+        "min_visible_keypoints": 1,
+        "max_fraction_below_min_visible": 0.05,
     },
     "grasp-rollouts": {
         "source": "rollout",
@@ -400,6 +474,6 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 """Named configs: hand alone, hand among objects, objects between camera and hand with the
-occlusion ratio stratified in four buckets from 0.1 to 0.95 (kinematic), and Grasp-v0 rollouts
-of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical
-contact)."""
+occlusion ratio stratified in four buckets from 0.1 to 0.95 and at most 5 % of frames without a
+visible keypoint (kinematic), and Grasp-v0 rollouts of the grasp expert, every fifth step
+(10 Hz) of the approach, grasp and lift (physical contact)."""

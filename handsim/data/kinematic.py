@@ -3,7 +3,9 @@
 Every episode draws a hand (size, side), objects on the table and a pose source, and every
 frame of the episode a pose, a wrist placement near an object and a camera viewpoint around the
 hand. Frames where the hand enters an object or the table by more than
-:data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn.
+:data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn. An episode whose objects do not fit
+on the table, or whose hand and objects give no accepted frame, raises
+:class:`~handsim.data.config.CannotDraw` (the shard redraws the episode).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from handsim.data.config import (
     MAX_PENETRATION_M,
     MAX_TRIES_PER_FRAME,
     MIN_KEYPOINTS_IN_FRAME,
+    CannotDraw,
     GenerationConfig,
 )
 from handsim.frame import FrameRenderer
@@ -35,7 +38,7 @@ from handsim.hand.pose_sources import (
 )
 from handsim.world.camera import camera_preset, look_at_quat_wxyz
 from handsim.world.render import shared_render_context
-from handsim.world.scene import CameraSpec, Scene, SceneSpec, sample_placements
+from handsim.world.scene import CameraSpec, InvalidScene, Scene, SceneSpec, sample_placements
 from handsim.world.sensors import sensor_model
 
 __all__ = ["KinematicSource", "KEPT_SCENES"]
@@ -92,7 +95,10 @@ class KinematicSource:
         side = "left" if rng.random() < c.left_fraction else "right"
         n = int(rng.integers(c.num_objects_range[0], c.num_objects_range[1] + 1))
         names = [c.objects[i] for i in rng.choice(len(c.objects), size=n)] if n else []
-        placements = sample_placements(rng, names) if names else ()
+        try:
+            placements = sample_placements(rng, names) if names else ()
+        except InvalidScene as err:  # the names are valid (the config): they do not fit
+            raise CannotDraw("placement", str(err)) from err
         key = (side, placements)
         kept = self._scenes.pop(key, None)
         if kept is None:
@@ -240,17 +246,20 @@ class KinematicSource:
         return deepest
 
     def episode(
-        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
         """Yield the arrays (images included) of ``frames`` accepted frames of one episode.
 
         Args:
             rng: the episode's generator.
-            accept: called with the hand occlusion ratio; False redraws the frame.
+            accept: called with the hand occlusion ratio and the number of visible keypoints;
+                False redraws the frame.
             frames: frames to yield.
 
-        Stops early when :data:`MAX_TRIES_PER_FRAME` draws give no accepted frame (the
-        episode's hand and objects may not reach the occlusion asked for).
+        Raises:
+            CannotDraw: ``"placement"`` when the episode's objects do not fit on the table;
+                ``"frame"`` when :data:`MAX_TRIES_PER_FRAME` draws give no accepted frame (the
+                episode's hand and objects may not reach the occlusion asked for).
         """
         scene, renderer = self._scene(rng)
         source = str(rng.choice(self.config.pose_sources))
@@ -286,7 +295,8 @@ class KinematicSource:
                     rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
                 )
                 ratio = frame.hand_occlusion_ratio or 0.0
-                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
+                visible = int(frame.visible.sum())
+                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio, visible):
                     arrays = frame_to_arrays(frame)
                     arrays["hand_occlusion_ratio"][()] = ratio
                     # The frame's own images, not copies: the writer only reads them, and
@@ -297,4 +307,8 @@ class KinematicSource:
                     yield arrays
                     break
             else:
-                return  # this scene cannot give an accepted frame: a new episode may
+                # This scene cannot give an accepted frame: a new episode may.
+                raise CannotDraw(
+                    "frame",
+                    f"{MAX_TRIES_PER_FRAME} draws of pose, wrist and view gave no accepted frame",
+                )

@@ -107,12 +107,16 @@ class ShardInfo:
         frames: number of frames.
         sha256: hex SHA-256 of the file.
         bytes: file size, bytes.
+        redraws: episodes redrawn while making the shard, by cause (see
+            :class:`~handsim.data.config.CannotDraw`); empty when none were (or for a
+            dataset made before they were counted).
     """
 
     name: str
     frames: int
     sha256: str
     bytes: int
+    redraws: dict[str, int] = dataclasses.field(default_factory=dict)
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:

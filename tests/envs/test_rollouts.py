@@ -6,6 +6,7 @@ import pytest
 from handsim.data.generation import (
     PRESETS,
     SOURCES,
+    CannotDraw,
     GenerationConfig,
     InvalidGenerationConfig,
     generate,
@@ -83,13 +84,31 @@ def test_rollout_shards_are_seeded_labelled_and_resumable(tmp_path):
     assert file_sha256(lost) == manifest.shards[1].sha256
 
 
+def test_an_episode_without_a_grasp_is_redrawn_not_empty(monkeypatch):
+    """An expert that finds no grasp raises CannotDraw('grasp'): the shard redraws the episode."""
+    from handsim.envs.experts import ExpertError
+    from handsim.envs.grasp import GraspEnv
+
+    def no_grasp(self, rng=None, state=None):
+        raise ExpertError("no collision-free grasp of 005_tomato_soup_can (test)")
+
+    monkeypatch.setattr(GraspEnv, "make_expert", no_grasp)
+    source = make_source(GenerationConfig.from_mapping(TINY))
+    try:
+        with pytest.raises(CannotDraw, match="no collision-free grasp") as err:
+            next(source.episode(np.random.default_rng(0), lambda ratio, visible: True, 2))
+        assert err.value.reason == "grasp"
+    finally:
+        source.close()
+
+
 def test_hand_pose_rollouts_and_clutter_configs():
     """HandPose-v0 rollouts give hand-only frames; GraspClutter takes an object range."""
     config = GenerationConfig.from_mapping(
         {**TINY, "env_id": "handsim/HandPose-v0", "num_objects_range": (0, 0)}
     )
     source = make_source(config)
-    frames = list(source.episode(np.random.default_rng(0), lambda r: True, 2))
+    frames = list(source.episode(np.random.default_rng(0), lambda ratio, visible: True, 2))
     source.close()
     assert len(frames) == 2
     assert not frames[0]["object_valid"].any() and frames[0]["hand_occlusion_ratio"] == 0.0
