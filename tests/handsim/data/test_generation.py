@@ -171,8 +171,11 @@ def test_occlusion_control_keeps_the_range_and_fills_buckets(tmp_path):
 
 def test_an_unreachable_occlusion_range_fails_clearly(tmp_path, monkeypatch):
     """A marker cannot hide 97 % of a hand: the error says what to change, nothing is left."""
+    # The source draws (kinematic) and the error message (generation) read the limit.
     from handsim.data import generation as generate_module
+    from handsim.data import kinematic
 
+    monkeypatch.setattr(kinematic, "MAX_TRIES_PER_FRAME", 3)
     monkeypatch.setattr(generate_module, "MAX_TRIES_PER_FRAME", 3)
     config = GenerationConfig.from_mapping(
         TINY, frames=1, objects=("040_large_marker",), occlusion_range=(0.97, 1.0)
