@@ -192,7 +192,7 @@ class GenerationConfig:
         camera: camera preset (intrinsics), e.g. ``"icvl"`` (320 x 240).
         viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`); ``random`` gives
             a hand alone a uniform rotation (robustness studies).
-        distance_range_m: camera distance from the hand, metres (random and through-object);
+        distance_range_m: camera distance from the hand, metres;
             the camera moves back along its line of sight when the hand or an object would be
             nearer than the camera's or the sensor's working range (a hole in the depth).
         sensor: depth sensor model (:data:`SENSORS`).

@@ -1,8 +1,9 @@
 """The kinematic frame source: a posed hand among objects, without physics.
 
 Every episode draws a hand (size, side), objects on the table and a pose source, and every
-frame of the episode a pose, a wrist placement near an object and a camera viewpoint around the
-hand. Frames where the hand enters an object or the table by more than
+frame of the episode a pose, a viewpoint, a wrist placement near an object and a camera around
+the hand; a hand alone is turned toward the camera as the viewpoint draws it
+(:mod:`handsim.data.views`). Frames where the hand enters an object or the table by more than
 :data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn.
 """
 
