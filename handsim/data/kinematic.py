@@ -79,10 +79,13 @@ _R_WORLD_FROM_ALONE_CAM = _world_from_opencv_camera(_ALONE_CAM_QUAT_WXYZ)
 
 def _distal_axis(rotvec: np.ndarray) -> np.ndarray:
     """The hand's +y (toward the fingers) in the world, for a wrist rotation vector."""
-    quat, axis = np.empty(4), np.empty(3)
-    mujoco.mju_axisAngle2Quat(quat, rotvec, 1.0)
-    mujoco.mju_rotVecQuat(axis, np.array([0.0, 1.0, 0.0]), quat)
-    return axis
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-12:
+        return np.array([0.0, 1.0, 0.0])
+    quat, distal = np.empty(4), np.empty(3)
+    mujoco.mju_axisAngle2Quat(quat, rotvec / angle, angle)
+    mujoco.mju_rotVecQuat(distal, np.array([0.0, 1.0, 0.0]), quat)
+    return distal
 
 
 class KinematicSource:

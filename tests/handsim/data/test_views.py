@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from handsim.data import views
 from handsim.data.config import PRESETS, GenerationConfig, InvalidGenerationConfig
@@ -149,3 +150,23 @@ def test_the_same_seed_gives_the_same_frames():
         assert a.keys() == b.keys()
         for key in a:
             np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+def test_among_objects_the_head_camera_stands_behind_the_wrist_and_above():
+    """Egocentric among objects: the eye is back along the forearm (within 30 deg) and above."""
+    source = KinematicSource(GenerationConfig(sensor="none"))
+    rng = np.random.default_rng(0)
+    target = np.array([0.1, 0.0, 0.1])
+    try:
+        for _ in range(50):
+            rotvec = rng.normal(size=3)
+            R = Rotation.from_rotvec(rotvec).as_matrix()  # noqa: N806
+            eye, _ = source._camera(rng, "egocentric", target, None, rotvec)
+            offset = eye - target
+            back = -R[:2, 1] / np.linalg.norm(R[:2, 1])
+            horizontal = offset[:2] / np.linalg.norm(offset[:2])
+            assert np.degrees(np.arccos(np.clip(horizontal @ back, -1, 1))) <= 30.0 + 1e-9
+            elevation = np.degrees(np.arctan2(offset[2], np.linalg.norm(offset[:2])))
+            assert 40.0 - 1e-9 <= elevation <= 70.0 + 1e-9
+    finally:
+        source.close()
