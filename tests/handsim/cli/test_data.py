@@ -124,3 +124,7 @@ def test_info_reports_the_hands_and_views_subprocess(tmp_path):
     assert dist["palm_angle"]["facing_angle_max_deg"] < 62.0
     assert dist["contact_rate"] == 0.0 and dist["occlusion"]["counts"][0] == 8
     assert 0.0 < dist["constant_pose_error_mm"] < dist["mean_joint_distance_mm"]
+    # One view: its own mean pose is the dataset's.
+    assert dist["constant_pose_error_mm_by_viewpoint"] == {
+        "third_person": dist["constant_pose_error_mm"]
+    }
