@@ -7,6 +7,8 @@ module                   holds
 :mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
 :mod:`.generation`       :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
+:mod:`.views`            how a hand alone is turned toward the camera, per viewpoint
+:mod:`.stats`            palm angles, pose/view mixes, the constant-mean-pose error of a dataset
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 :mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================

@@ -43,6 +43,17 @@ key                          shape       dtype    unit    meaning
 ``N`` = :data:`MAX_OBJECTS`, ``C`` = :data:`MAX_CONTACTS`. Object slot ``k`` is object instance
 ``k`` (segmentation label ``8 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
 (0 = no measurement), ``segmentation`` (H, W) int16 and, when the frame has it, ``depth_clean``.
+
+Dataset shards add how each frame was drawn (:data:`DRAW_LABEL_SCHEMA`; not in env ``info``,
+which has no such draw). A source that does not set them (rollouts), and shards written before
+they existed, read -1:
+
+===========================  ==========  =======  ======  ======================================
+key                          shape       dtype    unit    meaning
+===========================  ==========  =======  ======  ======================================
+``pose_source``              ()          int8             index in :data:`POSE_SOURCE_CODES`
+``viewpoint``                ()          int8             index in :data:`VIEWPOINT_CODES`
+===========================  ==========  =======  ======  ======================================
 """
 
 from __future__ import annotations
@@ -62,6 +73,9 @@ __all__ = [
     "MAX_OBJECTS",
     "MAX_CONTACTS",
     "LABEL_SCHEMA",
+    "POSE_SOURCE_CODES",
+    "VIEWPOINT_CODES",
+    "DRAW_LABEL_SCHEMA",
     "InvalidLabelArrays",
     "frame_to_arrays",
     "arrays_to_frame",
@@ -103,6 +117,17 @@ LABEL_SCHEMA: dict[str, tuple[tuple[int, ...], np.dtype, str]] = {
     "contact_normal_force_n": ((_C,), np.dtype(np.float64), "N"),
 }
 """Label key -> (shape, dtype, unit) of the array form (table in the module docstring)."""
+
+
+POSE_SOURCE_CODES = ("gesture", "grasp", "synergy", "uniform", "motion")
+"""Pose source names by their code in the ``pose_source`` label (codes never change)."""
+VIEWPOINT_CODES = ("third_person", "egocentric", "random", "through_object")
+"""Viewpoint names by their code in the ``viewpoint`` label (codes never change)."""
+DRAW_LABEL_SCHEMA: dict[str, tuple[tuple[int, ...], np.dtype, str]] = {
+    "pose_source": ((), np.dtype(np.int8), ""),
+    "viewpoint": ((), np.dtype(np.int8), ""),
+}
+"""Shard label key -> (shape, dtype, unit) of how a frame was drawn; -1 when unknown."""
 
 
 class InvalidLabelArrays(HandSimError, ValueError):

@@ -25,7 +25,10 @@ from handsim.world.registry import OBJECT_NAMES, OBJECTS
 
 __all__ = [
     "POSE_SOURCES",
+    "DEFAULT_POSE_SOURCES",
     "VIEWPOINTS",
+    "DEFAULT_VIEWPOINTS",
+    "MOTION_FRAME_PERIOD_S",
     "SENSORS",
     "PRESETS",
     "MAX_PENETRATION_M",
@@ -44,11 +47,21 @@ __all__ = [
     "GenerationConfig",
 ]
 
-POSE_SOURCES = ("gesture", "grasp", "synergy", "uniform")
-"""Pose sources of the kinematic source (:mod:`handsim.hand.pose_sources`)."""
+POSE_SOURCES = ("gesture", "grasp", "synergy", "motion", "uniform")
+"""Pose sources of the kinematic source (:mod:`handsim.hand.pose_sources`): named gestures,
+the grasp taxonomy, postural synergies, smooth motions through gestures, grasps and synergy
+postures, or uniform joint angles (for robustness studies)."""
+DEFAULT_POSE_SOURCES = ("gesture", "grasp", "synergy", "motion")
+"""The poses people make: every pose source but ``uniform``."""
 VIEWPOINTS = ("third_person", "egocentric", "random", "through_object")
-"""Camera placements: across the table, head-mounted, a random sphere around the hand, or
-behind an object looking at the hand (the object is between camera and hand)."""
+"""Camera placements: in front of the person (a hand alone: palm or back toward the camera,
+:mod:`handsim.data.views`), head-mounted (from behind and above the hand), random (a hand
+alone: a uniform rotation; among objects: a random direction above the hand), or behind an
+object looking at the hand (the object is between camera and hand)."""
+DEFAULT_VIEWPOINTS = ("third_person", "egocentric")
+"""The views people and their sensors have: ``random`` and ``through_object`` on request."""
+MOTION_FRAME_PERIOD_S = 0.1
+"""Pose source ``motion``: the frames of an episode sample its motion every this many s."""
 SENSORS = ("none", "structured_light", "tof")
 """Depth sensor models."""
 MAX_PENETRATION_M = 0.004
@@ -241,8 +254,9 @@ class GenerationConfig:
         frames_per_episode: frames drawn per episode (one hand and one object set).
         seed: base seed; shard ``i`` uses ``default_rng([seed, i])``.
         camera: camera preset (intrinsics), e.g. ``"icvl"`` (320 x 240).
-        viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`).
-        distance_range_m: camera distance from the hand, metres (random and through-object);
+        viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`); ``random`` gives
+            a hand alone a uniform rotation (robustness studies).
+        distance_range_m: camera distance from the hand, metres;
             the camera moves back along its line of sight when the hand or an object would be
             nearer than the camera's or the sensor's working range (a hole in the depth).
         sensor: depth sensor model (:data:`SENSORS`).
@@ -251,7 +265,8 @@ class GenerationConfig:
         left_fraction: fraction of left hands.
         objects: object names drawn from (canonical or short names).
         num_objects_range: objects per episode (0 for hand-only data).
-        pose_sources: pose sources drawn per episode (:data:`POSE_SOURCES`).
+        pose_sources: pose sources drawn per episode (:data:`POSE_SOURCES`); ``uniform``
+            (uniform joint angles) only on request.
         occlusion_range: keep frames whose hand occlusion ratio lies in this range.
         occlusion_buckets: ``(edges, fractions)``: bucket edges of the occlusion ratio and the
             fraction of every shard each bucket must fill (``None``: no stratification).
@@ -272,7 +287,7 @@ class GenerationConfig:
     frames_per_episode: int = 25
     seed: int = 0
     camera: str = "icvl"
-    viewpoints: tuple[str, ...] = ("third_person", "egocentric", "random")
+    viewpoints: tuple[str, ...] = DEFAULT_VIEWPOINTS
     distance_range_m: tuple[float, float] = (0.35, 0.7)
     sensor: str = "structured_light"
     paired_clean: bool = False
@@ -280,7 +295,7 @@ class GenerationConfig:
     left_fraction: float = 0.5
     objects: tuple[str, ...] = OBJECT_NAMES
     num_objects_range: tuple[int, int] = (1, 3)
-    pose_sources: tuple[str, ...] = POSE_SOURCES
+    pose_sources: tuple[str, ...] = DEFAULT_POSE_SOURCES
     occlusion_range: tuple[float, float] = (0.0, 1.0)
     occlusion_buckets: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     min_visible_keypoints: int = 1
@@ -454,7 +469,7 @@ class GenerationConfig:
 
 
 PRESETS: dict[str, dict[str, Any]] = {
-    "hand-only": {"num_objects_range": (0, 0), "viewpoints": ("third_person", "random")},
+    "hand-only": {"num_objects_range": (0, 0)},
     "hand-object": {"num_objects_range": (1, 3)},
     "occlusion-heavy": {
         "num_objects_range": (2, 4),
@@ -473,7 +488,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "frame_stride": 5,
     },
 }
-"""Named configs: hand alone, hand among objects, objects between camera and hand with the
-occlusion ratio stratified in four buckets from 0.1 to 0.95 and at most 5 % of frames without a
-visible keypoint (kinematic), and Grasp-v0 rollouts of the grasp expert, every fifth step
-(10 Hz) of the approach, grasp and lift (physical contact)."""
+"""Named configs: hand alone (third-person and egocentric views), hand among objects, objects
+between camera and hand with the occlusion ratio stratified in four buckets from 0.1 to 0.95
+and at most 5 % of frames without a visible keypoint (kinematic), and Grasp-v0 rollouts of the
+grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical contact)."""

@@ -1,8 +1,9 @@
 """The kinematic frame source: a posed hand among objects, without physics.
 
 Every episode draws a hand (size, side), objects on the table and a pose source, and every
-frame of the episode a pose, a wrist placement near an object and a camera viewpoint around the
-hand. Frames where the hand enters an object or the table by more than
+frame of the episode a pose, a viewpoint, a wrist placement near an object and a camera around
+the hand; a hand alone is turned toward the camera as the viewpoint draws it
+(:mod:`handsim.data.views`). Frames where the hand enters an object or the table by more than
 :data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn. An episode whose objects do not fit
 on the table, or whose hand and objects give no accepted frame, raises
 :class:`~handsim.data.config.CannotDraw` (the shard redraws the episode).
@@ -18,20 +19,23 @@ import mujoco
 import numpy as np
 
 from handsim.data import _kernels
-from handsim.data.arrays import frame_to_arrays
+from handsim.data.arrays import POSE_SOURCE_CODES, VIEWPOINT_CODES, frame_to_arrays
 from handsim.data.config import (
     MAX_PENETRATION_M,
     MAX_TRIES_PER_FRAME,
     MIN_KEYPOINTS_IN_FRAME,
+    MOTION_FRAME_PERIOD_S,
     CannotDraw,
     GenerationConfig,
 )
+from handsim.data.views import hand_rotation_in_camera
 from handsim.frame import FrameRenderer
 from handsim.hand.model import hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
     GESTURES,
     gesture,
+    random_motion,
     sample_grasp,
     sample_synergy,
     sample_uniform,
@@ -49,6 +53,42 @@ _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
 _MIN_EYE_HEIGHT_M = 0.03
 """Cameras stay this far above the table top (world z = 0), metres."""
+_THIRD_PERSON_AZIMUTH_DEG = 60.0
+"""Among objects, the third-person camera stands within +- this of the table's front, deg."""
+_THIRD_PERSON_ELEVATION_DEG = (20.0, 45.0)
+"""Among objects, the third-person camera's elevation above the palm, uniform, deg."""
+_EGO_ELEVATION_DEG = (40.0, 70.0)
+"""Among objects, the head-mounted camera's elevation above the palm, uniform, deg."""
+_EGO_AZIMUTH_DEG = 30.0
+"""Among objects, the head-mounted camera stands within +- this of behind the wrist, deg."""
+
+# A hand alone: the palm at a fixed point, the camera in front of it looking along world +y
+# with +z up in the image (no table: the world's orientation is arbitrary).
+_ALONE_PALM = np.array([0.0, 0.0, 0.3])
+_ALONE_VIEW_AXIS = np.array([0.0, 1.0, 0.0])
+_ALONE_CAM_QUAT_WXYZ = look_at_quat_wxyz(-_ALONE_VIEW_AXIS, np.zeros(3))
+
+
+def _world_from_opencv_camera(quat_wxyz: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation world <- OpenCV camera of a MuJoCo camera's ``world_from_mjcam``."""
+    R = np.empty(9)  # noqa: N806
+    mujoco.mju_quat2Mat(R, quat_wxyz)
+    # MuJoCo cameras look along -z with y up; OpenCV's along +z with y down.
+    return R.reshape(3, 3) @ np.diag([1.0, -1.0, -1.0])
+
+
+_R_WORLD_FROM_ALONE_CAM = _world_from_opencv_camera(_ALONE_CAM_QUAT_WXYZ)
+
+
+def _distal_axis(rotvec: np.ndarray) -> np.ndarray:
+    """The hand's +y (toward the fingers) in the world, for a wrist rotation vector."""
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-12:
+        return np.array([0.0, 1.0, 0.0])
+    quat, distal = np.empty(4), np.empty(3)
+    mujoco.mju_axisAngle2Quat(quat, rotvec / angle, angle)
+    mujoco.mju_rotVecQuat(distal, np.array([0.0, 1.0, 0.0]), quat)
+    return distal
 
 
 class KinematicSource:
@@ -131,22 +171,44 @@ class KinematicSource:
             return sample_grasp(rng, n)[0].angles
         if source == "synergy":
             return sample_synergy(rng, n, num_synergies=3).angles
+        if source == "motion":
+            # Gestures, grasps and synergy postures joined by human-speed minimum-jerk
+            # motions, sampled every MOTION_FRAME_PERIOD_S.
+            motion = random_motion(
+                rng,
+                (n - 1) * MOTION_FRAME_PERIOD_S,
+                MOTION_FRAME_PERIOD_S,
+                sources=("gestures", "grasps", "synergy"),
+            )
+            return motion.angles[:n]
         return sample_uniform(rng, n).angles
+
+    def _hand_alone(
+        self, rng: np.random.Generator, view: str, is_left: bool
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """A hand alone turned toward the camera as the view draws it (:mod:`.views`).
+
+        The camera looks along world +y from in front of the palm, the world's +z up in the
+        image (there is no table); the hand is turned in the camera's frame.
+
+        Returns:
+            Wrist position, rotation vector and palm centre (world, m), then the camera's eye
+            (world, m) and orientation ``quat_wxyz`` (world from MuJoCo camera).
+        """
+        distance = rng.uniform(*self.config.distance_range_m)
+        R_cam_from_hand = hand_rotation_in_camera(rng, view, is_left)  # noqa: N806
+        R = _R_WORLD_FROM_ALONE_CAM @ R_cam_from_hand  # noqa: N806
+        palm = _ALONE_PALM.copy()
+        wrist = palm - R[:, 1] * _PALM_OFFSET_M
+        quat, rotvec = np.empty(4), np.empty(3)
+        mujoco.mju_mat2Quat(quat, R.reshape(-1))
+        mujoco.mju_quat2Vel(rotvec, quat, 1.0)
+        return wrist, rotvec, palm, palm - distance * _ALONE_VIEW_AXIS, _ALONE_CAM_QUAT_WXYZ
 
     def _wrist(
         self, rng: np.random.Generator, scene: Scene, beside: bool
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Wrist position, rotation vector, palm centre and the object it is near (world, m)."""
-        if not scene.objects:
-            # A uniform rotation: a normalized 4-D Gaussian quaternion.
-            quat = rng.normal(size=4)
-            quat /= np.linalg.norm(quat)
-            R = np.empty(9)  # noqa: N806
-            mujoco.mju_quat2Mat(R, quat)
-            rotvec = np.empty(3)
-            mujoco.mju_quat2Vel(rotvec, quat, 1.0)
-            wrist = np.array([0.0, 0.0, 0.3])
-            return wrist, rotvec, wrist + R.reshape(3, 3)[:, 1] * _PALM_OFFSET_M, None
         k = int(rng.integers(len(scene.objects)))
         body_name, obj = scene.objects[k]
         body = scene.model.body(body_name).id
@@ -174,16 +236,38 @@ class KinematicSource:
         return wrist, rotvec, palm, obj_pos
 
     def _camera(
-        self, rng: np.random.Generator, view: str, target: np.ndarray, obj: np.ndarray | None
+        self,
+        rng: np.random.Generator,
+        view: str,
+        target: np.ndarray,
+        obj: np.ndarray | None,
+        rotvec: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's eye and ``quat_wxyz`` among objects (world), looking at ``target``."""
         c = self.config
         distance = rng.uniform(*c.distance_range_m)
         up = (0.0, 0.0, 1.0)
         if view == "third_person":
-            direction = np.array([0.0, 1.0, 0.6])
+            # Across the table, in front of the person: the table's front is world +y.
+            azimuth = np.radians(rng.uniform(-_THIRD_PERSON_AZIMUTH_DEG, _THIRD_PERSON_AZIMUTH_DEG))
+            elevation = np.radians(rng.uniform(*_THIRD_PERSON_ELEVATION_DEG))
+            direction = np.array([np.sin(azimuth), np.cos(azimuth), np.tan(elevation)])
         elif view == "egocentric":
-            direction = np.array([0.0, -0.35, 0.45])
-            up = (0.0, 1.0, 0.0)
+            # From behind the wrist (back along the forearm) and above, as from the eyes.
+            back = -_distal_axis(rotvec)
+            back[2] = 0.0
+            norm = np.linalg.norm(back)
+            back = back / norm if norm > 1e-6 else np.array([0.0, -1.0, 0.0])
+            azimuth = np.radians(rng.uniform(-_EGO_AZIMUTH_DEG, _EGO_AZIMUTH_DEG))
+            cos_a, sin_a = np.cos(azimuth), np.sin(azimuth)
+            elevation = np.radians(rng.uniform(*_EGO_ELEVATION_DEG))
+            direction = np.array(
+                [
+                    cos_a * back[0] - sin_a * back[1],
+                    sin_a * back[0] + cos_a * back[1],
+                    np.tan(elevation),
+                ]
+            )
         elif view == "through_object" and obj is not None:
             # Beyond the object as seen from the hand, turned a little so that the object hides
             # anything from a sliver to all of the hand; never below the table top.
@@ -266,6 +350,7 @@ class KinematicSource:
         cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
+        is_left = scene.spec.hand.side == "left"
         near_geoms = self._near_geoms(scene)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
@@ -276,7 +361,11 @@ class KinematicSource:
                 if used == batch:
                     postures, used = self._postures(rng, source, batch), 0
                 view = viewpoints[int(rng.integers(len(viewpoints)))]
-                wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
+                if alone:
+                    wrist, rotvec, palm, eye, quat = self._hand_alone(rng, view, is_left)
+                    obj = None
+                else:
+                    wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
                 pose = HandPose(wrist, rotvec, postures[used])
                 used += 1
                 if alone:  # nothing to touch: no contacts to find or label
@@ -285,7 +374,7 @@ class KinematicSource:
                     scene.binding.set_pose(scene.data, pose)
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
-                eye, quat = self._camera(rng, view, palm, obj)
+                    eye, quat = self._camera(rng, view, palm, obj, rotvec)
                 eye = self._beyond_near(scene, near_geoms, eye, palm)
                 if eye is None:
                     continue
@@ -299,6 +388,8 @@ class KinematicSource:
                 if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio, visible):
                     arrays = frame_to_arrays(frame)
                     arrays["hand_occlusion_ratio"][()] = ratio
+                    arrays["pose_source"] = np.int8(POSE_SOURCE_CODES.index(source))
+                    arrays["viewpoint"] = np.int8(VIEWPOINT_CODES.index(view))
                     # The frame's own images, not copies: the writer only reads them, and
                     # before the next frame is rendered.
                     arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from handsim.data.arrays import LABEL_SCHEMA
+from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
 from handsim.data.shards import PARTIAL_SUFFIX, SHARD_SUFFIX, ShardInfo, check_shard
 from handsim.errors import HandSimError
 
@@ -76,10 +76,14 @@ def git_commit() -> str | None:
 
 
 def label_schema_json() -> dict[str, dict[str, Any]]:
-    """:data:`~handsim.data.arrays.LABEL_SCHEMA` as JSON: key -> shape, dtype, unit."""
+    """The shards' labels as JSON: key -> shape, dtype, unit.
+
+    :data:`~handsim.data.arrays.LABEL_SCHEMA`, then
+    :data:`~handsim.data.arrays.DRAW_LABEL_SCHEMA`.
+    """
     return {
         key: {"shape": list(shape), "dtype": dtype.name, "unit": unit}
-        for key, (shape, dtype, unit) in LABEL_SCHEMA.items()
+        for key, (shape, dtype, unit) in {**LABEL_SCHEMA, **DRAW_LABEL_SCHEMA}.items()
     }
 
 

@@ -15,6 +15,8 @@ dataset            shape               dtype     content
 ``episode``        (N,)                int64     episode index of the frame
 ``step``           (N,)                int64     step index within the episode
 ``labels/<key>``   (N, ...)            schema    each label of the array form (``LABEL_SCHEMA``)
+                                                 and how the frame was drawn
+                                                 (``DRAW_LABEL_SCHEMA``; -1 if not given)
 =================  ==================  ========  ============================================
 
 Depth is stored as ``round(depth_m * 1000 / depth_scale_mm)`` (BOP's convention; the default
@@ -35,7 +37,7 @@ import numpy as np
 from isal import isal_zlib
 
 from handsim.data import _kernels
-from handsim.data.arrays import LABEL_SCHEMA, check_label_arrays
+from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA, check_label_arrays
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -71,6 +73,8 @@ _IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 1}
 _IMAGE_DEFLATE_LEVEL = 1
 _LABEL_COMPRESSION = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
 _LABEL_CHUNK = 64  # frames per label chunk
+# Every label a shard stores: the array form, then how the frame was drawn.
+_SHARD_LABELS = {**LABEL_SCHEMA, **DRAW_LABEL_SCHEMA}
 
 
 def depth_units(
@@ -215,7 +219,7 @@ class ShardWriter:
                 key, (0,), np.int64, maxshape=(None,), chunks=(_LABEL_CHUNK,)
             )
         labels = f.create_group("labels")
-        for key, (shape_k, dtype, unit) in LABEL_SCHEMA.items():
+        for key, (shape_k, dtype, unit) in _SHARD_LABELS.items():
             ds = labels.create_dataset(
                 key,
                 (0, *shape_k),
@@ -282,6 +286,8 @@ class ShardWriter:
         pending["step"][row] = step
         for key in LABEL_SCHEMA:  # dtypes checked above
             pending["labels/" + key][row] = arrays[key]
+        for key in DRAW_LABEL_SCHEMA:
+            pending["labels/" + key][row] = arrays.get(key, -1)
         self.frames += 1
         if self.frames - self._written == _LABEL_CHUNK:
             self._flush()
@@ -449,6 +455,9 @@ class ShardReader:
         if self._labels is None or self._labels_pid != os.getpid():
             f = self._open()
             self._labels = {key: ds[:] for key, ds in f["labels"].items()}
+            for key, (shape, dtype, _) in DRAW_LABEL_SCHEMA.items():
+                if key not in self._labels:  # a shard written before these labels
+                    self._labels[key] = np.full((self.frames, *shape), -1, dtype)
             self._labels["episode"] = f["episode"][:]
             self._labels["step"] = f["step"][:]
             self._labels_pid = os.getpid()
@@ -456,9 +465,9 @@ class ShardReader:
 
     def labels(self, key: str) -> np.ndarray:
         """One label over every frame, ``(N, *shape)`` (e.g. for filtering)."""
-        if key not in LABEL_SCHEMA and key not in ("episode", "step"):
+        if key not in _SHARD_LABELS and key not in ("episode", "step"):
             raise InvalidShard(
-                f"unknown label {key!r}; valid: episode, step, {', '.join(LABEL_SCHEMA)}"
+                f"unknown label {key!r}; valid: episode, step, {', '.join(_SHARD_LABELS)}"
             )
         return self._all_labels()[key].copy()
 

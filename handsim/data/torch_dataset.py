@@ -114,9 +114,13 @@ class HandSimDataset:
             raise InvalidDatasetQuery(f"transform must be callable; received {transform!r}")
         self.transform = transform
         if keys is not None:
-            from handsim.data.arrays import LABEL_SCHEMA
+            from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
 
-            valid = (*LABEL_SCHEMA, "depth", "segmentation", "depth_clean", "episode", "step")
+            valid = (
+                *LABEL_SCHEMA,
+                *DRAW_LABEL_SCHEMA,
+                *("depth", "segmentation", "depth_clean", "episode", "step"),
+            )
             if isinstance(keys, str) or not all(k in valid for k in keys):
                 raise InvalidDatasetQuery(
                     f"keys must be a list drawn from {', '.join(valid)}; received {keys!r}"

@@ -127,3 +127,48 @@ def test_generate_and_info_report_redraws_subprocess(tmp_path):
         check=True,
     )
     assert json.loads(info.stdout)["redraws"] == made["redraws"]
+
+
+def test_info_reports_the_hands_and_views_subprocess(tmp_path):
+    """`handsim generate` and `handsim dataset info` as programs: the distribution is printed.
+
+    Hand-alone third-person frames keep the palm cone; the mixes name the pose sources and
+    views drawn; the constant-mean-pose error lies below the joints' mean distance.
+    """
+    config = {
+        "frames": 8,
+        "frames_per_shard": 4,
+        "frames_per_episode": 2,
+        "sensor": "none",
+        "num_objects_range": [0, 0],
+        "viewpoints": ["third_person"],
+        "pose_sources": ["gesture", "motion"],
+    }
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    run = [sys.executable, "-m", "handsim.cli"]
+    out = tmp_path / "d"
+    made = subprocess.run(
+        [*run, "generate", "--config", str(tmp_path / "config.json"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert made.returncode == 0, made.stderr
+    result = subprocess.run(
+        [*run, "dataset", "info", str(out)], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    dist = json.loads(result.stdout)["distribution"]
+    assert dist["frames"] == 8
+    assert dist["viewpoints"] == {"third_person": 1.0}
+    assert set(dist["pose_sources"]) <= {"gesture", "motion"}
+    assert sum(dist["palm_angle"]["counts"]) == 8
+    assert dist["palm_angle"]["facing_angle_max_deg"] < 62.0
+    assert dist["contact_rate"] == 0.0 and dist["occlusion"]["counts"][0] == 8
+    assert 0.0 < dist["constant_pose_error_mm"] < dist["mean_joint_distance_mm"]
+    # One view: its own mean pose is the dataset's.
+    assert dist["constant_pose_error_mm_by_viewpoint"] == {
+        "third_person": dist["constant_pose_error_mm"]
+    }
