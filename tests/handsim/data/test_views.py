@@ -106,7 +106,7 @@ def _frames(config, seed=0, episodes=2, frames=6):
             rng = np.random.default_rng([seed, episode])
             out += [
                 {k: np.array(v) for k, v in a.items()}
-                for a in source.episode(rng, lambda r: True, frames)
+                for a in source.episode(rng, lambda ratio, visible: True, frames)
             ]
         return out
     finally:
