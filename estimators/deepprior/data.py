@@ -244,10 +244,19 @@ def env_frames(
     Returns:
         The frames (depth stored in 0.1 mm units). ``occlusion`` is the frame's hand occlusion
         ratio where it was computed, else the fraction of keypoints that are not visible.
+
+    Raises:
+        InvalidTrainingData: for an env id that is not a registered handsim env.
     """
     import gymnasium as gym
 
-    import handsim.envs  # noqa: F401 (registers the ids)
+    import handsim.envs  # registers the ids
+
+    if env_id not in handsim.envs.ENV_IDS:
+        raise InvalidTrainingData(
+            f"env_id must be a registered handsim env, one of "
+            f"{', '.join(handsim.envs.ENV_IDS)}; received {env_id!r}"
+        )
 
     scale_m = 1e-4
     parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length")}

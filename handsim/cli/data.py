@@ -16,7 +16,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from handsim.cli._args import choice_help, non_negative_int, positive_int, progress_bar, strict_json
+from handsim.cli._args import (
+    add_quiet,
+    choice_help,
+    integer,
+    positive_int,
+    progress_bar,
+    seed,
+    strict_json,
+)
 
 __all__ = ["add_parser", "EXPORTS"]
 
@@ -37,7 +45,9 @@ def _generate(args: argparse.Namespace) -> int:
     from handsim.data.generation import generate
 
     config = _config(args)
-    bar = progress_bar(config.frames, f"generate {Path(args.out).name}", "frame")
+    bar = progress_bar(
+        config.frames, f"generate {Path(args.out).name}", "frame", enabled=not args.quiet
+    )
     last = [0]
 
     def progress(done: int, total: int) -> None:
@@ -157,7 +167,9 @@ def _export_minari(args: argparse.Namespace) -> int:
             f"{', '.join(ids)}; received {env_id!r}"
         )
     max_steps = gym.spec(env_id).max_episode_steps or 0
-    bar = progress_bar(args.episodes * max_steps, f"minari {env_id}", "step")
+    bar = progress_bar(
+        args.episodes * max_steps, f"minari {env_id}", "step", enabled=not args.quiet
+    )
     last = [0]
 
     def progress(steps: int) -> None:
@@ -197,9 +209,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     source.add_argument("--config", type=Path, metavar="FILE", help="a JSON or YAML config file")
     gen.add_argument("--frames", type=positive_int, help="frames (overrides the config)")
-    gen.add_argument("--seed", type=non_negative_int, help="base seed (overrides the config)")
+    gen.add_argument("--seed", type=seed, help="base seed (overrides the config)")
     gen.add_argument(
-        "--workers", type=positive_int, default=1, help="worker processes (default: 1)"
+        "--workers", type=integer(1, 1024), default=1, help="worker processes (default: 1)"
     )
     gen.add_argument(
         "--ray",
@@ -209,6 +221,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "'handsim[ray]'",
     )
     gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    add_quiet(gen)
     gen.set_defaults(func=_generate)
 
     data = sub.add_parser("dataset", help="check or summarize a dataset folder")
@@ -217,6 +230,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "check", help="name truncated, corrupt or missing shards (exit 1 if any)"
     )
     check.add_argument("dir", type=Path, help="dataset folder")
+    add_quiet(check, "accepted by every command; check shows no progress bars")
     check.set_defaults(func=_check)
     info = data_sub.add_parser("info", help="frames, shards, sizes and occlusion histogram")
     info.add_argument("dir", type=Path, help="dataset folder")
@@ -225,7 +239,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="write contact_sheet.png (12 random frames) and histograms.png into the folder",
     )
-    info.add_argument("--seed", type=non_negative_int, default=0, help="seed of the frame picks")
+    info.add_argument("--seed", type=seed, default=0, help="seed of the frame picks")
+    add_quiet(info, "accepted by every command; info shows no progress bars")
     info.set_defaults(func=_info)
 
     export = sub.add_parser(
@@ -249,7 +264,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     export.add_argument(
         "--dataset-id", default=None, help="minari: dataset id (default handsim/<env>-expert-v0)"
     )
-    export.add_argument(
-        "--seed", type=non_negative_int, default=0, help="minari: seed of the first episode"
-    )
+    export.add_argument("--seed", type=seed, default=0, help="minari: seed of the first episode")
+    add_quiet(export)
     export.set_defaults(func=_export, parser=export)

@@ -34,7 +34,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from handsim.cli._args import non_negative_int, positive_int, progress_bar, strict_json
+from handsim.cli._args import add_quiet, integer, non_negative_int, progress_bar, strict_json
 from handsim.frame import FrameRenderer
 from handsim.hand.model import HAND_SIZES, Hand, HandParams
 from handsim.hand.pose_sources import gesture, smooth_motion
@@ -454,7 +454,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     demo.add_argument("--out", default="handsim-demo", help="output folder (default: %(default)s)")
     demo.add_argument(
-        "--size", type=positive_int, default=200, help="tile size in pixels (default: 200)"
+        "--size",
+        # Each tile is rendered at this size; gestures.png holds 6 x 9 of them.
+        type=integer(32, 1024),
+        default=200,
+        help="tile size in pixels, in [32, 1024] (default: 200)",
     )
     demo.add_argument(
         "--closed-loop-episodes",
@@ -482,7 +486,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=200,
         help="frames of the occlusion-heavy dataset it generates; 0 skips it (default: 200)",
     )
-    demo.add_argument(
-        "-q", "--quiet", action="store_true", help="no progress bars (they go to stderr)"
-    )
+    add_quiet(demo)
     demo.set_defaults(func=_run)
