@@ -227,13 +227,16 @@ def test_human_render_mode_needs_a_display(monkeypatch):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_render_modes(env_id):
-    """rgb_array and depth_array (colour-mapped) give (render_height, render_width, 3) uint8."""
-    for mode in ("rgb_array", "depth_array"):
+    """rgb_array and depth_rgb_array give (H, W, 3) uint8; depth_array (H, W) float32 metres."""
+    for mode in ("rgb_array", "depth_rgb_array", "depth_array"):
         env = _make(env_id, render_mode=mode)
         env.reset(seed=0)
         image = env.render()
         h, w = env.unwrapped.config.render_height, env.unwrapped.config.render_width
-        assert image.shape == (h, w, 3) and image.dtype == np.uint8 and image.std() > 0
+        if mode == "depth_array":
+            assert image.shape == (h, w) and image.dtype == np.float32 and image.max() > 0
+        else:
+            assert image.shape == (h, w, 3) and image.dtype == np.uint8 and image.std() > 0
         env.close()
 
 
