@@ -291,6 +291,21 @@ def test_random_viewpoint_and_hand_size_range_are_seeded():
     env.close()
 
 
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_expert_actions_are_float32_inside_the_action_space(env_id):
+    """expert.action(state) is what env.step expects: (27,) float32, contained in the space."""
+    env = _make(env_id, obs_mode="state")
+    env.reset(seed=0)
+    expert = env.unwrapped.make_expert()
+    for _ in range(40):
+        action = expert.action(env.unwrapped.expert_state())
+        assert action.dtype == np.float32 and env.action_space.contains(action)
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            break
+    env.close()
+
+
 def test_gesture_expert_reaches_the_goal():
     """The gesture expert drives HandPose-v0 to within 10 mm of its goal keypoints."""
     env = gym.make("handsim/HandPose-v0")
