@@ -114,7 +114,7 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
 
     from handsim.data.arrays import arrays_to_frame
     from handsim.data.shards import ShardReader
-    from handsim.viz import draw_frame
+    from handsim.viz import draw_frame, frame_legend
 
     rng = np.random.default_rng(seed)
     records = sorted(manifest.shards.values(), key=lambda s: s.name)
@@ -126,7 +126,7 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
         tiles.append(draw_frame(frame))
     rows = [np.hstack(tiles[i : i + 4]) for i in range(0, len(tiles), 4)]
     sheet = folder / "contact_sheet.png"
-    cv2.imwrite(str(sheet), np.vstack(rows))
+    cv2.imwrite(str(sheet), np.vstack([*rows, frame_legend(rows[0].shape[1])]))
     ratio = np.concatenate([np.nan_to_num(r.labels("hand_occlusion_ratio")) for r in readers])
     visible = np.concatenate([r.labels("visible").sum(axis=1) for r in readers])
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.2))

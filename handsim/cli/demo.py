@@ -38,7 +38,7 @@ from handsim.cli._args import add_quiet, integer, non_negative_int, progress_bar
 from handsim.frame import FrameRenderer
 from handsim.hand.model import HAND_SIZES, Hand, HandParams
 from handsim.hand.pose_sources import gesture, smooth_motion
-from handsim.viz import contact_sheet, draw_frame, draw_frame_panels
+from handsim.viz import contact_sheet, draw_frame, draw_frame_panels, frame_legend
 from handsim.world.camera import camera_preset
 from handsim.world.scene import Scene, SceneSpec, sample_placements, sample_viewpoint
 from handsim.world.sensors import StructuredLight
@@ -220,7 +220,7 @@ def run_demo(
     n_frames = len(_FRAME_GESTURES)
     with progress_bar(n_frames, "demo: labelled frames", "frame", enabled=progress) as bar:
         frames, frame_stats, panels = _labelled_frames(bar=bar)
-    cv2.imwrite(str(out / "frames.png"), frames)
+    cv2.imwrite(str(out / "frames.png"), np.vstack([frames, frame_legend(frames.shape[1])]))
     cv2.imwrite(str(out / "frame_panels.png"), panels)
     summary["labelled_frames"] = frame_stats
     (out / "summary.json").write_text(strict_json(summary))
