@@ -149,14 +149,14 @@ def _check(config: TrainConfig) -> None:
         raise InvalidTrainConfig(f"prior_dim must be in [0, 63]; received {config.prior_dim}")
     # Finite, in range: NaN passes every comparison but ``not``, so test ``not lo <= x <= hi``.
     ranges = {
-        "lr": (config.lr, 0.0, 1.0, "in (0, 1]"),
+        "lr": (config.lr, 0.0, 1.0, "in [0, 1] (0 keeps the initial weights)"),
         "weight_decay": (config.weight_decay, 0.0, 1.0, "in [0, 1]"),
         "cube_m": (config.cube_m, 0.0, 1.0, "in (0, 1] metres"),
         "offset_sigma_m": (config.offset_sigma_m, 0.0, 0.5, "in [0, 0.5] metres"),
         "width": (config.width, 0.0, 8.0, "in (0, 8]"),
     }
     for name, (value, lo, hi, valid) in ranges.items():
-        positive = name in ("lr", "cube_m", "width")
+        positive = name in ("cube_m", "width")
         if not lo <= value <= hi or (positive and value == lo):
             raise InvalidTrainConfig(f"{name} must be {valid}; received {value}")
 
