@@ -56,13 +56,17 @@ def object_name(value: str) -> str:
         raise argparse.ArgumentTypeError(str(err.args[0] if err.args else err)) from None
 
 
+def _text(bound: float) -> str:
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
+
+
 def _interval(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
     if lo is not None and hi is not None:
-        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        return f"in {'(' if lo_open else '['}{_text(lo)}, {_text(hi)}{')' if hi_open else ']'}"
     if lo is not None:
-        return f"{'>' if lo_open else '>='} {lo:g}"
+        return f"{'>' if lo_open else '>='} {_text(lo)}"
     if hi is not None:
-        return f"{'<' if hi_open else '<='} {hi:g}"
+        return f"{'<' if hi_open else '<='} {_text(hi)}"
     return ""
 
 
@@ -117,7 +121,9 @@ def number(
         ``argparse.ArgumentTypeError`` whose message gives the valid range.
     """
     rng = _interval(lo, hi, lo_open, hi_open)
-    what = f"a finite number {rng}".rstrip()
+    # Both bounds imply finiteness; say "finite" where an infinity would otherwise fit.
+    what = f"a number {rng}" if lo is not None and hi is not None else f"a finite number {rng}"
+    what = what.rstrip()
     tail = f" ({why})" if why else ""
 
     def parse(value: str) -> float:
