@@ -34,9 +34,8 @@ from handsim.data.splits import SPLITS, InvalidDatasetQuery, folder_splits, spli
 from handsim.errors import HandSimError
 from handsim.world.registry import OBJECTS
 
+# SPLITS and InvalidDatasetQuery are importable from here too; they live in handsim.data.splits.
 __all__ = [
-    "SPLITS",
-    "InvalidDatasetQuery",
     "HandSimDataset",
     "BlockBatchSampler",
 ]
