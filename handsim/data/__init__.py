@@ -7,7 +7,7 @@ module                   holds
 :mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
 :mod:`.generation`       :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
-:mod:`.splits`           train / val / test by episode (10 % each for val and test, at least one)
+:mod:`.splits`           train / val / test by episode (val, test: 10 % of the frames each)
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 :mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================

@@ -2,10 +2,11 @@
 
 Frames of one episode share a hand, objects and a scene, so a split never cuts an episode. The
 episodes of a folder are ranked by a stable hash of (folder seed, episode) and dealt out in
-fixed numbers: ``val`` and ``test`` each get 10 % of the episodes (rounded), at least one each
-when the folder has :data:`MIN_SPLIT_EPISODES` or more, and ``train`` the rest. Drawing each
-episode's split independently (a 10 % chance each) would leave a 20-episode folder without a
-``val`` episode about one time in eight; dealing fixed numbers does not.
+that order: ``val`` takes episodes until it holds at least 10 % of the folder's frames (at
+least one episode), then ``test`` likewise, and ``train`` keeps the rest (at least one
+episode). Drawing each episode's split independently (a 10 % chance each) left a 500-frame
+occlusion-heavy folder (39 episodes, some cut short) with a 4-frame ``val`` split; dealing by
+frames gives each held-out split about a tenth of the frames.
 
 A folder with fewer than :data:`MIN_SPLIT_EPISODES` episodes is all ``train``; asking it for
 ``val`` or ``test`` raises :class:`InvalidDatasetQuery`, which says why.
@@ -56,20 +57,31 @@ def episode_splits(seed: int, episodes: Iterable[int]) -> dict[int, str]:
 
     Args:
         seed: the folder's base seed (``manifest.config["seed"]``).
-        episodes: the folder's episode ids (repeats are ignored).
+        episodes: the episode id of every frame of the folder (an id appears once per frame).
 
     Returns:
-        ``{episode: "train" | "val" | "test"}``. With ``n`` distinct episodes, ``val`` and
-        ``test`` each hold ``max(1, round(0.1 n))`` of them when ``n >=``
-        :data:`MIN_SPLIT_EPISODES`, none otherwise; the split of an episode depends only on
-        the seed and the set of episodes.
+        ``{episode: "train" | "val" | "test"}``. With :data:`MIN_SPLIT_EPISODES` episodes or
+        more, ``val`` and ``test`` each hold the fewest episodes, in hash order, whose frames
+        reach 10 % of the folder's (at least one episode each; ``train`` keeps at least one);
+        with fewer, every episode is ``train``. The result depends only on the seed and the
+        episodes' frame counts.
     """
-    ranked = sorted({int(e) for e in episodes}, key=lambda e: (_rank(seed, e), e))
-    n = len(ranked)
-    held = max(1, round(SPLIT_FRACTIONS[1] * n)) if n >= MIN_SPLIT_EPISODES else 0
+    counts: dict[int, int] = {}
+    for e in episodes:
+        counts[int(e)] = counts.get(int(e), 0) + 1
+    ranked = sorted(counts, key=lambda e: (_rank(seed, e), e))
     splits = dict.fromkeys(ranked, "train")
-    splits.update(dict.fromkeys(ranked[:held], "val"))
-    splits.update(dict.fromkeys(ranked[held : 2 * held], "test"))
+    if len(ranked) < MIN_SPLIT_EPISODES:
+        return splits
+    target = SPLIT_FRACTIONS[1] * sum(counts.values())
+    i = 0
+    for split, keep_after in (("val", 2), ("test", 1)):
+        frames = 0
+        # Deal at least one episode; stop at the target or when the later splits need the rest.
+        while i < len(ranked) - keep_after and (frames == 0 or frames < target):
+            splits[ranked[i]] = split
+            frames += counts[ranked[i]]
+            i += 1
     return splits
 
 
