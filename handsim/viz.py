@@ -35,6 +35,7 @@ __all__ = [
     "SCALE_BAR_WIDTH",
     "TRUTH_BGR",
     "ESTIMATE_BGR",
+    "OUTLINE_BGR",
     "InvalidImageInput",
     "depth_colormap",
     "depth_range_m",
@@ -84,7 +85,8 @@ TRUTH_BGR: tuple[int, int, int] = (80, 220, 80)
 ESTIMATE_BGR: tuple[int, int, int] = (255, 80, 255)
 """Colour of the estimated skeleton in :func:`draw_estimate` (magenta)."""
 
-_OUTLINE_BGR = (0, 0, 0)  # border of the skeletons drawn on a depth colour map
+OUTLINE_BGR: tuple[int, int, int] = (0, 0, 0)
+"""Border of skeletons drawn on a depth colour map (black: turbo has none of it in its range)."""
 SCALE_BAR_WIDTH = 56
 """Width in pixels of the scale bar :func:`depth_colormap` appends on the right."""
 
@@ -380,14 +382,14 @@ def draw_estimate(
     if estimate is not None and estimate.valid and estimate.keypoints_cam is not None:
         estimate_px = to_image(project_points(frame.K, estimate.keypoints_cam))
         # The estimate's border goes under the truth, so it never hides a true keypoint.
-        image = draw_skeleton(image, estimate_px, colour=_OUTLINE_BGR, thickness=3, radius=4)
+        image = draw_skeleton(image, estimate_px, colour=OUTLINE_BGR, thickness=3, radius=4)
     image = draw_skeleton(
         image,
         truth_px,
         visible=frame.visible,
         occluder=frame.occluder,
         colour=TRUTH_BGR,
-        outline=_OUTLINE_BGR,
+        outline=OUTLINE_BGR,
     )
     lines, colours = ([title], [(255, 255, 255)]) if title else ([], [])
     if estimate is None or not estimate.valid:
@@ -401,7 +403,7 @@ def draw_estimate(
     elif estimate.center_cam is not None:
         (centre,) = to_image(project_points(frame.K, estimate.center_cam[None]))
         if np.all(np.isfinite(centre)):
-            cv2.circle(image, _pixel(centre), 8, _OUTLINE_BGR, 4, cv2.LINE_AA)
+            cv2.circle(image, _pixel(centre), 8, OUTLINE_BGR, 4, cv2.LINE_AA)
             cv2.circle(image, _pixel(centre), 8, ESTIMATE_BGR, 2, cv2.LINE_AA)
         lines.append("estimate: hand centre")
         colours.append(ESTIMATE_BGR)
