@@ -156,8 +156,8 @@ probability = number(0.0, 1.0)
 """A number in [0, 1]."""
 port = integer(1, 65535, "a TCP/UDP port")
 """A network port."""
-seed = integer(0, 2**32 - 1, "a 32-bit seed")
-"""A seed: an integer in [0, 2**32 - 1]."""
+seed = integer(0, 2**63 - 1, "a seed, as GenerationConfig takes")
+"""A seed: an integer in [0, 2**63 - 1]."""
 
 
 def progress_bar(total: int, desc: str, unit: str, *, enabled: bool = True) -> Any:

@@ -208,7 +208,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--preset", choices=presets, metavar="NAME", help=choice_help("a preset", presets)
     )
     source.add_argument("--config", type=Path, metavar="FILE", help="a JSON or YAML config file")
-    gen.add_argument("--frames", type=positive_int, help="frames (overrides the config)")
+    gen.add_argument(
+        "--frames", type=integer(1, 10**9), help="frames, up to 10**9 (overrides the config)"
+    )
     gen.add_argument("--seed", type=seed, help="base seed (overrides the config)")
     gen.add_argument(
         "--workers", type=integer(1, 1024), default=1, help="worker processes (default: 1)"

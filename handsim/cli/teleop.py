@@ -23,8 +23,8 @@ from typing import Any
 from handsim.cli._args import (
     add_quiet,
     choice_help,
+    integer,
     non_negative_float,
-    non_negative_int,
     number,
     port,
     positive_float,
@@ -44,6 +44,10 @@ _FILTERS = ("none", "one_euro", "ema")
 _ANCHORS = ("none", "start")
 _SENSORS = ("none", "structured_light", "tof")
 _DROPOUT_MODES = ("hold", "extrapolate")
+
+
+# Delays in frames: the range FaultConfig accepts.
+_frames = integer(0, 10_000, "frames of delay")
 
 
 def _task(text: str) -> str:
@@ -116,7 +120,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         )
         p.add_argument(
             "--latency",
-            type=non_negative_int,
+            type=_frames,
             default=0,
             help="latency, frames at the control rate (default: 0)",
         )
@@ -148,7 +152,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--jitter",
-        type=non_negative_int,
+        type=_frames,
         default=0,
         help="largest extra random delay per frame, frames (default: 0)",
     )
@@ -502,7 +506,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--latency",
-        type=_list(non_negative_int, "--latency"),
+        type=_list(_frames, "--latency"),
         default=[0, 3],
         help="latencies, frames, comma-separated (default: 0,3)",
     )

@@ -78,7 +78,7 @@ def test_integer_and_number_messages_give_the_range():
     assert probability("0") == 0.0 and port("65535") == 65535 and seed("0") == 0
     with pytest.raises(argparse.ArgumentTypeError, match=r"\[1, 65535\] \(a TCP/UDP port\)"):
         port("0")
-    with pytest.raises(argparse.ArgumentTypeError, match=r"\[0, 4294967295\]"):
+    with pytest.raises(argparse.ArgumentTypeError, match=r"\[0, 9223372036854775807\]"):
         seed("-1")
 
 
@@ -149,12 +149,18 @@ def test_evaluate_refuses_the_other_sources_options(extra, message, capsys):
         (["teleop", "replay", "f.json", "--min-cutoff-hz", "0"], r"--min-cutoff-hz: .* > 0"),
         (["teleop", "replay", "f.json", "--bias-mm", "0", "nan", "0"],
          "--bias-mm: expected a finite number; received 'nan'"),
-        (["closed-loop", "--seed", "-1"], r"--seed: expected an integer in \[0, 4294967295\]"),
+        (["closed-loop", "--seed", "-1"],
+         r"--seed: expected an integer in \[0, 9223372036854775807\]"),
         (["closed-loop", "--object-noise-deg", "200"], r"expected a number in \[0, 180\]"),
         (["train", "deepprior", "--data", "D", "--out", "R", "--prior-dim", "64"],
          r"--prior-dim: expected an integer in \[0, 63\] \(at most the 63 coordinates"),
         (["train", "deepprior", "--data", "D", "--out", "R", "--size", "48"],
          r"--size: expected an integer in \[32, 512\] that is a multiple of 32; received '48'"),
+        (["generate", "--preset", "hand-only", "--out", "D", "--frames", "2000000000"],
+         r"--frames: expected an integer in \[1, 1000000000\]"),
+        (["teleop", "sweep", "--latency", "0,20000"],
+         r"--latency: expected an integer in \[0, 10000\] \(frames of delay\)"),
+        (["teleop", "replay", "f.json", "--jitter", "-1"], r"--jitter: expected an integer in"),
         (["generate", "--preset", "hand-only", "--out", "D", "--workers", "0"],
          r"--workers: expected an integer in \[1, 1024\]"),
     ],
