@@ -19,7 +19,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from handsim.cli._args import choice_help, non_negative_int, positive_int, progress_bar, strict_json
+from handsim.cli._args import (
+    add_quiet,
+    choice_help,
+    integer,
+    positive_int,
+    progress_bar,
+    seed,
+    strict_json,
+)
 
 __all__ = ["add_parser", "EXPORTS"]
 
@@ -40,7 +48,9 @@ def _generate(args: argparse.Namespace) -> int:
     from handsim.data.generation import generate
 
     config = _config(args)
-    bar = progress_bar(config.frames, f"generate {Path(args.out).name}", "frame")
+    bar = progress_bar(
+        config.frames, f"generate {Path(args.out).name}", "frame", enabled=not args.quiet
+    )
     last = [0]
 
     def progress(done: int, total: int) -> None:
@@ -112,7 +122,7 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
 
     from handsim.data.arrays import arrays_to_frame
     from handsim.data.shards import ShardReader
-    from handsim.viz import draw_frame
+    from handsim.viz import draw_frame, frame_legend
 
     rng = np.random.default_rng(seed)
     records = sorted(manifest.shards.values(), key=lambda s: s.name)
@@ -124,7 +134,7 @@ def _plots(folder: Path, manifest, seed: int) -> list[Path]:
         tiles.append(draw_frame(frame))
     rows = [np.hstack(tiles[i : i + 4]) for i in range(0, len(tiles), 4)]
     sheet = folder / "contact_sheet.png"
-    cv2.imwrite(str(sheet), np.vstack(rows))
+    cv2.imwrite(str(sheet), np.vstack([*rows, frame_legend(rows[0].shape[1])]))
     ratio = np.concatenate([np.nan_to_num(r.labels("hand_occlusion_ratio")) for r in readers])
     visible = np.concatenate([r.labels("visible").sum(axis=1) for r in readers])
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.2))
@@ -165,7 +175,9 @@ def _export_minari(args: argparse.Namespace) -> int:
             f"{', '.join(ids)}; received {env_id!r}"
         )
     max_steps = gym.spec(env_id).max_episode_steps or 0
-    bar = progress_bar(args.episodes * max_steps, f"minari {env_id}", "step")
+    bar = progress_bar(
+        args.episodes * max_steps, f"minari {env_id}", "step", enabled=not args.quiet
+    )
     last = [0]
 
     def progress(steps: int) -> None:
@@ -204,10 +216,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--preset", choices=presets, metavar="NAME", help=choice_help("a preset", presets)
     )
     source.add_argument("--config", type=Path, metavar="FILE", help="a JSON or YAML config file")
-    gen.add_argument("--frames", type=positive_int, help="frames (overrides the config)")
-    gen.add_argument("--seed", type=non_negative_int, help="base seed (overrides the config)")
     gen.add_argument(
-        "--workers", type=positive_int, default=1, help="worker processes (default: 1)"
+        "--frames", type=integer(1, 10**9), help="frames, up to 10**9 (overrides the config)"
+    )
+    gen.add_argument("--seed", type=seed, help="base seed (overrides the config)")
+    gen.add_argument(
+        "--workers", type=integer(1, 1024), default=1, help="worker processes (default: 1)"
     )
     gen.add_argument(
         "--ray",
@@ -217,6 +231,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "'handsim[ray]'",
     )
     gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    add_quiet(gen)
     gen.set_defaults(func=_generate)
 
     data = sub.add_parser("dataset", help="check or summarize a dataset folder")
@@ -225,6 +240,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "check", help="name truncated, corrupt or missing shards (exit 1 if any)"
     )
     check.add_argument("dir", type=Path, help="dataset folder")
+    add_quiet(check, "accepted by every command; check shows no progress bars")
     check.set_defaults(func=_check)
     info = data_sub.add_parser(
         "info",
@@ -240,7 +256,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="write contact_sheet.png (12 random frames) and histograms.png into the folder",
     )
-    info.add_argument("--seed", type=non_negative_int, default=0, help="seed of the frame picks")
+    info.add_argument("--seed", type=seed, default=0, help="seed of the frame picks")
+    add_quiet(info, "accepted by every command; info shows no progress bars")
     info.set_defaults(func=_info)
 
     export = sub.add_parser(
@@ -264,7 +281,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     export.add_argument(
         "--dataset-id", default=None, help="minari: dataset id (default handsim/<env>-expert-v0)"
     )
-    export.add_argument(
-        "--seed", type=non_negative_int, default=0, help="minari: seed of the first episode"
-    )
+    export.add_argument("--seed", type=seed, default=0, help="minari: seed of the first episode")
+    add_quiet(export)
     export.set_defaults(func=_export, parser=export)

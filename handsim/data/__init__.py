@@ -9,6 +9,7 @@ module                   holds
 :mod:`.generation`       :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
 :mod:`.views`            how a hand alone is turned toward the camera, per viewpoint
 :mod:`.stats`            palm angles, pose/view mixes, the constant-mean-pose error of a dataset
+:mod:`.splits`           train / val / test by episode (val, test: 10 % of the frames each)
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 :mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================

@@ -27,7 +27,7 @@ from scipy.spatial.transform import Rotation
 
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader, depth_units
-from handsim.data.torch_dataset import split_of_episode
+from handsim.data.splits import folder_splits
 from handsim.errors import HandSimError
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, to_format
 from handsim.viz import project_points
@@ -83,7 +83,7 @@ def export_hand_labels(
         InvalidExport: if ``out`` is not empty.
     """
     manifest, out = _prepare(dataset, out)
-    seed = int(manifest.config.get("seed", 0))
+    splits = folder_splits(dataset, manifest)
     counts: dict[str, int] = {}
     files: dict[str, Any] = {}
     try:
@@ -91,7 +91,7 @@ def export_hand_labels(
             reader = ShardReader(Path(dataset) / record.name)
             for i in range(len(reader)):
                 a = reader[i]
-                split = split_of_episode(seed, int(a["episode"]))
+                split = splits[int(a["episode"])]
                 folder = out / split
                 if split not in files:
                     (folder / "depth").mkdir(parents=True)

@@ -141,6 +141,45 @@ def test_draw_estimate_two_skeletons(frame):
     viz.draw_estimate(frame.depth, frame, None, scale_bar=False)
 
 
+def test_outline_keeps_a_skeleton_visible_on_its_own_colour():
+    """On a background of the skeleton's colour only a border shows it; the border is drawn."""
+    points = np.random.default_rng(1).uniform(10, 90, size=(21, 2)).round()
+    green = np.full((100, 100, 3), viz.TRUTH_BGR, np.uint8)
+    plain = viz.draw_skeleton(green, points, colour=viz.TRUTH_BGR)
+    assert np.array_equal(plain, green)  # the failure the border fixes: nothing to see
+    bordered = viz.draw_skeleton(green, points, colour=viz.TRUTH_BGR, outline=(0, 0, 0))
+    dark = bordered.sum(axis=-1) < 100
+    assert dark.sum() > 200
+    for u, v in points.astype(int):  # each keypoint keeps its colour, ringed by the border
+        assert tuple(bordered[v, u]) == viz.TRUTH_BGR
+        assert dark[v - 4 : v + 5, u - 4 : u + 5].any()
+
+
+def test_draw_estimate_truth_shows_on_the_green_of_the_colour_map(frame):
+    """Where turbo is green (mid-range depth), the true skeleton is outlined in black."""
+    depth = np.where(frame.depth > 0, 0.5, 0.0).astype(np.float32)  # one mid-range colour
+    image = viz.draw_estimate(depth, frame, None, near_m=0.3, far_m=0.7, scale_bar=False)
+    background = viz.depth_colormap(depth, near_m=0.3, far_m=0.7, scale_bar=False)
+    visible = frame.visible & frame.in_frame
+    dark = image.sum(axis=-1) < 100
+    for u, v in frame.keypoints_px[visible].round().astype(int):
+        window = (slice(max(v - 5, 0), v + 6), slice(max(u - 5, 0), u + 6))
+        assert dark[window].any() and not (background[window].sum(axis=-1) < 100).all()
+
+
+def test_frame_legend_names_marks_and_colours():
+    """The key of draw_frame: its width is the picture's; narrower pictures get it shrunk."""
+    strip = viz.frame_legend(1280)
+    assert strip.shape == (44, 1280, 3) and strip.dtype == np.uint8
+    for style in ("object", "self"):  # the red and yellow crosses are drawn
+        assert np.all(strip == viz.KEYPOINT_STYLES[style][1], axis=-1).any()
+    palm = viz.LABEL_BGR[2].astype(np.uint8)
+    assert np.all(strip == palm, axis=-1).any()
+    assert viz.frame_legend(280).shape == (22, 280, 3)
+    with pytest.raises(viz.InvalidImageInput, match="width must be an integer >= 1"):
+        viz.frame_legend(0)
+
+
 def test_draw_frame_panels(frame):
     """Depth with scale bar beside segmentation with the skeleton; needs the images."""
     panels = viz.draw_frame_panels(frame)
