@@ -36,9 +36,13 @@ is reused while the object has moved by at most ``silhouette_tolerance_px`` in t
 (:data:`SILHOUETTE_TOLERANCE_PX`, 0.1 pixel) since it was made: objects resting in clutter, which
 jitter by tens of micrometres a step, then cost no render, and the counts differ from a fresh
 render at most by the mask's boundary pixels whose centres the edge crossed (exact counts:
-``silhouette_tolerance_px=0``). The hand
-occlusion ratio is ``1 - visible hand pixels / hand pixels with every
-object hidden``; it needs one more render and is computed on request.
+``silhouette_tolerance_px=0``).
+
+Hand occlusion ratio: ``1 - visible hand pixels / hand pixels with every object hidden``,
+counting the hand proper, from the wrist crease to the fingertips: the forearm's pixels (the
+palm's skin proximal of the wrist crease plane, the palm frame's ``y = 0``) are left out, so a
+hidden hand scores 1 however much of its forearm is in view. It needs one more render and is
+computed on request.
 
 Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
 object instance, position in the camera frame, normal force in newtons).
@@ -162,8 +166,8 @@ class Frame:
         hand_length_m: hand length, metres.
         handedness: ``"right"`` or ``"left"``.
         objects: per object instance.
-        hand_occlusion_ratio: 1 - visible hand pixels / hand pixels without objects (``None``
-            unless requested).
+        hand_occlusion_ratio: 1 - visible hand pixels / hand pixels without objects, forearm
+            left out (module docstring; ``None`` unless requested).
         contacts: hand-object contacts.
     """
 
@@ -403,6 +407,8 @@ class FrameRenderer:
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
         self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
         self._K = _read_only(self.intrinsics.K)
+        self._palm_body = int(model.body(scene.hand.root_body).id)
+        self._hand_only_buffers: tuple[np.ndarray, np.ndarray] | None = None
         self._camera_key: bytes | None = None
         self._T_cam_from_world: np.ndarray | None = None
 
@@ -565,6 +571,66 @@ class FrameRenderer:
         )  # fmt: skip
         return visible, occluder
 
+    def _hand_pixels(
+        self,
+        data: mujoco.MjData,
+        labels: np.ndarray,
+        depth_m: np.ndarray,
+        R: np.ndarray,
+        t: np.ndarray,
+    ) -> int:  # noqa: N803
+        """Pixels of the hand proper (wrist to fingertips) in a render: the forearm left out.
+
+        The palm and the forearm are one skin mesh (one label), so a palm-labelled pixel is
+        told apart by where its surface point lies: proximal of the wrist crease plane (the
+        palm frame's ``y = 0``: +y is distal, the origin the wrist crease centre) it is
+        forearm. Exact per pixel, and no change to the hand's geoms.
+        """
+        hand = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
+        rows, cols = np.nonzero(labels == _PALM_LABEL)
+        if not len(rows):
+            return int(np.count_nonzero(hand))
+        z = depth_m[rows, cols].astype(np.float64)
+        intr = self.intrinsics
+        points = np.stack(
+            [(cols - intr.cx) / intr.fx * z, (rows - intr.cy) / intr.fy * z, z], axis=-1
+        )
+        palm = self._palm_body
+        origin_cam = R @ data.xpos[palm] + t
+        distal_cam = R @ data.xmat[palm].reshape(3, 3)[:, 1]
+        forearm = (points - origin_cam) @ distal_cam < 0.0
+        return int(np.count_nonzero(hand)) - int(np.count_nonzero(forearm))
+
+    def _hand_occlusion_ratio(
+        self,
+        data: mujoco.MjData,
+        labels: np.ndarray,
+        depth_m: np.ndarray,
+        R: np.ndarray,  # noqa: N803
+        t: np.ndarray,
+    ) -> float:
+        """``1 - visible hand pixels / hand pixels with every object hidden`` (no forearm)."""
+        groups = self.scene.model.geom_group
+        saved = groups.copy()
+        for geoms in self._object_geoms:
+            groups[geoms] = _HIDDEN_GROUP
+        if self._hand_only_buffers is None:
+            self._hand_only_buffers = (np.empty_like(depth_m), np.empty_like(labels))
+        try:
+            # The same working range as the full render: a pixel out of range is in neither.
+            depth_hand, labels_hand = self.renderer.render(
+                data,
+                out=self._hand_only_buffers,
+                geom_values=self._geom_labels,
+                fill=0,
+                depth_range_m=(self._near_m, self._far_m),
+            )
+        finally:
+            groups[:] = saved
+        hand_px = self._hand_pixels(data, labels_hand, depth_hand, R, t)
+        visible_px = self._hand_pixels(data, labels, depth_m, R, t)
+        return 1.0 - visible_px / hand_px if hand_px else 0.0
+
     def render(
         self,
         rng: np.random.Generator,
@@ -661,13 +727,7 @@ class FrameRenderer:
 
         occlusion_ratio = None
         if hand_occlusion:
-            no_objects = np.ones(model.ngeom, dtype=bool)
-            for geoms in self._object_geoms:
-                no_objects[geoms] = False
-            hand_only = self._render_only(data, np.nonzero(no_objects)[0])  # objects hidden
-            hand_px = np.count_nonzero(self._is_hand_geom[hand_only[hand_only >= 0]])
-            visible_px = np.count_nonzero((labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET))
-            occlusion_ratio = 1.0 - visible_px / hand_px if hand_px else 0.0
+            occlusion_ratio = self._hand_occlusion_ratio(data, labels, depth_clean, R, t)
 
         contacts = []
         ncon = data.ncon

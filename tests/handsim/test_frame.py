@@ -414,3 +414,35 @@ def test_silhouette_tolerance_is_checked():
     for bad in (-0.1, 0.5, "0.1", True, float("nan")):
         with pytest.raises(InvalidScene, match="silhouette_tolerance_px"):
             FrameRenderer(scene, "third_person", silhouette_tolerance_px=bad)
+
+
+@pytest.fixture(scope="module")
+def screen(tmp_path_factory):
+    """A 30 x 1 x 30 cm board, large enough to hide a whole hand."""
+    path = tmp_path_factory.mktemp("screen") / "screen.stl"
+    trimesh.creation.box(extents=(0.3, 0.01, 0.3)).export(path)
+    return load_object(path, name="screen", mass_kg=0.2, decomposition="convex_hull")
+
+
+def test_hand_occlusion_ratio_leaves_the_forearm_out(screen):
+    """A board hiding the hand from the wrist crease up scores >= 0.95, forearm in view or not."""
+    eye_z, hand_y = 0.19, 0.5
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, eye_z), (0.0, hand_y, eye_z))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))  # wrist crease at z = 0.1, forearm down toward z = 0
+    with FrameRenderer(scene, "front") as renderer:
+        bare = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    assert bare.hand_occlusion_ratio == pytest.approx(0.0, abs=1e-9)
+    # The board's lower edge on the ray from the camera to 5 mm below the crease on the palm
+    # surface (~14 mm in front of the wrist's centre): the forearm below it stays in view.
+    front_y, palm_y, edge_z = 0.4, hand_y - 0.014, 0.095
+    lower_edge_z = eye_z + (edge_z - eye_z) * front_y / palm_y
+    board = ObjectPlacement("screen", (0.0, front_y + 0.005, lower_edge_z + 0.15), mesh=screen)
+    scene = Scene(SceneSpec(cameras=(cam,), objects=(board,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    forearm_px = np.count_nonzero(frame.segmentation == 2)  # palm label: forearm only here
+    assert forearm_px > 300
+    assert not frame.visible.any()
+    assert frame.hand_occlusion_ratio >= 0.95
