@@ -24,6 +24,12 @@ folded in front included) -> :data:`OCCLUDER_SELF`; an object instance ``k`` -> 
 -> :data:`OCCLUDER_SCENE`. With nothing in front (out of range, or its surface not rendered) the
 occluder is :data:`OCCLUDER_NONE`.
 
+What the sensor returned: ``visible_sensor`` is ``visible`` judged on the noisy image too. A
+visible keypoint is seen by the sensor when, at a pixel that makes it visible (its own pixel,
+or else a confirming neighbour), the sensor returned a depth (not a dropout, shadow or
+out-of-range pixel) within :data:`SENSOR_AGREEMENT_M` of the clean depth. Without a noise model
+it equals ``visible``.
+
 Keypoints behind the camera (``z <= 0``) have NaN pixels (``keypoints_px``) and are neither in
 frame nor visible.
 
@@ -76,6 +82,7 @@ __all__ = [
     "OCCLUDER_SELF",
     "OCCLUDER_SCENE",
     "VISIBILITY_TOLERANCE_M",
+    "SENSOR_AGREEMENT_M",
     "SILHOUETTE_TOLERANCE_PX",
 ]
 
@@ -87,6 +94,11 @@ OCCLUDER_SCENE = -3
 """Hidden by the table or other scene geometry."""
 VISIBILITY_TOLERANCE_M = 0.005
 """Allowance beyond the skin radius for a surface in front of a keypoint, metres."""
+SENSOR_AGREEMENT_M = 0.01
+"""Largest difference between the sensor's and the clean depth at a keypoint's pixel for the
+sensor to have seen the keypoint, metres: about 3 sigma of the built-in sensors' axial noise at
+1.5 m (time of flight 3 mm; structured light 3.5 mm, Nguyen 2012), and less than a finger's
+thickness, so a pixel that took the background's or a blended depth does not count."""
 
 SILHOUETTE_TOLERANCE_PX = 0.1
 """Default image motion, pixels, below which an object's silhouette is reused (see
@@ -160,6 +172,8 @@ class Frame:
             (``z <= 0``).
         in_frame: (21,) bool, in front of the camera and inside the image.
         visible: (21,) bool (rule in the module docstring).
+        visible_sensor: (21,) bool, visible and seen by the sensor (module docstring); ``None``
+            in a Frame read from labels that lack it (data written before it existed).
         occluder: (21,) int, :data:`OCCLUDER_NONE`, :data:`OCCLUDER_SELF`,
             :data:`OCCLUDER_SCENE` or an object instance index.
         hand_pose: the 27-DoF pose (world frame).
@@ -188,6 +202,7 @@ class Frame:
     objects: tuple[ObjectLabel, ...]
     hand_occlusion_ratio: float | None
     contacts: tuple[Contact, ...]
+    visible_sensor: np.ndarray | None = None
 
     @property
     def keypoint_names(self) -> tuple[str, ...]:
@@ -560,16 +575,19 @@ class FrameRenderer:
         row: np.ndarray,
         col: np.ndarray,
         in_frame: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Per-keypoint ``visible`` and ``occluder`` from the clean render (module docstring)."""
+        sensor_depth_m: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-keypoint ``visible``, ``occluder`` and ``visible_sensor`` (module docstring)."""
         visible = np.zeros(21, dtype=bool)
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
+        visible_sensor = np.zeros(21, dtype=bool)
         _kernels.keypoint_visibility(
             depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
             self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
-            OCCLUDER_SCENE, visible, occluder,
+            OCCLUDER_SCENE, sensor_depth_m, SENSOR_AGREEMENT_M, visible, occluder,
+            visible_sensor,
         )  # fmt: skip
-        return visible, occluder
+        return visible, occluder, visible_sensor
 
     def _hand_pixels(
         self,
@@ -686,7 +704,9 @@ class FrameRenderer:
         col = np.rint(kp_px[:, 0])
         row = np.rint(kp_px[:, 1])
         in_frame = (z > 0) & (col >= 0) & (col < intr.width) & (row >= 0) & (row < intr.height)
-        visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
+        visible, occluder, visible_sensor = self._visibility(
+            depth_clean, labels, z, row, col, in_frame, depth
+        )
         # Objects, all at once: (n, 4, 4) poses and (n, 8, 3) box corners in the camera frame.
         n = len(scene.objects)
         objects = []
@@ -767,6 +787,7 @@ class FrameRenderer:
             keypoints_px=_read_only(kp_px),
             in_frame=_read_only(in_frame),
             visible=_read_only(visible),
+            visible_sensor=_read_only(visible_sensor),
             occluder=_read_only(occluder),
             hand_pose=scene.binding.pose(data),
             hand_length_m=hand.hand_length,

@@ -300,6 +300,50 @@ def test_visibility_is_decided_on_the_clean_render():
     np.testing.assert_array_equal(dropped.occluder, clean.occluder)
 
 
+class _Offset:
+    """A sensor that adds a constant to every measured depth."""
+
+    def __init__(self, offset_m: float, hole: tuple[int, int] | None = None):
+        self.offset_m, self.hole = offset_m, hole
+
+    def apply(self, depth_m, intrinsics, rng):
+        out = np.where(depth_m > 0, depth_m + np.float32(self.offset_m), np.float32(0.0))
+        if self.hole is not None:  # a 5 x 5 dropout around one pixel (u, v)
+            u, v = self.hole
+            out[v - 2 : v + 3, u - 2 : u + 3] = 0.0
+        return out.astype(np.float32)
+
+
+def test_visible_sensor_says_where_the_sensor_returned_the_keypoint():
+    """visible_sensor: visible, and the noisy depth at its pixel is valid and agrees (10 mm)."""
+    from handsim.frame import SENSOR_AGREEMENT_M
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+
+    def render(sensor):
+        with FrameRenderer(scene, "front", sensor=sensor) as renderer:
+            return renderer.render(np.random.default_rng(0))
+
+    clean = render(None)
+    assert clean.visible.all()
+    np.testing.assert_array_equal(clean.visible_sensor, clean.visible)
+    assert not render(_DropEverything()).visible_sensor.any()
+    within = render(_Offset(0.8 * SENSOR_AGREEMENT_M))
+    np.testing.assert_array_equal(within.visible_sensor, within.visible)
+    beyond = render(_Offset(1.2 * SENSOR_AGREEMENT_M))
+    assert beyond.visible.all() and not beyond.visible_sensor.any()
+    # A dropout over one fingertip's pixels: that keypoint alone is lost to the sensor.
+    tip = KEYPOINT_NAMES.index("index_tip")
+    u, v = np.rint(clean.keypoints_px[tip]).astype(int)
+    holed = render(_Offset(0.0, hole=(u, v)))
+    expected = np.ones(21, dtype=bool)
+    expected[tip] = False
+    np.testing.assert_array_equal(holed.visible_sensor, expected)
+    np.testing.assert_array_equal(holed.visible, clean.visible)
+
+
 def test_a_keypoint_is_visible_only_on_its_own_part():
     """Every visible keypoint's pixel (or a neighbour) shows its own hand part near its depth."""
     from handsim.frame import _NEIGHBOURS, _keypoint_parts

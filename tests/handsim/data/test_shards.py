@@ -172,3 +172,24 @@ def test_read_block_can_give_the_images_as_stored(tmp_path):
         np.testing.assert_array_equal(stored[key] * scale, block[key])
     np.testing.assert_array_equal(stored["segmentation"], block["segmentation"])
     np.testing.assert_array_equal(stored["keypoints_cam"], block["keypoints_cam"])
+
+
+def test_a_shard_written_before_visible_sensor_reads_with_it_filled(tmp_path, frame_arrays):
+    """An older shard (no labels/visible_sensor) is sound and reads visible_sensor = visible."""
+    import h5py
+
+    from handsim.frame import Frame
+
+    _write(tmp_path / "old.h5", frame_arrays)
+    with h5py.File(tmp_path / "old.h5", "r+") as f:
+        del f["labels/visible_sensor"]
+    assert check_shard(tmp_path / "old.h5") == []
+    reader = ShardReader(tmp_path / "old.h5")
+    for i, arrays in enumerate(frame_arrays):
+        back = reader[i]
+        np.testing.assert_array_equal(back["visible_sensor"], arrays["visible"])
+        assert back["visible_sensor"].dtype == np.bool_
+        Frame.from_arrays(back)  # the Frame of older data reads too
+    np.testing.assert_array_equal(
+        reader.labels("visible_sensor"), np.stack([a["visible"] for a in frame_arrays])
+    )
