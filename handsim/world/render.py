@@ -444,6 +444,50 @@ class DepthRenderer:
         mujoco.mjr_readPixels(rgb, None, rect, self._context)
         return self._geom_ids(rgb)
 
+    def render_segmentation_canvas(
+        self, data: mujoco.MjData, region: tuple[int, int, int, int]
+    ) -> np.ndarray:
+        """The geom-id image of a pixel box that may reach beyond the image.
+
+        The image's pixel grid continues beyond its borders, as on a larger sensor with the
+        same intrinsics (BOP renders an object on a canvas three times the image's size with
+        the principal point shifted to see its whole silhouette). Each image-sized tile of the
+        box is rendered with the camera's principal point shifted by a multiple of the image
+        size, so pixel ``(u, v)`` of the canvas is exactly what a sensor that large would see
+        there; a box inside the image is one ordinary render.
+
+        Args:
+            data: simulation data.
+            region: ``(u0, v0, u1, v1)`` pixel box, end exclusive, in image pixel coordinates
+                (negative or past the image size outside it).
+
+        Returns:
+            (v1 - v0, u1 - u0) int32 geom ids, -1 for background.
+        """
+        w, h = self.intrinsics.width, self.intrinsics.height
+        u0, v0, u1, v1 = (int(x) for x in region)
+        out = np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
+        if not out.size:
+            return out
+        intrinsic = self.model.cam_intrinsic[self.camera_id]
+        saved = intrinsic.copy()
+        # The principal point in the model is in sensor units (metres): pixel pitch per axis.
+        pitch = self.model.cam_sensorsize[self.camera_id] / (w, h)
+        try:
+            for tv in range(v0 // h, -(-v1 // h)):
+                for tu in range(u0 // w, -(-u1 // w)):
+                    # Principal pixel + k W shows canvas column u' + k W at image column u'.
+                    intrinsic[2] = saved[2] + tu * w * pitch[0]
+                    intrinsic[3] = saved[3] + tv * h * pitch[1]
+                    ou, ov = tu * w, tv * h
+                    cu0, cv0 = max(u0, ou), max(v0, ov)
+                    cu1, cv1 = min(u1, ou + w), min(v1, ov + h)
+                    tile = self.render_segmentation(data, (cu0 - ou, cv0 - ov, cu1 - ou, cv1 - ov))
+                    out[cv0 - v0 : cv1 - v0, cu0 - u0 : cu1 - u0] = tile
+        finally:
+            intrinsic[:] = saved
+        return out
+
     def close(self) -> None:
         """Free the OpenGL context (idempotent); in :func:`shared_render_context`, keep it."""
         if self._context is not None and _SPARE.depth > 0:
