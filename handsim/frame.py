@@ -34,9 +34,12 @@ Keypoints behind the camera (``z <= 0``) have NaN pixels (``keypoints_px``) and 
 frame nor visible.
 
 Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
-``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
-nothing else in the scene) that is visible in the full render (pixels where the full render sees
-the object). Unoccluded objects need no extra render (see ``FrameRenderer._silhouettes``);
+``visib_fract`` as BOP defines it (bop_toolkit's ``calc_gt_info``): ``px_count_visib /
+px_count_all``, where ``px_count_all`` counts the object's whole silhouette, rendered with
+nothing else in the scene on a canvas that extends the image by its own size on every side (so
+an object cut by the image's border counts its part outside the image too), and
+``px_count_visib`` the pixels where the full render sees the object. An object whose projected
+box misses the image gets 0 for both. Unoccluded objects inside the image need no extra render (see ``FrameRenderer._silhouettes``);
 the others share one silhouette render when their projected boxes do not overlap. A silhouette
 is reused while the object has moved by at most ``silhouette_tolerance_px`` in the image
 (:data:`SILHOUETTE_TOLERANCE_PX`, 0.1 pixel) since it was made: objects resting in clutter, which
@@ -124,7 +127,8 @@ class ObjectLabel:
         T_cam_from_obj: (4, 4) object pose in the OpenCV camera frame, metres.
         corners_cam: (8, 3) bounding-box corners in the camera frame, metres.
         visib_fract: visible fraction of the object's silhouette (BOP), 0 when out of view.
-        px_count_all: silhouette pixels of the object alone.
+        px_count_all: silhouette pixels of the object alone, on BOP's canvas (the image and
+            one image size beyond it on every side).
         px_count_visib: pixels where the full render sees the object.
     """
 
@@ -239,28 +243,39 @@ class _Mask(NamedTuple):
         return int(np.count_nonzero(self.pixels))
 
     def count_where(self, labels: np.ndarray, label: int) -> int:
-        """Pixels of the mask where the (H, W) image ``labels`` equals ``label``."""
+        """Pixels of the mask where the (H, W) image ``labels`` equals ``label``.
+
+        The mask may reach beyond the image (a border-cut object's whole silhouette); only
+        its part inside the image can match.
+        """
         h, w = self.pixels.shape
-        crop = labels[self.v0 : self.v0 + h, self.u0 : self.u0 + w]
-        return int(np.count_nonzero(self.pixels & (crop == label)))
+        v0, u0 = max(self.v0, 0), max(self.u0, 0)
+        v1, u1 = min(self.v0 + h, labels.shape[0]), min(self.u0 + w, labels.shape[1])
+        if v1 <= v0 or u1 <= u0:
+            return 0
+        crop = labels[v0:v1, u0:u1]
+        pixels = self.pixels[v0 - self.v0 : v1 - self.v0, u0 - self.u0 : u1 - self.u0]
+        return int(np.count_nonzero(pixels & (crop == label)))
 
 
 def _pixel_box(
-    lo: np.ndarray, hi: np.ndarray, width: int, height: int, margin: int
+    lo: np.ndarray, hi: np.ndarray, width: int, height: int, margin: int, canvas: bool = False
 ) -> tuple[int, int, int, int]:
     """Pixel box ``(u0, v0, u1, v1)``, end exclusive, of the pixel centres in ``[lo, hi]``.
 
     ``lo`` and ``hi`` are (2,) pixel coordinates ``(u, v)`` (may be infinite); the box is widened
-    by ``margin`` pixels and clipped to the image.
+    by ``margin`` pixels and clipped to the image, or with ``canvas`` to BOP's canvas (the
+    image and one image size beyond it on every side: ``[-W, 2W) x [-H, 2H)``).
     """
     # Four numbers: Python's math is several times cheaper than NumPy's calls here.
     box = []
     for value, size, end in zip(
         (*lo.tolist(), *hi.tolist()), (width, height) * 2, (False, False, True, True), strict=True
     ):
-        value = min(max(value, -1 - margin), size + margin)  # finite (an inf is clipped)
+        first, last = (-size, 2 * size) if canvas else (0, size)
+        value = min(max(value, first - 1 - margin), last + margin)  # finite (an inf is clipped)
         edge = math.ceil(value) + margin + 1 if end else math.floor(value) - margin
-        box.append(min(max(edge, 0), size))
+        box.append(min(max(edge, first), last))
     return box[0], box[1], box[2], box[3]
 
 
@@ -443,14 +458,20 @@ class FrameRenderer:
         visible_geoms: np.ndarray,
         region: tuple[int, int, int, int] | None = None,
     ) -> np.ndarray:
-        """Geom-id image (of ``region``) with every geom hidden except ``visible_geoms``."""
+        """Geom-id image (of ``region``) with every geom hidden except ``visible_geoms``.
+
+        ``region`` may reach beyond the image (:meth:`DepthRenderer.render_segmentation_canvas`);
+        default: the image.
+        """
         groups = self.scene.model.geom_group
         saved = groups.copy()
         hide = np.ones(len(groups), dtype=bool)
         hide[visible_geoms] = False
         groups[hide] = _HIDDEN_GROUP
+        if region is None:
+            region = (0, 0, self.intrinsics.width, self.intrinsics.height)
         try:
-            return self.renderer.render_segmentation(data, region)
+            return self.renderer.render_segmentation_canvas(data, region)
         finally:
             groups[:] = saved
 
@@ -504,10 +525,13 @@ class FrameRenderer:
         render only in pixels whose centres lie within the tolerance of the edge (the mask's
         boundary pixels). Objects resting under a moving hand, which still move by tens of
         micrometres a step, then cost no render. Otherwise, an object whose visible region
-        nowhere borders a nearer hand or other object is not occluded (its silhouette is
-        connected, so a hidden part would border its occluder): its silhouette is its visible
-        region, with no render. The others are rendered alone; objects whose projected boxes
-        do not overlap share one render, of their boxes' pixels only.
+        nowhere borders a nearer hand or other object, nor the image's border, is not occluded
+        or cut (its silhouette is connected, so a hidden part would border its occluder or
+        cross the border): its silhouette is its visible region, with no render. The others
+        are rendered alone; objects whose projected boxes do not overlap share one render, of
+        their boxes' pixels only. A silhouette cut by the image's border is rendered whole on
+        BOP's canvas (the image and one image size beyond it on every side); an object whose
+        box misses the image altogether gets an empty silhouette (nothing of it is visible).
         """
         h, w = labels.shape
         masks: list[_Mask | None] = [None] * len(boxes)
@@ -529,6 +553,14 @@ class FrameRenderer:
             if not own.any():
                 pending.append(k)  # fully hidden, or too small to see
                 continue
+            if (
+                (u0 == 0 and own[:, 0].any())
+                or (v0 == 0 and own[0].any())
+                or (u1 == w and own[:, -1].any())
+                or (v1 == h and own[-1].any())
+            ):
+                pending.append(k)  # cut by the border: the rest lies outside the image
+                continue
             ring = cv2.dilate(own.view(np.uint8), kernel).view(bool) & ~own
             foreign = ring & (crop_labels >= _PALM_LABEL)
             if foreign.any():
@@ -549,13 +581,13 @@ class FrameRenderer:
             # Read only the group's projected box (the corner boxes enclose the objects).
             lo = np.min([boxes[k][0] for k in group], axis=0)
             hi = np.max([boxes[k][1] for k in group], axis=0)
-            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=0)
+            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=0, canvas=True)
             geom_ids = self._render_only(
                 data, np.concatenate([self._object_geoms[k] for k in group]), (u0, v0, u1, v1)
             )
             seen = self._geom_instance[geom_ids]
             for k in group:
-                ku0, kv0, ku1, kv1 = _pixel_box(*boxes[k], w, h, margin=0)
+                ku0, kv0, ku1, kv1 = _pixel_box(*boxes[k], w, h, margin=0, canvas=True)
                 ku0, kv0 = max(ku0, u0), max(kv0, v0)
                 ku1, kv1 = max(min(ku1, u1), ku0), max(min(kv1, v1), kv0)
                 masks[k] = _Mask(ku0, kv0, seen[kv0 - v0 : kv1 - v0, ku0 - u0 : ku1 - u0] == k)

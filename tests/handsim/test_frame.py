@@ -177,8 +177,12 @@ def test_silhouette_shortcut_matches_rendering_each_object_alone():
         scene = Scene(SceneSpec(objects=placements, cameras=(cam,)))
         with FrameRenderer(scene, "view") as renderer:
             frame = renderer.render(rng)
+            canvas = (-ICVL.width, -ICVL.height, 2 * ICVL.width, 2 * ICVL.height)
             for label in frame.objects:
-                alone = renderer._render_only(scene.data, renderer._object_geoms[label.instance])
+                # BOP counts the whole silhouette, on a canvas 3 times the image's size.
+                alone = renderer._render_only(
+                    scene.data, renderer._object_geoms[label.instance], canvas
+                )
                 seen = scene.geom_labels[np.maximum(alone, 0)]
                 expected = int(np.count_nonzero((alone >= 0) & (seen == 8 + label.instance)))
                 assert label.px_count_all == expected
@@ -427,11 +431,15 @@ def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
             with FrameRenderer(scene, "third_person", silhouette_tolerance_px=0.0) as fresh:
                 new = fresh.render(rng)
                 for k, (a, b) in enumerate(zip(kept.objects, new.objects, strict=True)):
+                    # On BOP's canvas: the image and one image size beyond it on every side.
                     mask = reused._silhouette_masks[k]
-                    cached = np.zeros(new.segmentation.shape, dtype=bool)
+                    H, W = new.segmentation.shape  # noqa: N806
+                    cached = np.zeros((3 * H, 3 * W), dtype=bool)
                     h, w = mask.pixels.shape
-                    cached[mask.v0 : mask.v0 + h, mask.u0 : mask.u0 + w] = mask.pixels
-                    alone = fresh._render_only(data, fresh._object_geoms[k])
+                    cached[H + mask.v0 : H + mask.v0 + h, W + mask.u0 : W + mask.u0 + w] = (
+                        mask.pixels
+                    )
+                    alone = fresh._render_only(data, fresh._object_geoms[k], (-W, -H, 2 * W, 2 * H))
                     truth = (alone >= 0) & (scene.geom_labels[np.maximum(alone, 0)] == 8 + k)
                     assert truth.sum() == b.px_count_all
                     kernel = np.ones((3, 3), np.uint8)
@@ -490,3 +498,34 @@ def test_hand_occlusion_ratio_leaves_the_forearm_out(screen):
     assert forearm_px > 300
     assert not frame.visible.any()
     assert frame.hand_occlusion_ratio >= 0.95
+
+
+@pytest.mark.parametrize("side", ["left", "bottom"])
+def test_border_cut_object_counts_its_whole_silhouette(panel, side):
+    """A panel half outside the image: px_count_all is its whole projected box (BOP), not 1.0."""
+    from matplotlib.path import Path as Polygon
+    from scipy.spatial import ConvexHull
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.05), (0.0, 1.0, 0.05))
+    # Centre the panel on the ray of the image's left column / bottom row, 0.4 m ahead.
+    d = 0.4
+    x = -ICVL.cx / ICVL.fx * d if side == "left" else 0.0
+    z = 0.05 - (ICVL.height - 1 - ICVL.cy) / ICVL.fy * d if side == "bottom" else 0.05
+    place = ObjectPlacement("panel", (x, d, z), mesh=panel)
+    scene = Scene(SceneSpec(cameras=(cam,), objects=(place,), table=False))
+    scene.reset(gesture("open").replace(wrist_pos=np.array([0.0, -1.0, 0.0])))  # behind
+    with FrameRenderer(scene, "front") as renderer:
+        label = renderer.render(np.random.default_rng(0)).objects[0]
+    # The silhouette of a box: the convex hull of its 8 projected corners. Count the pixel
+    # centres inside it, on the whole canvas and inside the image.
+    corners_px = ICVL.project(label.corners_cam)
+    hull = corners_px[ConvexHull(corners_px).vertices]
+    v, u = np.mgrid[-ICVL.height : 2 * ICVL.height, -ICVL.width : 2 * ICVL.width]
+    inside = Polygon(hull).contains_points(np.stack([u.ravel(), v.ravel()], -1)).reshape(u.shape)
+    in_image = (u >= 0) & (u < ICVL.width) & (v >= 0) & (v < ICVL.height)
+    expected_all, expected_visib = inside.sum(), (inside & in_image).sum()
+    perimeter = np.sum(np.linalg.norm(hull - np.roll(hull, 1, axis=0), axis=1))
+    assert abs(label.px_count_all - expected_all) <= perimeter
+    assert abs(label.px_count_visib - expected_visib) <= perimeter
+    assert label.visib_fract == pytest.approx(expected_visib / expected_all, abs=0.02)
+    assert 0.4 < label.visib_fract < 0.6  # about half of it is in the image
