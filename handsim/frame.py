@@ -39,8 +39,9 @@ px_count_all``, where ``px_count_all`` counts the object's whole silhouette, ren
 nothing else in the scene on a canvas that extends the image by its own size on every side (so
 an object cut by the image's border counts its part outside the image too), and
 ``px_count_visib`` the pixels where the full render sees the object. An object whose projected
-box misses the image gets 0 for both. Unoccluded objects inside the image need no extra render (see ``FrameRenderer._silhouettes``);
-the others share one silhouette render when their projected boxes do not overlap. A silhouette
+box misses the image gets 0 for both. Unoccluded objects inside the image need no extra render
+(see ``FrameRenderer._silhouettes``); the others share one silhouette render when their
+projected boxes do not overlap. A silhouette
 is reused while the object has moved by at most ``silhouette_tolerance_px`` in the image
 (:data:`SILHOUETTE_TOLERANCE_PX`, 0.1 pixel) since it was made: objects resting in clutter, which
 jitter by tens of micrometres a step, then cost no render, and the counts differ from a fresh

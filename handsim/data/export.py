@@ -7,8 +7,12 @@
   Estimation", ECCV 2018; the format of the BOP toolkit): ``models/obj_NNNNNN.ply`` in
   millimetres with ``models_info.json`` (diameter, extents, symmetries), and per scene (one
   shard) ``scene_camera.json``, ``scene_gt.json``, ``scene_gt_info.json``, ``depth/``, ``mask/``
-  (the object's full silhouette, rendered with the object alone as the Frame's ``visib_fract``
-  is) and ``mask_visib/`` (its visible pixels).
+  (the object's silhouette inside the image, rendered with the object alone as the Frame's
+  ``visib_fract`` is) and ``mask_visib/`` (its visible pixels). ``scene_gt_info`` follows
+  bop_toolkit's ``calc_gt_info``: ``px_count_all`` and ``bbox_obj`` from the whole silhouette
+  on a canvas extending the image by its size on every side (a border-cut object counts its
+  part outside the image), ``bbox_obj`` ``[-1, -1, -1, -1]`` unless some pixel is visible,
+  boxes ``[x, y, w, h]`` with ``w = x_max - x_min`` and ``h = y_max - y_min``.
 
 Both read a dataset folder (``manifest.json`` + shards) and write into a new folder.
 """
@@ -179,20 +183,29 @@ def _models_info(ycbv_id: int) -> dict[str, Any]:
     return info
 
 
-def _bbox(mask: np.ndarray) -> list[int]:
+def _bbox(mask: np.ndarray, offset: tuple[int, int] = (0, 0)) -> list[int]:
+    """BOP's ``[x, y, w, h]`` of a mask, bop_toolkit's convention: ``w = x_max - x_min``.
+
+    ``offset``: image coordinates ``(u, v)`` of the mask's pixel ``(0, 0)``.
+    """
     ys, xs = np.nonzero(mask)
     if not len(xs):
         return [-1, -1, -1, -1]
     return [
-        int(xs.min()),
-        int(ys.min()),
-        int(xs.max() - xs.min() + 1),
-        int(ys.max() - ys.min() + 1),
+        int(xs.min() + offset[0]),
+        int(ys.min() + offset[1]),
+        int(xs.max() - xs.min()),
+        int(ys.max() - ys.min()),
     ]
 
 
 class _Silhouettes:
-    """Full silhouettes of objects rendered alone by MuJoCo (as the Frame's ``visib_fract``)."""
+    """Whole silhouettes of objects rendered alone by MuJoCo, on BOP's canvas.
+
+    The canvas is the image and one image size beyond it on every side (3 W x 3 H; image pixel
+    ``(u, v)`` is canvas pixel ``(u + W, v + H)``), as bop_toolkit's ``calc_gt_info`` renders
+    it, and as the Frame counts ``px_count_all``.
+    """
 
     def __init__(self, intrinsics: CameraIntrinsics) -> None:
         # A camera at the world origin whose OpenCV frame is the world frame, so an object's
@@ -217,7 +230,8 @@ class _Silhouettes:
         )
         scene.data.qpos[:7] = qpos
         mujoco.mj_forward(scene.model, scene.data)
-        return renderer.render_segmentation(scene.data) >= 0
+        w, h = self.camera.intrinsics.width, self.camera.intrinsics.height
+        return renderer.render_segmentation_canvas(scene.data, (-w, -h, 2 * w, 2 * h)) >= 0
 
     def close(self) -> None:
         for _, renderer in self._scenes.values():
@@ -277,13 +291,16 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
                     }
                 )
                 name = _YCBV_NAMES[ycbv_id]
-                full = silhouettes(name, T_obj)
+                canvas = silhouettes(name, T_obj)
+                h, w = depth_valid.shape
+                full = canvas[h : 2 * h, w : 2 * w]  # the part inside the image: BOP's mask
                 visib = a["segmentation"] == OBJECT_LABEL_OFFSET + k
-                n_all = int(full.sum())
+                n_all = int(canvas.sum())
                 n_visib = int(visib.sum())
                 info.append(
                     {
-                        "bbox_obj": _bbox(full),
+                        # As bop_toolkit: the whole silhouette's box, given only when visible.
+                        "bbox_obj": _bbox(canvas, (-w, -h)) if n_visib else [-1, -1, -1, -1],
                         "bbox_visib": _bbox(visib),
                         "px_count_all": n_all,
                         "px_count_valid": int((full & depth_valid).sum()),

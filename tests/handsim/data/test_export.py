@@ -93,14 +93,21 @@ def test_bop_files_follow_the_format(dataset, tmp_path):
         )
         full = cv2.imread(str(scene / "mask" / f"000001_{gt_id:06d}.png"), 0) > 0
         visib = cv2.imread(str(scene / "mask_visib" / f"000001_{gt_id:06d}.png"), 0) > 0
-        assert full.sum() == inf["px_count_all"] and visib.sum() == inf["px_count_visib"]
+        assert visib.sum() == inf["px_count_visib"]
+        # px_count_all counts the whole silhouette (BOP's enlarged canvas); the mask is its
+        # part inside the image.
+        assert full.sum() <= inf["px_count_all"]
         # The silhouette is rendered as the Frame renders it: the same pixel count.
         rendered = frame["object_px_count_all"][gt_id]
         assert inf["px_count_all"] == rendered
         assert not (visib & ~full).any()
+        # bop_toolkit's boxes: [x, y, w, h] with w = x_max - x_min (tight, inclusive ends).
         x, y, w, h = inf["bbox_visib"]
         if visib.any():
-            assert visib[y : y + h, x : x + w].sum() == visib.sum()
+            ys, xs = np.nonzero(visib)
+            assert [x, y, w, h] == [xs.min(), ys.min(), xs.max() - xs.min(), ys.max() - ys.min()]
+            ox, oy, ow, oh = inf["bbox_obj"]
+            assert ox <= x and oy <= y and ox + ow >= x + w and oy + oh >= y + h
     models = tmp_path / "bop" / "models"
     info = _strict((models / "models_info.json").read_text())
     can = info["1"]
@@ -127,3 +134,63 @@ def test_exports_refuse_a_non_empty_target_and_a_non_dataset(dataset, tmp_path):
         export_bop(dataset, tmp_path / "full")
     with pytest.raises(Exception, match="has no manifest.json"):
         export_hand_labels(tmp_path / "full", tmp_path / "out")
+
+
+@pytest.fixture(scope="module")
+def border_dataset(tmp_path_factory):
+    """One frame: a can cut in half by the image's left border, a hand in view."""
+    from handsim.data.manifest import Manifest
+    from handsim.data.shards import ShardWriter
+    from handsim.frame import FrameRenderer
+    from handsim.hand.pose_sources import gesture
+    from handsim.world.camera import camera_preset
+    from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+
+    icvl = camera_preset("icvl")
+    cam = CameraSpec.look_at("cam", icvl, (0.0, 0.0, 0.05), (0.0, 1.0, 0.05))
+    d = 0.4
+    standing = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # the can's axis up
+    can = ObjectPlacement("002_master_chef_can", (-icvl.cx / icvl.fx * d, d, 0.05), standing)
+    scene = Scene(SceneSpec(cameras=(cam,), objects=(can,), table=False))
+    scene.reset(gesture("open").replace(wrist_pos=np.array([0.05, 0.5, -0.05])))
+    with FrameRenderer(scene, "cam") as renderer:
+        frame = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    folder = tmp_path_factory.mktemp("border")
+    arrays = frame.to_arrays(images=True)
+    with ShardWriter(folder / Manifest.shard_name(0), image_shape=arrays["depth"].shape) as w:
+        w.append(arrays, episode=0, step=0)
+    Manifest(
+        config={"camera": "icvl", "seed": 0},
+        seeds=[0],
+        shards={0: w.info},
+        depth_scale_mm=0.1,
+        image_shape=arrays["depth"].shape,
+    ).write(folder)
+    return folder, frame
+
+
+def test_bop_gt_info_of_a_border_cut_object_is_bop_toolkits(border_dataset, tmp_path):
+    """px_count_all and bbox_obj count the part outside the image; visib_fract about 1/2."""
+    folder, frame = border_dataset
+    export_bop(folder, tmp_path / "bop")
+    scene = tmp_path / "bop" / "train_pbr" / "000000"
+    info = _strict((scene / "scene_gt_info.json").read_text())["0"][0]
+    label = frame.objects[0]
+    assert info["px_count_all"] == label.px_count_all
+    assert info["px_count_visib"] == label.px_count_visib
+    assert info["visib_fract"] == pytest.approx(label.visib_fract)
+    assert 0.4 < info["visib_fract"] < 0.6  # half the can is outside the image
+    mask = cv2.imread(str(scene / "mask" / "000000_000000.png"), 0) > 0
+    assert mask.sum() < 0.6 * info["px_count_all"]
+    # The whole silhouette's box starts left of the image; it ends where the visible one does.
+    x, y, w, h = info["bbox_obj"]
+    vx, vy, vw, vh = info["bbox_visib"]
+    assert x < 0 and vx == 0
+    assert x + w == vx + vw and y <= vy and y + h >= vy + vh
+    # Its width: the can's round section (radius r, centre at x_c, z_c in the camera frame)
+    # spans the rays at angles phi +- asin(r / rho) from the optical axis.
+    x_c, _, z_c = label.T_cam_from_obj[:3, 3]
+    r = get_object("002_master_chef_can").visual_mesh.extents[0] / 2
+    phi, half = np.arctan2(x_c, z_c), np.arcsin(r / np.hypot(x_c, z_c))
+    width_px = 241.42 * (np.tan(phi + half) - np.tan(phi - half))
+    assert w == pytest.approx(width_px, abs=1.5)
