@@ -32,7 +32,7 @@ key                          shape       dtype    unit    meaning
 ``object_T_cam_from_obj``    (N, 4, 4)   float64  m       object pose, camera frame
 ``object_corners_cam``       (N, 8, 3)   float64  m       box corners, camera frame
 ``object_visib_fract``       (N,)        float64          BOP visible fraction
-``object_px_count_all``      (N,)        int32    px      silhouette pixels of the object alone
+``object_px_count_all``      (N,)        int32    px      whole silhouette of the object alone (BOP)
 ``object_px_count_visib``    (N,)        int32    px      pixels where the full render sees it
 ``contact_count``            ()          int16            used contact slots
 ``contact_hand_part``        (C,)        int8             segmentation label of the hand part

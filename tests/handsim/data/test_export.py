@@ -10,7 +10,8 @@ import trimesh
 from handsim.data.export import InvalidExport, export_bop, export_hand_labels
 from handsim.data.generation import GenerationConfig, generate
 from handsim.data.shards import ShardReader
-from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES
+from handsim.errors import InvalidKeypoints
+from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, format_flags
 from handsim.world.registry import get_object
 
 
@@ -61,6 +62,52 @@ def test_hand_labels_hold_every_frame_and_format(dataset, tmp_path):
     for fmt, names in FORMATS.items():
         assert len(line["formats"][fmt]["keypoints_cam_m"]) == len(names)
     assert {o["name"] for o in line["objects"]} == {"002_master_chef_can", "036_wood_block"}
+    # One type for the occluder: the label's integer codes.
+    assert line["occluder"] == frame["occluder"].tolist()
+    assert line["visible_sensor"] == frame["visible_sensor"].tolist()
+    mask = cv2.imread(str(tmp_path / "out" / split / line["hand_mask"]), cv2.IMREAD_UNCHANGED)
+    assert mask.dtype == np.uint8 and set(np.unique(mask)) <= {0, 255}
+    seg = frame["segmentation"]
+    np.testing.assert_array_equal(mask == 255, (seg >= 2) & (seg < 8))
+    assert mask.any()
+    # Per format: the canonical flags, copied (mediapipe21 is the identity).
+    mp = line["formats"]["mediapipe21"]
+    assert mp["visible"] == line["visible"] and mp["in_frame"] == line["in_frame"]
+    assert mp["visible_sensor"] == line["visible_sensor"]
+
+
+def test_hand_label_schema_names_every_field_with_its_unit_and_frame(dataset, tmp_path):
+    """schema.json lists exactly the fields of a line, each with type, shape, unit and frame."""
+    counts = export_hand_labels(dataset, tmp_path / "out")
+    schema = _strict((tmp_path / "out" / "schema.json").read_text())
+    assert schema["format"] == "handsim-hand-labels-2"
+    split = next(iter(counts))
+    line = _strict((tmp_path / "out" / split / "labels.jsonl").read_text().splitlines()[0])
+    assert set(schema["fields"]) == set(line)
+    for name, field in schema["fields"].items():
+        assert set(field) == {"type", "shape", "unit", "frame", "meaning"}, name
+    assert schema["fields"]["keypoints_cam_m"]["unit"] == "m"
+    assert schema["fields"]["keypoints_cam_m"]["frame"].startswith("OpenCV camera")
+    assert schema["occluder_codes"] == {
+        "-1": "none",
+        "-2": "self",
+        "-3": "scene",
+        "k >= 0": "object instance k (objects[].instance)",
+    }
+    assert schema["depth_png"] == {"dtype": "uint16", "unit_mm": 0.1, "no_measurement": 0}
+    assert schema["keypoint_formats"] == {k: list(v) for k, v in FORMATS.items()}
+
+
+def test_format_flags_of_computed_points_need_every_source():
+    """A copied point keeps its flag; the palm centre needs the wrist and the four MCPs."""
+    flags = np.ones(21, dtype=bool)
+    flags[KEYPOINT_NAMES.index("ring_mcp")] = False
+    icvl = format_flags(flags, "icvl16")
+    assert not icvl[FORMATS["icvl16"].index("palm")] and icvl[1:].all()
+    np.testing.assert_array_equal(format_flags(flags, "mediapipe21"), flags)
+    assert format_flags(np.ones((4, 21), bool), "nyu14").shape == (4, 14)
+    with pytest.raises(InvalidKeypoints, match=r"flags of shape \(\.\.\., 21\)"):
+        format_flags(np.ones(14, bool), "nyu14")
 
 
 def test_bop_files_follow_the_format(dataset, tmp_path):
