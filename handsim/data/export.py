@@ -38,6 +38,7 @@ from handsim.errors import HandSimError
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, format_flags, to_format
 from handsim.viz import project_points
 from handsim.world.camera import CameraIntrinsics, camera_preset
+from handsim.world.objects import SYMMETRY_MODALITIES, SymmetryModality
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import (
@@ -281,7 +282,7 @@ def _ply_mm(path: Path, vertices_m: np.ndarray, faces: np.ndarray) -> None:
     path.write_bytes(header.encode() + v.tobytes() + rows.tobytes())
 
 
-def _models_info(ycbv_id: int) -> dict[str, Any]:
+def _models_info(ycbv_id: int, symmetry: SymmetryModality = "texture") -> dict[str, Any]:
     """BOP ``models_info`` of one object (millimetres), symmetries in BOP's encoding."""
     obj = get_object(_YCBV_NAMES[ycbv_id])
     lo = obj.visual_mesh.vertices.min(axis=0) * 1000.0
@@ -295,7 +296,7 @@ def _models_info(ycbv_id: int) -> dict[str, Any]:
         "size_y": round(float(size[1]), 6),
         "size_z": round(float(size[2]), 6),
     }
-    info.update(obj.symmetry.to_bop())
+    info.update(obj.symmetry_of(symmetry).to_bop())
     return info
 
 
@@ -354,12 +355,26 @@ class _Silhouettes:
             renderer.close()
 
 
-def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> dict[str, int]:
+def export_bop(
+    dataset: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    symmetry: SymmetryModality = "texture",
+) -> dict[str, int]:
     """Write a dataset in the BOP format (one BOP scene per shard, split by shard).
 
     Units and conventions are BOP's: millimetres, ``cam_R_*`` row-major 3 x 3, ``cam_K``
     row-major 3 x 3, depth PNG in units of ``depth_scale`` mm, masks named
     ``{im_id:06d}_{gt_id:06d}.png`` with ``gt_id`` the object's index in ``scene_gt``.
+
+    Args:
+        dataset: the dataset folder.
+        out: a new or empty folder.
+        symmetry: the symmetries in ``models_info.json`` (``symmetries_continuous``,
+            ``symmetries_discrete``): ``"texture"`` (default; what looks the same in colour, as
+            BOP's ycbv models_info) or ``"depth"`` (the shape alone, for depth-only methods:
+            the tomato soup and tuna cans are then continuous, the plain boxes discrete;
+            :meth:`~handsim.world.YCBObject.symmetry_of`).
 
     Returns:
         ``{"scenes": n, "images": n, "objects": n}``.
@@ -368,6 +383,8 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
         InvalidManifest: if ``dataset`` is not a dataset folder.
         InvalidExport: if ``out`` is not empty.
     """
+    if symmetry not in SYMMETRY_MODALITIES:
+        raise InvalidExport(f"symmetry must be one of {SYMMETRY_MODALITIES}; received {symmetry!r}")
     manifest, out = _prepare(dataset, out)
     silhouettes = _Silhouettes(camera_preset(manifest.config.get("camera", "icvl")))
     used: set[int] = set()
@@ -443,6 +460,6 @@ def export_bop(dataset: str | os.PathLike[str], out: str | os.PathLike[str]) -> 
     for ycbv_id in sorted(used):
         obj = get_object(_YCBV_NAMES[ycbv_id])
         _ply_mm(models / f"obj_{ycbv_id:06d}.ply", obj.visual_mesh.vertices, obj.visual_mesh.faces)
-        info_all[str(ycbv_id)] = _models_info(ycbv_id)
+        info_all[str(ycbv_id)] = _models_info(ycbv_id, symmetry)
     (models / "models_info.json").write_text(json.dumps(info_all, indent=1) + "\n")
     return {"scenes": len(manifest.shards), "images": images, "objects": len(used)}

@@ -173,6 +173,23 @@ def test_bop_files_follow_the_format(dataset, tmp_path):
     assert block["size_y"] == pytest.approx(mesh.extents[1], rel=1e-5)
 
 
+def test_bop_models_info_with_depth_symmetries(border_dataset, tmp_path):
+    """symmetry="depth" writes the shape's symmetries; "texture" (default) BOP's; bad refused."""
+    folder, _ = border_dataset  # a master chef can: continuous in both
+    export_bop(folder, tmp_path / "depth", symmetry="depth")
+    info = _strict((tmp_path / "depth" / "models" / "models_info.json").read_text())["1"]
+    assert info["symmetries_continuous"] == [{"axis": [0.0, 1.0, 0.0], "offset": [0.0, 0.0, 0.0]}]
+    with pytest.raises(InvalidExport, match=r"symmetry must be one of \('texture', 'depth'\)"):
+        export_bop(folder, tmp_path / "bad", symmetry="rgb")
+    from handsim.data.export import _models_info
+
+    soup = get_object("005_tomato_soup_can")
+    assert "symmetries_continuous" not in _models_info(soup.ycbv_id)
+    assert _models_info(soup.ycbv_id, "depth")["symmetries_continuous"][0]["axis"] == [0, 1, 0]
+    box = _models_info(get_object("003_cracker_box").ycbv_id, "depth")
+    assert len(box["symmetries_discrete"]) == 3  # the three half turns
+
+
 def test_exports_refuse_a_non_empty_target_and_a_non_dataset(dataset, tmp_path):
     """Nothing is overwritten; a folder without a manifest is named."""
     (tmp_path / "full").mkdir()
