@@ -451,10 +451,11 @@ class DepthRenderer:
 
         The image's pixel grid continues beyond its borders, as on a larger sensor with the
         same intrinsics (BOP renders an object on a canvas three times the image's size with
-        the principal point shifted to see its whole silhouette). Each image-sized tile of the
-        box is rendered with the camera's principal point shifted by a multiple of the image
-        size, so pixel ``(u, v)`` of the canvas is exactly what a sensor that large would see
-        there; a box inside the image is one ordinary render.
+        the principal point shifted to see its whole silhouette). A box inside the image is
+        one ordinary render; otherwise the box is cut into windows of at most the image's size
+        (one for a box no larger than the image), each rendered with the camera's principal
+        point shifted by a whole number of pixels so that the window falls on the image: pixel
+        ``(u, v)`` of the canvas is then what a sensor that large would see there.
 
         Args:
             data: simulation data.
@@ -466,24 +467,24 @@ class DepthRenderer:
         """
         w, h = self.intrinsics.width, self.intrinsics.height
         u0, v0, u1, v1 = (int(x) for x in region)
-        out = np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
-        if not out.size:
-            return out
+        if u1 <= u0 or v1 <= v0:
+            return np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
+        if u0 >= 0 and v0 >= 0 and u1 <= w and v1 <= h:
+            return self.render_segmentation(data, region)
+        out = np.empty((v1 - v0, u1 - u0), dtype=np.int32)
         intrinsic = self.model.cam_intrinsic[self.camera_id]
         saved = intrinsic.copy()
         # The principal point in the model is in sensor units (metres): pixel pitch per axis.
         pitch = self.model.cam_sensorsize[self.camera_id] / (w, h)
         try:
-            for tv in range(v0 // h, -(-v1 // h)):
-                for tu in range(u0 // w, -(-u1 // w)):
-                    # Principal pixel + k W shows canvas column u' + k W at image column u'.
-                    intrinsic[2] = saved[2] + tu * w * pitch[0]
-                    intrinsic[3] = saved[3] + tv * h * pitch[1]
-                    ou, ov = tu * w, tv * h
-                    cu0, cv0 = max(u0, ou), max(v0, ov)
-                    cu1, cv1 = min(u1, ou + w), min(v1, ov + h)
-                    tile = self.render_segmentation(data, (cu0 - ou, cv0 - ov, cu1 - ou, cv1 - ov))
-                    out[cv0 - v0 : cv1 - v0, cu0 - u0 : cu1 - u0] = tile
+            for ov in range(v0, v1, h):
+                for ou in range(u0, u1, w):
+                    # Principal pixel + o shows canvas pixel u' + o at image pixel u'.
+                    intrinsic[2] = saved[2] + ou * pitch[0]
+                    intrinsic[3] = saved[3] + ov * pitch[1]
+                    cw, ch = min(w, u1 - ou), min(h, v1 - ov)
+                    tile = self.render_segmentation(data, (0, 0, cw, ch))
+                    out[ov - v0 : ov - v0 + ch, ou - u0 : ou - u0 + cw] = tile
         finally:
             intrinsic[:] = saved
         return out

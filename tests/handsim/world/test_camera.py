@@ -235,7 +235,9 @@ def test_canvas_beyond_the_image_equals_a_larger_sensors_render():
     with DepthRenderer(m, "cam", intr) as renderer:
         w, h = intr.width, intr.height
         canvas = renderer.render_segmentation_canvas(d, (-w, -h, 2 * w, 2 * h))
-        part = renderer.render_segmentation_canvas(d, (-50, 100, w + 7, 2 * h - 3))
+        # Boxes across the border, each rendered as windows shifted by whole pixels.
+        boxes = [(-50, 100, w + 7, 2 * h - 3), (-137, -61, 40, 90), (w - 30, h - 20, 2 * w, h + 5)]
+        parts = [renderer.render_segmentation_canvas(d, box) for box in boxes]
         inside = renderer.render_segmentation_canvas(d, (0, 0, w, h))
         np.testing.assert_array_equal(inside, renderer.render_segmentation(d))
         intrinsic = m.cam_intrinsic.copy()
@@ -245,4 +247,5 @@ def test_canvas_beyond_the_image_equals_a_larger_sensors_render():
         reference = renderer.render_segmentation(d_big)
     assert all(np.count_nonzero(reference == g) > 1000 for g in range(5))
     np.testing.assert_array_equal(canvas, reference)
-    np.testing.assert_array_equal(part, reference[h + 100 : 3 * h - 3, w - 50 : 2 * w + 7])
+    for (u0, v0, u1, v1), part in zip(boxes, parts, strict=True):
+        np.testing.assert_array_equal(part, reference[h + v0 : h + v1, w + u0 : w + u1])
