@@ -33,6 +33,8 @@ __all__ = ["add_parser", "EXPORTS"]
 
 EXPORTS = ("hand-labels", "bop", "minari")
 """Export formats of ``handsim export``."""
+# handsim.world.objects.SYMMETRY_MODALITIES, spelled out so that parsing imports no mesh code.
+_SYMMETRIES = ("texture", "depth")
 
 
 def _config(args: argparse.Namespace):
@@ -156,8 +158,14 @@ def _export(args: argparse.Namespace) -> int:
 
     if args.format == "minari":
         return _export_minari(args)
-    run = export_hand_labels if args.format == "hand-labels" else export_bop
-    print(strict_json({"format": args.format, "out": str(args.out), **run(args.dir, args.out)}))
+    if args.format == "hand-labels":
+        summary = export_hand_labels(args.dir, args.out)
+    else:
+        summary = {
+            "symmetry": args.symmetry,
+            **export_bop(args.dir, args.out, symmetry=args.symmetry),
+        }
+    print(strict_json({"format": args.format, "out": str(args.out), **summary}))
     return 0
 
 
@@ -283,4 +291,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     export.add_argument("--seed", type=seed, default=0, help="minari: seed of the first episode")
     add_quiet(export)
+    export.add_argument(
+        "--symmetry",
+        choices=_SYMMETRIES,
+        default="texture",
+        help="bop: symmetries written to models_info.json: texture (what looks the same in "
+        "colour, BOP's; default) or depth (the shape alone: also plain cans and boxes)",
+    )
     export.set_defaults(func=_export, parser=export)

@@ -37,7 +37,13 @@ import numpy as np
 from isal import isal_zlib
 
 from handsim.data import _kernels
-from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA, check_label_arrays
+from handsim.data.arrays import (
+    ADDED_LABELS,
+    DRAW_LABEL_SCHEMA,
+    LABEL_SCHEMA,
+    check_label_arrays,
+    fill_added_labels,
+)
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -454,7 +460,8 @@ class ShardReader:
         # decompressing a 64-frame chunk of every label for every sample.
         if self._labels is None or self._labels_pid != os.getpid():
             f = self._open()
-            self._labels = {key: ds[:] for key, ds in f["labels"].items()}
+            # Shards written before a label was added get it filled (arrays.ADDED_LABELS).
+            self._labels = fill_added_labels({key: ds[:] for key, ds in f["labels"].items()})
             for key, (shape, dtype, _) in DRAW_LABEL_SCHEMA.items():
                 if key not in self._labels:  # a shard written before these labels
                     self._labels[key] = np.full((self.frames, *shape), -1, dtype)
@@ -506,6 +513,8 @@ def check_shard(path: str | os.PathLike[str], expected: ShardInfo | None = None)
             if key not in f or f[key].shape[0] != n:
                 problems.append(f"{path.name}: dataset {key!r} missing or not {n} frames long")
         for key in LABEL_SCHEMA:
+            if key in ADDED_LABELS and key not in f["labels"]:
+                continue  # an older shard: the reader fills it
             if key not in f["labels"] or f["labels"][key].shape[0] != n:
                 problems.append(f"{path.name}: label {key!r} missing or not {n} frames long")
         if not problems:

@@ -72,6 +72,71 @@ def test_export_writes_the_format(dataset, capsys, tmp_path, fmt):
     assert any((tmp_path / fmt).iterdir())
 
 
+def test_export_hand_labels_subprocess_writes_its_schema(dataset, tmp_path):
+    """`handsim export hand-labels` as a program: schema.json, labels, depth and hand masks."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "labels"
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "export", "hand-labels", str(dataset), str(out)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "egl"},
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["format"] == "hand-labels"
+    schema = json.loads((out / "schema.json").read_text())
+    assert schema["format"] == "handsim-hand-labels-2"
+    assert {"-1", "-2", "-3", "k >= 0"} == set(schema["occluder_codes"])
+    splits = [k for k in report if k not in ("format", "out")]
+    assert sum(report[k] for k in splits) == 2
+    for split in splits:
+        lines = (out / split / "labels.jsonl").read_text().splitlines()
+        assert len(lines) == report[split]
+        for text in lines:
+            line = json.loads(text)
+            assert set(line) == set(schema["fields"])
+            assert all(isinstance(code, int) for code in line["occluder"])
+            assert (out / split / line["depth"]).is_file()
+            assert (out / split / line["hand_mask"]).is_file()
+
+
+def test_export_bop_symmetry_subprocess(dataset, tmp_path):
+    """`handsim export bop --symmetry depth`: the soup can's models_info is continuous."""
+    import os
+    import subprocess
+    import sys
+
+    from handsim.cli.data import _SYMMETRIES
+    from handsim.world.objects import SYMMETRY_MODALITIES
+    from handsim.world.registry import OBJECTS
+
+    assert _SYMMETRIES == SYMMETRY_MODALITIES
+    out = tmp_path / "bop"
+    command = [sys.executable, "-m", "handsim.cli", "export", "bop", str(dataset), str(out)]
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    result = subprocess.run(
+        [*command, "--symmetry", "depth"], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["symmetry"] == "depth"
+    info = json.loads((out / "models" / "models_info.json").read_text())
+    soup = str(OBJECTS["005_tomato_soup_can"].ycbv_id)
+    assert info[soup]["symmetries_continuous"][0]["axis"] == [0.0, 1.0, 0.0]
+    bad = subprocess.run(
+        [*command[:-1], str(tmp_path / "x"), "--symmetry", "rgb"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert bad.returncode == 2 and "choose from 'texture', 'depth'" in bad.stderr
+
+
 def test_errors_are_one_line(capsys, tmp_path):
     """A folder that is no dataset, a bad preset and a bad config field: one line, exit 2."""
     assert main(["dataset", "info", str(tmp_path)]) == 2

@@ -199,3 +199,24 @@ def test_draw_labels_are_stored_and_old_shards_read_minus_one(tmp_path, frame_ar
         assert labels.dtype == dtype
         np.testing.assert_array_equal(labels, [-1, -1, -1])
         assert reader[1][key] == -1
+
+
+def test_a_shard_written_before_visible_sensor_reads_with_it_filled(tmp_path, frame_arrays):
+    """An older shard (no labels/visible_sensor) is sound and reads visible_sensor = visible."""
+    import h5py
+
+    from handsim.frame import Frame
+
+    _write(tmp_path / "old.h5", frame_arrays)
+    with h5py.File(tmp_path / "old.h5", "r+") as f:
+        del f["labels/visible_sensor"]
+    assert check_shard(tmp_path / "old.h5") == []
+    reader = ShardReader(tmp_path / "old.h5")
+    for i, arrays in enumerate(frame_arrays):
+        back = reader[i]
+        np.testing.assert_array_equal(back["visible_sensor"], arrays["visible"])
+        assert back["visible_sensor"].dtype == np.bool_
+        Frame.from_arrays(back)  # the Frame of older data reads too
+    np.testing.assert_array_equal(
+        reader.labels("visible_sensor"), np.stack([a["visible"] for a in frame_arrays])
+    )
