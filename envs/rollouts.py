@@ -19,15 +19,13 @@ kinematic source. Frames with fewer than
 
 Occlusion by the held object (viewpoint ``through_object``): a physics step cannot be drawn
 again, its viewpoint can. Every kept step draws up to :data:`VIEWS_PER_STEP` cameras beyond
-the object nearest the hand, as seen from the hand centre (the line through both, turned a
-little, :func:`~handsim.data.kinematic.through_object_direction`), at a distance in
-``distance_range_m``, above the table and moved back beyond the camera's and the sensor's near
-range (:func:`~handsim.data.kinematic.beyond_near`); each is rendered and the first whose
-frame the occlusion control accepts is kept. A step none of whose views is accepted gives no
-frame (the physics goes on); :attr:`RolloutSource.steps_without_view` counts them. The buckets
-apply to every kept frame, those of the approach (object not yet held) included: the object
-lies between camera and hand then too, so these frames are occluded as well, only less often
-heavily (the hand is farther behind the object).
+the object nearest the hand, as seen from one of the hand's keypoints
+(:func:`through_object_views`), at a distance in ``distance_range_m``, above the table and
+beyond the camera's and the sensor's near range; each is rendered and the first frame the
+occlusion control accepts is kept. A step none of whose views is accepted gives no frame (the
+physics goes on); :attr:`RolloutSource.steps_without_view` counts them. The buckets apply to
+every kept frame, those of the approach (object not yet held) included: the object lies
+between camera and hand then too.
 
 An episode ends at the env's termination or truncation (success, a fallen object, the time
 limit, diverged physics), or when ``frames_per_episode`` frames are kept; an episode whose
@@ -64,7 +62,13 @@ if TYPE_CHECKING:
     from handsim.data.generation import GenerationConfig
     from handsim.world.scene import Scene
 
-__all__ = ["ROLLOUT_ENV_IDS", "ROLLOUT_VIEWPOINTS", "VIEWS_PER_STEP", "RolloutSource"]
+__all__ = [
+    "ROLLOUT_ENV_IDS",
+    "ROLLOUT_VIEWPOINTS",
+    "VIEWS_PER_STEP",
+    "RolloutSource",
+    "through_object_views",
+]
 
 ROLLOUT_ENV_IDS: tuple[str, ...] = (
     "handsim/Grasp-v0",
@@ -103,6 +107,54 @@ def _above_table(direction: np.ndarray, height_m: float, reach_m: float) -> np.n
         return direction
     scale = np.sqrt(1.0 - lowest**2) / heading
     return np.array([direction[0] * scale, direction[1] * scale, lowest])
+
+
+def through_object_views(
+    scene: Scene, near_m: float, distance_range_m: tuple[float, float]
+) -> Callable[[np.random.Generator], bool]:
+    """A function that places the scene's camera ``"camera"`` beyond an object from the hand.
+
+    Every call draws a view: one of the hand's 21 keypoints (from the palm, a top grasp's
+    object hides nothing above the table; from a finger wrapped around it, the object hides
+    that finger and those beside it), a distance in ``distance_range_m`` and a direction from
+    the keypoint through the object nearest the hand centre
+    (:func:`~handsim.data.kinematic.through_object_direction`), raised where it would meet the
+    table (:func:`_above_table`). The camera looks at the keypoint from there, moved back
+    beyond ``near_m`` (:func:`~handsim.data.kinematic.beyond_near`).
+
+    Args:
+        scene: a scene with a hand, objects and a camera named ``"camera"``; the function
+            reads its current state (call it after every step).
+        near_m: the near range of the camera and sensor, metres.
+        distance_range_m: camera distance from the keypoint, metres.
+
+    Returns:
+        ``place(rng) -> bool``: True when the camera was placed (its pose written to the
+        model and ``data.cam_xpos``), False (the camera untouched) when the view would be
+        below the table top.
+    """
+    model, data = scene.model, scene.data
+    cam = model.camera("camera").id
+    bodies = np.array([model.body(name).id for name, _ in scene.objects], dtype=np.intp)
+    geoms = near_geoms(scene)
+
+    def place(rng: np.random.Generator) -> bool:
+        keypoints = scene.binding.keypoints(data)
+        objects = data.xpos[bodies]
+        obj = objects[np.argmin(np.linalg.norm(objects - hand_center(keypoints), axis=1))]
+        point = keypoints[rng.integers(len(keypoints))]
+        distance = rng.uniform(*distance_range_m)
+        direction = through_object_direction(rng, point, obj)
+        direction = _above_table(direction, point[2], distance + near_m)
+        eye, quat = camera_on_line(point, direction, distance)
+        eye = beyond_near(scene, geoms, eye, point, near_m)
+        if eye is None:
+            return False
+        model.cam_pos[cam], model.cam_quat[cam] = eye, quat
+        mujoco.mj_camlight(model, data)
+        return True
+
+    return place
 
 
 class RolloutSource:
@@ -217,7 +269,10 @@ class RolloutSource:
             return  # e.g. no collision-free grasp of this object: an episode without frames
         renderer = base.frame_renderer
         occlusion = bool(base.scene.objects)
-        views = self._through_object_views(base.scene) if through else None
+        views = None
+        if through:
+            near_m = near_range_m(self.intrinsics, base.sensor)
+            views = through_object_views(base.scene, near_m, c.distance_range_m)
         kept, step = 0, 0
         while kept < frames:
             if step % c.frame_stride == 0:
@@ -242,42 +297,6 @@ class RolloutSource:
             step += 1
             if terminated or truncated:
                 return
-
-    def _through_object_views(self, scene: Scene) -> Callable[[np.random.Generator], bool]:
-        """A function that places the scene's camera beyond the object nearest the hand.
-
-        It draws a distance in ``distance_range_m`` and a direction from the hand centre
-        through the object (:func:`~handsim.data.kinematic.through_object_direction`), moves the
-        eye back beyond the near range and returns False (the camera untouched) when that
-        would put it below the table top.
-        """
-        model, data = scene.model, scene.data
-        cam = model.camera("camera").id
-        bodies = np.array([model.body(name).id for name, _ in scene.objects], dtype=np.intp)
-        geoms = near_geoms(scene)
-        near_m = near_range_m(self.intrinsics, self._env.unwrapped.sensor)
-        distance_range_m = self.config.distance_range_m
-
-        def place(rng: np.random.Generator) -> bool:
-            keypoints = scene.binding.keypoints(data)
-            objects = data.xpos[bodies]
-            obj = objects[np.argmin(np.linalg.norm(objects - hand_center(keypoints), axis=1))]
-            # The line through the object from one of the hand's keypoints, drawn per view:
-            # from the palm a top grasp's object hides nothing above the table, from a finger
-            # wrapped around it the object hides that finger and those beside it.
-            point = keypoints[rng.integers(len(keypoints))]
-            distance = rng.uniform(*distance_range_m)
-            direction = through_object_direction(rng, point, obj)
-            direction = _above_table(direction, point[2], distance + near_m)
-            eye, quat = camera_on_line(point, direction, distance)
-            eye = beyond_near(scene, geoms, eye, point, near_m)
-            if eye is None:
-                return False
-            model.cam_pos[cam], model.cam_quat[cam] = eye, quat
-            mujoco.mj_camlight(model, data)
-            return True
-
-        return place
 
     def close(self) -> None:
         """Close the env (its renderers)."""
