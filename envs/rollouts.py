@@ -57,6 +57,8 @@ from handsim.envs.config import VIEWPOINTS
 from handsim.errors import HandSimError
 from handsim.estimator import hand_center
 from handsim.world.camera import camera_preset
+from handsim.world.render import RENDERED_GEOM_GROUPS
+from handsim.world.scene import OBJECT_LABEL_OFFSET
 
 if TYPE_CHECKING:
     from handsim.data.generation import GenerationConfig
@@ -131,12 +133,17 @@ def through_object_views(
     Returns:
         ``place(rng) -> bool``: True when the camera was placed (its pose written to the
         model and ``data.cam_xpos``), False (the camera untouched) when the view would be
-        below the table top.
+        below the table top or when the first surface its line of sight to the keypoint meets
+        is not an object's (the line was raised away from the object or turned beside it).
     """
     model, data = scene.model, scene.data
     cam = model.camera("camera").id
     bodies = np.array([model.body(name).id for name, _ in scene.objects], dtype=np.intp)
     geoms = near_geoms(scene)
+    # mj_ray sees the geom groups the cameras render.
+    rendered = np.zeros(6, dtype=np.uint8)
+    rendered[list(RENDERED_GEOM_GROUPS)] = 1
+    hit = np.zeros(1, dtype=np.int32)
 
     def place(rng: np.random.Generator) -> bool:
         keypoints = scene.binding.keypoints(data)
@@ -149,6 +156,12 @@ def through_object_views(
         eye, quat = camera_on_line(point, direction, distance)
         eye = beyond_near(scene, geoms, eye, point, near_m)
         if eye is None:
+            return False
+        # A raised line may miss the object (a hand high above it), a turned one pass beside
+        # a thin one: no render for a view whose line of sight does not meet an object first.
+        sight = point - eye
+        reach = mujoco.mj_ray(model, data, eye, sight, rendered, 1, -1, hit)
+        if not 0.0 <= reach < 1.0 or scene.geom_labels[hit[0]] < OBJECT_LABEL_OFFSET:
             return False
         model.cam_pos[cam], model.cam_quat[cam] = eye, quat
         mujoco.mj_camlight(model, data)
