@@ -431,6 +431,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     },
 }
 """Named configs: hand alone, hand among objects, objects between camera and hand with the
-occlusion ratio stratified in four buckets from 0.1 to 0.95 (kinematic), and Grasp-v0 rollouts
+occlusion ratio stratified in four buckets from 0.1 to 0.95 (kinematic), Grasp-v0 rollouts
 of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical
-contact)."""
+contact), and the same rollouts of :data:`OCCLUDING_OBJECTS` seen through the object (a view
+drawn per kept step) with the occlusion buckets of ``occlusion-heavy``."""
