@@ -31,6 +31,7 @@ __all__ = [
     "MOTION_FRAME_PERIOD_S",
     "SENSORS",
     "PRESETS",
+    "OCCLUDING_OBJECTS",
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
     "MAX_EMPTY_EPISODES",
@@ -468,6 +469,25 @@ class GenerationConfig:
         return cls.from_mapping(values, **overrides)
 
 
+OCCLUDING_OBJECTS: tuple[str, ...] = (
+    "002_master_chef_can",
+    "003_cracker_box",
+    "004_sugar_box",
+    "005_tomato_soup_can",
+    "006_mustard_bottle",
+    "010_potted_meat_can",
+    "019_pitcher_base",
+    "021_bleach_cleanser",
+    "024_bowl",
+    "025_mug",
+    "035_power_drill",
+    "036_wood_block",
+    "061_foam_brick",
+)
+"""The YCB-Video objects that can hide a hand from any side: every extent at least 5 cm, the
+extra-large clamp excepted (an open frame). Scissors, clamps, the marker, the banana and the
+flat boxes and can seen edge-on hide little."""
+
 PRESETS: dict[str, dict[str, Any]] = {
     "hand-only": {"num_objects_range": (0, 0)},
     "hand-object": {"num_objects_range": (1, 3)},
@@ -487,8 +507,21 @@ PRESETS: dict[str, dict[str, Any]] = {
         "frames_per_episode": 60,
         "frame_stride": 5,
     },
+    "grasp-rollouts-occluded": {
+        "source": "rollout",
+        "env_id": "handsim/Grasp-v0",
+        "num_objects_range": (1, 1),
+        "objects": OCCLUDING_OBJECTS,
+        "viewpoints": ("through_object",),
+        "distance_range_m": (0.4, 0.7),
+        "frames_per_episode": 60,
+        "frame_stride": 5,
+        "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
+    },
 }
 """Named configs: hand alone (third-person and egocentric views), hand among objects, objects
 between camera and hand with the occlusion ratio stratified in four buckets from 0.1 to 0.95
-and at most 5 % of frames without a visible keypoint (kinematic), and Grasp-v0 rollouts of the
-grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical contact)."""
+and at most 5 % of frames without a visible keypoint (kinematic), Grasp-v0 rollouts of the
+grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical contact), and
+the same rollouts of :data:`OCCLUDING_OBJECTS` seen through the object (a view drawn per kept
+step) with the occlusion buckets of ``occlusion-heavy``."""

@@ -52,6 +52,7 @@ from handsim.data.config import (  # noqa: F401
     MAX_PENETRATION_M,
     MAX_TRIES_PER_FRAME,
     MIN_KEYPOINTS_IN_FRAME,
+    OCCLUDING_OBJECTS,
     POSE_SOURCES,
     PRESETS,
     REDRAW_REASONS,

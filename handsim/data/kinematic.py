@@ -40,18 +40,27 @@ from handsim.hand.pose_sources import (
     sample_synergy,
     sample_uniform,
 )
-from handsim.world.camera import camera_preset, look_at_quat_wxyz
+from handsim.world.camera import CameraIntrinsics, camera_preset, look_at_quat_wxyz
 from handsim.world.render import shared_render_context
 from handsim.world.scene import CameraSpec, InvalidScene, Scene, SceneSpec, sample_placements
 from handsim.world.sensors import sensor_model
 
-__all__ = ["KinematicSource", "KEPT_SCENES"]
+__all__ = [
+    "KinematicSource",
+    "KEPT_SCENES",
+    "MIN_EYE_HEIGHT_M",
+    "camera_on_line",
+    "through_object_direction",
+    "near_range_m",
+    "near_geoms",
+    "beyond_near",
+]
 
 KEPT_SCENES = 2
 """Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
-_MIN_EYE_HEIGHT_M = 0.03
+MIN_EYE_HEIGHT_M = 0.03
 """Cameras stay this far above the table top (world z = 0), metres."""
 _THIRD_PERSON_AZIMUTH_DEG = 60.0
 """Among objects, the third-person camera stands within +- this of the table's front, deg."""
@@ -91,6 +100,95 @@ def _distal_axis(rotvec: np.ndarray) -> np.ndarray:
     return distal
 
 
+def through_object_direction(
+    rng: np.random.Generator, target: np.ndarray, obj: np.ndarray
+) -> np.ndarray:
+    """Direction (not normalized) from ``target`` to a camera beyond the object ``obj``.
+
+    The line from the target (the hand) through the object, turned a little (a Gaussian of
+    0.08 on x and y, up to 0.12 upward) so that the object hides anything from a sliver to
+    all of the hand; the upward turn keeps most cameras above the table.
+
+    Args:
+        rng: draws the turn.
+        target: (3,) the point looked at (the palm), world frame, metres.
+        obj: (3,) the occluding object's position, world frame, metres.
+    """
+    direction = (obj - target) / np.linalg.norm(obj - target)
+    direction[:2] += rng.normal(scale=0.08, size=2)
+    direction[2] += rng.uniform(0.0, 0.12)
+    return direction
+
+
+def camera_on_line(
+    target: np.ndarray,
+    direction: np.ndarray,
+    distance_m: float,
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> tuple[np.ndarray, np.ndarray]:
+    """Eye ``distance_m`` from ``target`` along ``direction``, looking at the target.
+
+    The eye is raised to :data:`MIN_EYE_HEIGHT_M` when it would be below the table top.
+
+    Returns:
+        ``(eye, quat_wxyz)``: (3,) position and (4,) MuJoCo camera orientation, world frame.
+    """
+    direction = direction / np.linalg.norm(direction)
+    eye = target + distance_m * direction
+    eye[2] = max(eye[2], MIN_EYE_HEIGHT_M)
+    # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
+    return eye, look_at_quat_wxyz(eye, target, up)
+
+
+def near_range_m(intrinsics: CameraIntrinsics, sensor: object) -> float:
+    """The nearest distance that gets depth: the camera's and the sensor's working range."""
+    return max(intrinsics.range_m[0], float(getattr(sensor, "min_range_m", 0.0)))
+
+
+def near_geoms(scene: Scene) -> np.ndarray:
+    """The geoms kept beyond the near range: the hand's skin and every object geom.
+
+    (An object's half diameter around its body origin does not bound every object: the
+    extra-large clamp reached 1.4 mm nearer than that.)
+    """
+    bodies = [scene.model.body(name).id for name, _ in scene.objects]
+    objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
+    return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
+
+
+def beyond_near(
+    scene: Scene, geoms: np.ndarray, eye: np.ndarray, target: np.ndarray, near_m: float
+) -> np.ndarray | None:
+    """The eye moved back along its line of sight until ``geoms`` are beyond ``near_m``.
+
+    Nothing nearer than the camera's or the sensor's working range gets depth (a
+    structured-light sensor measures from 0.35 m): a hand or an occluder there would be a
+    hole in the depth image. The bounding boxes of ``geoms`` (e.g. :func:`near_geoms`) are
+    kept beyond that range.
+
+    Args:
+        scene: the scene, its geoms placed (after a forward pass).
+        geoms: (n,) geom ids to keep beyond the range.
+        eye: (3,) camera position, world frame, metres.
+        target: (3,) the point the camera looks at, world frame, metres.
+        near_m: the near range (:func:`near_range_m`), metres.
+
+    Returns:
+        (3,) the moved eye, or None when it would be below the table top.
+    """
+    forward = target - eye
+    forward /= np.linalg.norm(forward)
+    model, data = scene.model, scene.data
+    # The nearest corner of the geoms' bounding boxes (in their geom frames).
+    nearest = _kernels.nearest_box_depth(
+        model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, forward
+    )
+    if nearest >= near_m:
+        return eye
+    eye = eye - forward * (near_m - nearest)
+    return eye if eye[2] >= MIN_EYE_HEIGHT_M else None
+
+
 class KinematicSource:
     """Frames of a kinematically posed hand among objects (no physics).
 
@@ -102,10 +200,7 @@ class KinematicSource:
         self.config = config
         self.intrinsics = camera_preset(config.camera)
         self.sensor = sensor_model(config.sensor)
-        # The nearest distance that gets depth: the camera's and the sensor's working range.
-        self._near_m = max(
-            self.intrinsics.range_m[0], float(getattr(self.sensor, "min_range_m", 0.0))
-        )
+        self._near_m = near_range_m(self.intrinsics, self.sensor)
         # A new scene's renderer takes over the OpenGL context of the one it replaces (its
         # meshes uploaded again): ~10 ms less than a new context.
         self._render_context = contextlib.ExitStack()
@@ -269,53 +364,11 @@ class KinematicSource:
                 ]
             )
         elif view == "through_object" and obj is not None:
-            # Beyond the object as seen from the hand, turned a little so that the object hides
-            # anything from a sliver to all of the hand; never below the table top.
-            direction = (obj - target) / np.linalg.norm(obj - target)
-            direction[:2] += rng.normal(scale=0.08, size=2)
-            direction[2] += rng.uniform(0.0, 0.12)
+            direction = through_object_direction(rng, target, obj)
         else:
             direction = rng.normal(size=3)
             direction[2] = abs(direction[2]) + 0.2
-        direction /= np.linalg.norm(direction)
-        eye = target + distance * direction
-        eye[2] = max(eye[2], _MIN_EYE_HEIGHT_M)
-        # What CameraSpec.look_at computes, without building (and validating) a spec per frame.
-        return eye, look_at_quat_wxyz(eye, target, up)
-
-    def _beyond_near(
-        self, scene: Scene, geoms: np.ndarray, eye: np.ndarray, target: np.ndarray
-    ) -> np.ndarray | None:
-        """The eye moved back along its line of sight until the hand and objects are in range.
-
-        Nothing nearer than the camera's or the sensor's working range gets depth (a
-        structured-light sensor measures from 0.35 m): a hand or an occluder there would be a
-        hole in the depth image. The bounding boxes of ``geoms`` (the hand's skin meshes and
-        every geom of the objects) are kept beyond that range. None when the moved eye would
-        be below the table top.
-        """
-        forward = target - eye
-        forward /= np.linalg.norm(forward)
-        model, data = scene.model, scene.data
-        # The nearest corner of the geoms' bounding boxes (in their geom frames).
-        nearest = _kernels.nearest_box_depth(
-            model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, forward
-        )
-        if nearest >= self._near_m:
-            return eye
-        eye = eye - forward * (self._near_m - nearest)
-        return eye if eye[2] >= _MIN_EYE_HEIGHT_M else None
-
-    @staticmethod
-    def _near_geoms(scene: Scene) -> np.ndarray:
-        """The geoms kept beyond the near range: the hand's skin and every object geom.
-
-        (An object's half diameter around its body origin does not bound every object: the
-        extra-large clamp reached 1.4 mm nearer than that.)
-        """
-        bodies = [scene.model.body(name).id for name, _ in scene.objects]
-        objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
-        return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
+        return camera_on_line(target, direction, distance, up)
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -351,7 +404,7 @@ class KinematicSource:
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
         is_left = scene.spec.hand.side == "left"
-        near_geoms = self._near_geoms(scene)
+        geoms = near_geoms(scene)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -375,7 +428,7 @@ class KinematicSource:
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
                     eye, quat = self._camera(rng, view, palm, obj, rotvec)
-                eye = self._beyond_near(scene, near_geoms, eye, palm)
+                eye = beyond_near(scene, geoms, eye, palm, self._near_m)
                 if eye is None:
                     continue
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
