@@ -49,13 +49,13 @@ Dataset shards add how each frame was drawn (:data:`DRAW_LABEL_SCHEMA`; not in e
 which has no such draw). A source that does not set them (rollouts), and shards written before
 they existed, read -1:
 
-===========================  ==========  =======  ======  ===============================
+===========================  ==========  =======  ======  ======================================
 key                          shape       dtype    unit    meaning
 ===========================  ==========  =======  ======  ======================================
 ``pose_source``              ()          int8             index in :data:`POSE_SOURCE_CODES`
 ``viewpoint``                ()          int8             index in :data:`VIEWPOINT_CODES`
 ===========================  ==========  =======  ======  ======================================
-=======
+
 Labels added after data was first written (:data:`ADDED_LABELS`) are filled when data that
 predates them is read (:func:`fill_added_labels`): ``visible_sensor`` becomes a copy of
 ``visible``, which is what ``visible`` meant then (decided on the clean render only).
