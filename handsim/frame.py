@@ -95,6 +95,8 @@ _HIDDEN_GROUP = 5  # a geom group no camera renders
 # possible occluder (conservative: it only costs a silhouette render).
 _OCCLUSION_MARGIN_M = 0.005
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
+# The person's own forearm hiding a keypoint is self-occlusion, as the palm's stub always was.
+_SELF_LABEL = SEGMENT_LABELS.index("forearm")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,7 +104,7 @@ class ObjectLabel:
     """Pose and visibility of one object instance in a frame.
 
     Attributes:
-        instance: index in the scene's object list (segmentation label ``8 + instance``).
+        instance: index in the scene's object list (segmentation label ``10 + instance``).
         name: object name, e.g. ``"005_tomato_soup_can"``.
         ycbv_id: YCB-Video object id (``None`` for imported meshes).
         T_cam_from_obj: (4, 4) object pose in the OpenCV camera frame, metres.
@@ -150,7 +152,8 @@ class Frame:
         depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
         depth_clean: (H, W) float32 noise-free depth within the camera's range, metres, 0 =
             nothing seen (``None`` unless requested).
-        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects 8+).
+        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`,
+            objects from 10).
         keypoints_cam: (21, 3) keypoints in the camera frame, metres.
         keypoints_px: (21, 2) keypoint pixels ``(u, v)``; NaN for keypoints behind the camera
             (``z <= 0``).
@@ -272,7 +275,8 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
     parts = []
     for body_index, _ in skeleton.keypoints:
         parent = skeleton.bodies[body_index].parent
-        parts.append((label[body_index], label[parent] if parent >= 0 else label[body_index]))
+        # The wrist lies where the palm's skin meets the forearm's: either may carry it.
+        parts.append((label[body_index], label[parent] if parent >= 0 else _SELF_LABEL))
     return np.array(parts, dtype=np.int16)
 
 
@@ -560,7 +564,7 @@ class FrameRenderer:
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
         _kernels.keypoint_visibility(
             depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
-            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _SELF_LABEL, OCCLUDER_SELF,
             OCCLUDER_SCENE, visible, occluder,
         )  # fmt: skip
         return visible, occluder

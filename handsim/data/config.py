@@ -26,6 +26,7 @@ __all__ = [
     "POSE_SOURCES",
     "VIEWPOINTS",
     "SENSORS",
+    "BACKGROUNDS",
     "PRESETS",
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
@@ -46,6 +47,8 @@ POSE_SOURCES = ("gesture", "grasp", "synergy", "uniform")
 VIEWPOINTS = ("third_person", "egocentric", "random", "through_object")
 """Camera placements: across the table, head-mounted, a random sphere around the hand, or
 behind an object looking at the hand (the object is between camera and hand)."""
+BACKGROUNDS = ("none", "wall", "torso")
+"""What stands beyond the table (:data:`handsim.world.scene.BACKGROUNDS`)."""
 SENSORS = ("none", "structured_light", "tof")
 """Depth sensor models."""
 MAX_PENETRATION_M = 0.004
@@ -197,6 +200,12 @@ class GenerationConfig:
         env_id: the env of the rollout source (``handsim/Grasp-v0``,
             ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
         frame_stride: rollout source: env steps between kept frames (1 = every step).
+        background: kinematic source: what stands beyond the hand and the table
+            (:data:`BACKGROUNDS`): ``"wall"`` (default), ``"torso"`` (the person's torso and
+            head, a wall behind) or ``"none"`` (no depth there). Placed per frame behind
+            everything the camera sees of the hand (forearm included) and the objects; its
+            pixels carry the segmentation label ``"backdrop"``. The rollout source renders its
+            env's scene, which has none.
     """
 
     frames: int = 1000
@@ -219,6 +228,7 @@ class GenerationConfig:
     source: str = "kinematic"
     env_id: str | None = None
     frame_stride: int = 1
+    background: str = "wall"
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
@@ -243,6 +253,7 @@ class GenerationConfig:
         self._tuple_of("viewpoints", VIEWPOINTS)
         _pair("distance_range_m", self.distance_range_m, 0.15, 3.0)
         _choice("sensor", self.sensor, SENSORS)
+        _choice("background", self.background, BACKGROUNDS)
         if not isinstance(self.paired_clean, bool):
             raise InvalidGenerationConfig(
                 f"paired_clean must be true or false; received {self.paired_clean!r}"

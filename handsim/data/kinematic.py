@@ -2,8 +2,10 @@
 
 Every episode draws a hand (size, side), objects on the table and a pose source, and every
 frame of the episode a pose, a wrist placement near an object and a camera viewpoint around the
-hand. Frames where the hand enters an object or the table by more than
-:data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn.
+hand. Frames where the hand enters an object or the table, or the forearm (drawn only, without
+contact) the table, by more than :data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn.
+With a background (:attr:`~handsim.data.config.GenerationConfig.background`) the backdrop is
+stood behind the hand, forearm and objects of every frame.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from handsim.data.config import (
     GenerationConfig,
 )
 from handsim.frame import FrameRenderer
-from handsim.hand.model import hand_params
+from handsim.hand.model import FOREARM_GEOM, hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
     GESTURES,
@@ -35,7 +37,14 @@ from handsim.hand.pose_sources import (
 )
 from handsim.world.camera import camera_preset, look_at_quat_wxyz
 from handsim.world.render import shared_render_context
-from handsim.world.scene import CameraSpec, Scene, SceneSpec, sample_placements
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    Scene,
+    SceneSpec,
+    sample_placements,
+)
 from handsim.world.sensors import sensor_model
 
 __all__ = ["KinematicSource", "KEPT_SCENES"]
@@ -44,7 +53,11 @@ KEPT_SCENES = 2
 """Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
+_PALM_LABEL = SEGMENT_LABELS.index("palm")
 _MIN_EYE_HEIGHT_M = 0.03
+# The backdrop's gap behind the farthest hand or object point, metres: a wall anywhere from
+# just behind to a room's depth away; the torso just behind the elbow [estimate].
+_BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3)}
 """Cameras stay this far above the table top (world z = 0), metres."""
 
 
@@ -107,6 +120,7 @@ class KinematicSource:
                 objects=placements,
                 cameras=(camera,),
                 table=n > 0,
+                background=self.config.background,
             )
             scene = Scene(spec)
             kept = (scene, FrameRenderer(scene, "camera", self.sensor))
@@ -217,15 +231,63 @@ class KinematicSource:
         return eye if eye[2] >= _MIN_EYE_HEIGHT_M else None
 
     @staticmethod
+    def _place_backdrop(
+        rng: np.random.Generator,
+        scene: Scene,
+        geoms: np.ndarray,
+        eye: np.ndarray,
+        target: np.ndarray,
+    ) -> None:
+        """Stand the backdrop a random gap behind the hand (forearm included) and objects.
+
+        Its front plane lies beyond the farthest corner of ``geoms``' bounding boxes along the
+        horizontal line of sight, so it never hides them (:meth:`Scene.place_backdrop`).
+        """
+        ahead = target - eye
+        ahead[2] = 0.0
+        ahead /= max(float(np.linalg.norm(ahead)), 1e-9)
+        model, data = scene.model, scene.data
+        farthest = -_kernels.nearest_box_depth(
+            model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, -ahead
+        )
+        gap = rng.uniform(*_BACKDROP_GAP_M[scene.spec.background])
+        scene.place_backdrop(eye, target, farthest + gap)
+
+    @staticmethod
+    def _forearm_geom(scene: Scene) -> int | None:
+        """The forearm's visual geom (None for a hand without one)."""
+        if not scene.hand.params.forearm:
+            return None
+        return scene.model.geom(scene.hand.prefix + FOREARM_GEOM).id
+
+    @staticmethod
+    def _forearm_below_table_m(scene: Scene, forearm: int | None) -> float:
+        """How far the forearm's skin reaches below the table top (world z = 0), metres."""
+        if forearm is None or not scene.spec.table:
+            return 0.0
+        model, data = scene.model, scene.data
+        mesh = model.geom_dataid[forearm]
+        start = model.mesh_vertadr[mesh]
+        vertices = model.mesh_vert[start : start + model.mesh_vertnum[mesh]]
+        # World z of the vertices: the third row of the geom's rotation, then its height.
+        z = vertices @ data.geom_xmat[forearm, 6:9] + data.geom_xpos[forearm, 2]
+        return max(-float(z.min()), 0.0)
+
+    @staticmethod
     def _near_geoms(scene: Scene) -> np.ndarray:
         """The geoms kept beyond the near range: the hand's skin and every object geom.
+
+        The forearm is not among them: it reaches toward the camera in many views, where a
+        real sensor gets no depth either.
 
         (An object's half diameter around its body origin does not bound every object: the
         extra-large clamp reached 1.4 mm nearer than that.)
         """
         bodies = [scene.model.body(name).id for name, _ in scene.objects]
         objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
-        return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
+        forearm = KinematicSource._forearm_geom(scene)
+        skin = scene.hand_skin_geom_ids[scene.hand_skin_geom_ids != forearm]
+        return np.concatenate([skin, objects]).astype(np.intp)
 
     @staticmethod
     def _penetration_m(scene: Scene) -> float:
@@ -234,7 +296,7 @@ class KinematicSource:
         deepest = 0.0
         for i in range(data.ncon):
             con = data.contact[i]
-            hand = [2 <= labels[g] < 8 for g in (con.geom1, con.geom2)]
+            hand = [_PALM_LABEL <= labels[g] < OBJECT_LABEL_OFFSET for g in (con.geom1, con.geom2)]
             if hand[0] != hand[1]:
                 deepest = max(deepest, -float(con.dist))
         return deepest
@@ -257,7 +319,9 @@ class KinematicSource:
         cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
-        near_geoms = self._near_geoms(scene)
+        near_geoms, forearm = self._near_geoms(scene), self._forearm_geom(scene)
+        # Everything the backdrop stands behind: what is kept in range, and the forearm.
+        behind = near_geoms if forearm is None else np.append(near_geoms, forearm)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -276,10 +340,15 @@ class KinematicSource:
                     scene.binding.set_pose(scene.data, pose)
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
+                    # The forearm is drawn only (no contact): a real one cannot enter the table.
+                    if self._forearm_below_table_m(scene, forearm) > MAX_PENETRATION_M:
+                        continue
                 eye, quat = self._camera(rng, view, palm, obj)
                 eye = self._beyond_near(scene, near_geoms, eye, palm)
                 if eye is None:
                     continue
+                if self.config.background != "none":
+                    self._place_backdrop(rng, scene, behind, eye, palm)
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
                 mujoco.mj_camlight(scene.model, scene.data)
                 frame = renderer.render(

@@ -77,7 +77,7 @@ from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.hand.skin import SURFACES, build_skin
+from handsim.hand.skin import SURFACES, build_skin, forearm_extension, forearm_meshes
 
 __all__ = [
     "HandParams",
@@ -93,6 +93,7 @@ __all__ = [
     "FINGER_OMEGA",
     "HAND_PHYSICS_OPTIONS",
     "hand_params",
+    "FOREARM_GEOM",
 ]
 
 Side = Literal["right", "left"]
@@ -145,6 +146,9 @@ _THUMB_CMC = (0.196, 0.010 / _REF_HAND_LENGTH, 0.011 / _REF_HAND_LENGTH)
 _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 
 _SKIN_RGBA = (0.87, 0.72, 0.63, 1.0)
+FOREARM_GEOM = "forearm_visual_0"
+"""Name (after the side prefix: ``rh_forearm_visual_0``) of the forearm's visual mesh geom, on
+the palm body; segmentation gives it the label ``"forearm"``, apart from the hand's."""
 _DENSITY_KG_M3 = 1060.0  # soft tissue
 
 ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
@@ -738,15 +742,27 @@ class Hand:
                             type=mujoco.mjtGeom.mjGEOM_BOX, pos=g.pos, size=g.half_size, **kw
                         )
             body_specs.append(body)
+        meshes: list[tuple[int, str, np.ndarray, np.ndarray]] = []
         if self.params.surface == "skin":
-            for part in build_skin(self.params):
-                name = f"{self.skeleton.bodies[part.body].name}_visual_0"
-                spec.add_mesh(
-                    name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel()
-                )
-                body_specs[part.body].add_geom(
-                    name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
-                )
+            parts = build_skin(self.params)
+            meshes = [
+                (p.body, f"{self.skeleton.bodies[p.body].name}_visual_0", p.vertices, p.faces)
+                for p in parts
+            ]
+            if self.params.forearm:
+                # The forearm is its own mesh (and segmentation label), cut from the palm's.
+                (palm_v, palm_f), (arm_v, arm_f) = forearm_meshes(self.params)
+                meshes[0] = (0, meshes[0][1], palm_v, palm_f)
+                meshes.append((0, FOREARM_GEOM, arm_v, arm_f))
+        elif self.params.forearm:
+            meshes.append((0, FOREARM_GEOM, *forearm_extension(self.params)))
+        # Visual only (the `visual` class: no contact, no mass), so physics is the same with
+        # and without the forearm beyond its collision stub.
+        for body_index, name, vertices, faces in meshes:
+            spec.add_mesh(name=name, uservert=vertices.ravel(), userface=faces.ravel())
+            body_specs[body_index].add_geom(
+                name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
+            )
 
         for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
             body_specs[body_index].add_site(

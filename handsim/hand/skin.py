@@ -55,7 +55,15 @@ import numpy as np
 
 from handsim.hand.lofting import loft_faces
 
-__all__ = ["SURFACES", "SkinPart", "build_skin", "round_cone_profile"]
+__all__ = [
+    "SURFACES",
+    "SkinPart",
+    "build_skin",
+    "round_cone_profile",
+    "FOREARM_LENGTH_RATIO",
+    "forearm_meshes",
+    "forearm_extension",
+]
 
 SURFACES: tuple[str, ...] = ("skin", "capsules")
 """Valid values of :attr:`HandParams.surface <handsim.hand.model.HandParams.surface>`."""
@@ -647,3 +655,107 @@ def digit_volume_m3(binding, data, digit: str, samples: int = 200_000, seed: int
         rot, t = frames[part.body]
         inside |= part.sdf((points - t) @ rot) < 0.0
     return float(inside.mean() * np.prod(hi - lo))
+
+
+# The forearm ----------------------------------------------------------------------------------
+
+FOREARM_LENGTH_RATIO = 1.40
+"""Wrist crease to the tip of the elbow over hand length: the forearm (wrist to elbow joint) is
+about 1.35 hand lengths (segment lengths 0.146 and 0.108 of body height, Drillis & Contini's
+table in Winter, *Biomechanics and Motor Control of Human Movement*), plus the olecranon's
+rounded end [estimate]."""
+
+# The forearm beyond the stub of the palm's skin: elliptic sections (y, half width, half depth)
+# in hand lengths (depths also times thickness_scale), from inside the stub to the elbow, where a
+# half-ellipsoid cap closes it. Broadest a third of the way up (the flexor and extensor bellies,
+# 87 x 66 mm at 189 mm, a circumference of about 0.24 m) [estimate]. From y = -0.51 on it lies
+# 0.5 mm outside the stub, whose rounded end it hides.
+_FOREARM_PROFILE = np.array(
+    [
+        (-0.45, 0.170, 0.110),
+        (-0.51, 0.182, 0.127),
+        (-0.55, 0.183, 0.128),
+        (-0.80, 0.225, 0.165),
+        (-1.05, 0.230, 0.175),
+        (-1.30, 0.205, 0.160),
+    ]
+)
+_FOREARM_AROUND = 16
+_FOREARM_CAP_DEG = (30.0, 60.0)  # cap rings, degrees from the elbow's pole
+
+
+def _forearm_extension(hl: float, thick: float) -> tuple[np.ndarray, np.ndarray]:
+    """The lofted forearm from inside the stub to the elbow: (V, 3) vertices, (F, 3) faces."""
+    y, a, c = _FOREARM_PROFILE.T * hl
+    c = c * thick
+    cap_len = y[-1] + FOREARM_LENGTH_RATIO * hl  # from the last ring to the elbow's tip
+    # Rings advance along +y (elbow first): loft_faces' winding with u = +x, v = +z.
+    rings = [
+        (y[-1] - cap_len * np.cos(np.deg2rad(phi)), s * a[-1], s * c[-1])
+        for phi, s in ((p, np.sin(np.deg2rad(p))) for p in _FOREARM_CAP_DEG)
+    ]
+    rings += list(zip(y[::-1], a[::-1], c[::-1], strict=True))
+    t = 2.0 * np.pi * np.arange(_FOREARM_AROUND) / _FOREARM_AROUND
+    ring_points = [
+        np.stack([ai * np.cos(t), np.full_like(t, yi), ci * np.sin(t)], axis=1)
+        for yi, ai, ci in rings
+    ]
+    vertices = np.concatenate(
+        [[[0.0, -FOREARM_LENGTH_RATIO * hl, 0.0]], *ring_points, [[0.0, y[0], 0.0]]]
+    )
+    return vertices, loft_faces(len(rings), _FOREARM_AROUND)
+
+
+def forearm_extension(params) -> tuple[np.ndarray, np.ndarray]:
+    """The forearm beyond the palm's stub alone (what ``surface="capsules"`` draws with it).
+
+    Returns:
+        (V, 3) float64 vertices in the palm frame, metres, and (F, 3) int32 faces.
+    """
+    vertices, faces = _forearm_extension(params.hand_length, params.thickness_scale)
+    if params.side == "left":
+        return vertices * np.array([-1.0, 1.0, 1.0]), faces[:, ::-1].copy()
+    return vertices, faces
+
+
+def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    used, inverse = np.unique(faces, return_inverse=True)
+    return vertices[used], inverse.reshape(faces.shape).astype(np.int32)
+
+
+@functools.lru_cache(maxsize=64)
+def _right_forearm_split(params) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    palm = _right_parts(params)[0]
+    centroid_y = palm.vertices[palm.faces].mean(axis=1)[:, 1]
+    hand_faces, stub_faces = palm.faces[centroid_y >= 0.0], palm.faces[centroid_y < 0.0]
+    ext_v, ext_f = _forearm_extension(params.hand_length, params.thickness_scale)
+    stub_v, stub_f = _compact(palm.vertices, stub_faces)
+    forearm = (np.concatenate([stub_v, ext_v]), np.concatenate([stub_f, ext_f + len(stub_v)]))
+    return _compact(palm.vertices, hand_faces), forearm
+
+
+def forearm_meshes(params) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """The palm's skin without the forearm, and the forearm, as drawn (palm frame, metres).
+
+    The palm's skin (:func:`build_skin`) holds a forearm stub; its triangles proximal of the
+    wrist crease (centroid ``y < 0``) go to the forearm, which continues them to the elbow
+    (:data:`FOREARM_LENGTH_RATIO` hand lengths from the wrist) with a lofted elliptic tube of
+    a few hundred triangles. Together the two meshes draw the palm's skin unchanged where it
+    was, so the hand looks the same and the forearm gets its own segmentation label.
+
+    Args:
+        params: hand parameters with ``forearm=True``.
+
+    Returns:
+        ``((palm_vertices, palm_faces), (forearm_vertices, forearm_faces))``: (V, 3) float64
+        and (F, 3) int32 arrays, read-only, faces counter-clockwise seen from outside.
+    """
+    shape = dataclasses.replace(params, side="right", surface="skin", couple_dip=False)
+    meshes = _right_forearm_split(shape)
+    if params.side == "left":
+        flip = np.array([-1.0, 1.0, 1.0])
+        meshes = tuple((v * flip, f[:, ::-1].copy()) for v, f in meshes)
+    for v, f in meshes:
+        v.setflags(write=False)
+        f.setflags(write=False)
+    return meshes  # type: ignore[return-value]
