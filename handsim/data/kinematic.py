@@ -55,6 +55,10 @@ _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
 _MIN_EYE_HEIGHT_M = 0.03
+_SHOULDER_M = np.array([0.18, -0.55, 0.30])
+"""The right shoulder of the person at the table's -y edge (the left one at -x), world,
+metres: seated, 0.3 m above the table top, shoulders 0.36 m apart [estimate]. The upper arm
+is drawn from the elbow to it."""
 # The backdrop's gap behind the farthest hand or object point, metres: a wall anywhere from
 # just behind to a room's depth away; the torso just behind the elbow [estimate].
 _BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3)}
@@ -320,8 +324,10 @@ class KinematicSource:
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
         near_geoms, forearm = self._near_geoms(scene), self._forearm_geom(scene)
-        # Everything the backdrop stands behind: what is kept in range, and the forearm.
-        behind = near_geoms if forearm is None else np.append(near_geoms, forearm)
+        # Everything the backdrop stands behind: what is kept in range, and the arm.
+        arm = () if forearm is None else (forearm, scene.binding.upper_arm_id)
+        behind = np.append(near_geoms, arm).astype(np.intp)
+        shoulder = _SHOULDER_M * ((-1.0, 1.0, 1.0) if scene.hand.params.side == "left" else 1.0)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -343,6 +349,7 @@ class KinematicSource:
                     # The forearm is drawn only (no contact): a real one cannot enter the table.
                     if self._forearm_below_table_m(scene, forearm) > MAX_PENETRATION_M:
                         continue
+                scene.binding.point_upper_arm(scene.data, shoulder)
                 eye, quat = self._camera(rng, view, palm, obj)
                 eye = self._beyond_near(scene, near_geoms, eye, palm)
                 if eye is None:

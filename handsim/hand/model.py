@@ -77,7 +77,14 @@ from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.hand.skin import SURFACES, build_skin, forearm_extension, forearm_meshes
+from handsim.hand.skin import (
+    ELBOW_RATIO,
+    SURFACES,
+    UPPER_ARM_RATIOS,
+    build_skin,
+    forearm_extension,
+    forearm_meshes,
+)
 
 __all__ = [
     "HandParams",
@@ -94,6 +101,7 @@ __all__ = [
     "HAND_PHYSICS_OPTIONS",
     "hand_params",
     "FOREARM_GEOM",
+    "UPPER_ARM_GEOM",
 ]
 
 Side = Literal["right", "left"]
@@ -148,7 +156,10 @@ _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 _SKIN_RGBA = (0.87, 0.72, 0.63, 1.0)
 FOREARM_GEOM = "forearm_visual_0"
 """Name (after the side prefix: ``rh_forearm_visual_0``) of the forearm's visual mesh geom, on
-the palm body; segmentation gives it the label ``"forearm"``, apart from the hand's."""
+the palm body; segmentation gives it the label ``"arm"``, apart from the hand's."""
+UPPER_ARM_GEOM = "upper_arm_visual_0"
+"""Name (after the side prefix) of the upper arm's visual capsule, on the palm body (label
+``"arm"``)."""
 _DENSITY_KG_M3 = 1060.0  # soft tissue
 
 ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
@@ -763,6 +774,19 @@ class Hand:
             body_specs[body_index].add_geom(
                 name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
             )
+        if self.params.forearm:
+            # The upper arm, from the elbow on in line with the forearm (an arm held straight);
+            # frame sources may turn it toward the shoulder (HandBinding.point_upper_arm).
+            hl = self.params.hand_length
+            length, radius = (r * hl for r in UPPER_ARM_RATIOS)
+            elbow = np.array([0.0, -ELBOW_RATIO * hl, 0.0])
+            body_specs[0].add_geom(
+                name=UPPER_ARM_GEOM,
+                default=visual,
+                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                fromto=np.concatenate([elbow, elbow - [0.0, length, 0.0]]),
+                size=(radius, 0, 0),
+            )
 
         for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
             body_specs[body_index].add_site(
@@ -1020,6 +1044,10 @@ class HandBinding:
                 [model.site(n).id for n in hand.point_site_names], dtype=np.intp
             )
             self.mocap_id = int(model.body(hand.mocap_body).mocapid[0])
+            self.palm_id = model.body(hand.root_body).id
+            self.upper_arm_id = (
+                model.geom(hand.prefix + UPPER_ARM_GEOM).id if hand.params.forearm else -1
+            )
         except KeyError as err:
             raise UnknownName(
                 f"the model does not contain the {hand.params.side} hand "
@@ -1053,6 +1081,46 @@ class HandBinding:
             mujoco.mj_kinematics(self.model, data)
         else:
             mujoco.mj_forward(self.model, data)
+
+    def point_upper_arm(self, data: mujoco.MjData, shoulder_m: np.ndarray) -> None:
+        """Turn the upper arm from the elbow to a shoulder, reaching it (drawn only).
+
+        Call it after the pose is set (:meth:`set_pose`): it writes the upper arm's capsule
+        into the model (geom position, orientation, half length and bounds, in the palm frame)
+        and into ``data``'s geom poses, so the next render draws it and a later forward keeps
+        it. Its length is the elbow-shoulder distance, at most 0.8 m. No effect on a hand
+        without a forearm.
+
+        Args:
+            data: the simulation data, forwarded at the pose.
+            shoulder_m: (3,) the shoulder, world, metres.
+        """
+        g = self.upper_arm_id
+        if g < 0:
+            return
+        model = self.model
+        rot = data.xmat[self.palm_id].reshape(3, 3)
+        hl = self.hand.params.hand_length
+        elbow = np.array([0.0, -ELBOW_RATIO * hl, 0.0])
+        reach = rot.T @ (np.asarray(shoulder_m, dtype=np.float64) - data.xpos[self.palm_id])
+        reach -= elbow
+        length = float(np.linalg.norm(reach))
+        # In line with the forearm when the shoulder is at the elbow.
+        axis = reach / length if length > 1e-6 else np.array([0.0, -1.0, 0.0])
+        length = min(length, 0.8)
+        half = 0.5 * length
+        radius = float(model.geom_size[g, 0])
+        quat = np.empty(4)
+        mujoco.mju_quatZ2Vec(quat, axis)  # the capsule's axis is its local z
+        model.geom_pos[g] = elbow + axis * half
+        model.geom_quat[g] = quat
+        model.geom_size[g, 1] = half
+        model.geom_rbound[g] = half + radius
+        model.geom_aabb[g] = (0.0, 0.0, 0.0, radius, radius, half + radius)
+        local = np.empty(9)
+        mujoco.mju_quat2Mat(local, quat)
+        data.geom_xpos[g] = data.xpos[self.palm_id] + rot @ model.geom_pos[g]
+        data.geom_xmat[g] = (rot @ local.reshape(3, 3)).ravel()
 
     def set_target(self, data: mujoco.MjData, pose: HandPose) -> None:
         """Physics mode: move the mocap target to the wrist pose and set the finger targets.

@@ -61,6 +61,8 @@ __all__ = [
     "build_skin",
     "round_cone_profile",
     "FOREARM_LENGTH_RATIO",
+    "ELBOW_RATIO",
+    "UPPER_ARM_RATIOS",
     "forearm_meshes",
     "forearm_extension",
 ]
@@ -664,6 +666,12 @@ FOREARM_LENGTH_RATIO = 1.40
 about 1.35 hand lengths (segment lengths 0.146 and 0.108 of body height, Drillis & Contini's
 table in Winter, *Biomechanics and Motor Control of Human Movement*), plus the olecranon's
 rounded end [estimate]."""
+
+ELBOW_RATIO = 1.35
+"""Wrist crease to the elbow joint's centre over hand length (the segment lengths above)."""
+UPPER_ARM_RATIOS = (1.72, 0.24)
+"""The upper arm, elbow to shoulder, over hand length: its length (0.186 of body height in the
+same table) and its radius (45 mm at 189 mm, a mid-arm circumference of 0.28 m) [estimate]."""
 
 # The forearm beyond the stub of the palm's skin: elliptic sections (y, half width, half depth)
 # in hand lengths (depths also times thickness_scale), from inside the stub to the elbow, where a

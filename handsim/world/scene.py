@@ -9,7 +9,8 @@ cameras from :func:`third_person_camera`, :func:`egocentric_camera` or the seede
 :func:`sample_viewpoint`.
 
 Segmentation labels (:data:`SEGMENT_LABELS`): 0 background (no surface), 1 table, 2 backdrop
-(:attr:`SceneSpec.background`), 3 forearm (proximal of the wrist crease), 4 palm, 5 thumb,
+(:attr:`SceneSpec.background`), 3 arm (the forearm from the wrist crease on, and the upper
+arm), 4 palm, 5 thumb,
 6 index, 7 middle, 8 ring, 9 little, and ``10 + k`` (:data:`OBJECT_LABEL_OFFSET` ``+ k``) for
 object instance ``k`` in the order of :attr:`SceneSpec.objects`. The hand's labels are
 ``palm`` up to the objects' (the forearm is not the hand).
@@ -26,7 +27,13 @@ import numpy as np
 
 from handsim._validate import boolean, integer, is_real, real_array, real_scalar, show
 from handsim.errors import HandSimError
-from handsim.hand.model import FOREARM_GEOM, HAND_PHYSICS_OPTIONS, Hand, HandParams
+from handsim.hand.model import (
+    FOREARM_GEOM,
+    HAND_PHYSICS_OPTIONS,
+    UPPER_ARM_GEOM,
+    Hand,
+    HandParams,
+)
 from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import CameraIntrinsics, add_camera, camera_preset, look_at_quat_wxyz
 from handsim.world.mjcf import save_spec, spec_to_xml
@@ -48,7 +55,7 @@ __all__ = [
     "sample_placements",
 ]
 
-SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "forearm", "palm", *DIGITS)
+SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "palm", *DIGITS)
 """Names of the fixed segmentation labels; objects follow from :data:`OBJECT_LABEL_OFFSET`."""
 OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
 
@@ -697,13 +704,14 @@ class Scene:
                 body_label[body_id] = SEGMENT_LABELS.index(b.part)
         for k, (body, _) in enumerate(self.objects):
             body_label[self.model.body(body).id] = OBJECT_LABEL_OFFSET + k
-        forearm = "" if self.hand is None else self.hand.prefix + FOREARM_GEOM
+        p = "" if self.hand is None else self.hand.prefix
+        arm = () if self.hand is None else (p + FOREARM_GEOM, p + UPPER_ARM_GEOM)
         for g in range(self.model.ngeom):
             name = self.model.geom(g).name
             if name == "table":
                 labels[g] = SEGMENT_LABELS.index("table")
-            elif name == forearm:
-                labels[g] = SEGMENT_LABELS.index("forearm")
+            elif name in arm:
+                labels[g] = SEGMENT_LABELS.index("arm")
             elif name.startswith(_BACKDROP_PREFIX):
                 labels[g] = SEGMENT_LABELS.index("backdrop")
             else:
