@@ -95,7 +95,7 @@ _HIDDEN_GROUP = 5  # a geom group no camera renders
 # possible occluder (conservative: it only costs a silhouette render).
 _OCCLUSION_MARGIN_M = 0.005
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
-# The person's own arm hiding a keypoint is self-occlusion, as the palm's forearm stub always was.
+# The person's own arm hiding a keypoint is self-occlusion, as the palm's forearm stub is.
 _SELF_LABEL = SEGMENT_LABELS.index("arm")
 
 
@@ -275,8 +275,7 @@ def _keypoint_parts(scene: Scene) -> np.ndarray:
     parts = []
     for body_index, _ in skeleton.keypoints:
         parent = skeleton.bodies[body_index].parent
-        # The wrist lies where the palm's skin meets the arm's: either may carry it.
-        parts.append((label[body_index], label[parent] if parent >= 0 else _SELF_LABEL))
+        parts.append((label[body_index], label[parent] if parent >= 0 else label[body_index]))
     return np.array(parts, dtype=np.int16)
 
 

@@ -83,7 +83,6 @@ from handsim.hand.skin import (
     UPPER_ARM_RATIOS,
     build_skin,
     forearm_extension,
-    forearm_meshes,
 )
 
 __all__ = [
@@ -755,17 +754,12 @@ class Hand:
             body_specs.append(body)
         meshes: list[tuple[int, str, np.ndarray, np.ndarray]] = []
         if self.params.surface == "skin":
-            parts = build_skin(self.params)
             meshes = [
                 (p.body, f"{self.skeleton.bodies[p.body].name}_visual_0", p.vertices, p.faces)
-                for p in parts
+                for p in build_skin(self.params)
             ]
-            if self.params.forearm:
-                # The forearm is its own mesh (and segmentation label), cut from the palm's.
-                (palm_v, palm_f), (arm_v, arm_f) = forearm_meshes(self.params)
-                meshes[0] = (0, meshes[0][1], palm_v, palm_f)
-                meshes.append((0, FOREARM_GEOM, arm_v, arm_f))
-        elif self.params.forearm:
+        if self.params.forearm:
+            # The forearm beyond the palm's stub, its own mesh (and segmentation label).
             meshes.append((0, FOREARM_GEOM, *forearm_extension(self.params)))
         # Visual only (the `visual` class: no contact, no mass), so physics is the same with
         # and without the forearm beyond its collision stub.

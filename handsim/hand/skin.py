@@ -63,7 +63,6 @@ __all__ = [
     "FOREARM_LENGTH_RATIO",
     "ELBOW_RATIO",
     "UPPER_ARM_RATIOS",
-    "forearm_meshes",
     "forearm_extension",
 ]
 
@@ -715,55 +714,20 @@ def _forearm_extension(hl: float, thick: float) -> tuple[np.ndarray, np.ndarray]
 
 
 def forearm_extension(params) -> tuple[np.ndarray, np.ndarray]:
-    """The forearm beyond the palm's stub alone (what ``surface="capsules"`` draws with it).
+    """The forearm beyond the palm's stub, to the elbow: a lofted elliptic tube.
+
+    It starts inside the stub of the palm's skin (whose rounded end it hides) and ends
+    :data:`FOREARM_LENGTH_RATIO` hand lengths from the wrist crease, in line with the hand, in
+    a few hundred triangles (the palm's skin has about 16 000).
+
+    Args:
+        params: hand parameters (:class:`~handsim.hand.model.HandParams`).
 
     Returns:
-        (V, 3) float64 vertices in the palm frame, metres, and (F, 3) int32 faces.
+        (V, 3) float64 vertices in the palm frame, metres, and (F, 3) int32 faces,
+        counter-clockwise seen from outside.
     """
     vertices, faces = _forearm_extension(params.hand_length, params.thickness_scale)
     if params.side == "left":
         return vertices * np.array([-1.0, 1.0, 1.0]), faces[:, ::-1].copy()
     return vertices, faces
-
-
-def _compact(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    used, inverse = np.unique(faces, return_inverse=True)
-    return vertices[used], inverse.reshape(faces.shape).astype(np.int32)
-
-
-@functools.lru_cache(maxsize=64)
-def _right_forearm_split(params) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
-    palm = _right_parts(params)[0]
-    centroid_y = palm.vertices[palm.faces].mean(axis=1)[:, 1]
-    hand_faces, stub_faces = palm.faces[centroid_y >= 0.0], palm.faces[centroid_y < 0.0]
-    ext_v, ext_f = _forearm_extension(params.hand_length, params.thickness_scale)
-    stub_v, stub_f = _compact(palm.vertices, stub_faces)
-    forearm = (np.concatenate([stub_v, ext_v]), np.concatenate([stub_f, ext_f + len(stub_v)]))
-    return _compact(palm.vertices, hand_faces), forearm
-
-
-def forearm_meshes(params) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """The palm's skin without the forearm, and the forearm, as drawn (palm frame, metres).
-
-    The palm's skin (:func:`build_skin`) holds a forearm stub; its triangles proximal of the
-    wrist crease (centroid ``y < 0``) go to the forearm, which continues them to the elbow
-    (:data:`FOREARM_LENGTH_RATIO` hand lengths from the wrist) with a lofted elliptic tube of
-    a few hundred triangles. Together the two meshes draw the palm's skin unchanged where it
-    was, so the hand looks the same and the forearm gets its own segmentation label.
-
-    Args:
-        params: hand parameters with ``forearm=True``.
-
-    Returns:
-        ``((palm_vertices, palm_faces), (forearm_vertices, forearm_faces))``: (V, 3) float64
-        and (F, 3) int32 arrays, read-only, faces counter-clockwise seen from outside.
-    """
-    shape = dataclasses.replace(params, side="right", surface="skin", couple_dip=False)
-    meshes = _right_forearm_split(shape)
-    if params.side == "left":
-        flip = np.array([-1.0, 1.0, 1.0])
-        meshes = tuple((v * flip, f[:, ::-1].copy()) for v, f in meshes)
-    for v, f in meshes:
-        v.setflags(write=False)
-        f.setflags(write=False)
-    return meshes  # type: ignore[return-value]

@@ -9,8 +9,8 @@ cameras from :func:`third_person_camera`, :func:`egocentric_camera` or the seede
 :func:`sample_viewpoint`.
 
 Segmentation labels (:data:`SEGMENT_LABELS`): 0 background (no surface), 1 table, 2 backdrop
-(:attr:`SceneSpec.background`), 3 arm (the forearm from the wrist crease on, and the upper
-arm), 4 palm, 5 thumb,
+(:attr:`SceneSpec.background`), 3 arm (the forearm beyond the palm's stub, and the upper
+arm), 4 palm (with the forearm stub), 5 thumb,
 6 index, 7 middle, 8 ring, 9 little, and ``10 + k`` (:data:`OBJECT_LABEL_OFFSET` ``+ k``) for
 object instance ``k`` in the order of :attr:`SceneSpec.objects`. The hand's labels are
 ``palm`` up to the objects' (the forearm is not the hand).
