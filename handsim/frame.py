@@ -129,7 +129,7 @@ class Contact:
     """A contact between the hand and an object.
 
     Attributes:
-        hand_part: segmentation label of the hand part (2 palm ... 7 little).
+        hand_part: segmentation label of the hand part (4 palm ... 9 little).
         instance: object instance index.
         pos_cam: (3,) contact position in the camera frame, metres.
         normal_force_n: normal force, newtons.

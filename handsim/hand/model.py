@@ -41,6 +41,8 @@ actuators           ``<side>_<joint>_act``                       ``rh_index_mcp_
 keypoint sites      ``<side>_kp_<keypoint>``                     ``rh_kp_index_tip``
 collision geoms     ``<side>_<part>_collision_<n>``              ``rh_index_distal_collision_0``
 visual geoms        ``<side>_<part>_visual_<n>``                 ``rh_palm_visual_0``
+forearm (drawn)     ``<side>_forearm_visual_0`` (palm body)      ``rh_forearm_visual_0``
+upper arm (drawn)   ``<side>_upper_arm_visual_0`` (palm body)    ``rh_upper_arm_visual_0``
 default classes     ``<side>_hand``, ``<side>_collision``, ...   ``rh_visual``
 ==================  ===========================================  ==========================
 
@@ -239,7 +241,10 @@ class HandParams:
         palm_breadth: breadth at the metacarpal heads, metres; ``None`` gives 0.45 *
             hand_length. Valid ratio to hand_length: 0.35 to 0.55.
         thickness_scale: multiplies every radius and the palm thickness (valid 0.7 to 1.4).
-        forearm: add a forearm stub (it is part of what a depth camera sees).
+        forearm: add the arm (part of what a depth camera sees): a forearm stub in the palm
+            (collision capsules, and the palm's skin), and, drawn only (no contact, no mass),
+            the forearm beyond it to the elbow (:data:`FOREARM_GEOM`) and the upper arm
+            (:data:`UPPER_ARM_GEOM`, :meth:`HandBinding.point_upper_arm`).
         couple_dip: tie each DIP to 2/3 of its PIP with an equality constraint (the DIP
             actuators are then omitted).
         surface: what cameras see: ``"skin"`` (default), a smooth closed mesh per segment with
