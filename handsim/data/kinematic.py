@@ -47,7 +47,7 @@ from handsim.world.scene import (
 )
 from handsim.world.sensors import sensor_model
 
-__all__ = ["KinematicSource", "KEPT_SCENES"]
+__all__ = ["KinematicSource", "KEPT_SCENES", "SHOULDER_M"]
 
 KEPT_SCENES = 2
 """Scenes a kinematic source keeps between episodes (a right and a left hand alone)."""
@@ -55,7 +55,7 @@ _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
 _MIN_EYE_HEIGHT_M = 0.03
-_SHOULDER_M = np.array([0.18, -0.55, 0.30])
+SHOULDER_M = np.array([0.18, -0.55, 0.30])
 """The right shoulder of the person at the table's -y edge (the left one at -x), world,
 metres: seated, 0.3 m above the table top, shoulders 0.36 m apart [estimate]. The upper arm
 is drawn from the elbow to it."""
@@ -327,7 +327,7 @@ class KinematicSource:
         # Everything the backdrop stands behind: what is kept in range, and the arm.
         arm = () if forearm is None else (forearm, scene.binding.upper_arm_id)
         behind = np.append(near_geoms, arm).astype(np.intp)
-        shoulder = _SHOULDER_M * ((-1.0, 1.0, 1.0) if scene.hand.params.side == "left" else 1.0)
+        shoulder = SHOULDER_M * ((-1.0, 1.0, 1.0) if scene.hand.params.side == "left" else 1.0)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
