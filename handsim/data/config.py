@@ -21,6 +21,7 @@ from handsim.data.shards import DEFAULT_DEPTH_SCALE_MM
 from handsim.errors import HandSimError
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
+from handsim.world.scene import BACKGROUNDS
 
 __all__ = [
     "POSE_SOURCES",
@@ -47,8 +48,6 @@ POSE_SOURCES = ("gesture", "grasp", "synergy", "uniform")
 VIEWPOINTS = ("third_person", "egocentric", "random", "through_object")
 """Camera placements: across the table, head-mounted, a random sphere around the hand, or
 behind an object looking at the hand (the object is between camera and hand)."""
-BACKGROUNDS = ("none", "wall", "torso")
-"""What stands beyond the table (:data:`handsim.world.scene.BACKGROUNDS`)."""
 SENSORS = ("none", "structured_light", "tof")
 """Depth sensor models."""
 MAX_PENETRATION_M = 0.004
@@ -202,7 +201,8 @@ class GenerationConfig:
         frame_stride: rollout source: env steps between kept frames (1 = every step).
         background: kinematic source: what stands beyond the hand and the table
             (:data:`BACKGROUNDS`): ``"wall"`` (default), ``"torso"`` (the person's torso and
-            head, a wall behind) or ``"none"`` (no depth there). Placed per frame behind
+            head, a wall behind), ``"clutter"`` (furniture, a wall behind) or ``"none"`` (no
+            depth there). Placed per frame behind
             everything the camera sees of the hand (forearm included) and the objects; its
             pixels carry the segmentation label ``"backdrop"``. The rollout source renders its
             env's scene, which has none.

@@ -61,7 +61,7 @@ metres: seated, 0.3 m above the table top, shoulders 0.36 m apart [estimate]. Th
 is drawn from the elbow to it."""
 # The backdrop's gap behind the farthest hand or object point, metres: a wall anywhere from
 # just behind to a room's depth away; the torso just behind the elbow [estimate].
-_BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3)}
+_BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3), "clutter": (0.1, 0.8)}
 """Cameras stay this far above the table top (world z = 0), metres."""
 
 

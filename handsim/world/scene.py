@@ -59,9 +59,9 @@ SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "pa
 """Names of the fixed segmentation labels; objects follow from :data:`OBJECT_LABEL_OFFSET`."""
 OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
 
-BACKGROUNDS: tuple[str, ...] = ("none", "wall", "torso")
-"""What stands beyond the table (:attr:`SceneSpec.background`): nothing (no depth), a wall, or
-the person's torso and head in front of a wall."""
+BACKGROUNDS: tuple[str, ...] = ("none", "wall", "torso", "clutter")
+"""What stands beyond the table (:attr:`SceneSpec.background`): nothing (no depth), a wall, the
+person's torso and head in front of a wall, or furniture in front of a wall."""
 
 _TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
 _BACKDROP_BODY = "backdrop"
@@ -70,13 +70,24 @@ _BACKDROP_PREFIX = "backdrop_"  # every backdrop geom's name starts so (label "b
 # x = 0, the body origin at table-top height): (name, type, size, pos). A wall 6 m by 4 m; a
 # seated adult's torso (chest 0.36 m broad, 0.22 m deep, 0.6 m from the table top up) and head
 # (0.2 m) [estimate], with the wall 0.4 m behind the torso.
-_WALL = ("backdrop_wall", mujoco.mjtGeom.mjGEOM_BOX, (0.01, 3.0, 2.0), (-0.01, 0.0, 0.5))
+_BOX, _CYLINDER = mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_CYLINDER
+_WALL = ("backdrop_wall", _BOX, (0.01, 3.0, 2.0), (-0.01, 0.0, 0.5))
 _BACKDROPS = {
     "wall": (_WALL,),
     "torso": (
         ("backdrop_torso", mujoco.mjtGeom.mjGEOM_ELLIPSOID, (0.11, 0.18, 0.30), (-0.11, 0.0, 0.3)),
         ("backdrop_head", mujoco.mjtGeom.mjGEOM_ELLIPSOID, (0.09, 0.075, 0.11), (-0.1, 0.0, 0.73)),
         (_WALL[0], _WALL[1], _WALL[2], (-0.41, 0.0, 0.5)),
+    ),
+    # A room's furniture, all of it behind the front plane: a cabinet, a desk with a monitor
+    # and a bottle, a floor lamp, the wall 0.65 m behind [estimate].
+    "clutter": (
+        ("backdrop_cabinet", _BOX, (0.2, 0.25, 0.45), (-0.2, -0.7, -0.3)),
+        ("backdrop_desk", _BOX, (0.3, 0.6, 0.02), (-0.3, 0.35, 0.1)),
+        ("backdrop_monitor", _BOX, (0.03, 0.27, 0.17), (-0.45, 0.35, 0.3)),
+        ("backdrop_bottle", _CYLINDER, (0.04, 0.12, 0.0), (-0.12, 0.0, 0.24)),
+        ("backdrop_lamp", _CYLINDER, (0.1, 0.6, 0.0), (-0.35, 0.95, -0.15)),
+        (_WALL[0], _WALL[1], _WALL[2], (-0.66, 0.0, 0.5)),
     ),
 }
 # Beyond the table's far edge, the default backdrop leaves this much for a hand and forearm
@@ -370,7 +381,8 @@ class SceneSpec:
         cameras: depth cameras (at least one); names must be unique.
         table: add the table (top at ``z = 0``).
         background: what stands beyond the table (:data:`BACKGROUNDS`): ``"none"`` (no depth
-            there), ``"wall"`` or ``"torso"`` (the person's torso and head, a wall behind).
+            there), ``"wall"``, ``"torso"`` (the person's torso and head, a wall behind) or
+            ``"clutter"`` (a cabinet, a desk with a monitor, a lamp; a wall behind).
             Its geoms are drawn only (no contact, no mass) and labelled ``"backdrop"``; it
             stands upright, facing the first camera beyond the table (and beyond anything a
             hand reaches over it), and :meth:`Scene.place_backdrop` moves it per frame.

@@ -61,7 +61,7 @@ def test_every_preset_is_a_valid_config():
             r"'through_object' needs objects",
         ),
         ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: background"),
-        ({"background": "sky"}, r"background must be one of none, wall, torso; received 'sky'"),
+        ({"background": "sky"}, r"background must be one of none, wall, torso, clutter; received"),
     ],
 )
 def test_config_errors_name_the_field_and_what_is_valid(values, match):

@@ -283,7 +283,8 @@ def test_a_rescaled_scene_is_for_kinematic_use_only():
 def test_backdrop_is_validated():
     """An unknown background is refused with the valid names."""
     with pytest.raises(
-        InvalidScene, match=r"background must be one of 'none', 'wall', 'torso'; received 'sky'"
+        InvalidScene,
+        match=r"background must be one of 'none', 'wall', 'torso', 'clutter'; received 'sky'",
     ):
         SceneSpec(background="sky")
     with pytest.raises(InvalidScene, match=r"background must be one of .*; received 1"):
@@ -307,7 +308,7 @@ def _farthest_m(scene, eye, target):
     return far
 
 
-@pytest.mark.parametrize("background", ["wall", "torso"])
+@pytest.mark.parametrize("background", ["wall", "torso", "clutter"])
 def test_the_backdrop_fills_only_empty_pixels(background):
     """Placed beyond the scene along the line of sight, the backdrop hides nothing.
 
