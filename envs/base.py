@@ -200,7 +200,7 @@ class HandSimEnv(gym.Env, abc.ABC):
       millimetres in [0, 10000] (``"uint16_mm"``); 0 = no measurement. ``H, W`` are ``height``
       and ``width`` (default: the camera preset's resolution).
     - ``segmentation`` (``"depth+segmentation"``): the same shape, int16 labels
-      (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 8).
+      (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 10).
     - ``proprio`` (modes with ``state``): (54,) float64 = the hand's measured pose vector (27)
       and velocities (27: wrist linear m/s and angular rad/s, then joint rad/s).
     - ``object_poses`` (``"privileged_state"``, envs with objects): ``(max_objects, 7)``

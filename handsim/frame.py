@@ -115,6 +115,8 @@ _HIDDEN_GROUP = 5  # a geom group no camera renders
 # possible occluder (conservative: it only costs a silhouette render).
 _OCCLUSION_MARGIN_M = 0.005
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
+# The person's own arm hiding a keypoint is self-occlusion, as the palm's forearm stub is.
+_SELF_LABEL = SEGMENT_LABELS.index("arm")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,7 +124,7 @@ class ObjectLabel:
     """Pose and visibility of one object instance in a frame.
 
     Attributes:
-        instance: index in the scene's object list (segmentation label ``8 + instance``).
+        instance: index in the scene's object list (segmentation label ``10 + instance``).
         name: object name, e.g. ``"005_tomato_soup_can"``.
         ycbv_id: YCB-Video object id (``None`` for imported meshes).
         T_cam_from_obj: (4, 4) object pose in the OpenCV camera frame, metres.
@@ -148,7 +150,7 @@ class Contact:
     """A contact between the hand and an object.
 
     Attributes:
-        hand_part: segmentation label of the hand part (2 palm ... 7 little).
+        hand_part: segmentation label of the hand part (4 palm ... 9 little).
         instance: object instance index.
         pos_cam: (3,) contact position in the camera frame, metres.
         normal_force_n: normal force, newtons.
@@ -171,7 +173,8 @@ class Frame:
         depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
         depth_clean: (H, W) float32 noise-free depth within the camera's range, metres, 0 =
             nothing seen (``None`` unless requested).
-        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects 8+).
+        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`,
+            objects from 10).
         keypoints_cam: (21, 3) keypoints in the camera frame, metres.
         keypoints_px: (21, 2) keypoint pixels ``(u, v)``; NaN for keypoints behind the camera
             (``z <= 0``).
@@ -616,7 +619,7 @@ class FrameRenderer:
         visible_sensor = np.zeros(21, dtype=bool)
         _kernels.keypoint_visibility(
             depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
-            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _SELF_LABEL, OCCLUDER_SELF,
             OCCLUDER_SCENE, sensor_depth_m, SENSOR_AGREEMENT_M, visible, occluder,
             visible_sensor,
         )  # fmt: skip

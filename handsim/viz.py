@@ -24,6 +24,7 @@ import numpy as np
 
 from handsim.errors import HandSimError
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, Frame
+from handsim.world.scene import OBJECT_LABEL_OFFSET
 
 if TYPE_CHECKING:
     from handsim.estimator import Estimate
@@ -52,15 +53,17 @@ __all__ = [
 
 LABEL_BGR = np.array(
     [
-        (0, 0, 0), (90, 90, 90), (60, 180, 230), (40, 120, 255), (60, 220, 120),
+        (0, 0, 0), (90, 90, 90), (150, 130, 120), (50, 110, 170), (60, 180, 230),
+        (40, 120, 255), (60, 220, 120),
         (230, 200, 60), (230, 120, 200), (160, 100, 240),
         (80, 80, 230), (230, 90, 70), (70, 200, 200), (200, 200, 70), (150, 230, 150),
     ],
     dtype=np.float64,
 )  # fmt: skip
-"""BGR colour per segmentation label: background, table, palm, thumb..little, then objects."""
+"""BGR colour per segmentation label: background, table, backdrop, forearm, palm, thumb..little,
+then objects."""
 
-_OBJECT_LABEL = 8  # first object label (handsim.world.scene.OBJECT_LABEL_OFFSET)
+_OBJECT_LABEL = OBJECT_LABEL_OFFSET
 
 HAND_BONES: tuple[tuple[int, int], ...] = (
     (0, 1), (1, 2), (2, 3), (3, 4),
@@ -204,7 +207,7 @@ def draw_segmentation(segmentation: Any) -> np.ndarray:
 
     Args:
         segmentation: (H, W) integer labels (``handsim.world.scene.SEGMENT_LABELS``, objects
-            from 8).
+            from ``OBJECT_LABEL_OFFSET``, 10).
 
     Returns:
         (H, W, 3) uint8 BGR image.

@@ -42,7 +42,7 @@ key                          shape       dtype    unit    meaning
 ===========================  ==========  =======  ======  ======================================
 
 ``N`` = :data:`MAX_OBJECTS`, ``C`` = :data:`MAX_CONTACTS`. Object slot ``k`` is object instance
-``k`` (segmentation label ``8 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
+``k`` (segmentation label ``10 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
 (0 = no measurement), ``segmentation`` (H, W) int16 and, when the frame has it, ``depth_clean``.
 
 Dataset shards add how each frame was drawn (:data:`DRAW_LABEL_SCHEMA`; not in env ``info``,

@@ -22,6 +22,7 @@ from handsim.data.shards import DEFAULT_DEPTH_SCALE_MM
 from handsim.errors import HandSimError
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
+from handsim.world.scene import BACKGROUNDS
 
 __all__ = [
     "POSE_SOURCES",
@@ -30,6 +31,7 @@ __all__ = [
     "DEFAULT_VIEWPOINTS",
     "MOTION_FRAME_PERIOD_S",
     "SENSORS",
+    "BACKGROUNDS",
     "PRESETS",
     "OCCLUDING_OBJECTS",
     "MAX_PENETRATION_M",
@@ -281,6 +283,13 @@ class GenerationConfig:
         env_id: the env of the rollout source (``handsim/Grasp-v0``,
             ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
         frame_stride: rollout source: env steps between kept frames (1 = every step).
+        background: kinematic source: what stands beyond the hand and the table
+            (:data:`BACKGROUNDS`): ``"none"`` (default: no depth there), ``"wall"``,
+            ``"torso"`` (the person's torso and head, a wall behind) or ``"clutter"``
+            (furniture, a wall behind). Placed per frame behind
+            everything the camera sees of the hand (forearm included) and the objects; its
+            pixels carry the segmentation label ``"backdrop"``. The rollout source renders its
+            env's scene, which has none.
     """
 
     frames: int = 1000
@@ -305,6 +314,7 @@ class GenerationConfig:
     source: str = "kinematic"
     env_id: str | None = None
     frame_stride: int = 1
+    background: str = "none"
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
@@ -329,6 +339,7 @@ class GenerationConfig:
         self._tuple_of("viewpoints", VIEWPOINTS)
         _pair("distance_range_m", self.distance_range_m, 0.15, 3.0)
         _choice("sensor", self.sensor, SENSORS)
+        _choice("background", self.background, BACKGROUNDS)
         if not isinstance(self.paired_clean, bool):
             raise InvalidGenerationConfig(
                 f"paired_clean must be true or false; received {self.paired_clean!r}"

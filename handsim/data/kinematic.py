@@ -3,10 +3,13 @@
 Every episode draws a hand (size, side), objects on the table and a pose source, and every
 frame of the episode a pose, a viewpoint, a wrist placement near an object and a camera around
 the hand; a hand alone is turned toward the camera as the viewpoint draws it
-(:mod:`handsim.data.views`). Frames where the hand enters an object or the table by more than
-:data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn. An episode whose objects do not fit
-on the table, or whose hand and objects give no accepted frame, raises
-:class:`~handsim.data.config.CannotDraw` (the shard redraws the episode).
+(:mod:`handsim.data.views`). Frames where the hand enters an object or the table, or the
+forearm (drawn only, without contact) the table, by more than
+:data:`~handsim.data.config.MAX_PENETRATION_M` are redrawn. With a background
+(:attr:`~handsim.data.config.GenerationConfig.background`) the backdrop is stood behind the
+hand, forearm and objects of every frame. An episode whose objects do not fit on the table, or
+whose hand and objects give no accepted frame, raises :class:`~handsim.data.config.CannotDraw`
+(the shard redraws the episode).
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from handsim.data.config import (
 )
 from handsim.data.views import hand_rotation_in_camera
 from handsim.frame import FrameRenderer
-from handsim.hand.model import hand_params
+from handsim.hand.model import FOREARM_GEOM, hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
     GESTURES,
@@ -42,16 +45,26 @@ from handsim.hand.pose_sources import (
 )
 from handsim.world.camera import CameraIntrinsics, camera_preset, look_at_quat_wxyz
 from handsim.world.render import shared_render_context
-from handsim.world.scene import CameraSpec, InvalidScene, Scene, SceneSpec, sample_placements
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    InvalidScene,
+    Scene,
+    SceneSpec,
+    sample_placements,
+)
 from handsim.world.sensors import sensor_model
 
 __all__ = [
     "KinematicSource",
     "KEPT_SCENES",
+    "SHOULDER_M",
     "MIN_EYE_HEIGHT_M",
     "camera_on_line",
     "through_object_direction",
     "near_range_m",
+    "forearm_geom",
     "near_geoms",
     "beyond_near",
 ]
@@ -61,6 +74,14 @@ KEPT_SCENES = 2
 _PALM_OFFSET_M = 0.07
 """The palm centre lies about this far along the hand's +y (distal) from the wrist."""
 MIN_EYE_HEIGHT_M = 0.03
+_PALM_LABEL = SEGMENT_LABELS.index("palm")
+SHOULDER_M = np.array([0.18, -0.55, 0.30])
+"""The right shoulder of the person at the table's -y edge (the left one at -x), world,
+metres: seated, 0.3 m above the table top, shoulders 0.36 m apart [estimate]. The upper arm
+is drawn from the elbow to it."""
+# The backdrop's gap behind the farthest hand or object point, metres: a wall anywhere from
+# just behind to a room's depth away; the torso just behind the elbow [estimate].
+_BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3), "clutter": (0.1, 0.8)}
 """Cameras stay this far above the table top (world z = 0), metres."""
 _THIRD_PERSON_AZIMUTH_DEG = 60.0
 """Among objects, the third-person camera stands within +- this of the table's front, deg."""
@@ -145,15 +166,24 @@ def near_range_m(intrinsics: CameraIntrinsics, sensor: object) -> float:
     return max(intrinsics.range_m[0], float(getattr(sensor, "min_range_m", 0.0)))
 
 
+def forearm_geom(scene: Scene) -> int | None:
+    """The hand's forearm geom (drawn only; None for a hand without one)."""
+    if not scene.hand.params.forearm:
+        return None
+    return scene.model.geom(scene.hand.prefix + FOREARM_GEOM).id
+
+
 def near_geoms(scene: Scene) -> np.ndarray:
     """The geoms kept beyond the near range: the hand's skin and every object geom.
 
-    (An object's half diameter around its body origin does not bound every object: the
-    extra-large clamp reached 1.4 mm nearer than that.)
+    The forearm is not among them: it reaches toward the camera in many views, where a real
+    sensor gets no depth either. (An object's half diameter around its body origin does not
+    bound every object: the extra-large clamp reached 1.4 mm nearer than that.)
     """
     bodies = [scene.model.body(name).id for name, _ in scene.objects]
     objects = np.flatnonzero(np.isin(scene.model.geom_bodyid, bodies))
-    return np.concatenate([scene.hand_skin_geom_ids, objects]).astype(np.intp)
+    skin = scene.hand_skin_geom_ids[scene.hand_skin_geom_ids != forearm_geom(scene)]
+    return np.concatenate([skin, objects]).astype(np.intp)
 
 
 def beyond_near(
@@ -248,6 +278,7 @@ class KinematicSource:
                 objects=placements,
                 cameras=(camera,),
                 table=n > 0,
+                background=self.config.background,
             )
             scene = Scene(spec)
             kept = (scene, FrameRenderer(scene, "camera", self.sensor))
@@ -371,13 +402,49 @@ class KinematicSource:
         return camera_on_line(target, direction, distance, up)
 
     @staticmethod
+    def _place_backdrop(
+        rng: np.random.Generator,
+        scene: Scene,
+        geoms: np.ndarray,
+        eye: np.ndarray,
+        target: np.ndarray,
+    ) -> None:
+        """Stand the backdrop a random gap behind the hand (forearm included) and objects.
+
+        Its front plane lies beyond the farthest corner of ``geoms``' bounding boxes along the
+        horizontal line of sight, so it never hides them (:meth:`Scene.place_backdrop`).
+        """
+        ahead = target - eye
+        ahead[2] = 0.0
+        ahead /= max(float(np.linalg.norm(ahead)), 1e-9)
+        model, data = scene.model, scene.data
+        farthest = -_kernels.nearest_box_depth(
+            model.geom_aabb[geoms], data.geom_xmat[geoms], data.geom_xpos[geoms], eye, -ahead
+        )
+        gap = rng.uniform(*_BACKDROP_GAP_M[scene.spec.background])
+        scene.place_backdrop(eye, target, farthest + gap)
+
+    @staticmethod
+    def _forearm_below_table_m(scene: Scene, forearm: int | None) -> float:
+        """How far the forearm's skin reaches below the table top (world z = 0), metres."""
+        if forearm is None or not scene.spec.table:
+            return 0.0
+        model, data = scene.model, scene.data
+        mesh = model.geom_dataid[forearm]
+        start = model.mesh_vertadr[mesh]
+        vertices = model.mesh_vert[start : start + model.mesh_vertnum[mesh]]
+        # World z of the vertices: the third row of the geom's rotation, then its height.
+        z = vertices @ data.geom_xmat[forearm, 6:9] + data.geom_xpos[forearm, 2]
+        return max(-float(z.min()), 0.0)
+
+    @staticmethod
     def _penetration_m(scene: Scene) -> float:
         """Deepest overlap of a hand geom with an object or the table, metres."""
         data, labels = scene.data, scene.geom_labels
         deepest = 0.0
         for i in range(data.ncon):
             con = data.contact[i]
-            hand = [2 <= labels[g] < 8 for g in (con.geom1, con.geom2)]
+            hand = [_PALM_LABEL <= labels[g] < OBJECT_LABEL_OFFSET for g in (con.geom1, con.geom2)]
             if hand[0] != hand[1]:
                 deepest = max(deepest, -float(con.dist))
         return deepest
@@ -404,7 +471,11 @@ class KinematicSource:
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
         is_left = scene.spec.hand.side == "left"
-        geoms = near_geoms(scene)
+        geoms, forearm = near_geoms(scene), forearm_geom(scene)
+        # Everything the backdrop stands behind: what is kept in range, and the arm.
+        arm = () if forearm is None else (forearm, scene.binding.upper_arm_id)
+        behind = np.append(geoms, arm).astype(np.intp)
+        shoulder = SHOULDER_M * ((-1.0, 1.0, 1.0) if scene.hand.params.side == "left" else 1.0)
         # Postures are drawn a batch at a time (a sampler's cost is mostly per call), a few
         # more than the frames for the draws that are refused.
         batch = frames + 8
@@ -427,10 +498,16 @@ class KinematicSource:
                     scene.binding.set_pose(scene.data, pose)
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
+                    # The forearm is drawn only (no contact): a real one cannot enter the table.
+                    if self._forearm_below_table_m(scene, forearm) > MAX_PENETRATION_M:
+                        continue
                     eye, quat = self._camera(rng, view, palm, obj, rotvec)
+                scene.binding.point_upper_arm(scene.data, shoulder)
                 eye = beyond_near(scene, geoms, eye, palm, self._near_m)
                 if eye is None:
                     continue
+                if self.config.background != "none":
+                    self._place_backdrop(rng, scene, behind, eye, palm)
                 scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
                 mujoco.mj_camlight(scene.model, scene.data)
                 frame = renderer.render(

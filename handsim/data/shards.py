@@ -10,8 +10,8 @@ dataset            shape               dtype     content
 =================  ==================  ========  ============================================
 ``depth``          (N, H, W)           uint16    depth in units of ``depth_scale_mm`` (0 = none)
 ``depth_clean``    (N, H, W)           uint16    noise-free depth, when paired depth is kept
-``segmentation``   (N, H, W)           uint8     segmentation labels (background 0, hand 2-7,
-                                                 objects 8+)
+``segmentation``   (N, H, W)           uint8     segmentation labels (background 0, hand 4-9,
+                                                 objects 10+)
 ``episode``        (N,)                int64     episode index of the frame
 ``step``           (N,)                int64     step index within the episode
 ``labels/<key>``   (N, ...)            schema    each label of the array form (``LABEL_SCHEMA``)

@@ -302,7 +302,8 @@ def keypoint_visibility(
         parts: (21, P) int16 labels each keypoint's surface may carry.
         neighbours: (9, 2) int (row, column) offsets, the pixel itself first.
         object_offset: label of object instance 0.
-        palm: the palm's label (the hand's labels are ``palm .. object_offset - 1``).
+        palm: the lowest label of the person (the arm; the labels ``palm ..
+            object_offset - 1`` are theirs): a blocker among them is self-occlusion.
         occluder_self: occluder code of the hand itself.
         occluder_scene: occluder code of the table or anything else.
         sensor_depth_m: (H, W) float32 depth the sensor returned, metres, 0 = none.

@@ -9,7 +9,14 @@ from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose_sources import gesture
 from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.mesh_import import load_object
-from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+)
 
 ICVL = camera_preset("icvl")
 PANEL_HALF_M = np.array([0.05, 0.01, 0.12])  # an axis-aligned panel: 10 x 2 x 24 cm
@@ -145,7 +152,7 @@ def test_contacts_between_hand_and_object(panel):
     with FrameRenderer(scene, "front") as renderer:
         frame = renderer.render(np.random.default_rng(0))
     parts = {c.hand_part for c in frame.contacts}
-    assert 5 in parts  # the middle finger's label
+    assert SEGMENT_LABELS.index("middle") in parts
     assert all(c.instance == 0 for c in frame.contacts)
     assert max(c.normal_force_n for c in frame.contacts) > 0
 
@@ -184,7 +191,9 @@ def test_silhouette_shortcut_matches_rendering_each_object_alone():
                     scene.data, renderer._object_geoms[label.instance], canvas
                 )
                 seen = scene.geom_labels[np.maximum(alone, 0)]
-                expected = int(np.count_nonzero((alone >= 0) & (seen == 8 + label.instance)))
+                expected = int(
+                    np.count_nonzero((alone >= 0) & (seen == OBJECT_LABEL_OFFSET + label.instance))
+                )
                 assert label.px_count_all == expected
 
 
@@ -440,7 +449,9 @@ def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
                         mask.pixels
                     )
                     alone = fresh._render_only(data, fresh._object_geoms[k], (-W, -H, 2 * W, 2 * H))
-                    truth = (alone >= 0) & (scene.geom_labels[np.maximum(alone, 0)] == 8 + k)
+                    truth = (alone >= 0) & (
+                        scene.geom_labels[np.maximum(alone, 0)] == OBJECT_LABEL_OFFSET + k
+                    )
                     assert truth.sum() == b.px_count_all
                     kernel = np.ones((3, 3), np.uint8)
                     grown = cv2.dilate(truth.view(np.uint8), kernel).view(bool)

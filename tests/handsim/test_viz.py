@@ -9,7 +9,14 @@ from handsim.estimator import Estimate
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, FrameRenderer
 from handsim.hand.pose_sources import gesture
 from handsim.world.camera import camera_preset
-from handsim.world.scene import Scene, SceneSpec, sample_placements, third_person_camera
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    Scene,
+    SceneSpec,
+    sample_placements,
+    third_person_camera,
+)
 
 K = np.array([[100.0, 0.0, 40.0], [0.0, 100.0, 30.0], [0.0, 0.0, 1.0]])
 
@@ -60,8 +67,11 @@ def test_depth_colormap_shape_scale_bar_and_units():
 
 def test_segmentation_colours_and_object_cycle():
     """Fixed labels take LABEL_BGR; object labels beyond the palette cycle through objects."""
-    n_obj = len(viz.LABEL_BGR) - 8
-    labels = np.array([[0, 1, 2, 7], [8, 9, 8 + n_obj, 8 + n_obj + 1]], dtype=np.int16)
+    first = OBJECT_LABEL_OFFSET
+    n_obj = len(viz.LABEL_BGR) - first
+    labels = np.array(
+        [[0, 1, 2, first - 1], [first, first + 1, first + n_obj, first + n_obj + 1]], np.int16
+    )
     image = viz.draw_segmentation(labels)
     assert image.shape == (2, 4, 3) and image.dtype == np.uint8
     np.testing.assert_array_equal(image[0, 2], viz.LABEL_BGR[2])
@@ -186,7 +196,7 @@ def test_draw_frame_panels(frame):
     h, w = frame.depth.shape
     assert panels.shape == (h, 2 * w + viz.SCALE_BAR_WIDTH, 3)
     labels = panels[:, w + viz.SCALE_BAR_WIDTH :]
-    palm = viz.LABEL_BGR[2].astype(np.uint8)
+    palm = viz.LABEL_BGR[SEGMENT_LABELS.index("palm")].astype(np.uint8)
     assert np.all(labels == palm, axis=-1).any()
     import dataclasses
 

@@ -70,7 +70,8 @@ def test_every_preset_is_a_valid_config():
             {"viewpoints": ("through_object",), "num_objects_range": (0, 0)},
             r"'through_object' needs objects",
         ),
-        ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: camera"),
+        ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: background"),
+        ({"background": "sky"}, r"background must be one of none, wall, torso, clutter; received"),
     ],
 )
 def test_config_errors_name_the_field_and_what_is_valid(values, match):
@@ -498,3 +499,84 @@ def test_a_shard_keeps_the_visible_keypoint_cap(tmp_path):
     generate(config, tmp_path)
     visible = ShardReader(tmp_path / "shard-00000.h5").labels("visible")
     assert visible.shape == (4, 21) and (visible.sum(axis=1) >= 12).all()
+
+
+def _kinematic_frames(config, n):
+    """(arrays, scene, renderer) of the first ``n`` frames of shard 0's first episode."""
+    from handsim.data.kinematic import KinematicSource
+
+    source = KinematicSource(config)
+    try:
+        for arrays in source.episode(
+            np.random.default_rng([config.seed, 0]), lambda ratio, visible: True, n
+        ):
+            scene, renderer = next(reversed(source._scenes.values()))
+            yield arrays, scene, renderer
+    finally:
+        source.close()
+
+
+def test_the_backdrop_never_hides_the_hand_arm_or_objects():
+    """Per frame the backdrop stands behind the hand, arm and objects.
+
+    Rendered without it, every hand, arm and object pixel of a frame is the same; it covers
+    only empty pixels or the table (a wall may cut the table), and carries the label
+    ``backdrop``.
+    """
+    config = GenerationConfig.from_mapping(
+        TINY, camera="nyu_carmine", background="torso", viewpoints=("third_person", "random")
+    )
+    person_or_object = SEGMENT_LABELS.index("arm")
+    backdrop = SEGMENT_LABELS.index("backdrop")
+    seen = 0
+    for arrays, scene, renderer in _kinematic_frames(config, 6):
+        labels = arrays["segmentation"]
+        names = [scene.model.geom(g).name for g in range(scene.model.ngeom)]
+        others = np.array([not n.startswith("backdrop") for n in names])
+        alone = scene.segment(renderer._render_only(scene.data, np.flatnonzero(others)))
+        mine = (alone >= person_or_object) & (labels > 0)  # labels 0: beyond the range
+        np.testing.assert_array_equal(labels[mine], alone[mine])
+        assert set(np.unique(alone[labels == backdrop]).tolist()) <= {0, 1}
+        seen += np.count_nonzero(labels == backdrop)
+    assert seen > 0
+
+
+def test_the_arm_leaves_the_image():
+    """In the hand-object preset's frames the arm runs out of the image.
+
+    The arm (forearm, then the upper arm to the shoulder) reaches the image border in most
+    frames (86 % of 250 frames of ``handsim generate --preset hand-object --frames 250``).
+    """
+    config = GenerationConfig.from_mapping(
+        PRESETS["hand-object"], frames=24, frames_per_shard=24, frames_per_episode=6
+    )
+    arm = SEGMENT_LABELS.index("arm")
+    touches = []
+    for arrays, _, _ in _kinematic_frames(config, 24):
+        mask = arrays["segmentation"] == arm
+        touches.append(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+    assert np.mean(touches) >= 0.7, touches
+
+
+def test_a_forearm_in_the_table_is_measured():
+    """The kinematic source measures how far the (drawn only) forearm enters the table.
+
+    Frames deeper than MAX_PENETRATION_M are redrawn. An upright hand's forearm points down
+    its full length from the wrist.
+    """
+    from handsim.data.kinematic import KinematicSource, forearm_geom
+    from handsim.hand.model import hand_params
+    from handsim.hand.pose import HandPose
+    from handsim.hand.skin import FOREARM_LENGTH_RATIO
+    from handsim.world.scene import Scene, SceneSpec
+
+    for side in ("right", "left"):
+        scene = Scene(SceneSpec(hand=hand_params("medium", side)))
+        forearm = forearm_geom(scene)
+        upright = HandPose.neutral(wrist_pos=(0.0, 0.0, 0.1), wrist_rotvec=(np.pi / 2, 0, 0))
+        scene.binding.set_pose(scene.data, upright)
+        depth = KinematicSource._forearm_below_table_m(scene, forearm)
+        # MuJoCo keeps mesh vertices in float32: 0.3 m to about 1e-8 m.
+        assert depth == pytest.approx(FOREARM_LENGTH_RATIO * 0.189 - 0.1, abs=1e-7)
+        scene.reset()  # palm down 0.12 m above the table: the forearm lies above it
+        assert KinematicSource._forearm_below_table_m(scene, forearm) == 0.0
