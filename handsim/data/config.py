@@ -73,6 +73,7 @@ class GenerationError(HandSimError, RuntimeError):
 SOURCES: dict[str, str] = {
     "kinematic": "handsim.data.kinematic:KinematicSource",
     "rollout": "handsim.envs.rollouts:RolloutSource",
+    "grasp": "handsim.envs.kinematic_grasps:GraspSource",
 }
 """Frame sources by name -> ``"module:class"`` of a :class:`FrameSource`, imported when used
 (so the core does not import the envs; spawned and Ray workers import the module by name).
@@ -193,10 +194,14 @@ class GenerationConfig:
             fraction of every shard each bucket must fill (``None``: no stratification).
         depth_scale_mm: stored depth unit, millimetres.
         source: where frames come from (:data:`SOURCES`): ``"kinematic"`` (posed hands, no
-            physics) or ``"rollout"`` (an env driven by its expert, with physical contact).
+            physics), ``"grasp"`` (posed hands closed onto an object by the grasp planner's
+            grasp, no physics) or ``"rollout"`` (an env driven by its expert, with physical
+            contact).
         env_id: the env of the rollout source (``handsim/Grasp-v0``,
             ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
         frame_stride: rollout source: env steps between kept frames (1 = every step).
+        approach_fraction: grasp source: fraction of frames drawn along the approach to the
+            grasp (the open hand, not yet in contact) instead of at the grasp.
     """
 
     frames: int = 1000
@@ -219,10 +224,24 @@ class GenerationConfig:
     source: str = "kinematic"
     env_id: str | None = None
     frame_stride: int = 1
+    approach_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
         _int("frame_stride", self.frame_stride, 1, 10_000)
+        if (
+            isinstance(self.approach_fraction, bool)
+            or not isinstance(self.approach_fraction, (int, float))
+            or not 0.0 <= self.approach_fraction <= 1.0
+        ):
+            raise InvalidGenerationConfig(
+                f"approach_fraction must be a number in [0, 1]; received {self.approach_fraction!r}"
+            )
+        if self.approach_fraction and self.source != "grasp":
+            raise InvalidGenerationConfig(
+                "approach_fraction is a field of the 'grasp' source; set source: grasp or "
+                f"remove it (received {self.approach_fraction!r} with source {self.source!r})"
+            )
         if (
             isinstance(self.depth_scale_mm, bool)
             or not isinstance(self.depth_scale_mm, (int, float))
@@ -383,8 +402,9 @@ class GenerationConfig:
 
 PRESETS: dict[str, dict[str, Any]] = {
     "hand-only": {"num_objects_range": (0, 0), "viewpoints": ("third_person", "random")},
-    "hand-object": {"num_objects_range": (1, 3)},
+    "hand-object": {"source": "grasp", "num_objects_range": (1, 3)},
     "occlusion-heavy": {
+        "source": "grasp",
         "num_objects_range": (2, 4),
         "viewpoints": ("through_object",),
         "distance_range_m": (0.4, 0.7),
@@ -399,7 +419,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "frame_stride": 5,
     },
 }
-"""Named configs: hand alone, hand among objects, objects between camera and hand with the
-occlusion ratio stratified in four buckets from 0.1 to 0.95 (kinematic), and Grasp-v0 rollouts
+"""Named configs: hand alone (kinematic), hand grasping one of the objects on the table, objects
+between camera and hand with the occlusion ratio stratified in four buckets from 0.1 to 0.95
+(both from the grasp planner's grasps, posed without physics), and Grasp-v0 rollouts
 of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical
 contact)."""

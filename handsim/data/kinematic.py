@@ -254,7 +254,6 @@ class KinematicSource:
         """
         scene, renderer = self._scene(rng)
         source = str(rng.choice(self.config.pose_sources))
-        cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
         near_geoms = self._near_geoms(scene)
@@ -276,25 +275,49 @@ class KinematicSource:
                     scene.binding.set_pose(scene.data, pose)
                     if self._penetration_m(scene) > MAX_PENETRATION_M:
                         continue
-                eye, quat = self._camera(rng, view, palm, obj)
-                eye = self._beyond_near(scene, near_geoms, eye, palm)
-                if eye is None:
-                    continue
-                scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
-                mujoco.mj_camlight(scene.model, scene.data)
-                frame = renderer.render(
-                    rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
-                )
-                ratio = frame.hand_occlusion_ratio or 0.0
-                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio):
-                    arrays = frame_to_arrays(frame)
-                    arrays["hand_occlusion_ratio"][()] = ratio
-                    # The frame's own images, not copies: the writer only reads them, and
-                    # before the next frame is rendered.
-                    arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
-                    if frame.depth_clean is not None:
-                        arrays["depth_clean"] = frame.depth_clean
+                arrays = self._view(rng, scene, renderer, view, palm, obj, near_geoms, accept)
+                if arrays is not None:
                     yield arrays
                     break
             else:
                 return  # this scene cannot give an accepted frame: a new episode may
+
+    def _view(
+        self,
+        rng: np.random.Generator,
+        scene: Scene,
+        renderer: FrameRenderer,
+        view: str,
+        palm: np.ndarray,
+        obj: np.ndarray | None,
+        near_geoms: np.ndarray,
+        accept: Callable[[float], bool],
+    ) -> dict[str, np.ndarray] | None:
+        """The arrays of the posed hand seen from a drawn camera, or None if refused.
+
+        The camera is drawn for ``view`` around the palm centre ``palm`` (and the object at
+        ``obj``, world, m), kept beyond the near range, and the frame rendered; None when the
+        camera would be below the table, fewer than :data:`MIN_KEYPOINTS_IN_FRAME` keypoints
+        are in the image or ``accept`` refuses the hand occlusion ratio.
+        """
+        eye, quat = self._camera(rng, view, palm, obj)
+        eye = self._beyond_near(scene, near_geoms, eye, palm)
+        if eye is None:
+            return None
+        cam = scene.model.camera("camera").id
+        scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
+        mujoco.mj_camlight(scene.model, scene.data)
+        frame = renderer.render(
+            rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
+        )
+        ratio = frame.hand_occlusion_ratio or 0.0
+        if frame.in_frame.sum() < MIN_KEYPOINTS_IN_FRAME or not accept(ratio):
+            return None
+        arrays = frame_to_arrays(frame)
+        arrays["hand_occlusion_ratio"][()] = ratio
+        # The frame's own images, not copies: the writer only reads them, and before the
+        # next frame is rendered.
+        arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
+        if frame.depth_clean is not None:
+            arrays["depth_clean"] = frame.depth_clean
+        return arrays
