@@ -12,15 +12,17 @@ by the closing, so a frame is the grasp as the expert's fingers leave it at cont
 objects are obstacles, not targets.
 
 With ``approach_fraction`` above 0 that fraction of the frames is drawn along the approach
-instead: the open hand on its way from the pre-grasp pose (8 cm before the hover point) to
-the grasp (no contact yet). A kinematic release is the same path backwards, so it needs no
+instead, as the expert moves: the open hand from the pre-grasp pose (8 cm before the hover
+point above the grasp) to the hover point, then down to the grasp while the digits close
+(mostly not yet in contact). A kinematic release is the same path backwards, so it needs no
 field of its own.
 
 Frames whose hand enters an object or the table by more than :data:`MAX_GRASP_PENETRATION_M`
 are never made. An object for which no grasp is found (no collision-free candidate, or one
 whose closed hand would penetrate) is not a target: the next object of the episode is tried,
-and every such object is counted in :attr:`GraspSource.no_grasp` by name; an episode none of
-whose objects has a grasp yields no frame (never a hand hovering beside an object).
+and every such object is counted in :attr:`GraspSource.skipped` (``"no grasp: <name>"``), which
+the dataset's manifest records per shard; an episode none of whose objects has a grasp yields
+no frame (never a hand hovering beside an object).
 
 The core reaches this module by name (``GenerationConfig(source="grasp")``; the
 ``hand-object`` and ``occlusion-heavy`` presets) and never imports it itself.
@@ -62,6 +64,8 @@ _SCAN_STEPS = 24
 """Steps of the coarse scan along a digit's closing path (preshape -> contact -> closed)."""
 _BISECTIONS = 10
 """Halvings of the scan step that place a digit at its touch (1/1024 of a step)."""
+_APPROACH_TRIES = 8
+"""Draws of a point of the approach before a frame shows the grasp instead."""
 
 
 def _depths(scene: Scene, pose: HandPose) -> tuple[np.ndarray, float, bool]:
@@ -159,14 +163,14 @@ class GraspSource(KinematicSource):
         config: the generation config (``source="grasp"``).
 
     Attributes:
-        no_grasp: objects (by name) for which no grasp was found, counted per episode that
-            tried them.
+        skipped: ``"no grasp: <object name>"`` -> episodes whose grasp of that object was not
+            found (recorded in the manifest per shard).
     """
 
     def __init__(self, config: GenerationConfig) -> None:
         self.check_config(config)
         super().__init__(config)
-        self.no_grasp: collections.Counter[str] = collections.Counter()
+        self.skipped: collections.Counter[str] = collections.Counter()
 
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
@@ -204,13 +208,28 @@ class GraspSource(KinematicSource):
         closed = close_onto(scene, plan)
         return None if closed is None else (plan, closed)
 
-    def _approach(self, rng: np.random.Generator, plan: GraspPlan) -> HandPose:
-        """A pose along the approach: pre-grasp -> hover -> grasp, the hand open."""
+    def _approach(
+        self, rng: np.random.Generator, scene: Scene, plan: GraspPlan, closed: HandPose
+    ) -> HandPose:
+        """A pose along the approach, as the expert moves.
+
+        The open hand from the pre-grasp pose to the hover point, then down to the grasp
+        while the digits close. Positions are redrawn (up to :data:`_APPROACH_TRIES` times)
+        where the hand would enter something by more than :data:`MAX_GRASP_PENETRATION_M`;
+        then the grasp itself.
+        """
         hover = plan.approach_end - plan.wrist_pos
         pre = hover - _PREGRASP_DIST_M * plan.approach_dir
-        u = float(rng.uniform(0.0, 2.0))
-        offset = pre + u * (hover - pre) if u <= 1.0 else hover * (2.0 - u)
-        return plan.pose(plan.preshape, offset)
+        for _ in range(_APPROACH_TRIES):
+            u = float(rng.uniform(0.0, 2.0))
+            if u <= 1.0:
+                pose = plan.pose(plan.preshape, pre + u * (hover - pre))
+            else:
+                angles = plan.preshape + (u - 1.0) * (closed.angles - plan.preshape)
+                pose = plan.pose(angles, (2.0 - u) * hover)
+            if _depths(scene, pose)[1] <= MAX_GRASP_PENETRATION_M:
+                return pose
+        return closed
 
     def episode(
         self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
@@ -223,7 +242,7 @@ class GraspSource(KinematicSource):
             frames: frames to yield.
 
         Yields nothing when no object of the episode has a grasp (counted in
-        :attr:`no_grasp`); stops early when :data:`MAX_TRIES_PER_FRAME` views give no
+        :attr:`skipped`); stops early when :data:`MAX_TRIES_PER_FRAME` views give no
         accepted frame.
         """
         scene, renderer = self._scene(rng)
@@ -232,7 +251,7 @@ class GraspSource(KinematicSource):
             grasp = self._grasp(scene, int(k))
             if grasp is not None:
                 break
-            self.no_grasp[scene.objects[int(k)][1].name] += 1
+            self.skipped[f"no grasp: {scene.objects[int(k)][1].name}"] += 1
         if grasp is None:
             return
         plan, closed = grasp
@@ -243,9 +262,7 @@ class GraspSource(KinematicSource):
         for _ in range(frames):
             pose = closed
             if rng.random() < self.config.approach_fraction:
-                pose = self._approach(rng, plan)
-                if _depths(scene, pose)[1] > MAX_GRASP_PENETRATION_M:
-                    pose = closed
+                pose = self._approach(rng, scene, plan, closed)
             # Forward: the hand placed and its contacts found (with forces) for the labels.
             scene.binding.set_pose(scene.data, pose)
             palm = scene.data.xpos[scene.model.body(scene.hand.prefix + "palm").id].copy()

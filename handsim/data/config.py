@@ -83,7 +83,10 @@ Add one with :func:`register_source`."""
 class FrameSource(Protocol):
     """What :func:`generate_shard` needs of a frame source.
 
-    A source is made per shard from the config (``cls(config)``) and closed after it.
+    A source is made per shard from the config (``cls(config)``) and closed after it. A source
+    may count what it could not draw in a ``skipped`` mapping (reason -> count, counted on
+    over the source's life): each shard's increase is recorded in the manifest
+    (:attr:`ShardInfo.skipped <handsim.data.shards.ShardInfo.skipped>`).
     """
 
     intrinsics: CameraIntrinsics

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import dataclasses
 import json
 import os
 from collections.abc import Callable, Iterator, Sequence
@@ -184,6 +185,7 @@ def generate_shard(
     rng = np.random.default_rng([config.seed, index])
     accept = _Acceptor(config, frames)
     path = folder / Manifest.shard_name(index)
+    skipped: dict[str, int] = {}
     with (
         _shard_source(config) as source,
         ShardWriter(
@@ -193,6 +195,8 @@ def generate_shard(
             paired_clean=config.paired_clean,
         ) as writer,
     ):
+        # What the source skipped before this shard (a kept source counts on across shards).
+        before = dict(getattr(source, "skipped", {}))
         done, episode, empty = 0, 0, 0
         while done < frames:
             n = min(config.frames_per_episode, frames - done)
@@ -215,7 +219,10 @@ def generate_shard(
                     "reach of this config (add objects, use the 'through_object' viewpoint, or "
                     "widen the range)"
                 )
-    return writer.info
+        after = getattr(source, "skipped", {})
+        skipped = {k: n - before.get(k, 0) for k, n in sorted(after.items())}
+        skipped = {k: n for k, n in skipped.items() if n > 0}
+    return dataclasses.replace(writer.info, skipped=skipped) if skipped else writer.info
 
 
 def _worker(args: tuple[dict, int, str]) -> tuple[int, ShardInfo]:

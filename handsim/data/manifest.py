@@ -170,6 +170,8 @@ class Manifest:
                     frames=int(s["frames"]),
                     sha256=str(s["sha256"]),
                     bytes=int(s["bytes"]),
+                    # Datasets made before sources counted what they skipped have none.
+                    skipped={str(k): int(v) for k, v in s.get("skipped", {}).items()},
                 )
                 for s in doc["shards"]
             }

@@ -107,12 +107,15 @@ class ShardInfo:
         frames: number of frames.
         sha256: hex SHA-256 of the file.
         bytes: file size, bytes.
+        skipped: what the frame source could not draw while making the shard, counted by
+            reason (e.g. ``{"no grasp: 035_power_drill": 2}``); empty when nothing was skipped.
     """
 
     name: str
     frames: int
     sha256: str
     bytes: int
+    skipped: dict[str, int] = dataclasses.field(default_factory=dict)
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
