@@ -60,7 +60,10 @@ def test_every_preset_is_a_valid_config():
             {"viewpoints": ("through_object",), "num_objects_range": (0, 0)},
             r"'through_object' needs objects",
         ),
-        ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: camera"),
+        (
+            {"colour": "red"},
+            r"unknown config field\(s\) colour; valid fields: approach_fraction, camera",
+        ),
     ],
 )
 def test_config_errors_name_the_field_and_what_is_valid(values, match):
