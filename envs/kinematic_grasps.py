@@ -11,6 +11,11 @@ planned closing path until it touches the object (:func:`close_onto`). The wrist
 by the closing, so a frame is the grasp as the expert's fingers leave it at contact; distractor
 objects are obstacles, not targets.
 
+A ``through_object`` camera looks at the hand through one of the episode's objects, drawn per
+view (the grasped one or another), from beyond it and above the table: through the grasped
+object alone, a hand that grasps a low object from above could only be seen from under the
+table, and a small object hides too little of it for the occlusion buckets.
+
 With ``approach_fraction`` above 0 that fraction of the frames is drawn along the approach
 instead, as the expert moves: the open hand from the pre-grasp pose (8 cm before the hover
 point above the grasp) to the hover point, then down to the grasp while the digits close
@@ -64,6 +69,10 @@ _SCAN_STEPS = 24
 """Steps of the coarse scan along a digit's closing path (preshape -> contact -> closed)."""
 _BISECTIONS = 10
 """Halvings of the scan step that place a digit at its touch (1/1024 of a step)."""
+_ABOVE_M = 0.03
+"""A palm centre within this horizontal distance of the grasped object's origin is above it."""
+_MIN_AIM_HEIGHT_M = 0.08
+"""A ``through_object`` camera at the farthest distance stays this high above the table, m."""
 _APPROACH_TRIES = 8
 """Draws of a point of the approach before a frame shows the grasp instead."""
 
@@ -231,6 +240,36 @@ class GraspSource(KinematicSource):
                 return pose
         return closed
 
+    def _through_object_aim(
+        self, rng: np.random.Generator, palm: np.ndarray, obj: np.ndarray
+    ) -> np.ndarray:
+        """A point beyond which a ``through_object`` camera looks through an object at the hand.
+
+        The camera sits beyond the object as seen from the palm centre, but above the table:
+        a hand above the object is seen from low on the far side of the object, looking up
+        through it, never from under the table. Where the palm is right above the object the
+        side is drawn at random.
+
+        Args:
+            rng: the episode's generator.
+            palm: (3,) palm centre, world, m.
+            obj: (3,) the occluding object's origin, world, m.
+
+        Returns:
+            (3,) a point at 1 m from ``palm`` in the camera's direction, world, m.
+        """
+        v = obj - palm
+        across = float(np.hypot(v[0], v[1]))
+        if across < _ABOVE_M:
+            turn = rng.uniform(0.0, 2.0 * np.pi)
+            side = np.array([np.cos(turn), np.sin(turn)])
+        else:
+            side = v[:2] / across
+        farthest = self.config.distance_range_m[1]
+        lowest = np.arcsin(np.clip((_MIN_AIM_HEIGHT_M - palm[2]) / farthest, -1.0, 0.0))
+        elevation = max(float(np.arctan2(v[2], across)), float(lowest))
+        return palm + np.array([*(side * np.cos(elevation)), np.sin(elevation)])
+
     def episode(
         self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
@@ -259,6 +298,7 @@ class GraspSource(KinematicSource):
         obj_pos = scene.data.xpos[body].copy()
         viewpoints = list(self.config.viewpoints)
         near_geoms = self._near_geoms(scene)
+        centres = [scene.data.xpos[scene.model.body(b).id].copy() for b, _ in scene.objects]
         for _ in range(frames):
             pose = closed
             if rng.random() < self.config.approach_fraction:
@@ -268,7 +308,11 @@ class GraspSource(KinematicSource):
             palm = scene.data.xpos[scene.model.body(scene.hand.prefix + "palm").id].copy()
             for _ in range(MAX_TRIES_PER_FRAME):
                 view = viewpoints[int(rng.integers(len(viewpoints)))]
-                arrays = self._view(rng, scene, renderer, view, palm, obj_pos, near_geoms, accept)
+                aim = obj_pos
+                if view == "through_object":
+                    occluder = centres[int(rng.integers(len(centres)))]
+                    aim = self._through_object_aim(rng, palm, occluder)
+                arrays = self._view(rng, scene, renderer, view, palm, aim, near_geoms, accept)
                 if arrays is not None:
                     yield arrays
                     break

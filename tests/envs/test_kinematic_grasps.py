@@ -203,3 +203,29 @@ def test_the_cli_generates_grasp_frames(tmp_path):
     assert Manifest.read(tmp_path / "d").config["source"] == "grasp"
     counts = ShardReader(tmp_path / "d" / "shard-00000.h5").labels("contact_count")
     assert len(counts) == 2 and (counts > 0).all()
+
+
+def test_through_object_views_see_a_grasp_from_above_through_an_object(tmp_path):
+    """A box grasped from above is seen through an object from above the table.
+
+    (Behind the grasped box as seen from the palm would be under the table.)
+    """
+    config = GenerationConfig.from_mapping(
+        TINY,
+        frames=4,
+        frames_per_shard=4,
+        frames_per_episode=2,
+        num_objects_range=(2, 2),
+        objects=("010_potted_meat_can",),
+        viewpoints=("through_object",),
+        occlusion_range=(0.1, 0.95),
+    )
+    generate(config, tmp_path)
+    reader = ShardReader(tmp_path / "shard-00000.h5")
+    assert len(reader) == 4
+    for i in range(len(reader)):
+        a = reader[i]
+        eye = np.linalg.inv(a["T_cam_from_world"])[:3, 3]
+        assert eye[2] > 0.0  # above the table top
+        assert 0.1 <= a["hand_occlusion_ratio"] <= 0.95
+        assert int(a["contact_count"]) > 0
