@@ -70,7 +70,7 @@ _SCAN_STEPS = 24
 _BISECTIONS = 10
 """Halvings of the scan step that place a digit at its touch (1/1024 of a step)."""
 _ABOVE_M = 0.03
-"""A palm centre within this horizontal distance of the grasped object's origin is above it."""
+"""A palm centre within this horizontal distance of an object's origin is above it, metres."""
 _MIN_AIM_HEIGHT_M = 0.08
 """A ``through_object`` camera at the farthest distance stays this high above the table, m."""
 _APPROACH_TRIES = 8

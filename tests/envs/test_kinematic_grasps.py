@@ -104,6 +104,26 @@ def test_grasp_shards_are_deterministic(tmp_path):
     assert generate_shard(GenerationConfig.from_mapping(TINY, seed=1), 0, tmp_path / "a") != a
 
 
+def test_a_kept_source_changes_no_shard(tmp_path):
+    """A worker's source kept from shard to shard (scenes, planner caches, counts) changes nothing.
+
+    Shard 1 made after shard 0 is shard 1 made alone, so a resumed run is the uninterrupted one.
+    """
+    from handsim.data import generation
+
+    config = GenerationConfig.from_mapping(TINY, frames=8, frames_per_shard=4, frames_per_episode=2)
+    generation.close_kept_source()
+    for index in range(2):
+        (tmp_path / f"kept{index}").mkdir()
+        kept = generate_shard(config, index, tmp_path / f"kept{index}")
+    (source,) = generation._KEPT_SOURCE.values()
+    assert isinstance(source, GraspSource)
+    generation.close_kept_source()
+    (tmp_path / "fresh").mkdir()
+    assert generate_shard(config, 1, tmp_path / "fresh") == kept
+    generation.close_kept_source()
+
+
 def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path, monkeypatch):
     """No hovering hand: an object the planner cannot grasp is not a target, and is counted."""
     plan_grasp = kinematic_grasps.plan_grasp
