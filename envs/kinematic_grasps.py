@@ -38,20 +38,16 @@ from __future__ import annotations
 import collections
 import dataclasses
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 
-from handsim.data.config import MAX_TRIES_PER_FRAME, InvalidGenerationConfig
+from handsim.data.config import MAX_TRIES_PER_FRAME, GenerationConfig, InvalidGenerationConfig
 from handsim.data.kinematic import KinematicSource
 from handsim.envs.grasping import GraspPlanningError, plan_grasp
 from handsim.envs.grasping.planning import _PREGRASP_DIST_M, GraspPlan
 from handsim.hand.pose import JOINT_NAMES, HandPose
 from handsim.world.scene import SEGMENT_LABELS, Scene
-
-if TYPE_CHECKING:
-    from handsim.data.config import GenerationConfig
 
 __all__ = ["GraspSource", "MAX_GRASP_PENETRATION_M", "TOUCH_DEPTH_M", "close_onto"]
 
@@ -183,7 +179,7 @@ class GraspSource(KinematicSource):
 
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
-        """Raise :class:`InvalidGenerationConfig` for a field grasp frames cannot honour."""
+        """Raise an :class:`~handsim.data.config.InvalidGenerationConfig` (fields it lacks)."""
         if config.num_objects_range[0] < 1:
             raise InvalidGenerationConfig(
                 "source 'grasp' grasps an object in every frame: num_objects_range must start "
