@@ -81,7 +81,7 @@ def test_close_onto_stops_each_digit_at_its_touch():
     try:
         scene, _ = source._scene(np.random.default_rng(0))
         grasp = source._grasp(scene, 0)
-        assert grasp is not None
+        assert not isinstance(grasp, str), grasp
         plan, closed = grasp
         depth, deepest, touches = _depths(scene, closed)
         assert touches and deepest <= MAX_GRASP_PENETRATION_M
@@ -162,6 +162,17 @@ def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path
     try:
         assert list(source.episode(np.random.default_rng(0), lambda r: True, 2)) == []
         assert source.skipped == {"no grasp: 040_large_marker": 1}
+    finally:
+        source.close()
+
+
+def test_a_grasp_that_cannot_close_without_overlap_is_skipped(monkeypatch):
+    """A planned grasp whose closed hand would enter the can too deep is not shown, and counted."""
+    monkeypatch.setattr(kinematic_grasps, "close_onto", lambda scene, plan: None)
+    source = GraspSource(GenerationConfig.from_mapping(TINY))
+    try:
+        assert list(source.episode(np.random.default_rng(0), lambda r: True, 2)) == []
+        assert source.skipped == {"closed grasp overlaps: 005_tomato_soup_can": 1}
     finally:
         source.close()
 
