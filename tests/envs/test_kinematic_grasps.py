@@ -219,18 +219,18 @@ def test_the_hand_object_presets_use_grasps():
 
 
 def test_the_cli_generates_grasp_frames(tmp_path):
-    """``handsim generate --config`` with the grasp source, as a subprocess: frames in contact."""
-    (tmp_path / "c.json").write_text(json.dumps({**TINY, "frames": 2, "frames_per_shard": 2}))
+    """``handsim generate --preset hand-object``, as a subprocess: grasp frames, in contact."""
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     run = subprocess.run(
-        [sys.executable, "-m", "handsim.cli", "generate", "--config", str(tmp_path / "c.json")]
-        + ["--out", str(tmp_path / "d")],
+        [sys.executable, "-m", "handsim.cli", "generate", "--preset", "hand-object"]
+        + ["--frames", "2", "--seed", "3", "--out", str(tmp_path / "d")],
         capture_output=True,
         text=True,
         env=env,
         timeout=300,
     )
     assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["frames"] == 2
     assert Manifest.read(tmp_path / "d").config["source"] == "grasp"
     counts = ShardReader(tmp_path / "d" / "shard-00000.h5").labels("contact_count")
     assert len(counts) == 2 and (counts > 0).all()
