@@ -19,6 +19,8 @@ install: $(VENV)/.installed
 
 demo: $(VENV)/.installed
 	$(VENV)/bin/handsim demo
+	@echo "handsim is installed in $(VENV), not on your PATH: run 'source $(VENV)/bin/activate'" \
+		"(then 'handsim --help'), or call '$(VENV)/bin/handsim'."
 
 lint: $(VENV)/.installed
 	$(VENV)/bin/ruff check .

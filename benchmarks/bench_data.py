@@ -111,12 +111,15 @@ def _replay_plain_render_fps(folder: Path) -> float:
     import mujoco
     from scipy.spatial.transform import Rotation
 
+    from handsim.data.kinematic import SHOULDER_M
     from handsim.data.manifest import Manifest
     from handsim.data.shards import ShardReader
     from handsim.hand.model import hand_params
     from handsim.hand.pose import HandPose
     from handsim.world.camera import R_MJCAM_FROM_CV, camera_preset
-    from handsim.world.scene import CameraSpec, Scene, SceneSpec
+    from handsim.world.scene import SEGMENT_LABELS, CameraSpec, Scene, SceneSpec
+
+    BACKDROP_LABEL = SEGMENT_LABELS.index("backdrop")  # noqa: N806
 
     manifest = Manifest.read(folder)
     intr = camera_preset(manifest.config["camera"])
@@ -158,6 +161,10 @@ def _replay_plain_render_fps(folder: Path) -> float:
         scene.model.cam_pos[camera_id] = -T[:3, :3].T @ T[:3, 3]
         scene.model.cam_quat[camera_id] = np.roll(Rotation.from_matrix(R).as_quat(), 1)
         scene.binding.set_pose(scene.data, HandPose.from_vector(labels["hand_pose"][i]))
+        # The upper arm toward the shoulder, as the kinematic source draws it.
+        scene.binding.point_upper_arm(
+            scene.data, SHOULDER_M * ((-1, 1, 1) if side == "left" else 1)
+        )
         cpu0, start = _cpu_s(), time.perf_counter()
         renderer.update_scene(scene.data, camera="camera")
         depth_m = renderer.render()
@@ -168,7 +175,8 @@ def _replay_plain_render_fps(folder: Path) -> float:
             near_m, far_m = intr.range_m
             # What the labels keep: the camera's range (the far plane, background, just below).
             seen = (depth_m >= near_m) & (depth_m < 0.999 * far_m)
-            labelled = segmentation > 0
+            # The backdrop's place is not in the labels: the replay draws the hand and arm.
+            labelled = (segmentation > 0) & (segmentation != BACKDROP_LABEL)
             both = seen & labelled & (stored > 0)
             checks.append(
                 (

@@ -43,7 +43,7 @@ control, no sensor noise unless stated):
   rendered), ``"privileged_state"``, ``"depth"`` and ``"depth"`` with ``labels=False``, and
   the ratio state / depth (best of ``--repeats`` interleaved runs);
 - ``rgb_array``: renders/s of ``render()`` alone at 320 x 240 (viewer camera, shadows on) and
-  steps/s of step + render in ``rgb_array`` and ``depth_array`` modes, against the depth
+  steps/s of step + render in ``rgb_array`` and ``depth_rgb_array`` modes, against the depth
   step rate;
 - ``closed_loop``: Grasp-v0 steps/s inside ``EstimatorLoop`` with the oracle (10 mm noise),
   feedback off (estimate measured only) and on (estimate retargeted and handed to the expert);
@@ -182,7 +182,7 @@ def _obs_modes(steps: int, repeats: int) -> dict:
 def _rgb_array(steps: int, repeats: int) -> dict:
     grasp = {"objects": "005_tomato_soup_can", "render_width": 320, "render_height": 240}
     rgb = gym.make("handsim/Grasp-v0", render_mode="rgb_array", **grasp)
-    depth_view = gym.make("handsim/Grasp-v0", render_mode="depth_array", **grasp)
+    depth_view = gym.make("handsim/Grasp-v0", render_mode="depth_rgb_array", **grasp)
     depth = gym.make("handsim/Grasp-v0", **grasp)
     rgb.reset(seed=0)
     rgb.render()
@@ -198,7 +198,7 @@ def _rgb_array(steps: int, repeats: int) -> dict:
         {
             "render_only_per_s": renders,
             "rgb_array_steps_per_s": lambda: _fixed_actions_rate(rgb, steps, render=True),
-            "depth_array_steps_per_s": lambda: _fixed_actions_rate(depth_view, steps, True),
+            "depth_rgb_array_steps_per_s": lambda: _fixed_actions_rate(depth_view, steps, True),
             "depth_obs_steps_per_s": lambda: _fixed_actions_rate(depth, steps),
         },
     )

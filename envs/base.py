@@ -112,6 +112,7 @@ DELTA_JOINT_SPEED = 6.0
 SETTLE_S = 0.1
 """Physics time run at reset so objects and the hand settle before the first observation."""
 
+_DEPTH_RENDER_MODES = ("depth_array", "depth_rgb_array")
 _POSE_LO = np.concatenate([[w[0] for w in WORKSPACE_M], [-np.pi] * 3, JOINT_LIMITS[:, 0]])
 _POSE_HI = np.concatenate([[w[1] for w in WORKSPACE_M], [np.pi] * 3, JOINT_LIMITS[:, 1]])
 
@@ -199,7 +200,7 @@ class HandSimEnv(gym.Env, abc.ABC):
       millimetres in [0, 10000] (``"uint16_mm"``); 0 = no measurement. ``H, W`` are ``height``
       and ``width`` (default: the camera preset's resolution).
     - ``segmentation`` (``"depth+segmentation"``): the same shape, int16 labels
-      (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 8).
+      (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects from 10).
     - ``proprio`` (modes with ``state``): (54,) float64 = the hand's measured pose vector (27)
       and velocities (27: wrist linear m/s and angular rad/s, then joint rad/s).
     - ``object_poses`` (``"privileged_state"``, envs with objects): ``(max_objects, 7)``
@@ -691,9 +692,11 @@ class HandSimEnv(gym.Env, abc.ABC):
             ``rgb_array``: ``(render_height, render_width, 3)`` uint8 colour image (no
             reflections; no shadows with ``render_quality="fast"``, the default; with
             ``"high"`` one light casts shadows, with a shadow map about half the image size);
-            ``depth_array``: the same shape, uint8 colour-mapped depth (:func:`depth_colormap`:
-            near red, far blue, no surface black); ``human``: ``None`` (updates the viewer
-            window).
+            ``depth_array``: ``(render_height, render_width)`` float32 depth of the viewer camera,
+            metres along its optical axis, ``0.0`` where no surface was hit (Gymnasium's
+            convention: a 2-D array); ``depth_rgb_array``: that depth colour-mapped for people
+            and videos, ``(render_height, render_width, 3)`` uint8 (:func:`depth_colormap`: near
+            red, far blue, no surface black); ``human``: ``None`` (updates the viewer window).
         """
         if self.render_mode is None or self.scene is None:
             return None
@@ -725,12 +728,16 @@ class HandSimEnv(gym.Env, abc.ABC):
             flags = self._rgb_renderer.scene.flags
             flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
             flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
-            if self.render_mode == "depth_array":
+            if self.render_mode in _DEPTH_RENDER_MODES:
                 self._rgb_renderer.enable_depth_rendering()
         with self.viewer_clip_planes():
             self._rgb_renderer.update_scene(self.scene.data, camera=self._viewer_camera)
             image = self._rgb_renderer.render()
-        if self.render_mode == "depth_array":
+            far_m = float(self.scene.model.vis.map.zfar * self.scene.model.stat.extent)
+        if self.render_mode in _DEPTH_RENDER_MODES:
+            # MuJoCo returns the far clip plane where nothing was hit; handsim's depth says 0.
+            image[image >= far_m * (1.0 - 1e-5)] = 0.0
+        if self.render_mode == "depth_rgb_array":
             return depth_colormap(image, *self._viewer_range_m)
         return image
 

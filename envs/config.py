@@ -54,8 +54,12 @@ RENDER_QUALITIES: tuple[str, ...] = ("fast", "high")
 cost of a software-rendered colour image); ``"high"`` lets one light cast shadows, with a shadow
 map about half the image size."""
 _HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-RENDER_MODES: tuple[str, ...] = ("rgb_array", "depth_array") + (("human",) if _HAS_DISPLAY else ())
-"""``render_mode`` values; ``"human"`` only where a display is present."""
+RENDER_MODES: tuple[str, ...] = ("rgb_array", "depth_array", "depth_rgb_array") + (
+    ("human",) if _HAS_DISPLAY else ()
+)
+"""``render_mode`` values: ``"depth_array"`` is the (H, W) float32 depth in metres (Gymnasium's
+convention), ``"depth_rgb_array"`` that depth colour-mapped as an (H, W, 3) uint8 picture (what
+``RecordVideo`` encodes); ``"human"`` only where a display is present."""
 CONTROL_MODES: tuple[str, ...] = ("pose", "delta")
 """Absolute 27-DoF pose targets, or normalized deltas of the current target."""
 REWARD_TYPES: tuple[str, ...] = ("dense", "sparse")
@@ -177,8 +181,8 @@ class EnvConfig:
         control_mode: one of :data:`CONTROL_MODES`.
         reward_type: one of :data:`REWARD_TYPES`.
         frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
-        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or (only with a display)
-            ``"human"``.
+        render_mode: ``None``, ``"rgb_array"``, ``"depth_array"``, ``"depth_rgb_array"`` or
+            (only with a display) ``"human"``.
         labels: render and label a :class:`~handsim.frame.Frame` every step (``info["labels"]``);
             default ``True`` for modes with images, ``False`` for ``"state"`` and
             ``"privileged_state"`` (nothing is rendered then).

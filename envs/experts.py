@@ -1,7 +1,9 @@
 """Scripted experts that are not grasps: smooth gesture motions for ``handsim/HandPose-v0``.
 
 An expert turns a *state* into an absolute 27-DoF target (:class:`~handsim.hand.pose.HandPose`,
-world frame) for the ``"pose"`` control mode. The state may be the truth or an estimate
+world frame) for the ``"pose"`` control mode; its ``action(state)`` gives that target as the
+env's action, float32 inside the action space (what ``env.step`` and Minari's ``DataCollector``
+check). The state may be the truth or an estimate
 (closed-loop evaluation with feedback), so an expert never reads ``MjData``. The grasping expert
 lives in :mod:`handsim.envs.grasping`.
 """
@@ -9,9 +11,11 @@ lives in :mod:`handsim.envs.grasping`.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
+from handsim.envs.base import _POSE_HI, _POSE_LO
 from handsim.errors import HandSimError
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
@@ -21,11 +25,40 @@ from handsim.hand.pose_sources import (
     smooth_motion,
 )
 
-__all__ = ["HandState", "GestureExpert", "ExpertError"]
+__all__ = ["HandState", "GestureExpert", "ExpertError", "PoseActions", "pose_action"]
+
+# The "pose" control mode's Box bounds, in its float32.
+_ACTION_LO = _POSE_LO.astype(np.float32)
+_ACTION_HI = _POSE_HI.astype(np.float32)
 
 
 class ExpertError(HandSimError, RuntimeError):
     """An expert was used out of order (e.g. ``act`` before ``reset``)."""
+
+
+def pose_action(pose: HandPose) -> np.ndarray:
+    """A 27-DoF target as an action of the ``"pose"`` control mode.
+
+    Args:
+        pose: absolute target, world frame.
+
+    Returns:
+        (27,) float32 ``[wrist_pos (m), wrist_rotvec (rad), 21 angles (rad)]``, rounded to
+        float32 and then clipped to the action space's float32 bounds, so that
+        ``env.action_space.contains`` holds (``HandPose.vector`` is float64).
+    """
+    return np.clip(pose.vector.astype(np.float32), _ACTION_LO, _ACTION_HI)
+
+
+class PoseActions:
+    """Adds ``action(state)`` to an expert whose ``act(state)`` returns a :class:`HandPose`."""
+
+    def act(self, state: Any) -> HandPose:  # noqa: D102  (each expert documents its own)
+        raise NotImplementedError
+
+    def action(self, state: Any) -> np.ndarray:
+        """The next target as the ``"pose"`` control mode's action: (27,) float32, in bounds."""
+        return pose_action(self.act(state))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,7 +76,7 @@ class HandState:
     keypoints_world: np.ndarray
 
 
-class GestureExpert:
+class GestureExpert(PoseActions):
     """Moves the hand to a goal pose along a minimum-jerk path, correcting with feedback.
 
     At :meth:`reset` it plans :func:`~handsim.hand.pose_sources.smooth_motion` from the perceived

@@ -93,7 +93,7 @@ class GraspEnv(HandSimEnv):
       observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
       the datasets take that form, so the channel axis is an option rather than a new version.
       Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
-      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      and objects (``depth_array``: (H, W) metres; ``depth_rgb_array``: colour), ``"human"`` is
       declared only with a display; in the state modes there are no labels unless
       ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
       reset, every step and a diverged step, for Minari) instead of a ``Frame`` in
@@ -299,7 +299,7 @@ class GraspClutterEnv(GraspEnv):
       observation keeps its ``(H, W)`` float32 default: the estimators, the closed loop and
       the datasets take that form, so the channel axis is an option rather than a new version.
       Rendering only: ``rgb_array``/``depth_array`` come from a viewer camera framing the hand
-      and objects, ``depth_array`` is colour-mapped ``(H, W, 3)`` uint8, ``"human"`` is
+      and objects (``depth_array``: (H, W) metres; ``depth_rgb_array``: colour), ``"human"`` is
       declared only with a display; in the state modes there are no labels unless
       ``labels=True``. Info only: the labels are ``info["labels"]`` (arrays, the same keys at
       reset, every step and a diverged step, for Minari) instead of a ``Frame`` in

@@ -23,12 +23,11 @@ point above the grasp) to the hover point, then down to the grasp while the digi
 field of its own.
 
 Frames whose hand enters an object or the table by more than :data:`MAX_GRASP_PENETRATION_M`
-are never made. An object for which no grasp is found (no collision-free candidate, or one
-whose closed hand would penetrate) is not a target: the next object of the episode is tried,
-and every such object is counted in :attr:`GraspSource.skipped` (``"no grasp: <name>"`` when
-the planner finds none, ``"closed grasp overlaps: <name>"`` when closing the digits cannot keep
-the hand within the overlap limit), which the dataset's manifest records per shard; an episode
-none of whose objects has a grasp yields no frame (never a hand hovering beside an object).
+are never made. An episode whose object has no grasp (no collision-free candidate, or one
+whose closed hand would enter something too deep, or whose forearm would enter the table)
+raises :class:`~handsim.data.config.CannotDraw` ``"grasp"``: the shard redraws the episode
+from its own generator and the manifest counts it (``redraws``); a hand never hovers beside an
+object instead.
 
 The core reaches this module by name (``GenerationConfig(source="grasp")``; the
 ``hand-object`` and ``occlusion-heavy`` presets) and never imports it itself.
@@ -36,15 +35,26 @@ The core reaches this module by name (``GenerationConfig(source="grasp")``; the
 
 from __future__ import annotations
 
-import collections
 import dataclasses
 from collections.abc import Callable, Iterator
 
 import mujoco
 import numpy as np
 
-from handsim.data.config import MAX_TRIES_PER_FRAME, GenerationConfig, InvalidGenerationConfig
-from handsim.data.kinematic import KinematicSource
+from handsim.data.config import (
+    MAX_TRIES_PER_FRAME,
+    CannotDraw,
+    GenerationConfig,
+    InvalidGenerationConfig,
+)
+from handsim.data.kinematic import (
+    _PALM_OFFSET_M,
+    SHOULDER_M,
+    KinematicSource,
+    _distal_axis,
+    forearm_geom,
+    near_geoms,
+)
 from handsim.envs.grasping import GraspPlanningError, plan_grasp
 from handsim.envs.grasping.planning import _PREGRASP_DIST_M, GraspPlan
 from handsim.hand.pose import JOINT_NAMES, HandPose
@@ -168,16 +178,11 @@ class GraspSource(KinematicSource):
     Args:
         config: the generation config (``source="grasp"``).
 
-    Attributes:
-        skipped: ``"<reason>: <object name>"`` -> episodes that found no grasp of that object
-            (reasons ``"no grasp"``: none planned, ``"closed grasp overlaps"``: the closed hand
-            enters something by more than the limit); recorded in the manifest per shard.
     """
 
     def __init__(self, config: GenerationConfig) -> None:
         self.check_config(config)
         super().__init__(config)
-        self.skipped: collections.Counter[str] = collections.Counter()
 
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
@@ -269,50 +274,63 @@ class GraspSource(KinematicSource):
         return palm + np.array([*(side * np.cos(elevation)), np.sin(elevation)])
 
     def episode(
-        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
-        """Yield the arrays (images included) of up to ``frames`` grasp frames of one episode.
+        """Yield the arrays (images included) of ``frames`` grasp frames of one episode.
 
         Args:
             rng: the episode's generator.
-            accept: called with the hand occlusion ratio; False redraws the frame's view.
+            accept: called with the hand occlusion ratio and the number of visible keypoints;
+                False redraws the frame's view.
             frames: frames to yield.
 
-        Yields nothing when no object of the episode has a grasp (counted in
-        :attr:`skipped`); stops early when :data:`MAX_TRIES_PER_FRAME` views give no
-        accepted frame.
+        Raises:
+            CannotDraw: ``"placement"`` when the episode's objects do not fit on the table;
+                ``"grasp"`` when the episode's object has no grasp (none planned, or its
+                closed hand would enter something too deep); ``"frame"`` when
+                :data:`MAX_TRIES_PER_FRAME` views give no accepted frame.
         """
         scene, renderer = self._scene(rng)
-        grasp: tuple[GraspPlan, HandPose] | str = "no object"
-        for k in rng.permutation(len(scene.objects)):
-            grasp = self._grasp(scene, int(k))
-            if not isinstance(grasp, str):
-                break
-            self.skipped[f"{grasp}: {scene.objects[int(k)][1].name}"] += 1
+        k = int(rng.integers(len(scene.objects)))
+        grasp = self._grasp(scene, k)
         if isinstance(grasp, str):
-            return
+            name = scene.objects[k][1].name
+            raise CannotDraw("grasp", f"{grasp}: {name} at its sampled pose")
         plan, closed = grasp
-        body = scene.model.body(scene.objects[int(k)][0]).id
-        obj_pos = scene.data.xpos[body].copy()
-        viewpoints = list(self.config.viewpoints)
-        near_geoms = self._near_geoms(scene)
+        obj_pos = scene.data.xpos[scene.model.body(scene.objects[k][0]).id].copy()
         centres = [scene.data.xpos[scene.model.body(b).id].copy() for b, _ in scene.objects]
+        viewpoints = list(self.config.viewpoints)
+        geoms, forearm = near_geoms(scene), forearm_geom(scene)
+        # Everything the backdrop stands behind: what is kept in range, and the arm.
+        arm = () if forearm is None else (forearm, scene.binding.upper_arm_id)
+        behind = np.append(geoms, arm).astype(np.intp)
+        shoulder = SHOULDER_M * ((-1.0, 1.0, 1.0) if scene.hand.params.side == "left" else 1.0)
         for _ in range(frames):
             pose = closed
             if rng.random() < self.config.approach_fraction:
                 pose = self._approach(rng, scene, plan, closed)
             # Forward: the hand placed and its contacts found (with forces) for the labels.
             scene.binding.set_pose(scene.data, pose)
-            palm = scene.data.xpos[scene.model.body(scene.hand.prefix + "palm").id].copy()
+            # The forearm is drawn only (no contact): a real one cannot enter the table.
+            if self._forearm_below_table_m(scene, forearm) > MAX_GRASP_PENETRATION_M:
+                name = scene.objects[k][1].name
+                raise CannotDraw("grasp", f"the forearm of the grasp of {name} enters the table")
+            scene.binding.point_upper_arm(scene.data, shoulder)
+            palm = pose.wrist_pos + _distal_axis(pose.wrist_rotvec) * _PALM_OFFSET_M
             for _ in range(MAX_TRIES_PER_FRAME):
                 view = viewpoints[int(rng.integers(len(viewpoints)))]
                 aim = obj_pos
                 if view == "through_object":
                     occluder = centres[int(rng.integers(len(centres)))]
                     aim = self._through_object_aim(rng, palm, occluder)
-                arrays = self._view(rng, scene, renderer, view, palm, aim, near_geoms, accept)
+                camera = self._camera(rng, view, palm, aim, pose.wrist_rotvec)
+                arrays = self._view(
+                    rng, scene, renderer, camera, palm, geoms, behind, accept, "grasp", view
+                )
                 if arrays is not None:
                     yield arrays
                     break
             else:
-                return
+                raise CannotDraw(
+                    "frame", f"{MAX_TRIES_PER_FRAME} views of a grasp gave no accepted frame"
+                )

@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from handsim.envs.base import HandSimEnv
 from handsim.envs.config import EnvConfig, InvalidEnvConfig
-from handsim.envs.experts import ExpertError
+from handsim.envs.experts import ExpertError, PoseActions
 from handsim.hand.kinematics import ForwardKinematics
 from handsim.hand.model import HandParams
 from handsim.hand.pose import HandPose
@@ -187,7 +187,7 @@ class PressState:
     slider_goal_world: np.ndarray
 
 
-class PressExpert:
+class PressExpert(PoseActions):
     """Points with the index finger and presses the target button, or pushes the slider.
 
     At :meth:`reset` it plans a minimum-jerk path (:func:`~handsim.hand.pose_sources.smooth_motion`)

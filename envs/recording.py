@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 
 from handsim._validate import integer
 from handsim.errors import HandSimError
@@ -125,7 +124,6 @@ def record_minari(
                 "out_dir, or delete it with minari.delete_dataset"
             )
         env = DataCollector(gym.make(env_id, **kwargs), record_infos=True)
-        space = env.action_space
         steps = successes = 0
         for i in range(episodes):
             env.reset(seed=seed + i)
@@ -133,8 +131,7 @@ def record_minari(
             expert_state = env.get_wrapper_attr("expert_state")
             done, info = False, {}
             while not done:
-                action = expert.act(expert_state()).vector.astype(space.dtype)
-                action = np.clip(action, space.low, space.high)
+                action = expert.action(expert_state())
                 _, _, terminated, truncated, info = env.step(action)
                 done = terminated or truncated
                 steps += 1

@@ -24,21 +24,35 @@ folded in front included) -> :data:`OCCLUDER_SELF`; an object instance ``k`` -> 
 -> :data:`OCCLUDER_SCENE`. With nothing in front (out of range, or its surface not rendered) the
 occluder is :data:`OCCLUDER_NONE`.
 
+What the sensor returned: ``visible_sensor`` is ``visible`` judged on the noisy image too. A
+visible keypoint is seen by the sensor when, at a pixel that makes it visible (its own pixel,
+or else a confirming neighbour), the sensor returned a depth (not a dropout, shadow or
+out-of-range pixel) within :data:`SENSOR_AGREEMENT_M` of the clean depth. Without a noise model
+it equals ``visible``.
+
 Keypoints behind the camera (``z <= 0``) have NaN pixels (``keypoints_px``) and are neither in
 frame nor visible.
 
 Objects: ``T_cam_from_obj`` (4 x 4, OpenCV camera frame), box corners in the camera frame, and
-``visib_fract`` as BOP defines it: the fraction of the object's silhouette (rendered with
-nothing else in the scene) that is visible in the full render (pixels where the full render sees
-the object). Unoccluded objects need no extra render (see ``FrameRenderer._silhouettes``);
-the others share one silhouette render when their projected boxes do not overlap. A silhouette
+``visib_fract`` as BOP defines it (bop_toolkit's ``calc_gt_info``): ``px_count_visib /
+px_count_all``, where ``px_count_all`` counts the object's whole silhouette, rendered with
+nothing else in the scene on a canvas that extends the image by its own size on every side (so
+an object cut by the image's border counts its part outside the image too), and
+``px_count_visib`` the pixels where the full render sees the object. An object whose projected
+box misses the image gets 0 for both. Unoccluded objects inside the image need no extra render
+(see ``FrameRenderer._silhouettes``); the others share one silhouette render when their
+projected boxes do not overlap. A silhouette
 is reused while the object has moved by at most ``silhouette_tolerance_px`` in the image
 (:data:`SILHOUETTE_TOLERANCE_PX`, 0.1 pixel) since it was made: objects resting in clutter, which
 jitter by tens of micrometres a step, then cost no render, and the counts differ from a fresh
 render at most by the mask's boundary pixels whose centres the edge crossed (exact counts:
-``silhouette_tolerance_px=0``). The hand
-occlusion ratio is ``1 - visible hand pixels / hand pixels with every
-object hidden``; it needs one more render and is computed on request.
+``silhouette_tolerance_px=0``).
+
+Hand occlusion ratio: ``1 - visible hand pixels / hand pixels with every object hidden``,
+counting the hand proper, from the wrist crease to the fingertips: the forearm's pixels (the
+palm's skin proximal of the wrist crease plane, the palm frame's ``y = 0``) are left out, so a
+hidden hand scores 1 however much of its forearm is in view. It needs one more render and is
+computed on request.
 
 Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
 object instance, position in the camera frame, normal force in newtons).
@@ -72,6 +86,7 @@ __all__ = [
     "OCCLUDER_SELF",
     "OCCLUDER_SCENE",
     "VISIBILITY_TOLERANCE_M",
+    "SENSOR_AGREEMENT_M",
     "SILHOUETTE_TOLERANCE_PX",
 ]
 
@@ -83,6 +98,11 @@ OCCLUDER_SCENE = -3
 """Hidden by the table or other scene geometry."""
 VISIBILITY_TOLERANCE_M = 0.005
 """Allowance beyond the skin radius for a surface in front of a keypoint, metres."""
+SENSOR_AGREEMENT_M = 0.01
+"""Largest difference between the sensor's and the clean depth at a keypoint's pixel for the
+sensor to have seen the keypoint, metres: about 3 sigma of the built-in sensors' axial noise at
+1.5 m (time of flight 3 mm; structured light 3.5 mm, Nguyen 2012), and less than a finger's
+thickness, so a pixel that took the background's or a blended depth does not count."""
 
 SILHOUETTE_TOLERANCE_PX = 0.1
 """Default image motion, pixels, below which an object's silhouette is reused (see
@@ -95,6 +115,8 @@ _HIDDEN_GROUP = 5  # a geom group no camera renders
 # possible occluder (conservative: it only costs a silhouette render).
 _OCCLUSION_MARGIN_M = 0.005
 _PALM_LABEL = SEGMENT_LABELS.index("palm")
+# The person's own arm hiding a keypoint is self-occlusion, as the palm's forearm stub is.
+_SELF_LABEL = SEGMENT_LABELS.index("arm")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,13 +124,14 @@ class ObjectLabel:
     """Pose and visibility of one object instance in a frame.
 
     Attributes:
-        instance: index in the scene's object list (segmentation label ``8 + instance``).
+        instance: index in the scene's object list (segmentation label ``10 + instance``).
         name: object name, e.g. ``"005_tomato_soup_can"``.
         ycbv_id: YCB-Video object id (``None`` for imported meshes).
         T_cam_from_obj: (4, 4) object pose in the OpenCV camera frame, metres.
         corners_cam: (8, 3) bounding-box corners in the camera frame, metres.
         visib_fract: visible fraction of the object's silhouette (BOP), 0 when out of view.
-        px_count_all: silhouette pixels of the object alone.
+        px_count_all: silhouette pixels of the object alone, on BOP's canvas (the image and
+            one image size beyond it on every side).
         px_count_visib: pixels where the full render sees the object.
     """
 
@@ -127,7 +150,7 @@ class Contact:
     """A contact between the hand and an object.
 
     Attributes:
-        hand_part: segmentation label of the hand part (2 palm ... 7 little).
+        hand_part: segmentation label of the hand part (4 palm ... 9 little).
         instance: object instance index.
         pos_cam: (3,) contact position in the camera frame, metres.
         normal_force_n: normal force, newtons.
@@ -150,20 +173,23 @@ class Frame:
         depth: (H, W) float32 sensor depth, metres, 0 = no measurement.
         depth_clean: (H, W) float32 noise-free depth within the camera's range, metres, 0 =
             nothing seen (``None`` unless requested).
-        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, objects 8+).
+        segmentation: (H, W) int16 labels (:data:`~handsim.world.scene.SEGMENT_LABELS`,
+            objects from 10).
         keypoints_cam: (21, 3) keypoints in the camera frame, metres.
         keypoints_px: (21, 2) keypoint pixels ``(u, v)``; NaN for keypoints behind the camera
             (``z <= 0``).
         in_frame: (21,) bool, in front of the camera and inside the image.
         visible: (21,) bool (rule in the module docstring).
+        visible_sensor: (21,) bool, visible and seen by the sensor (module docstring); ``None``
+            in a Frame read from labels that lack it (data written before it existed).
         occluder: (21,) int, :data:`OCCLUDER_NONE`, :data:`OCCLUDER_SELF`,
             :data:`OCCLUDER_SCENE` or an object instance index.
         hand_pose: the 27-DoF pose (world frame).
         hand_length_m: hand length, metres.
         handedness: ``"right"`` or ``"left"``.
         objects: per object instance.
-        hand_occlusion_ratio: 1 - visible hand pixels / hand pixels without objects (``None``
-            unless requested).
+        hand_occlusion_ratio: 1 - visible hand pixels / hand pixels without objects, forearm
+            left out (module docstring; ``None`` unless requested).
         contacts: hand-object contacts.
     """
 
@@ -184,6 +210,7 @@ class Frame:
     objects: tuple[ObjectLabel, ...]
     hand_occlusion_ratio: float | None
     contacts: tuple[Contact, ...]
+    visible_sensor: np.ndarray | None = None
 
     @property
     def keypoint_names(self) -> tuple[str, ...]:
@@ -220,28 +247,39 @@ class _Mask(NamedTuple):
         return int(np.count_nonzero(self.pixels))
 
     def count_where(self, labels: np.ndarray, label: int) -> int:
-        """Pixels of the mask where the (H, W) image ``labels`` equals ``label``."""
+        """Pixels of the mask where the (H, W) image ``labels`` equals ``label``.
+
+        The mask may reach beyond the image (a border-cut object's whole silhouette); only
+        its part inside the image can match.
+        """
         h, w = self.pixels.shape
-        crop = labels[self.v0 : self.v0 + h, self.u0 : self.u0 + w]
-        return int(np.count_nonzero(self.pixels & (crop == label)))
+        v0, u0 = max(self.v0, 0), max(self.u0, 0)
+        v1, u1 = min(self.v0 + h, labels.shape[0]), min(self.u0 + w, labels.shape[1])
+        if v1 <= v0 or u1 <= u0:
+            return 0
+        crop = labels[v0:v1, u0:u1]
+        pixels = self.pixels[v0 - self.v0 : v1 - self.v0, u0 - self.u0 : u1 - self.u0]
+        return int(np.count_nonzero(pixels & (crop == label)))
 
 
 def _pixel_box(
-    lo: np.ndarray, hi: np.ndarray, width: int, height: int, margin: int
+    lo: np.ndarray, hi: np.ndarray, width: int, height: int, margin: int, canvas: bool = False
 ) -> tuple[int, int, int, int]:
     """Pixel box ``(u0, v0, u1, v1)``, end exclusive, of the pixel centres in ``[lo, hi]``.
 
     ``lo`` and ``hi`` are (2,) pixel coordinates ``(u, v)`` (may be infinite); the box is widened
-    by ``margin`` pixels and clipped to the image.
+    by ``margin`` pixels and clipped to the image, or with ``canvas`` to BOP's canvas (the
+    image and one image size beyond it on every side: ``[-W, 2W) x [-H, 2H)``).
     """
     # Four numbers: Python's math is several times cheaper than NumPy's calls here.
     box = []
     for value, size, end in zip(
         (*lo.tolist(), *hi.tolist()), (width, height) * 2, (False, False, True, True), strict=True
     ):
-        value = min(max(value, -1 - margin), size + margin)  # finite (an inf is clipped)
+        first, last = (-size, 2 * size) if canvas else (0, size)
+        value = min(max(value, first - 1 - margin), last + margin)  # finite (an inf is clipped)
         edge = math.ceil(value) + margin + 1 if end else math.floor(value) - margin
-        box.append(min(max(edge, 0), size))
+        box.append(min(max(edge, first), last))
     return box[0], box[1], box[2], box[3]
 
 
@@ -403,6 +441,8 @@ class FrameRenderer:
         self._silhouette_masks: list[_Mask | None] = [None] * len(scene.objects)
         self._silhouette_corners = np.full((len(scene.objects), 8, 3), np.nan)
         self._K = _read_only(self.intrinsics.K)
+        self._palm_body = int(model.body(scene.hand.root_body).id)
+        self._hand_only_buffers: tuple[np.ndarray, np.ndarray] | None = None
         self._camera_key: bytes | None = None
         self._T_cam_from_world: np.ndarray | None = None
 
@@ -422,14 +462,20 @@ class FrameRenderer:
         visible_geoms: np.ndarray,
         region: tuple[int, int, int, int] | None = None,
     ) -> np.ndarray:
-        """Geom-id image (of ``region``) with every geom hidden except ``visible_geoms``."""
+        """Geom-id image (of ``region``) with every geom hidden except ``visible_geoms``.
+
+        ``region`` may reach beyond the image (:meth:`DepthRenderer.render_segmentation_canvas`);
+        default: the image.
+        """
         groups = self.scene.model.geom_group
         saved = groups.copy()
         hide = np.ones(len(groups), dtype=bool)
         hide[visible_geoms] = False
         groups[hide] = _HIDDEN_GROUP
+        if region is None:
+            region = (0, 0, self.intrinsics.width, self.intrinsics.height)
         try:
-            return self.renderer.render_segmentation(data, region)
+            return self.renderer.render_segmentation_canvas(data, region)
         finally:
             groups[:] = saved
 
@@ -483,10 +529,13 @@ class FrameRenderer:
         render only in pixels whose centres lie within the tolerance of the edge (the mask's
         boundary pixels). Objects resting under a moving hand, which still move by tens of
         micrometres a step, then cost no render. Otherwise, an object whose visible region
-        nowhere borders a nearer hand or other object is not occluded (its silhouette is
-        connected, so a hidden part would border its occluder): its silhouette is its visible
-        region, with no render. The others are rendered alone; objects whose projected boxes
-        do not overlap share one render, of their boxes' pixels only.
+        nowhere borders a nearer hand or other object, nor the image's border, is not occluded
+        or cut (its silhouette is connected, so a hidden part would border its occluder or
+        cross the border): its silhouette is its visible region, with no render. The others
+        are rendered alone; objects whose projected boxes do not overlap share one render, of
+        their boxes' pixels only. A silhouette cut by the image's border is rendered whole on
+        BOP's canvas (the image and one image size beyond it on every side); an object whose
+        box misses the image altogether gets an empty silhouette (nothing of it is visible).
         """
         h, w = labels.shape
         masks: list[_Mask | None] = [None] * len(boxes)
@@ -508,6 +557,14 @@ class FrameRenderer:
             if not own.any():
                 pending.append(k)  # fully hidden, or too small to see
                 continue
+            if (
+                (u0 == 0 and own[:, 0].any())
+                or (v0 == 0 and own[0].any())
+                or (u1 == w and own[:, -1].any())
+                or (v1 == h and own[-1].any())
+            ):
+                pending.append(k)  # cut by the border: the rest lies outside the image
+                continue
             ring = cv2.dilate(own.view(np.uint8), kernel).view(bool) & ~own
             foreign = ring & (crop_labels >= _PALM_LABEL)
             if foreign.any():
@@ -528,13 +585,13 @@ class FrameRenderer:
             # Read only the group's projected box (the corner boxes enclose the objects).
             lo = np.min([boxes[k][0] for k in group], axis=0)
             hi = np.max([boxes[k][1] for k in group], axis=0)
-            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=0)
+            u0, v0, u1, v1 = _pixel_box(lo, hi, w, h, margin=0, canvas=True)
             geom_ids = self._render_only(
                 data, np.concatenate([self._object_geoms[k] for k in group]), (u0, v0, u1, v1)
             )
             seen = self._geom_instance[geom_ids]
             for k in group:
-                ku0, kv0, ku1, kv1 = _pixel_box(*boxes[k], w, h, margin=0)
+                ku0, kv0, ku1, kv1 = _pixel_box(*boxes[k], w, h, margin=0, canvas=True)
                 ku0, kv0 = max(ku0, u0), max(kv0, v0)
                 ku1, kv1 = max(min(ku1, u1), ku0), max(min(kv1, v1), kv0)
                 masks[k] = _Mask(ku0, kv0, seen[kv0 - v0 : kv1 - v0, ku0 - u0 : ku1 - u0] == k)
@@ -554,16 +611,79 @@ class FrameRenderer:
         row: np.ndarray,
         col: np.ndarray,
         in_frame: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Per-keypoint ``visible`` and ``occluder`` from the clean render (module docstring)."""
+        sensor_depth_m: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per-keypoint ``visible``, ``occluder`` and ``visible_sensor`` (module docstring)."""
         visible = np.zeros(21, dtype=bool)
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
+        visible_sensor = np.zeros(21, dtype=bool)
         _kernels.keypoint_visibility(
             depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
-            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _PALM_LABEL, OCCLUDER_SELF,
-            OCCLUDER_SCENE, visible, occluder,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _SELF_LABEL, OCCLUDER_SELF,
+            OCCLUDER_SCENE, sensor_depth_m, SENSOR_AGREEMENT_M, visible, occluder,
+            visible_sensor,
         )  # fmt: skip
-        return visible, occluder
+        return visible, occluder, visible_sensor
+
+    def _hand_pixels(
+        self,
+        data: mujoco.MjData,
+        labels: np.ndarray,
+        depth_m: np.ndarray,
+        R: np.ndarray,
+        t: np.ndarray,
+    ) -> int:  # noqa: N803
+        """Pixels of the hand proper (wrist to fingertips) in a render: the forearm left out.
+
+        The palm and the forearm are one skin mesh (one label), so a palm-labelled pixel is
+        told apart by where its surface point lies: proximal of the wrist crease plane (the
+        palm frame's ``y = 0``: +y is distal, the origin the wrist crease centre) it is
+        forearm. Exact per pixel, and no change to the hand's geoms.
+        """
+        hand = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
+        rows, cols = np.nonzero(labels == _PALM_LABEL)
+        if not len(rows):
+            return int(np.count_nonzero(hand))
+        z = depth_m[rows, cols].astype(np.float64)
+        intr = self.intrinsics
+        points = np.stack(
+            [(cols - intr.cx) / intr.fx * z, (rows - intr.cy) / intr.fy * z, z], axis=-1
+        )
+        palm = self._palm_body
+        origin_cam = R @ data.xpos[palm] + t
+        distal_cam = R @ data.xmat[palm].reshape(3, 3)[:, 1]
+        forearm = (points - origin_cam) @ distal_cam < 0.0
+        return int(np.count_nonzero(hand)) - int(np.count_nonzero(forearm))
+
+    def _hand_occlusion_ratio(
+        self,
+        data: mujoco.MjData,
+        labels: np.ndarray,
+        depth_m: np.ndarray,
+        R: np.ndarray,  # noqa: N803
+        t: np.ndarray,
+    ) -> float:
+        """``1 - visible hand pixels / hand pixels with every object hidden`` (no forearm)."""
+        groups = self.scene.model.geom_group
+        saved = groups.copy()
+        for geoms in self._object_geoms:
+            groups[geoms] = _HIDDEN_GROUP
+        if self._hand_only_buffers is None:
+            self._hand_only_buffers = (np.empty_like(depth_m), np.empty_like(labels))
+        try:
+            # The same working range as the full render: a pixel out of range is in neither.
+            depth_hand, labels_hand = self.renderer.render(
+                data,
+                out=self._hand_only_buffers,
+                geom_values=self._geom_labels,
+                fill=0,
+                depth_range_m=(self._near_m, self._far_m),
+            )
+        finally:
+            groups[:] = saved
+        hand_px = self._hand_pixels(data, labels_hand, depth_hand, R, t)
+        visible_px = self._hand_pixels(data, labels, depth_m, R, t)
+        return 1.0 - visible_px / hand_px if hand_px else 0.0
 
     def render(
         self,
@@ -620,7 +740,9 @@ class FrameRenderer:
         col = np.rint(kp_px[:, 0])
         row = np.rint(kp_px[:, 1])
         in_frame = (z > 0) & (col >= 0) & (col < intr.width) & (row >= 0) & (row < intr.height)
-        visible, occluder = self._visibility(depth_clean, labels, z, row, col, in_frame)
+        visible, occluder, visible_sensor = self._visibility(
+            depth_clean, labels, z, row, col, in_frame, depth
+        )
         # Objects, all at once: (n, 4, 4) poses and (n, 8, 3) box corners in the camera frame.
         n = len(scene.objects)
         objects = []
@@ -661,13 +783,7 @@ class FrameRenderer:
 
         occlusion_ratio = None
         if hand_occlusion:
-            no_objects = np.ones(model.ngeom, dtype=bool)
-            for geoms in self._object_geoms:
-                no_objects[geoms] = False
-            hand_only = self._render_only(data, np.nonzero(no_objects)[0])  # objects hidden
-            hand_px = np.count_nonzero(self._is_hand_geom[hand_only[hand_only >= 0]])
-            visible_px = np.count_nonzero((labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET))
-            occlusion_ratio = 1.0 - visible_px / hand_px if hand_px else 0.0
+            occlusion_ratio = self._hand_occlusion_ratio(data, labels, depth_clean, R, t)
 
         contacts = []
         ncon = data.ncon
@@ -707,6 +823,7 @@ class FrameRenderer:
             keypoints_px=_read_only(kp_px),
             in_frame=_read_only(in_frame),
             visible=_read_only(visible),
+            visible_sensor=_read_only(visible_sensor),
             occluder=_read_only(occluder),
             hand_pose=scene.binding.pose(data),
             hand_length_m=hand.hand_length,

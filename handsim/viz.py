@@ -24,6 +24,7 @@ import numpy as np
 
 from handsim.errors import HandSimError
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, Frame
+from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS
 
 if TYPE_CHECKING:
     from handsim.estimator import Estimate
@@ -35,6 +36,7 @@ __all__ = [
     "SCALE_BAR_WIDTH",
     "TRUTH_BGR",
     "ESTIMATE_BGR",
+    "OUTLINE_BGR",
     "InvalidImageInput",
     "depth_colormap",
     "depth_range_m",
@@ -44,21 +46,24 @@ __all__ = [
     "draw_estimate",
     "draw_frame_panels",
     "draw_frame",
+    "frame_legend",
     "contact_sheet",
     "VideoWriter",
 ]
 
 LABEL_BGR = np.array(
     [
-        (0, 0, 0), (90, 90, 90), (60, 180, 230), (40, 120, 255), (60, 220, 120),
+        (0, 0, 0), (90, 90, 90), (150, 130, 120), (50, 110, 170), (60, 180, 230),
+        (40, 120, 255), (60, 220, 120),
         (230, 200, 60), (230, 120, 200), (160, 100, 240),
         (80, 80, 230), (230, 90, 70), (70, 200, 200), (200, 200, 70), (150, 230, 150),
     ],
     dtype=np.float64,
 )  # fmt: skip
-"""BGR colour per segmentation label: background, table, palm, thumb..little, then objects."""
+"""BGR colour per segmentation label: background, table, backdrop, forearm, palm, thumb..little,
+then objects."""
 
-_OBJECT_LABEL = 8  # first object label (handsim.world.scene.OBJECT_LABEL_OFFSET)
+_OBJECT_LABEL = OBJECT_LABEL_OFFSET
 
 HAND_BONES: tuple[tuple[int, int], ...] = (
     (0, 1), (1, 2), (2, 3), (3, 4),
@@ -83,6 +88,8 @@ TRUTH_BGR: tuple[int, int, int] = (80, 220, 80)
 ESTIMATE_BGR: tuple[int, int, int] = (255, 80, 255)
 """Colour of the estimated skeleton in :func:`draw_estimate` (magenta)."""
 
+OUTLINE_BGR: tuple[int, int, int] = (0, 0, 0)
+"""Border of skeletons drawn on a depth colour map (black: turbo has none of it in its range)."""
 SCALE_BAR_WIDTH = 56
 """Width in pixels of the scale bar :func:`depth_colormap` appends on the right."""
 
@@ -200,7 +207,7 @@ def draw_segmentation(segmentation: Any) -> np.ndarray:
 
     Args:
         segmentation: (H, W) integer labels (``handsim.world.scene.SEGMENT_LABELS``, objects
-            from 8).
+            from ``OBJECT_LABEL_OFFSET``, 10).
 
     Returns:
         (H, W, 3) uint8 BGR image.
@@ -263,6 +270,7 @@ def draw_skeleton(
     colour: tuple[int, int, int] = (255, 255, 255),
     thickness: int = 1,
     radius: int = 3,
+    outline: tuple[int, int, int] | None = None,
 ) -> np.ndarray:
     """Draw the 21 keypoints and their bones (:data:`HAND_BONES`) on a copy of ``image``.
 
@@ -281,6 +289,8 @@ def draw_skeleton(
         colour: BGR colour of bones and visible keypoints.
         thickness: bone thickness, pixels.
         radius: keypoint dot radius, pixels.
+        outline: BGR colour of a 1-pixel border around bones and dots (e.g. black), so the
+            skeleton stays visible on a colour map that contains its own colour; ``None``: none.
 
     Returns:
         (H, W, 3) uint8 BGR image.
@@ -298,6 +308,14 @@ def draw_skeleton(
         raise InvalidImageInput(f"keypoints_px must be (21, 2); received {points.shape}")
     out = np.ascontiguousarray(image.copy())
     finite = np.all(np.isfinite(points), axis=1)
+    if outline is not None:
+        # The border first, two pixels wider, so the skeleton's own strokes lie on top of it.
+        for a, b in HAND_BONES:
+            if finite[a] and finite[b]:
+                pa, pb = _pixel(points[a]), _pixel(points[b])
+                cv2.line(out, pa, pb, outline, thickness + 2, cv2.LINE_AA)
+        for k in np.flatnonzero(finite):
+            cv2.circle(out, _pixel(points[k]), radius + 1, outline, -1, cv2.LINE_AA)
     for a, b in HAND_BONES:
         if finite[a] and finite[b]:
             cv2.line(out, _pixel(points[a]), _pixel(points[b]), colour, thickness, cv2.LINE_AA)
@@ -336,7 +354,8 @@ def draw_estimate(
 
     The truth (:data:`TRUTH_BGR`) is drawn with the visibility styles of
     :func:`draw_skeleton`; the estimate (:data:`ESTIMATE_BGR`) as plain dots and bones, or a
-    ring at its hand centre for a localizer. A caption gives the mean keypoint error (mm).
+    ring at its hand centre for a localizer. Both have a black border: the turbo colour map
+    has green and magenta-like hues of its own. A caption gives the mean keypoint error (mm).
 
     Args:
         depth_m: (H, W) or (1, H, W) depth of the frame's camera (the resolution of
@@ -362,15 +381,24 @@ def draw_estimate(
         return upscale * (px + 0.5) - 0.5
 
     truth_px = to_image(np.where(frame.in_frame[:, None], frame.keypoints_px, np.nan))
+    estimate_px = None
+    if estimate is not None and estimate.valid and estimate.keypoints_cam is not None:
+        estimate_px = to_image(project_points(frame.K, estimate.keypoints_cam))
+        # The estimate's border goes under the truth, so it never hides a true keypoint.
+        image = draw_skeleton(image, estimate_px, colour=OUTLINE_BGR, thickness=3, radius=4)
     image = draw_skeleton(
-        image, truth_px, visible=frame.visible, occluder=frame.occluder, colour=TRUTH_BGR
+        image,
+        truth_px,
+        visible=frame.visible,
+        occluder=frame.occluder,
+        colour=TRUTH_BGR,
+        outline=OUTLINE_BGR,
     )
     lines, colours = ([title], [(255, 255, 255)]) if title else ([], [])
     if estimate is None or not estimate.valid:
         lines.append("estimate: none")
         colours.append(ESTIMATE_BGR)
-    elif estimate.keypoints_cam is not None:
-        estimate_px = to_image(project_points(frame.K, estimate.keypoints_cam))
+    elif estimate_px is not None:
         image = draw_skeleton(image, estimate_px, colour=ESTIMATE_BGR)
         error_mm = 1000 * np.linalg.norm(estimate.keypoints_cam - frame.keypoints_cam, axis=1)
         lines.append(f"estimate: mean {error_mm.mean():.1f} mm, max {error_mm.max():.1f} mm")
@@ -378,6 +406,7 @@ def draw_estimate(
     elif estimate.center_cam is not None:
         (centre,) = to_image(project_points(frame.K, estimate.center_cam[None]))
         if np.all(np.isfinite(centre)):
+            cv2.circle(image, _pixel(centre), 8, OUTLINE_BGR, 4, cv2.LINE_AA)
             cv2.circle(image, _pixel(centre), 8, ESTIMATE_BGR, 2, cv2.LINE_AA)
         lines.append("estimate: hand centre")
         colours.append(ESTIMATE_BGR)
@@ -420,7 +449,7 @@ def draw_frame(frame: Frame) -> np.ndarray:
     """A Frame as one picture: segmentation colours shaded by depth, keypoints by visibility.
 
     Visible keypoints are white dots; occluded ones are crosses, red when an object hides them
-    and yellow when the hand hides itself.
+    and yellow when the hand hides itself. :func:`frame_legend` draws the key.
 
     Args:
         frame: a rendered :class:`~handsim.frame.Frame`.
@@ -444,6 +473,56 @@ def draw_frame(frame: Frame) -> np.ndarray:
             colour = (0, 255, 255) if frame.occluder[k] == OCCLUDER_SELF else (0, 0, 255)
             cv2.drawMarker(tile, (u, v), colour, cv2.MARKER_TILTED_CROSS, 8, 2)
     return tile
+
+
+_LEGEND_LABELS = tuple(
+    (SEGMENT_LABELS.index(name), name)
+    for name in ("arm", "palm", "thumb", "index", "middle", "ring", "little", "table")
+) + ((_OBJECT_LABEL, "objects"),)
+
+
+def frame_legend(width: int) -> np.ndarray:
+    """The key of :func:`draw_frame` pictures, as a strip to put under them.
+
+    Row 1: the keypoint marks (white dot: visible; red cross: hidden by an object or the
+    scene; yellow cross: hidden by the hand). Row 2: the segmentation colours (hand parts,
+    table, objects; darker = farther).
+
+    Args:
+        width: strip width, pixels (that of the picture it goes under).
+
+    Returns:
+        (44, width, 3) uint8 BGR image (less high below 560 pixels: shrunk to fit).
+
+    Raises:
+        InvalidImageInput: for a width < 1.
+    """
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 1:
+        raise InvalidImageInput(f"width must be an integer >= 1 pixel; received {width!r}")
+    # Drawn at 560 pixels, padded to a wider picture or shrunk (text and all) to a narrower one.
+    strip = np.full((44, 560, 3), 32, np.uint8)
+    marks = (
+        ("visible", None),
+        ("hidden by an object", KEYPOINT_STYLES["object"][1]),
+        ("hidden by the hand", KEYPOINT_STYLES["self"][1]),
+    )
+    x = 8
+    for text, colour in marks:
+        if colour is None:
+            cv2.circle(strip, (x + 4, 12), 3, (255, 255, 255), -1, cv2.LINE_AA)
+        else:
+            cv2.drawMarker(strip, (x + 4, 12), colour, cv2.MARKER_TILTED_CROSS, 8, 2)
+        cv2.putText(strip, text, (x + 14, 16), _FONT, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+        x += 34 + cv2.getTextSize(text, _FONT, 0.4, 1)[0][0]
+    x = 8
+    for label, text in _LEGEND_LABELS:
+        colour = tuple(int(c) for c in LABEL_BGR[label])
+        cv2.rectangle(strip, (x, 27), (x + 9, 36), colour, -1)
+        cv2.putText(strip, text, (x + 13, 36), _FONT, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+        x += 28 + cv2.getTextSize(text, _FONT, 0.4, 1)[0][0]
+    if width >= 560:
+        return np.hstack([strip, np.full((44, int(width) - 560, 3), 32, np.uint8)])
+    return cv2.resize(strip, (int(width), max(1, 44 * int(width) // 560)), cv2.INTER_AREA)
 
 
 def contact_sheet(

@@ -318,7 +318,9 @@ _HAND_README = f"""# hand
 The default (medium, 189 mm) handsim hand, both sides.
 
 - `right_hand.xml`, `left_hand.xml`: the hand alone, `Hand(HandParams(side=...)).save(...)`,
-  its skin meshes in `assets/` (OBJ, one per hand segment and side);
+  its skin meshes in `assets/` (OBJ, one per hand segment and side, and the forearm's), and
+  the arm, drawn only: `<side>_forearm_visual_0` (mesh) and `<side>_upper_arm_visual_0`
+  (capsule), no contact and no mass (`docs/hand.md`, "The arm");
 - `keyframes_right.xml`, `keyframes_left.xml`: one keyframe per gesture of
   `handsim.hand.pose_sources.GESTURES` (load one in the viewer's Simulation panel);
 - `scene_right.xml`, `scene_left.xml`: the hand and its keyframes, palm up 10 cm above a

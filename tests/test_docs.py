@@ -145,3 +145,17 @@ def test_sphinx_build_is_strict_and_clean(tmp_path):
     )
     assert result.returncode == 0, result.stdout + result.stderr
     assert (tmp_path / "html" / "api" / "handsim.html").exists()
+
+
+def test_a_new_user_is_told_how_to_reach_the_handsim_command():
+    """`make demo` installs into .venv: the README and the demo target say how to run handsim."""
+    readme = (ROOT / "README.md").read_text()
+    setup = readme.split("## Set-up on a fresh machine", 1)[1].split("\n## ", 1)[0]
+    assert "source .venv/bin/activate" in setup and ".venv/bin/handsim" in setup
+    result = subprocess.run(
+        ["make", "-n", "demo", "VENV=/tmp/no-such-venv"], cwd=ROOT, capture_output=True,
+        text=True, check=False,
+    )  # fmt: skip
+    if result.returncode != 0:
+        pytest.skip(f"make is not usable here: {result.stderr.strip()}")
+    assert "source /tmp/no-such-venv/bin/activate" in result.stdout

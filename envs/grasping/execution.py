@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
+from handsim.envs.experts import PoseActions
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
@@ -314,7 +315,7 @@ def _close(T: np.ndarray, reference: np.ndarray) -> bool:
     return turned < REPLAN_ANGLE_RAD
 
 
-class GraspExpert:
+class GraspExpert(PoseActions):
     """A scripted pick-and-lift expert for one object.
 
     Phases (:attr:`phase`): ``"wait"`` (no grasp found yet for the perceived object pose: the

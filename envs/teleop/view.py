@@ -118,7 +118,10 @@ def render_rollout(
                 truth = _project(K, T, arrays["operator_world"][t])
                 estimate = _project(K, T, arrays["tracked_world"][t])
                 top = "direct (no capture)"
-            left = viz.draw_skeleton(left, truth, colour=viz.TRUTH_BGR)
+            # Black borders (the estimate's under the truth) keep both visible on the colour map.
+            border = viz.OUTLINE_BGR
+            left = viz.draw_skeleton(left, estimate, colour=border, thickness=3, radius=4)
+            left = viz.draw_skeleton(left, truth, colour=viz.TRUTH_BGR, outline=border)
             left = viz.draw_skeleton(left, estimate, colour=viz.ESTIMATE_BGR)
             left = cv2.resize(left, _PANEL, interpolation=cv2.INTER_NEAREST)
             text = [top, "green: operator", "magenta: tracked"]

@@ -17,7 +17,7 @@ import numpy as np
 
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
-from handsim.data.torch_dataset import split_of_episode
+from handsim.data.splits import folder_splits, split_mask
 from handsim.errors import HandSimError
 
 from .preprocess import CROP_SIZE, CUBE_M, MIDDLE_MCP, AugmentParams, augment, sample_augmentation
@@ -67,11 +67,12 @@ def load_frames(
 ) -> FrameSet:
     """Read every frame of a split (``train``/``val``/``test``/``all``, by episode).
 
-    Splits are those of :class:`~handsim.data.torch_dataset.HandSimDataset` (a hash of the
-    folder's seed and the episode, 80/10/10).
+    Splits are those of :class:`~handsim.data.torch_dataset.HandSimDataset`
+    (:mod:`handsim.data.splits`: 10 % of a folder's episodes each for val and test).
 
     Raises:
         InvalidTrainingData: if a folder is not a dataset or the split is empty.
+        InvalidDatasetQuery: for a val / test split of a folder with too few episodes.
     """
     import h5py
 
@@ -87,17 +88,13 @@ def load_frames(
             manifest = Manifest.read(folder)
         except HandSimError as err:
             raise InvalidTrainingData(f"--data {folder}: {err}") from None
-        seed = int(manifest.config.get("seed", 0))
+        splits = folder_splits(folder, manifest) if split != "all" else {}
         sensor = str(manifest.config.get("sensor", "unknown"))
         for record in sorted(manifest.shards.values(), key=lambda s: s.name):
             if max_frames is not None and total >= max_frames:
                 break
             reader = ShardReader(Path(folder) / record.name)
-            episodes = reader.labels("episode")
-            keep = np.array(
-                [split == "all" or split_of_episode(seed, int(e)) == split for e in episodes],
-                dtype=bool,
-            )
+            keep = split_mask(splits, reader.labels("episode"), split, f"--data {folder}")
             keep &= reader.labels("valid").astype(bool)
             if not keep.any():
                 continue
@@ -115,7 +112,7 @@ def load_frames(
     if not parts["K"]:
         raise InvalidTrainingData(
             f"no {split!r} frames in {', '.join(str(f) for f in folders)} (generate more "
-            "frames: the splits are 80/10/10 by episode)"
+            "frames: val and test are 10 % of the episodes each)"
         )
     cat = {k: np.concatenate(v) for k, v in parts.items()}
     n = len(cat["K"]) if max_frames is None else min(max_frames, len(cat["K"]))
@@ -244,10 +241,19 @@ def env_frames(
     Returns:
         The frames (depth stored in 0.1 mm units). ``occlusion`` is the frame's hand occlusion
         ratio where it was computed, else the fraction of keypoints that are not visible.
+
+    Raises:
+        InvalidTrainingData: for an env id that is not a registered handsim env.
     """
     import gymnasium as gym
 
-    import handsim.envs  # noqa: F401 (registers the ids)
+    import handsim.envs  # registers the ids
+
+    if env_id not in handsim.envs.ENV_IDS:
+        raise InvalidTrainingData(
+            f"env_id must be a registered handsim env, one of "
+            f"{', '.join(handsim.envs.ENV_IDS)}; received {env_id!r}"
+        )
 
     scale_m = 1e-4
     parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length")}

@@ -140,10 +140,25 @@ def _check(config: TrainConfig) -> None:
         raise InvalidTrainConfig(
             f"arch must be shallow, deep or multiscale; received {config.arch!r}"
         )
-    if config.size % 32 or config.size < 32:
-        raise InvalidTrainConfig(f"size must be a multiple of 32, >= 32; received {config.size}")
+    # 512 is four times DeepPrior's 128; a larger crop only allocates (100 000 asked for TBs).
+    if config.size % 32 or not 32 <= config.size <= 512:
+        raise InvalidTrainConfig(
+            f"size must be a multiple of 32 in [32, 512] pixels; received {config.size}"
+        )
     if not 0 <= config.prior_dim <= 63:
         raise InvalidTrainConfig(f"prior_dim must be in [0, 63]; received {config.prior_dim}")
+    # Finite, in range: NaN passes every comparison but ``not``, so test ``not lo <= x <= hi``.
+    ranges = {
+        "lr": (config.lr, 0.0, 1.0, "in [0, 1] (0 keeps the initial weights)"),
+        "weight_decay": (config.weight_decay, 0.0, 1.0, "in [0, 1]"),
+        "cube_m": (config.cube_m, 0.0, 1.0, "in (0, 1] metres"),
+        "offset_sigma_m": (config.offset_sigma_m, 0.0, 0.5, "in [0, 0.5] metres"),
+        "width": (config.width, 0.0, 8.0, "in (0, 8]"),
+    }
+    for name, (value, lo, hi, valid) in ranges.items():
+        positive = name in ("cube_m", "width")
+        if not lo <= value <= hi or (positive and value == lo):
+            raise InvalidTrainConfig(f"{name} must be {valid}; received {value}")
 
 
 _FRAMES: FrameSet | None = None  # the frames of localizer_centers, inherited by forked workers

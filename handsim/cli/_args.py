@@ -1,7 +1,9 @@
 """Argument types, progress bars and strict JSON shared by the ``handsim`` commands.
 
 Every value is checked while the command line is parsed, so a bad one ends in argparse's usage
-error (exit status 2, no traceback) that lists the valid values.
+error (exit status 2, no traceback) that lists the valid values. Every numeric option of every
+command uses :func:`integer` or :func:`number` with its range: this module is the one place
+where command-line numbers are checked.
 """
 
 from __future__ import annotations
@@ -14,12 +16,18 @@ from collections.abc import Callable
 from typing import Any
 
 __all__ = [
+    "add_quiet",
     "choice_help",
+    "integer",
+    "number",
     "object_name",
     "positive_int",
     "non_negative_int",
     "non_negative_float",
+    "positive_float",
     "probability",
+    "port",
+    "seed",
     "progress_bar",
     "strict_json",
 ]
@@ -33,6 +41,11 @@ def choice_help(text: str, valid: tuple[str, ...] | list[str], default: object =
     return text + tail
 
 
+def add_quiet(parser: argparse.ArgumentParser, what: str = "no progress bars") -> None:
+    """``-q``/``--quiet``, accepted by every command alike (progress bars go to stderr)."""
+    parser.add_argument("-q", "--quiet", action="store_true", help=f"{what} (they go to stderr)")
+
+
 def object_name(value: str) -> str:
     """An object name (canonical, short alias or MJCF body name) -> its canonical name."""
     from handsim.world.registry import OBJECTS
@@ -43,46 +56,108 @@ def object_name(value: str) -> str:
         raise argparse.ArgumentTypeError(str(err.args[0] if err.args else err)) from None
 
 
-def _number(kind: Callable[[str], Any], value: str, what: str) -> Any:
-    try:
-        number = kind(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {what}; received {value!r}") from None
-    if isinstance(number, float) and not math.isfinite(number):
-        raise argparse.ArgumentTypeError(f"expected {what}; received {value!r}")
-    return number
+def _text(bound: float) -> str:
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
 
 
-def positive_int(value: str) -> int:
-    """An integer >= 1."""
-    number = _number(int, value, "an integer >= 1")
-    if number < 1:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 1; received {value!r}")
-    return number
+def _interval(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
+    if lo is not None and hi is not None:
+        return f"in {'(' if lo_open else '['}{_text(lo)}, {_text(hi)}{')' if hi_open else ']'}"
+    if lo is not None:
+        return f"{'>' if lo_open else '>='} {_text(lo)}"
+    if hi is not None:
+        return f"{'<' if hi_open else '<='} {_text(hi)}"
+    return ""
 
 
-def non_negative_int(value: str) -> int:
-    """An integer >= 0."""
-    number = _number(int, value, "an integer >= 0")
-    if number < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0; received {value!r}")
-    return number
+def integer(lo: int | None = None, hi: int | None = None, why: str = "") -> Callable[[str], int]:
+    """An argparse ``type``: an integer in ``[lo, hi]`` (``None``: unbounded on that side).
+
+    Args:
+        lo: smallest valid value.
+        hi: largest valid value.
+        why: a short reason for the range, added to the error message.
+
+    Returns:
+        The parser; a bad value raises ``argparse.ArgumentTypeError`` whose message gives the
+        valid range and the value received.
+    """
+    rng = _interval(lo, hi, False, False)
+    what = f"an integer {rng}".rstrip()
+    tail = f" ({why})" if why else ""
+
+    def parse(value: str) -> int:
+        try:
+            number_ = int(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}; received {value!r}") from None
+        if (lo is not None and number_ < lo) or (hi is not None and number_ > hi):
+            raise argparse.ArgumentTypeError(f"expected {what}{tail}; received {value!r}")
+        return number_
+
+    parse.__name__ = f"integer {rng}".rstrip()
+    return parse
 
 
-def non_negative_float(value: str) -> float:
-    """A finite number >= 0."""
-    number = _number(float, value, "a finite number >= 0")
-    if number < 0:
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0; received {value!r}")
-    return number
+def number(
+    lo: float | None = None,
+    hi: float | None = None,
+    *,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    why: str = "",
+) -> Callable[[str], float]:
+    """An argparse ``type``: a finite number in the interval from ``lo`` to ``hi``.
+
+    Args:
+        lo: lower bound (``None``: unbounded).
+        hi: upper bound (``None``: unbounded).
+        lo_open: exclude ``lo`` itself.
+        hi_open: exclude ``hi`` itself.
+        why: a short reason for the range, added to the error message.
+
+    Returns:
+        The parser; NaN, infinities and values out of range raise
+        ``argparse.ArgumentTypeError`` whose message gives the valid range.
+    """
+    rng = _interval(lo, hi, lo_open, hi_open)
+    # Both bounds imply finiteness; say "finite" where an infinity would otherwise fit.
+    what = f"a number {rng}" if lo is not None and hi is not None else f"a finite number {rng}"
+    what = what.rstrip()
+    tail = f" ({why})" if why else ""
+
+    def parse(value: str) -> float:
+        try:
+            number_ = float(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}; received {value!r}") from None
+        bad = not math.isfinite(number_)
+        if lo is not None:
+            bad = bad or number_ < lo or (lo_open and number_ == lo)
+        if hi is not None:
+            bad = bad or number_ > hi or (hi_open and number_ == hi)
+        if bad:
+            raise argparse.ArgumentTypeError(f"expected {what}{tail}; received {value!r}")
+        return number_
+
+    parse.__name__ = what
+    return parse
 
 
-def probability(value: str) -> float:
-    """A number in [0, 1]."""
-    number = _number(float, value, "a number in [0, 1]")
-    if not 0.0 <= number <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1]; received {value!r}")
-    return number
+positive_int = integer(1)
+"""An integer >= 1."""
+non_negative_int = integer(0)
+"""An integer >= 0."""
+non_negative_float = number(0.0)
+"""A finite number >= 0."""
+positive_float = number(0.0, lo_open=True)
+"""A finite number > 0."""
+probability = number(0.0, 1.0)
+"""A number in [0, 1]."""
+port = integer(1, 65535, "a TCP/UDP port")
+"""A network port."""
+seed = integer(0, 2**63 - 1, "a seed, as GenerationConfig takes")
+"""A seed: an integer in [0, 2**63 - 1]."""
 
 
 def progress_bar(total: int, desc: str, unit: str, *, enabled: bool = True) -> Any:

@@ -6,13 +6,16 @@ import argparse
 from typing import Any
 
 from handsim.cli._args import (
+    add_quiet,
     choice_help,
     non_negative_float,
     non_negative_int,
+    number,
     object_name,
     positive_int,
     probability,
     progress_bar,
+    seed,
     strict_json,
 )
 from handsim.cli.estimators import BUILTIN_ESTIMATORS, EstimatorSpec, parse_estimator_spec
@@ -183,7 +186,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     loop.add_argument(
         "--object-noise-deg",
-        type=non_negative_float,
+        type=number(0, 180),
         default=0.0,
         help="oracle object rotation noise, deg (default: %(default)s)",
     )
@@ -202,7 +205,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     loop.add_argument(
         "--episodes", type=positive_int, default=5, help="episodes per mode (default: %(default)s)"
     )
-    loop.add_argument("--seed", type=int, default=0, help="first seed (default: %(default)s)")
+    loop.add_argument("--seed", type=seed, default=0, help="first seed (default: %(default)s)")
     loop.add_argument(
         "--objects",
         nargs="+",
@@ -236,7 +239,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     loop.add_argument(
         "--out", default="handsim-closed-loop", help="output folder (default: %(default)s)"
     )
-    loop.add_argument(
-        "-q", "--quiet", action="store_true", help="no progress bar (it goes to stderr)"
-    )
+    add_quiet(loop)
     loop.set_defaults(func=_run)

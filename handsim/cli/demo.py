@@ -34,11 +34,11 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from handsim.cli._args import non_negative_int, positive_int, progress_bar, strict_json
+from handsim.cli._args import add_quiet, integer, non_negative_int, progress_bar, strict_json
 from handsim.frame import FrameRenderer
 from handsim.hand.model import HAND_SIZES, Hand, HandParams
 from handsim.hand.pose_sources import gesture, smooth_motion
-from handsim.viz import contact_sheet, draw_frame, draw_frame_panels
+from handsim.viz import contact_sheet, draw_frame, draw_frame_panels, frame_legend
 from handsim.world.camera import camera_preset
 from handsim.world.scene import Scene, SceneSpec, sample_placements, sample_viewpoint
 from handsim.world.sensors import StructuredLight
@@ -220,7 +220,7 @@ def run_demo(
     n_frames = len(_FRAME_GESTURES)
     with progress_bar(n_frames, "demo: labelled frames", "frame", enabled=progress) as bar:
         frames, frame_stats, panels = _labelled_frames(bar=bar)
-    cv2.imwrite(str(out / "frames.png"), frames)
+    cv2.imwrite(str(out / "frames.png"), np.vstack([frames, frame_legend(frames.shape[1])]))
     cv2.imwrite(str(out / "frame_panels.png"), panels)
     summary["labelled_frames"] = frame_stats
     (out / "summary.json").write_text(strict_json(summary))
@@ -454,7 +454,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     demo.add_argument("--out", default="handsim-demo", help="output folder (default: %(default)s)")
     demo.add_argument(
-        "--size", type=positive_int, default=200, help="tile size in pixels (default: 200)"
+        "--size",
+        # Each tile is rendered at this size; gestures.png holds 6 x 9 of them.
+        type=integer(32, 1024),
+        default=200,
+        help="tile size in pixels, in [32, 1024] (default: 200)",
     )
     demo.add_argument(
         "--closed-loop-episodes",
@@ -482,7 +486,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=200,
         help="frames of the occlusion-heavy dataset it generates; 0 skips it (default: 200)",
     )
-    demo.add_argument(
-        "-q", "--quiet", action="store_true", help="no progress bars (they go to stderr)"
-    )
+    add_quiet(demo)
     demo.set_defaults(func=_run)

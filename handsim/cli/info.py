@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from handsim.cli._args import add_quiet
+
 __all__ = ["add_parser", "collect_info"]
 
 
@@ -122,4 +124,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "hand's size presets and joint limits.",
     )
     info.add_argument("--json", action="store_true", help="print strict JSON instead of text")
+    add_quiet(info, "accepted by every command; info shows no progress bars")
     info.set_defaults(func=_run)

@@ -12,20 +12,31 @@ import argparse
 import sys
 from pathlib import Path
 
-from handsim.cli._args import non_negative_int, positive_int, strict_json
+from handsim.cli._args import (
+    add_quiet,
+    choice_help,
+    integer,
+    non_negative_int,
+    number,
+    positive_int,
+    seed,
+    strict_json,
+)
 from handsim.errors import HandSimError
 
 __all__ = ["add_parser"]
 
+# Crop side: the networks halve it five times; 512 is four times DeepPrior's 128.
+_crop_side = integer(32, 512, "a multiple of 32; the networks halve the crop five times")
 
-def _positive_float(value: str) -> float:
-    try:
-        v = float(value)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0; received {value!r}") from None
-    if not v > 0 or v != v or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0; received {value!r}")
-    return v
+
+def _crop_size(value: str) -> int:
+    size = _crop_side(value)
+    if size % 32:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer in [32, 512] that is a multiple of 32; received {value!r}"
+        )
+    return size
 
 
 def _check_device(device: str) -> None:
@@ -100,19 +111,32 @@ def _train(args: argparse.Namespace) -> int:
 def _evaluate(args: argparse.Namespace) -> int:
     from handsim.estimators.deepprior.evaluate import evaluate
 
+    # An option of the other frame source would be silently ignored: refuse it.
+    env_options = {"--env-episodes": args.env_episodes, "--every": args.every, "--seed": args.seed}
+    if args.env is not None and args.split is not None:
+        args.parser.error("argument --split: not allowed with argument --env (it splits --data)")
+    if args.data is not None:
+        for option, value in env_options.items():
+            if value is not None:
+                args.parser.error(
+                    f"argument {option}: not allowed with argument --data (it applies to --env)"
+                )
     _check_device(args.device)
     data = args.data
     if args.env is not None:
         from handsim.estimators.deepprior.data import env_frames
 
-        data = env_frames(args.env, episodes=args.env_episodes, every=args.every, seed=args.seed)
-    elif not data:
-        raise HandSimError("handsim evaluate needs --data DIR ... or --env ID")
+        data = env_frames(
+            args.env,
+            episodes=3 if args.env_episodes is None else args.env_episodes,
+            every=5 if args.every is None else args.every,
+            seed=0 if args.seed is None else args.seed,
+        )
     report = evaluate(
         args.estimator,
         data,
         args.out,
-        split=args.split,
+        split="test" if args.split is None else args.split,
         localizer=None if args.localizer == "none" else args.localizer,
         max_frames=args.max_frames,
         progress=not args.quiet,
@@ -130,6 +154,7 @@ def _evaluate(args: argparse.Namespace) -> int:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim train`` and ``handsim evaluate``."""
+    from handsim.envs import ENV_IDS
     from handsim.estimators.deepprior.train import KINDS
 
     tr = sub.add_parser(
@@ -144,11 +169,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--data", nargs="+", required=True, type=Path, metavar="DIR", help="dataset folders"
     )
     tr.add_argument("--out", required=True, type=Path, metavar="DIR", help="run folder")
-    tr.add_argument("--epochs", type=positive_int, default=20, help="epochs (default: 20)")
-    tr.add_argument("--batch-size", type=positive_int, default=64, help="batch (default: 64)")
-    tr.add_argument("--lr", type=_positive_float, default=1e-3, help="Adam lr (default: 1e-3)")
+    tr.add_argument("--epochs", type=integer(1, 100_000), default=20, help="epochs (default: 20)")
+    tr.add_argument("--batch-size", type=integer(1, 4096), default=64, help="batch (default: 64)")
     tr.add_argument(
-        "--weight-decay", type=float, default=1e-4, help="Adam weight decay (default: 1e-4)"
+        "--lr", type=number(0, 1, lo_open=True), default=1e-3, help="Adam lr (default: 1e-3)"
+    )
+    tr.add_argument(
+        "--weight-decay", type=number(0, 1), default=1e-4, help="Adam weight decay (default: 1e-4)"
     )
     tr.add_argument(
         "--arch",
@@ -158,25 +185,31 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     tr.add_argument(
         "--prior-dim",
-        type=non_negative_int,
+        type=integer(0, 63, "at most the 63 coordinates of 21 keypoints"),
         default=30,
         help="prior bottleneck dimension, 0 = direct regression (default: 30)",
     )
     tr.add_argument(
-        "--cube-mm", type=_positive_float, default=250.0, help="cube edge, mm (default: 250)"
+        "--cube-mm",
+        type=number(0, 1000, lo_open=True),
+        default=250.0,
+        help="cube edge, mm (default: 250)",
     )
     tr.add_argument(
-        "--size", type=positive_int, default=0, help="crop side, px (default: 128; localizer 64)"
+        "--size",
+        type=_crop_size,
+        default=0,
+        help="crop side, px, a multiple of 32 in [32, 512] (default: 128; localizer 64)",
     )
     tr.add_argument(
         "--fc",
-        type=positive_int,
+        type=integer(1, 8192),
         default=0,
         help="fully connected units (default: 1024; localizer 256)",
     )
     tr.add_argument(
         "--width",
-        type=_positive_float,
+        type=number(0, 8, lo_open=True),
         default=1.0,
         help="DeepPrior++ conv filter factor (default: 1 = 64/128/256/256)",
     )
@@ -191,7 +224,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     tr.add_argument(
         "--offset-sigma-mm",
-        type=float,
+        type=number(0, 500),
         default=None,
         help="centre offset sigma, mm (default: 5; localizer 20)",
     )
@@ -218,16 +251,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--val-every", type=positive_int, default=1, help="validate every N epochs (default: 1)"
     )
-    tr.add_argument("--seed", type=non_negative_int, default=0, help="seed (default: 0)")
+    tr.add_argument("--seed", type=seed, default=0, help="seed (default: 0)")
     tr.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
     )
     tr.add_argument(
-        "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
+        "--threads", type=integer(0, 1024), default=0, help="torch CPU threads (default: torch's)"
     )
     tr.add_argument(
         "--loader-workers",
-        type=non_negative_int,
+        type=integer(0, 256),
         default=0,
         metavar="N",
         help="processes that crop and augment (default: 0, in the training process; e.g. the "
@@ -238,7 +271,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="with --device cuda: bfloat16 mixed precision for the forward pass",
     )
-    tr.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_quiet(tr)
     tr.set_defaults(func=_train)
 
     ev = sub.add_parser(
@@ -254,29 +287,30 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="CKPT|deepprior|deepprior++",
         help="shipped weights by name, a checkpoint NAME.pt or a run folder",
     )
-    ev.add_argument("--data", nargs="+", type=Path, metavar="DIR", help="dataset folders")
-    ev.add_argument(
+    # Frames come from datasets or from an env, never both: one of the two is required.
+    source = ev.add_mutually_exclusive_group(required=True)
+    source.add_argument("--data", nargs="+", type=Path, metavar="DIR", help="dataset folders")
+    source.add_argument(
         "--env",
         default=None,
+        choices=ENV_IDS,
         metavar="ID",
-        help="instead of --data: frames of this env's scripted expert, e.g. handsim/Grasp-v0 "
-        "(hand-object frames with the table in view)",
+        help=choice_help(
+            "instead of --data: frames of this env's scripted expert (e.g. handsim/Grasp-v0: "
+            "hand-object frames with the table in view)",
+            ENV_IDS,
+        ),
     )
+    ev.add_argument("--env-episodes", type=positive_int, help="with --env: episodes (default: 3)")
     ev.add_argument(
-        "--env-episodes", type=positive_int, default=3, help="episodes of --env (default: 3)"
+        "--every", type=positive_int, help="with --env: keep every N-th step (default: 5)"
     )
-    ev.add_argument(
-        "--every", type=positive_int, default=5, help="keep every N-th step of --env (default: 5)"
-    )
-    ev.add_argument(
-        "--seed", type=non_negative_int, default=0, help="first seed of --env (default: 0)"
-    )
+    ev.add_argument("--seed", type=seed, help="with --env: first seed (default: 0)")
     ev.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
     ev.add_argument(
         "--split",
         choices=("train", "val", "test", "all"),
-        default="test",
-        help="split (default: test)",
+        help="with --data: the split (default: test)",
     )
     ev.add_argument(
         "--localizer",
@@ -291,10 +325,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="evaluate at most this many frames (default: all)",
     )
     ev.add_argument(
-        "--threads", type=non_negative_int, default=0, help="torch CPU threads (default: torch's)"
+        "--threads", type=integer(0, 1024), default=0, help="torch CPU threads (default: torch's)"
     )
     ev.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
     )
-    ev.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    ev.set_defaults(func=_evaluate)
+    add_quiet(ev)
+    ev.set_defaults(func=_evaluate, parser=ev)

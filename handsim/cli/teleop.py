@@ -21,12 +21,17 @@ from pathlib import Path
 from typing import Any
 
 from handsim.cli._args import (
+    add_quiet,
     choice_help,
+    integer,
     non_negative_float,
-    non_negative_int,
+    number,
+    port,
+    positive_float,
     positive_int,
     probability,
     progress_bar,
+    seed,
     strict_json,
 )
 
@@ -39,6 +44,10 @@ _FILTERS = ("none", "one_euro", "ema")
 _ANCHORS = ("none", "start")
 _SENSORS = ("none", "structured_light", "tof")
 _DROPOUT_MODES = ("hold", "extrapolate")
+
+
+# Delays in frames: the range FaultConfig accepts.
+_frames = integer(0, 10_000, "frames of delay")
 
 
 def _task(text: str) -> str:
@@ -111,7 +120,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         )
         p.add_argument(
             "--latency",
-            type=non_negative_int,
+            type=_frames,
             default=0,
             help="latency, frames at the control rate (default: 0)",
         )
@@ -129,7 +138,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         )
     p.add_argument(
         "--bias-mm",
-        type=float,
+        type=number(),
         nargs=3,
         default=(0.0, 0.0, 0.0),
         metavar=("X", "Y", "Z"),
@@ -143,7 +152,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--jitter",
-        type=non_negative_int,
+        type=_frames,
         default=0,
         help="largest extra random delay per frame, frames (default: 0)",
     )
@@ -155,7 +164,8 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--min-cutoff-hz",
-        type=non_negative_float,
+        # 0 Hz would freeze the filtered stream at its first sample.
+        type=positive_float,
         default=1.0,
         help="One Euro filter: cutoff at rest, Hz (default: 1.0)",
     )
@@ -167,16 +177,18 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--alpha",
-        type=probability,
+        # 0 would keep the first sample forever.
+        type=number(0, 1, lo_open=True),
         default=0.5,
         help="ema filter: weight of the new sample, (0, 1] (default: 0.5)",
     )
     p.add_argument(
         "--seed",
-        type=non_negative_int,
+        type=seed,
         default=0,
         help="episode seed (the scene) and fault seed (default: 0)",
     )
+    add_quiet(p)
 
 
 def _faults(args: argparse.Namespace, **levels: Any) -> Any:
@@ -395,10 +407,10 @@ def _serve(args: argparse.Namespace) -> int:
 
 def _port_group(p: argparse.ArgumentParser, required: bool = True) -> None:
     group = p.add_mutually_exclusive_group(required=required)
-    group.add_argument("--udp", type=non_negative_int, metavar="PORT", help="UDP port")
+    group.add_argument("--udp", type=port, metavar="PORT", help="UDP port, 1 to 65535")
     group.add_argument(
         "--websocket",
-        type=non_negative_int,
+        type=port,
         metavar="PORT",
         help="WebSocket port (needs handsim[teleop])",
     )
@@ -494,7 +506,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--latency",
-        type=_list(non_negative_int, "--latency"),
+        type=_list(_frames, "--latency"),
         default=[0, 3],
         help="latencies, frames, comma-separated (default: 0,3)",
     )
@@ -514,7 +526,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--episodes", type=positive_int, default=2, help="episodes per grid point (default: 2)"
     )
     p.add_argument("--out", default="teleop_sweep", help="output folder (default: teleop_sweep)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
     p.set_defaults(func=_sweep)
 
     p = cmds.add_parser(
@@ -530,7 +542,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default="handsim/Grasp-v0",
         help="grasp, press or a registered id (default: grasp)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0, help="episode seed (default: 0)")
+    p.add_argument("--seed", type=seed, default=0, help="episode seed (default: 0)")
+    add_quiet(p, "accepted by every command; generate shows no progress bars")
     p.set_defaults(func=_generate)
 
     p = cmds.add_parser(
@@ -541,8 +554,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("file", type=Path, help="stream file (.json or .npz)")
     _port_group(p)
     p.add_argument(
-        "--speed", type=non_negative_float, default=1.0, help="playback speed factor (default: 1)"
+        "--speed", type=positive_float, default=1.0, help="playback speed factor, > 0 (default: 1)"
     )
+    add_quiet(p, "accepted by every command; send shows no progress bars")
     p.set_defaults(func=_send)
 
     p = cmds.add_parser(
@@ -553,12 +567,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "WebSocket of 'handsim teleop live --websocket PORT' (run it "
         "beside); without a headset it replays a recorded file.",
     )
-    p.add_argument(
-        "--port", type=non_negative_int, default=8000, help="HTTP port of the page (default: 8000)"
-    )
+    p.add_argument("--port", type=port, default=8000, help="HTTP port of the page (default: 8000)")
     p.add_argument(
         "--websocket",
-        type=non_negative_int,
+        type=port,
         default=8765,
         help="WebSocket port the page streams to (default: 8765)",
     )
@@ -583,4 +595,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--out", default=None, help="write the received packets as a stream file (.json or .npz)"
     )
+    add_quiet(p, "accepted by every command; serve shows no progress bars")
     p.set_defaults(func=_serve)

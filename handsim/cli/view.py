@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from handsim.cli._args import positive_int, progress_bar
+from handsim.cli._args import add_quiet, number, positive_int, progress_bar
 
 __all__ = ["add_parser"]
 
@@ -51,9 +51,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--fps",
-        type=float,
+        type=number(0, 240, lo_open=True),
         default=None,
-        help="frames per second (default: the control rate / --every)",
+        help="frames per second, in (0, 240] (default: the control rate / --every)",
     )
     p.add_argument(
         "--rerun",
@@ -63,5 +63,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="instead, log the 3D keypoints to a rerun recording (needs the "
         "optional rerun-sdk: pip install 'handsim[rerun]')",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_quiet(p)
     p.set_defaults(func=_run)

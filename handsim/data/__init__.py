@@ -6,7 +6,12 @@ module                   holds
 :mod:`.arrays`           :func:`frame_to_arrays`: a Frame's labels as fixed-shape arrays and back
 :mod:`.shards`           shards: :class:`ShardWriter`, :class:`ShardReader`, :func:`check_shard`
 :mod:`.manifest`         :class:`Manifest` (``manifest.json``) and :func:`check_dataset`
-:mod:`.generation`       :class:`GenerationConfig`, :data:`PRESETS`, :func:`generate` (resumable)
+:mod:`.config`           :class:`GenerationConfig`, :data:`PRESETS`, the frame sources by name
+:mod:`.kinematic`        :class:`KinematicSource`: posed hands among objects, no physics
+:mod:`.generation`       :func:`generate`: seeded, resumable shards in worker processes or Ray
+:mod:`.views`            how a hand alone is turned toward the camera, per viewpoint
+:mod:`.stats`            palm angles, pose/view mixes, the constant-mean-pose error of a dataset
+:mod:`.splits`           train / val / test by episode (val, test: 10 % of the frames each)
 :mod:`.torch_dataset`    :class:`HandSimDataset`: a map-style torch dataset (torch imported lazily)
 :mod:`.export`           :func:`export_hand_labels` (JSON lines + depth PNG), :func:`export_bop`
 =======================  ==========================================================================

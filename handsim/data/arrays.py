@@ -21,17 +21,18 @@ key                          shape       dtype    unit    meaning
 ``keypoints_px``             (21, 2)     float64  px      ``(u, v)``; NaN behind the camera
 ``in_frame``                 (21,)       bool             in front of the camera and in the image
 ``visible``                  (21,)       bool             visibility (:mod:`handsim.frame`)
+``visible_sensor``           (21,)       bool             visible, and the sensor's depth agrees
 ``occluder``                 (21,)       int32            -1 none, -2 self, -3 scene, k object k
 ``hand_pose``                (27,)       float64  m, rad  27-DoF pose, world frame
 ``hand_length_m``            ()          float64  m       wrist crease to middle fingertip
 ``is_left``                  ()          bool             left hand
-``hand_occlusion_ratio``     ()          float64          -1 unless it was computed
+``hand_occlusion_ratio``     ()          float64          hand without forearm; -1 if not computed
 ``object_valid``             (N,)        bool             slot holds an object
 ``object_ycbv_id``           (N,)        int16            YCB-Video id, -1 imported or empty
 ``object_T_cam_from_obj``    (N, 4, 4)   float64  m       object pose, camera frame
 ``object_corners_cam``       (N, 8, 3)   float64  m       box corners, camera frame
 ``object_visib_fract``       (N,)        float64          BOP visible fraction
-``object_px_count_all``      (N,)        int32    px      silhouette pixels of the object alone
+``object_px_count_all``      (N,)        int32    px      whole silhouette of the object alone (BOP)
 ``object_px_count_visib``    (N,)        int32    px      pixels where the full render sees it
 ``contact_count``            ()          int16            used contact slots
 ``contact_hand_part``        (C,)        int8             segmentation label of the hand part
@@ -41,8 +42,23 @@ key                          shape       dtype    unit    meaning
 ===========================  ==========  =======  ======  ======================================
 
 ``N`` = :data:`MAX_OBJECTS`, ``C`` = :data:`MAX_CONTACTS`. Object slot ``k`` is object instance
-``k`` (segmentation label ``8 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
+``k`` (segmentation label ``10 + k``). With ``images=True``: ``depth`` (H, W) float32 metres
 (0 = no measurement), ``segmentation`` (H, W) int16 and, when the frame has it, ``depth_clean``.
+
+Dataset shards add how each frame was drawn (:data:`DRAW_LABEL_SCHEMA`; not in env ``info``,
+which has no such draw). A source that does not set them (rollouts), and shards written before
+they existed, read -1:
+
+===========================  ==========  =======  ======  ======================================
+key                          shape       dtype    unit    meaning
+===========================  ==========  =======  ======  ======================================
+``pose_source``              ()          int8             index in :data:`POSE_SOURCE_CODES`
+``viewpoint``                ()          int8             index in :data:`VIEWPOINT_CODES`
+===========================  ==========  =======  ======  ======================================
+
+Labels added after data was first written (:data:`ADDED_LABELS`) are filled when data that
+predates them is read (:func:`fill_added_labels`): ``visible_sensor`` becomes a copy of
+``visible``, which is what ``visible`` meant then (decided on the clean render only).
 """
 
 from __future__ import annotations
@@ -62,11 +78,16 @@ __all__ = [
     "MAX_OBJECTS",
     "MAX_CONTACTS",
     "LABEL_SCHEMA",
+    "POSE_SOURCE_CODES",
+    "VIEWPOINT_CODES",
+    "DRAW_LABEL_SCHEMA",
     "InvalidLabelArrays",
     "frame_to_arrays",
     "arrays_to_frame",
     "empty_label_arrays",
     "check_label_arrays",
+    "ADDED_LABELS",
+    "fill_added_labels",
 ]
 
 MAX_OBJECTS = 8
@@ -84,6 +105,7 @@ LABEL_SCHEMA: dict[str, tuple[tuple[int, ...], np.dtype, str]] = {
     "keypoints_px": ((21, 2), np.dtype(np.float64), "px"),
     "in_frame": ((21,), np.dtype(bool), ""),
     "visible": ((21,), np.dtype(bool), ""),
+    "visible_sensor": ((21,), np.dtype(bool), ""),
     "occluder": ((21,), np.dtype(np.int32), ""),
     "hand_pose": ((27,), np.dtype(np.float64), "m, rad"),
     "hand_length_m": ((), np.dtype(np.float64), "m"),
@@ -103,6 +125,31 @@ LABEL_SCHEMA: dict[str, tuple[tuple[int, ...], np.dtype, str]] = {
     "contact_normal_force_n": ((_C,), np.dtype(np.float64), "N"),
 }
 """Label key -> (shape, dtype, unit) of the array form (table in the module docstring)."""
+
+
+POSE_SOURCE_CODES = ("gesture", "grasp", "synergy", "uniform", "motion")
+"""Pose source names by their code in the ``pose_source`` label (codes never change)."""
+VIEWPOINT_CODES = ("third_person", "egocentric", "random", "through_object")
+"""Viewpoint names by their code in the ``viewpoint`` label (codes never change)."""
+DRAW_LABEL_SCHEMA: dict[str, tuple[tuple[int, ...], np.dtype, str]] = {
+    "pose_source": ((), np.dtype(np.int8), ""),
+    "viewpoint": ((), np.dtype(np.int8), ""),
+}
+"""Shard label key -> (shape, dtype, unit) of how a frame was drawn; -1 when unknown."""
+
+ADDED_LABELS: dict[str, str] = {"visible_sensor": "visible"}
+"""Labels added to the schema later -> the label whose values fill them in older data."""
+
+
+def fill_added_labels(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Add, in place, the :data:`ADDED_LABELS` that ``arrays`` (older data) lacks; returns it.
+
+    Works on one frame's arrays and on ``(N, ...)`` stacks alike.
+    """
+    for key, source in ADDED_LABELS.items():
+        if key not in arrays and source in arrays:
+            arrays[key] = np.array(arrays[source], dtype=LABEL_SCHEMA[key][1])
+    return arrays
 
 
 class InvalidLabelArrays(HandSimError, ValueError):
@@ -165,6 +212,10 @@ def frame_to_arrays(frame: Frame, *, images: bool = False) -> dict[str, np.ndarr
     out["keypoints_px"][:] = frame.keypoints_px
     out["in_frame"][:] = frame.in_frame
     out["visible"][:] = frame.visible
+    # A Frame read from older data has no sensor visibility: its visible is that meaning.
+    out["visible_sensor"][:] = (
+        frame.visible if frame.visible_sensor is None else frame.visible_sensor
+    )
     out["occluder"][:] = frame.occluder
     out["hand_pose"][:] = frame.hand_pose.vector
     out["hand_length_m"][()] = frame.hand_length_m
@@ -244,6 +295,7 @@ def arrays_to_frame(
     from handsim.frame import Contact, Frame, ObjectLabel, _read_only
     from handsim.world.registry import OBJECTS
 
+    arrays = fill_added_labels(dict(arrays))
     check_label_arrays(arrays)
     if not bool(arrays["valid"]):
         raise InvalidLabelArrays("these label arrays are the fill of an invalid (diverged) step")
@@ -287,6 +339,7 @@ def arrays_to_frame(
         keypoints_px=_read_only(arrays["keypoints_px"]),
         in_frame=_read_only(arrays["in_frame"]),
         visible=_read_only(arrays["visible"]),
+        visible_sensor=_read_only(arrays["visible_sensor"]),
         occluder=_read_only(arrays["occluder"]),
         hand_pose=HandPose.from_vector(np.asarray(arrays["hand_pose"])),
         hand_length_m=float(arrays["hand_length_m"]),

@@ -11,6 +11,7 @@ import dataclasses
 import importlib
 import json
 import os
+import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
@@ -21,12 +22,18 @@ from handsim.data.shards import DEFAULT_DEPTH_SCALE_MM
 from handsim.errors import HandSimError
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
+from handsim.world.scene import BACKGROUNDS
 
 __all__ = [
     "POSE_SOURCES",
+    "DEFAULT_POSE_SOURCES",
     "VIEWPOINTS",
+    "DEFAULT_VIEWPOINTS",
+    "MOTION_FRAME_PERIOD_S",
     "SENSORS",
+    "BACKGROUNDS",
     "PRESETS",
+    "OCCLUDING_OBJECTS",
     "MAX_PENETRATION_M",
     "MAX_TRIES_PER_FRAME",
     "MAX_EMPTY_EPISODES",
@@ -38,14 +45,26 @@ __all__ = [
     "make_source",
     "InvalidGenerationConfig",
     "GenerationError",
+    "CannotDraw",
+    "REDRAW_REASONS",
     "GenerationConfig",
 ]
 
-POSE_SOURCES = ("gesture", "grasp", "synergy", "uniform")
-"""Pose sources of the kinematic source (:mod:`handsim.hand.pose_sources`)."""
+POSE_SOURCES = ("gesture", "grasp", "synergy", "motion", "uniform")
+"""Pose sources of the kinematic source (:mod:`handsim.hand.pose_sources`): named gestures,
+the grasp taxonomy, postural synergies, smooth motions through gestures, grasps and synergy
+postures, or uniform joint angles (for robustness studies)."""
+DEFAULT_POSE_SOURCES = ("gesture", "grasp", "synergy", "motion")
+"""The poses people make: every pose source but ``uniform``."""
 VIEWPOINTS = ("third_person", "egocentric", "random", "through_object")
-"""Camera placements: across the table, head-mounted, a random sphere around the hand, or
-behind an object looking at the hand (the object is between camera and hand)."""
+"""Camera placements: in front of the person (a hand alone: palm or back toward the camera,
+:mod:`handsim.data.views`), head-mounted (from behind and above the hand), random (a hand
+alone: a uniform rotation; among objects: a random direction above the hand), or behind an
+object looking at the hand (the object is between camera and hand)."""
+DEFAULT_VIEWPOINTS = ("third_person", "egocentric")
+"""The views people and their sensors have: ``random`` and ``through_object`` on request."""
+MOTION_FRAME_PERIOD_S = 0.1
+"""Pose source ``motion``: the frames of an episode sample its motion every this many s."""
 SENSORS = ("none", "structured_light", "tof")
 """Depth sensor models."""
 MAX_PENETRATION_M = 0.004
@@ -70,6 +89,42 @@ class GenerationError(HandSimError, RuntimeError):
     """Generation cannot go on (e.g. an occlusion range no frame reaches)."""
 
 
+REDRAW_REASONS = ("placement", "grasp", "frame")
+"""Causes of a redrawn episode that the built-in sources give (:class:`CannotDraw`):
+``"placement"``: the episode's objects do not fit on the table; ``"grasp"``: no feasible grasp
+of the episode's object; ``"frame"``: :data:`MAX_TRIES_PER_FRAME` draws of pose, wrist and view
+gave no accepted frame (the episode's hand and objects cannot reach what is asked). A source
+may give others (lowercase identifiers)."""
+_REASON = re.compile(r"[a-z][a-z0-9_]{0,39}")
+
+
+class CannotDraw(HandSimError, RuntimeError):
+    """An episode's draws cannot be satisfied: the episode is redrawn, not the run failed.
+
+    A source's :meth:`FrameSource.episode` raises it (before or after yielding frames) when
+    what it drew from the episode's generator cannot give a frame: objects that do not fit on
+    the table, a grasp that cannot be made, views that are never accepted. The shard keeps the
+    frames already yielded, counts the redraw under ``reason`` (the manifest's ``redraws``)
+    and draws the next episode from the same generator, so the shard stays a function of
+    ``(seed, index)``. Only :data:`MAX_EMPTY_EPISODES` frameless episodes in a row stop the
+    run (a :class:`GenerationError`: the config cannot give a frame).
+
+    Args:
+        reason: the cause, a lowercase identifier (:data:`REDRAW_REASONS` for the built-in
+            sources).
+        message: what could not be drawn, for the error raised if nothing can be.
+    """
+
+    def __init__(self, reason: str, message: str) -> None:
+        if not isinstance(reason, str) or not _REASON.fullmatch(reason):
+            raise GenerationError(
+                "CannotDraw reason must be a lowercase identifier of at most 40 characters, "
+                f"e.g. one of {', '.join(REDRAW_REASONS)}; received {reason!r}"
+            )
+        super().__init__(message)
+        self.reason = reason
+
+
 SOURCES: dict[str, str] = {
     "kinematic": "handsim.data.kinematic:KinematicSource",
     "rollout": "handsim.envs.rollouts:RolloutSource",
@@ -83,10 +138,10 @@ Add one with :func:`register_source`."""
 class FrameSource(Protocol):
     """What :func:`generate_shard` needs of a frame source.
 
-    A source is made per shard from the config (``cls(config)``) and closed after it. A source
-    may count what it could not draw in a ``skipped`` mapping (reason -> count, counted on
-    over the source's life): each shard's increase is recorded in the manifest
-    (:attr:`ShardInfo.skipped <handsim.data.shards.ShardInfo.skipped>`).
+    A source is made per shard from the config (``cls(config)``) and closed after it. Its
+    :meth:`episode` draws everything from the generator it is given; when those draws cannot
+    be satisfied it raises :class:`CannotDraw` and the shard draws the next episode from the
+    same generator (counted by reason in the manifest), so no draw ever fails a run.
     """
 
     intrinsics: CameraIntrinsics
@@ -96,9 +151,21 @@ class FrameSource(Protocol):
         """Raise :class:`InvalidGenerationConfig` for a field this source cannot honour."""
 
     def episode(
-        self, rng: np.random.Generator, accept: Callable[[float], bool], frames: int
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
-        """Yield the arrays (images included) of up to ``frames`` accepted frames."""
+        """Yield the arrays (images included) of up to ``frames`` accepted frames.
+
+        Args:
+            rng: the episode's generator (every draw of the episode comes from it).
+            accept: called with a candidate frame's hand occlusion ratio and its number of
+                visible keypoints (``visible.sum()``); False refuses the frame (occlusion
+                control and the visible-keypoint cap). True counts the frame as kept: yield it.
+            frames: most frames to yield.
+
+        Raises:
+            CannotDraw: when the episode's draws cannot give (more) frames; frames already
+                yielded are kept.
+        """
 
     def close(self) -> None:
         """Free what the source holds (renderers, envs)."""
@@ -163,6 +230,16 @@ def _int(name: str, value: object, lo: int, hi: int) -> int:
     return int(value)
 
 
+def _fraction(name: str, value: object) -> float:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not 0.0 <= value <= 1.0
+    ):
+        raise InvalidGenerationConfig(f"{name} must be a number in [0, 1]; received {value!r}")
+    return float(value)
+
+
 def _choice(name: str, value: object, valid: Sequence[str]) -> str:
     if value not in valid:
         raise InvalidGenerationConfig(
@@ -181,8 +258,9 @@ class GenerationConfig:
         frames_per_episode: frames drawn per episode (one hand and one object set).
         seed: base seed; shard ``i`` uses ``default_rng([seed, i])``.
         camera: camera preset (intrinsics), e.g. ``"icvl"`` (320 x 240).
-        viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`).
-        distance_range_m: camera distance from the hand, metres (random and through-object);
+        viewpoints: camera placements drawn per frame (:data:`VIEWPOINTS`); ``random`` gives
+            a hand alone a uniform rotation (robustness studies).
+        distance_range_m: camera distance from the hand, metres;
             the camera moves back along its line of sight when the hand or an object would be
             nearer than the camera's or the sensor's working range (a hole in the depth).
         sensor: depth sensor model (:data:`SENSORS`).
@@ -191,10 +269,15 @@ class GenerationConfig:
         left_fraction: fraction of left hands.
         objects: object names drawn from (canonical or short names).
         num_objects_range: objects per episode (0 for hand-only data).
-        pose_sources: pose sources drawn per episode (:data:`POSE_SOURCES`).
+        pose_sources: pose sources drawn per episode (:data:`POSE_SOURCES`); ``uniform``
+            (uniform joint angles) only on request.
         occlusion_range: keep frames whose hand occlusion ratio lies in this range.
         occlusion_buckets: ``(edges, fractions)``: bucket edges of the occlusion ratio and the
             fraction of every shard each bucket must fill (``None``: no stratification).
+        min_visible_keypoints: a frame with fewer visible keypoints (of 21, ``visible`` of the
+            clean render) is *below the minimum*; see the next field.
+        max_fraction_below_min_visible: most frames of every shard below the minimum
+            (``floor(fraction * shard frames)``); others are redrawn. 1 keeps every frame.
         depth_scale_mm: stored depth unit, millimetres.
         source: where frames come from (:data:`SOURCES`): ``"kinematic"`` (posed hands, no
             physics), ``"grasp"`` (posed hands closed onto an object by the grasp planner's
@@ -203,6 +286,13 @@ class GenerationConfig:
         env_id: the env of the rollout source (``handsim/Grasp-v0``,
             ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
         frame_stride: rollout source: env steps between kept frames (1 = every step).
+        background: kinematic source: what stands beyond the hand and the table
+            (:data:`BACKGROUNDS`): ``"none"`` (default: no depth there), ``"wall"``,
+            ``"torso"`` (the person's torso and head, a wall behind) or ``"clutter"``
+            (furniture, a wall behind). Placed per frame behind
+            everything the camera sees of the hand (forearm included) and the objects; its
+            pixels carry the segmentation label ``"backdrop"``. The rollout source renders its
+            env's scene, which has none.
         approach_fraction: grasp source: fraction of frames drawn along the approach to the
             grasp (the open hand, not yet in contact) instead of at the grasp.
     """
@@ -212,7 +302,7 @@ class GenerationConfig:
     frames_per_episode: int = 25
     seed: int = 0
     camera: str = "icvl"
-    viewpoints: tuple[str, ...] = ("third_person", "egocentric", "random")
+    viewpoints: tuple[str, ...] = DEFAULT_VIEWPOINTS
     distance_range_m: tuple[float, float] = (0.35, 0.7)
     sensor: str = "structured_light"
     paired_clean: bool = False
@@ -220,13 +310,16 @@ class GenerationConfig:
     left_fraction: float = 0.5
     objects: tuple[str, ...] = OBJECT_NAMES
     num_objects_range: tuple[int, int] = (1, 3)
-    pose_sources: tuple[str, ...] = POSE_SOURCES
+    pose_sources: tuple[str, ...] = DEFAULT_POSE_SOURCES
     occlusion_range: tuple[float, float] = (0.0, 1.0)
     occlusion_buckets: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    min_visible_keypoints: int = 1
+    max_fraction_below_min_visible: float = 1.0
     depth_scale_mm: float = DEFAULT_DEPTH_SCALE_MM
     source: str = "kinematic"
     env_id: str | None = None
     frame_stride: int = 1
+    background: str = "none"
     approach_fraction: float = 0.0
 
     def __post_init__(self) -> None:
@@ -265,6 +358,7 @@ class GenerationConfig:
         self._tuple_of("viewpoints", VIEWPOINTS)
         _pair("distance_range_m", self.distance_range_m, 0.15, 3.0)
         _choice("sensor", self.sensor, SENSORS)
+        _choice("background", self.background, BACKGROUNDS)
         if not isinstance(self.paired_clean, bool):
             raise InvalidGenerationConfig(
                 f"paired_clean must be true or false; received {self.paired_clean!r}"
@@ -300,6 +394,8 @@ class GenerationConfig:
                 raise InvalidGenerationConfig(
                     f"occlusion_buckets fractions must be >= 0 and sum to 1; received {fractions}"
                 )
+        _int("min_visible_keypoints", self.min_visible_keypoints, 0, 21)
+        _fraction("max_fraction_below_min_visible", self.max_fraction_below_min_visible)
         if self.source != "kinematic":
             # The source checks its own fields (e.g. the env id and the viewpoints it has).
             _source_class(self.source).check_config(self)
@@ -403,8 +499,27 @@ class GenerationConfig:
         return cls.from_mapping(values, **overrides)
 
 
+OCCLUDING_OBJECTS: tuple[str, ...] = (
+    "002_master_chef_can",
+    "003_cracker_box",
+    "004_sugar_box",
+    "005_tomato_soup_can",
+    "006_mustard_bottle",
+    "010_potted_meat_can",
+    "019_pitcher_base",
+    "021_bleach_cleanser",
+    "024_bowl",
+    "025_mug",
+    "035_power_drill",
+    "036_wood_block",
+    "061_foam_brick",
+)
+"""The YCB-Video objects that can hide a hand from any side: every extent at least 5 cm, the
+extra-large clamp excepted (an open frame). Scissors, clamps, the marker, the banana and the
+flat boxes and can seen edge-on hide little."""
+
 PRESETS: dict[str, dict[str, Any]] = {
-    "hand-only": {"num_objects_range": (0, 0), "viewpoints": ("third_person", "random")},
+    "hand-only": {"num_objects_range": (0, 0)},
     "hand-object": {"source": "grasp", "num_objects_range": (1, 3)},
     "occlusion-heavy": {
         "source": "grasp",
@@ -412,6 +527,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "viewpoints": ("through_object",),
         "distance_range_m": (0.4, 0.7),
         "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
+        "min_visible_keypoints": 1,
+        "max_fraction_below_min_visible": 0.05,
     },
     "grasp-rollouts": {
         "source": "rollout",
@@ -421,9 +538,23 @@ PRESETS: dict[str, dict[str, Any]] = {
         "frames_per_episode": 60,
         "frame_stride": 5,
     },
+    "grasp-rollouts-occluded": {
+        "source": "rollout",
+        "env_id": "handsim/Grasp-v0",
+        "num_objects_range": (1, 1),
+        "objects": OCCLUDING_OBJECTS,
+        "viewpoints": ("through_object",),
+        "distance_range_m": (0.4, 0.7),
+        "frames_per_episode": 60,
+        "frame_stride": 5,
+        "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
+    },
 }
-"""Named configs: hand alone (kinematic), hand grasping one of the objects on the table, objects
-between camera and hand with the occlusion ratio stratified in four buckets from 0.1 to 0.95
-(both from the grasp planner's grasps, posed without physics), and Grasp-v0 rollouts
-of the grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical
-contact)."""
+"""Named configs: hand alone (third-person and egocentric views; kinematic), hand grasping one
+of the objects on the table, objects between camera and hand with the occlusion ratio
+stratified in four buckets from 0.1 to 0.95 and at most 5 % of frames without a visible
+keypoint (both from the grasp planner's grasps, posed without physics: the ``"grasp"``
+source), Grasp-v0 rollouts of the grasp expert, every fifth step (10 Hz) of the approach,
+grasp and lift (physical contact), and the same rollouts of :data:`OCCLUDING_OBJECTS` seen
+through the object (a view drawn per kept step) with the occlusion buckets of
+``occlusion-heavy``."""

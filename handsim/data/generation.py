@@ -15,8 +15,19 @@ Shards are made in this process, in spawned worker processes (``workers``) or as
 (``ray``), one shard per task, with the same result.
 
 Occlusion control: ``occlusion_range`` keeps frames whose hand occlusion ratio lies in the
-range; ``occlusion_buckets`` fills buckets of the ratio to fractions of every shard. Both
-redraw a frame until it is accepted (at most :data:`MAX_TRIES_PER_FRAME` draws).
+range; ``occlusion_buckets`` fills buckets of the ratio to fractions of every shard;
+``max_fraction_below_min_visible`` caps the frames of every shard with fewer than
+``min_visible_keypoints`` visible keypoints. All redraw a frame until it is accepted (at most
+:data:`MAX_TRIES_PER_FRAME` draws).
+
+Redraws: an episode whose draws cannot be satisfied (objects that do not fit on the table, a
+grasp that cannot be made, views never accepted) raises
+:class:`~handsim.data.config.CannotDraw` in its source; the shard keeps the frames it gave and
+draws the next episode from the same generator, so a shard is still a function of
+``(seed, index)`` and a resumed run is identical. Redraws are counted by cause per shard
+(``ShardInfo.redraws``) and summed in the manifest. Only :data:`MAX_EMPTY_EPISODES` frameless
+episodes in a row (:data:`MAX_EMPTY_EPISODES_STARTED` once the shard has frames) stop the run
+with a :class:`GenerationError`: then the config cannot give a frame.
 """
 
 from __future__ import annotations
@@ -34,17 +45,21 @@ from pathlib import Path
 
 import numpy as np
 
-from handsim.data.config import (
+# The config names are imported from here too (the module held them before the split).
+from handsim.data.config import (  # noqa: F401
     MAX_EMPTY_EPISODES,
     MAX_EMPTY_EPISODES_STARTED,
     MAX_PENETRATION_M,
     MAX_TRIES_PER_FRAME,
     MIN_KEYPOINTS_IN_FRAME,
+    OCCLUDING_OBJECTS,
     POSE_SOURCES,
     PRESETS,
+    REDRAW_REASONS,
     SENSORS,
     SOURCES,
     VIEWPOINTS,
+    CannotDraw,
     FrameSource,
     GenerationConfig,
     GenerationError,
@@ -53,37 +68,16 @@ from handsim.data.config import (
     make_source,
     register_source,
 )
-from handsim.data.kinematic import KinematicSource
+from handsim.data.kinematic import KinematicSource  # noqa: F401
 from handsim.data.manifest import InvalidManifest, Manifest
 from handsim.data.shards import PARTIAL_SUFFIX, ShardInfo, ShardWriter, check_shard
 from handsim.world.camera import camera_preset
 
-__all__ = [
-    "POSE_SOURCES",
-    "VIEWPOINTS",
-    "SENSORS",
-    "PRESETS",
-    "MAX_PENETRATION_M",
-    "MAX_TRIES_PER_FRAME",
-    "MAX_EMPTY_EPISODES",
-    "MAX_EMPTY_EPISODES_STARTED",
-    "MIN_KEYPOINTS_IN_FRAME",
-    "SOURCES",
-    "FrameSource",
-    "register_source",
-    "make_source",
-    "InvalidGenerationConfig",
-    "GenerationError",
-    "GenerationConfig",
-    "KinematicSource",
-    "generate",
-    "generate_shard",
-    "RAY_MAX_RETRIES",
-]
+__all__ = ["generate", "generate_shard", "close_kept_source", "RAY_MAX_RETRIES"]
 
 
 class _Acceptor:
-    """Occlusion control of one shard: the range, and bucket quotas when stratified."""
+    """Acceptance of one shard's frames: occlusion range, bucket quotas, visible-keypoint cap."""
 
     def __init__(self, config: GenerationConfig, frames: int) -> None:
         self.lo, self.hi = config.occlusion_range
@@ -93,6 +87,9 @@ class _Acceptor:
             quotas = np.floor(fractions * frames).astype(int)
             quotas[np.argsort(-(fractions * frames - quotas))[: frames - quotas.sum()]] += 1
             self.edges, self.left = edges, quotas
+        self.min_visible = config.min_visible_keypoints
+        # Frames below the minimum still allowed (the epsilon: 0.29 * 100 is 28.999...).
+        self.below_left = int(np.floor(config.max_fraction_below_min_visible * frames + 1e-9))
 
     def describe_left(self) -> str:
         """``"; frames still wanted per bucket: [lo, hi) n, ..."``, or nothing without buckets."""
@@ -105,17 +102,21 @@ class _Acceptor:
         ]
         return "; frames still wanted per bucket: " + ", ".join(left)
 
-    def __call__(self, ratio: float) -> bool:
+    def __call__(self, ratio: float, visible: int) -> bool:
+        below = visible < self.min_visible
+        if below and self.below_left <= 0:
+            return False
         if not self.lo <= ratio <= self.hi:
             return False
-        if self.edges is None:
-            return True
-        k = int(np.searchsorted(self.edges, ratio, side="right")) - 1
-        if ratio == self.edges[-1]:
-            k = len(self.left) - 1
-        if not 0 <= k < len(self.left) or self.left[k] <= 0:
-            return False
-        self.left[k] -= 1
+        if self.edges is not None:
+            k = int(np.searchsorted(self.edges, ratio, side="right")) - 1
+            if ratio == self.edges[-1]:
+                k = len(self.left) - 1
+            if not 0 <= k < len(self.left) or self.left[k] <= 0:
+                return False
+            self.left[k] -= 1
+        if below:
+            self.below_left -= 1
         return True
 
 
@@ -185,7 +186,6 @@ def generate_shard(
     rng = np.random.default_rng([config.seed, index])
     accept = _Acceptor(config, frames)
     path = folder / Manifest.shard_name(index)
-    skipped: dict[str, int] = {}
     with (
         _shard_source(config) as source,
         ShardWriter(
@@ -195,34 +195,42 @@ def generate_shard(
             paired_clean=config.paired_clean,
         ) as writer,
     ):
-        # What the source skipped before this shard (a kept source counts on across shards).
-        before = dict(getattr(source, "skipped", {}))
         done, episode, empty = 0, 0, 0
+        redraws: dict[str, int] = {}
         while done < frames:
             n = min(config.frames_per_episode, frames - done)
-            got = 0
-            for step, arrays in enumerate(source.episode(rng, accept, n)):
-                writer.append(arrays, episode=index * 1_000_000 + episode, step=step)
-                if on_frame is not None:
-                    on_frame()
-                got += 1
+            got, failed = 0, None
+            try:
+                for step, arrays in enumerate(source.episode(rng, accept, n)):
+                    writer.append(arrays, episode=index * 1_000_000 + episode, step=step)
+                    if on_frame is not None:
+                        on_frame()
+                    got += 1
+            except CannotDraw as err:
+                # Redrawn from the same generator: the shard stays a function of (seed, index).
+                failed = err
+                redraws[err.reason] = redraws.get(err.reason, 0) + 1
             done += got
             episode += 1
             empty = 0 if got else empty + 1
             limit = MAX_EMPTY_EPISODES_STARTED if done else MAX_EMPTY_EPISODES
-            if empty == limit:
+            if empty < limit:
+                continue
+            if failed is not None and failed.reason != "frame":
                 raise GenerationError(
-                    f"{limit} episodes in a row gave no accepted frame in "
-                    f"{MAX_TRIES_PER_FRAME} draws each ({done} of the shard's {frames} frames "
-                    f"made{accept.describe_left()}): the occlusion range "
-                    f"{config.occlusion_range} or buckets {config.occlusion_buckets} are out of "
-                    "reach of this config (add objects, use the 'through_object' viewpoint, or "
-                    "widen the range)"
+                    f"{limit} episodes in a row could not be drawn ({done} of the shard's "
+                    f"{frames} frames made); the last: {failed.reason}: {failed}"
                 )
-        after = getattr(source, "skipped", {})
-        skipped = {k: n - before.get(k, 0) for k, n in sorted(after.items())}
-        skipped = {k: n for k, n in skipped.items() if n > 0}
-    return dataclasses.replace(writer.info, skipped=skipped) if skipped else writer.info
+            raise GenerationError(
+                f"{limit} episodes in a row gave no accepted frame in "
+                f"{MAX_TRIES_PER_FRAME} draws each ({done} of the shard's {frames} frames "
+                f"made{accept.describe_left()}): the occlusion range "
+                f"{config.occlusion_range}, buckets {config.occlusion_buckets} or the cap of "
+                f"{config.max_fraction_below_min_visible:g} of frames with fewer than "
+                f"{config.min_visible_keypoints} visible keypoints are out of reach of this "
+                "config (add objects, use the 'through_object' viewpoint, or widen the range)"
+            )
+    return dataclasses.replace(writer.info, redraws=dict(sorted(redraws.items())))
 
 
 def _worker(args: tuple[dict, int, str]) -> tuple[int, ShardInfo]:

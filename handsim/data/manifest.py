@@ -2,9 +2,10 @@
 
 The manifest makes a dataset reproducible and resumable: the generation config, the versions
 of handsim, MuJoCo, NumPy and h5py, the git commit when the package runs from a checkout, the
-seed of every shard, each complete shard's frame count, size and SHA-256, the label schema
-with units, and the occlusion histogram. It is rewritten atomically (temporary file, then
-rename) after every completed shard, so it never lists a shard that does not exist.
+seed of every shard, each complete shard's frame count, size, SHA-256 and episodes redrawn by
+cause (summed as ``redraws``), the label schema with units, and the occlusion histogram. It is
+rewritten atomically (temporary file, then rename) after every completed shard, so it never
+lists a shard that does not exist.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from handsim.data.arrays import LABEL_SCHEMA
+from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
 from handsim.data.shards import PARTIAL_SUFFIX, SHARD_SUFFIX, ShardInfo, check_shard
 from handsim.errors import HandSimError
 
@@ -75,10 +76,14 @@ def git_commit() -> str | None:
 
 
 def label_schema_json() -> dict[str, dict[str, Any]]:
-    """:data:`~handsim.data.arrays.LABEL_SCHEMA` as JSON: key -> shape, dtype, unit."""
+    """The shards' labels as JSON: key -> shape, dtype, unit.
+
+    :data:`~handsim.data.arrays.LABEL_SCHEMA`, then
+    :data:`~handsim.data.arrays.DRAW_LABEL_SCHEMA`.
+    """
     return {
         key: {"shape": list(shape), "dtype": dtype.name, "unit": unit}
-        for key, (shape, dtype, unit) in LABEL_SCHEMA.items()
+        for key, (shape, dtype, unit) in {**LABEL_SCHEMA, **DRAW_LABEL_SCHEMA}.items()
     }
 
 
@@ -111,6 +116,15 @@ class Manifest:
         """Frames in the complete shards."""
         return sum(s.frames for s in self.shards.values())
 
+    @property
+    def redraws(self) -> dict[str, int]:
+        """Episodes redrawn in the complete shards, by cause (summed over their records)."""
+        total: dict[str, int] = {}
+        for record in self.shards.values():
+            for reason, n in record.redraws.items():
+                total[reason] = total.get(reason, 0) + n
+        return dict(sorted(total.items()))
+
     @staticmethod
     def shard_name(index: int) -> str:
         """File name of shard ``index``."""
@@ -126,6 +140,7 @@ class Manifest:
             "depth_scale_mm": self.depth_scale_mm,
             "image_shape": list(self.image_shape),
             "frames": self.frames,
+            "redraws": self.redraws,
             "seeds": list(self.seeds),
             "shards": [
                 {"index": i, **dataclasses.asdict(s)} for i, s in sorted(self.shards.items())
@@ -170,8 +185,7 @@ class Manifest:
                     frames=int(s["frames"]),
                     sha256=str(s["sha256"]),
                     bytes=int(s["bytes"]),
-                    # Datasets made before sources counted what they skipped have none.
-                    skipped={str(k): int(v) for k, v in s.get("skipped", {}).items()},
+                    redraws=_redraws(s.get("redraws", {})),
                 )
                 for s in doc["shards"]
             }
@@ -187,6 +201,16 @@ class Manifest:
             git_commit=doc.get("git_commit"),
             occlusion_histogram=doc.get("occlusion_histogram"),
         )
+
+
+def _redraws(value: Any) -> dict[str, int]:
+    """A shard record's redraw counts, checked (datasets made before them have none)."""
+    if not isinstance(value, dict) or not all(
+        isinstance(k, str) and isinstance(n, int) and not isinstance(n, bool) and n >= 0
+        for k, n in value.items()
+    ):
+        raise ValueError(f"redraws must map a cause to a count >= 0; received {value!r}")
+    return dict(value)
 
 
 def check_dataset(folder: str | os.PathLike[str]) -> dict[str, Any]:

@@ -10,11 +10,13 @@ dataset            shape               dtype     content
 =================  ==================  ========  ============================================
 ``depth``          (N, H, W)           uint16    depth in units of ``depth_scale_mm`` (0 = none)
 ``depth_clean``    (N, H, W)           uint16    noise-free depth, when paired depth is kept
-``segmentation``   (N, H, W)           uint8     segmentation labels (background 0, hand 2-7,
-                                                 objects 8+)
+``segmentation``   (N, H, W)           uint8     segmentation labels (background 0, hand 4-9,
+                                                 objects 10+)
 ``episode``        (N,)                int64     episode index of the frame
 ``step``           (N,)                int64     step index within the episode
 ``labels/<key>``   (N, ...)            schema    each label of the array form (``LABEL_SCHEMA``)
+                                                 and how the frame was drawn
+                                                 (``DRAW_LABEL_SCHEMA``; -1 if not given)
 =================  ==================  ========  ============================================
 
 Depth is stored as ``round(depth_m * 1000 / depth_scale_mm)`` (BOP's convention; the default
@@ -35,7 +37,13 @@ import numpy as np
 from isal import isal_zlib
 
 from handsim.data import _kernels
-from handsim.data.arrays import LABEL_SCHEMA, check_label_arrays
+from handsim.data.arrays import (
+    ADDED_LABELS,
+    DRAW_LABEL_SCHEMA,
+    LABEL_SCHEMA,
+    check_label_arrays,
+    fill_added_labels,
+)
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -71,6 +79,8 @@ _IMAGE_COMPRESSION = {"compression": "gzip", "compression_opts": 1}
 _IMAGE_DEFLATE_LEVEL = 1
 _LABEL_COMPRESSION = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
 _LABEL_CHUNK = 64  # frames per label chunk
+# Every label a shard stores: the array form, then how the frame was drawn.
+_SHARD_LABELS = {**LABEL_SCHEMA, **DRAW_LABEL_SCHEMA}
 
 
 def depth_units(
@@ -107,15 +117,16 @@ class ShardInfo:
         frames: number of frames.
         sha256: hex SHA-256 of the file.
         bytes: file size, bytes.
-        skipped: what the frame source could not draw while making the shard, counted by
-            reason (e.g. ``{"no grasp: 035_power_drill": 2}``); empty when nothing was skipped.
+        redraws: episodes redrawn while making the shard, by cause (see
+            :class:`~handsim.data.config.CannotDraw`); empty when none were (or for a
+            dataset made before they were counted).
     """
 
     name: str
     frames: int
     sha256: str
     bytes: int
-    skipped: dict[str, int] = dataclasses.field(default_factory=dict)
+    redraws: dict[str, int] = dataclasses.field(default_factory=dict)
 
 
 def file_sha256(path: str | os.PathLike[str]) -> str:
@@ -214,7 +225,7 @@ class ShardWriter:
                 key, (0,), np.int64, maxshape=(None,), chunks=(_LABEL_CHUNK,)
             )
         labels = f.create_group("labels")
-        for key, (shape_k, dtype, unit) in LABEL_SCHEMA.items():
+        for key, (shape_k, dtype, unit) in _SHARD_LABELS.items():
             ds = labels.create_dataset(
                 key,
                 (0, *shape_k),
@@ -281,6 +292,8 @@ class ShardWriter:
         pending["step"][row] = step
         for key in LABEL_SCHEMA:  # dtypes checked above
             pending["labels/" + key][row] = arrays[key]
+        for key in DRAW_LABEL_SCHEMA:
+            pending["labels/" + key][row] = arrays.get(key, -1)
         self.frames += 1
         if self.frames - self._written == _LABEL_CHUNK:
             self._flush()
@@ -447,7 +460,11 @@ class ShardReader:
         # decompressing a 64-frame chunk of every label for every sample.
         if self._labels is None or self._labels_pid != os.getpid():
             f = self._open()
-            self._labels = {key: ds[:] for key, ds in f["labels"].items()}
+            # Shards written before a label was added get it filled (arrays.ADDED_LABELS).
+            self._labels = fill_added_labels({key: ds[:] for key, ds in f["labels"].items()})
+            for key, (shape, dtype, _) in DRAW_LABEL_SCHEMA.items():
+                if key not in self._labels:  # a shard written before these labels
+                    self._labels[key] = np.full((self.frames, *shape), -1, dtype)
             self._labels["episode"] = f["episode"][:]
             self._labels["step"] = f["step"][:]
             self._labels_pid = os.getpid()
@@ -455,9 +472,9 @@ class ShardReader:
 
     def labels(self, key: str) -> np.ndarray:
         """One label over every frame, ``(N, *shape)`` (e.g. for filtering)."""
-        if key not in LABEL_SCHEMA and key not in ("episode", "step"):
+        if key not in _SHARD_LABELS and key not in ("episode", "step"):
             raise InvalidShard(
-                f"unknown label {key!r}; valid: episode, step, {', '.join(LABEL_SCHEMA)}"
+                f"unknown label {key!r}; valid: episode, step, {', '.join(_SHARD_LABELS)}"
             )
         return self._all_labels()[key].copy()
 
@@ -496,6 +513,8 @@ def check_shard(path: str | os.PathLike[str], expected: ShardInfo | None = None)
             if key not in f or f[key].shape[0] != n:
                 problems.append(f"{path.name}: dataset {key!r} missing or not {n} frames long")
         for key in LABEL_SCHEMA:
+            if key in ADDED_LABELS and key not in f["labels"]:
+                continue  # an older shard: the reader fills it
             if key not in f["labels"] or f["labels"][key].shape[0] != n:
                 problems.append(f"{path.name}: label {key!r} missing or not {n} frames long")
         if not problems:

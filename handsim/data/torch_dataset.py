@@ -21,7 +21,6 @@ reads are whole blocks (a plain shuffled sampler reads frame by frame).
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -31,35 +30,18 @@ import numpy as np
 
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
+from handsim.data.splits import SPLITS, InvalidDatasetQuery, folder_splits, split_mask
 from handsim.errors import HandSimError
 from handsim.world.registry import OBJECTS
 
+# SPLITS and InvalidDatasetQuery are importable from here too; they live in handsim.data.splits.
 __all__ = [
-    "SPLITS",
-    "InvalidDatasetQuery",
     "HandSimDataset",
     "BlockBatchSampler",
-    "split_of_episode",
 ]
 
-SPLITS = ("train", "val", "test", "all")
-"""Splits: episodes are assigned by a hash of (folder seed, episode) with fractions 80/10/10."""
-_SPLIT_FRACTIONS = (0.8, 0.1, 0.1)
 _IMAGES = ("depth", "segmentation", "depth_clean")
 _RUN_GAP = 4  # frames a run of reads may skip (filtered-out frames are read and dropped)
-
-
-class InvalidDatasetQuery(HandSimError, ValueError):
-    """A dataset folder, split or filter is invalid; the message says what is valid."""
-
-
-def split_of_episode(seed: int, episode: int) -> str:
-    """The split of an episode: a stable hash of (seed, episode), 80/10/10 train/val/test."""
-    digest = hashlib.blake2b(f"{seed}:{episode}".encode(), digest_size=8).digest()
-    u = int.from_bytes(digest, "little") / 2**64
-    if u < _SPLIT_FRACTIONS[0]:
-        return "train"
-    return "val" if u < _SPLIT_FRACTIONS[0] + _SPLIT_FRACTIONS[1] else "test"
 
 
 class HandSimDataset:
@@ -67,7 +49,8 @@ class HandSimDataset:
 
     Args:
         folders: one dataset folder or several.
-        split: ``"train"``, ``"val"``, ``"test"`` (by episode) or ``"all"``.
+        split: ``"train"``, ``"val"``, ``"test"`` (by episode, :mod:`handsim.data.splits`:
+            10 % of a folder's episodes each for val and test, at least one each) or ``"all"``.
         occlusion_range: keep frames whose hand occlusion ratio lies in ``[low, high]``.
         objects: keep frames that show at least one of these objects (names).
         sensors: keep folders generated with one of these sensor models.
@@ -76,7 +59,8 @@ class HandSimDataset:
             "visible")``); ``None`` keeps all.
 
     Raises:
-        InvalidDatasetQuery: for a folder that is not a dataset, or a bad split or filter.
+        InvalidDatasetQuery: for a folder that is not a dataset, a bad split or filter, or a
+            val / test split of a folder with too few episodes to have one.
     """
 
     def __init__(
@@ -114,9 +98,13 @@ class HandSimDataset:
             raise InvalidDatasetQuery(f"transform must be callable; received {transform!r}")
         self.transform = transform
         if keys is not None:
-            from handsim.data.arrays import LABEL_SCHEMA
+            from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
 
-            valid = (*LABEL_SCHEMA, "depth", "segmentation", "depth_clean", "episode", "step")
+            valid = (
+                *LABEL_SCHEMA,
+                *DRAW_LABEL_SCHEMA,
+                *("depth", "segmentation", "depth_clean", "episode", "step"),
+            )
             if isinstance(keys, str) or not all(k in valid for k in keys):
                 raise InvalidDatasetQuery(
                     f"keys must be a list drawn from {', '.join(valid)}; received {keys!r}"
@@ -134,13 +122,12 @@ class HandSimDataset:
                 raise InvalidDatasetQuery(str(err)) from err
             if sensors is not None and manifest.config.get("sensor") not in sensors:
                 continue
-            seed = int(manifest.config.get("seed", 0))
+            splits = folder_splits(folder, manifest) if split != "all" else {}
             for record in sorted(manifest.shards.values(), key=lambda s: s.name):
                 reader = ShardReader(Path(folder) / record.name)
                 keep = np.ones(len(reader), dtype=bool)
                 if split != "all":
-                    episodes = reader.labels("episode")
-                    keep &= np.array([split_of_episode(seed, int(e)) == split for e in episodes])
+                    keep &= split_mask(splits, reader.labels("episode"), split, str(folder))
                 ratio = np.nan_to_num(reader.labels("hand_occlusion_ratio"))
                 keep &= (ratio >= lo) & (ratio <= hi)
                 if ycbv_ids is not None:

@@ -113,6 +113,7 @@ __all__ = [
     "KEYPOINT_NAMES",
     "METACARPAL_BASE_FRACTION",
     "NYU_WRIST_HALF_SPAN",
+    "format_flags",
     "from_format",
     "present_mask",
     "to_format",
@@ -473,6 +474,35 @@ def from_format(keypoints: ArrayLike, fmt: str) -> NDArray[np.floating]:
     spec = _spec(fmt)
     arr = _as_points(keypoints, len(spec.names), f"{fmt!r} keypoints")
     return _apply(arr, spec.from_rules)
+
+
+def format_flags(flags: ArrayLike, fmt: str) -> NDArray[np.bool_]:
+    """Per-keypoint flags (e.g. ``visible``) carried over to another format's points.
+
+    A format point copied from a canonical keypoint takes its flag; a point computed from
+    several (:data:`EXTRA_POINT_RULES`: the palm centre, the NYU wrist points, the metacarpal
+    bases) is flagged only when every keypoint it is computed from is.
+
+    Args:
+        flags: (..., 21) booleans in canonical order.
+        fmt: a key of :data:`FORMATS`.
+
+    Returns:
+        A new (..., N_fmt) bool array in the format's order.
+
+    Raises:
+        UnknownName: ``fmt`` is not a registered format.
+        InvalidKeypoints: ``flags`` is not of shape ``(..., 21)``.
+    """
+    spec = _spec(fmt)
+    arr = np.asarray(flags, dtype=bool)
+    if arr.ndim < 1 or arr.shape[-1] != len(KEYPOINT_NAMES):
+        raise InvalidKeypoints(
+            f"expected flags of shape (..., {len(KEYPOINT_NAMES)}), got shape {arr.shape}"
+        )
+    return np.stack(
+        [arr[..., [j for j, _ in _EXTEND_RULES[k]]].all(axis=-1) for k in spec.sources], axis=-1
+    )
 
 
 def present_mask(fmt: str) -> NDArray[np.bool_]:

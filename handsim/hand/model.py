@@ -41,6 +41,8 @@ actuators           ``<side>_<joint>_act``                       ``rh_index_mcp_
 keypoint sites      ``<side>_kp_<keypoint>``                     ``rh_kp_index_tip``
 collision geoms     ``<side>_<part>_collision_<n>``              ``rh_index_distal_collision_0``
 visual geoms        ``<side>_<part>_visual_<n>``                 ``rh_palm_visual_0``
+forearm (drawn)     ``<side>_forearm_visual_0`` (palm body)      ``rh_forearm_visual_0``
+upper arm (drawn)   ``<side>_upper_arm_visual_0`` (palm body)    ``rh_upper_arm_visual_0``
 default classes     ``<side>_hand``, ``<side>_collision``, ...   ``rh_visual``
 ==================  ===========================================  ==========================
 
@@ -77,7 +79,13 @@ from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
-from handsim.hand.skin import SURFACES, build_skin
+from handsim.hand.skin import (
+    ELBOW_RATIO,
+    SURFACES,
+    UPPER_ARM_RATIOS,
+    build_skin,
+    forearm_extension,
+)
 
 __all__ = [
     "HandParams",
@@ -93,6 +101,8 @@ __all__ = [
     "FINGER_OMEGA",
     "HAND_PHYSICS_OPTIONS",
     "hand_params",
+    "FOREARM_GEOM",
+    "UPPER_ARM_GEOM",
 ]
 
 Side = Literal["right", "left"]
@@ -145,6 +155,12 @@ _THUMB_CMC = (0.196, 0.010 / _REF_HAND_LENGTH, 0.011 / _REF_HAND_LENGTH)
 _THUMB_REST_DEG = (30.0, 15.0, -70.0)
 
 _SKIN_RGBA = (0.87, 0.72, 0.63, 1.0)
+FOREARM_GEOM = "forearm_visual_0"
+"""Name (after the side prefix: ``rh_forearm_visual_0``) of the forearm's visual mesh geom, on
+the palm body; segmentation gives it the label ``"arm"``, apart from the hand's."""
+UPPER_ARM_GEOM = "upper_arm_visual_0"
+"""Name (after the side prefix) of the upper arm's visual capsule, on the palm body (label
+``"arm"``)."""
 _DENSITY_KG_M3 = 1060.0  # soft tissue
 
 ACTUATOR_GAINS: dict[str, tuple[float, float]] = {
@@ -225,7 +241,10 @@ class HandParams:
         palm_breadth: breadth at the metacarpal heads, metres; ``None`` gives 0.45 *
             hand_length. Valid ratio to hand_length: 0.35 to 0.55.
         thickness_scale: multiplies every radius and the palm thickness (valid 0.7 to 1.4).
-        forearm: add a forearm stub (it is part of what a depth camera sees).
+        forearm: add the arm (part of what a depth camera sees): a forearm stub in the palm
+            (collision capsules, and the palm's skin), and, drawn only (no contact, no mass),
+            the forearm beyond it to the elbow (:data:`FOREARM_GEOM`) and the upper arm
+            (:data:`UPPER_ARM_GEOM`, :meth:`HandBinding.point_upper_arm`).
         couple_dip: tie each DIP to 2/3 of its PIP with an equality constraint (the DIP
             actuators are then omitted).
         surface: what cameras see: ``"skin"`` (default), a smooth closed mesh per segment with
@@ -738,15 +757,35 @@ class Hand:
                             type=mujoco.mjtGeom.mjGEOM_BOX, pos=g.pos, size=g.half_size, **kw
                         )
             body_specs.append(body)
+        meshes: list[tuple[int, str, np.ndarray, np.ndarray]] = []
         if self.params.surface == "skin":
-            for part in build_skin(self.params):
-                name = f"{self.skeleton.bodies[part.body].name}_visual_0"
-                spec.add_mesh(
-                    name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel()
-                )
-                body_specs[part.body].add_geom(
-                    name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
-                )
+            meshes = [
+                (p.body, f"{self.skeleton.bodies[p.body].name}_visual_0", p.vertices, p.faces)
+                for p in build_skin(self.params)
+            ]
+        if self.params.forearm:
+            # The forearm beyond the palm's stub, its own mesh (and segmentation label).
+            meshes.append((0, FOREARM_GEOM, *forearm_extension(self.params)))
+        # Visual only (the `visual` class: no contact, no mass), so physics is the same with
+        # and without the forearm beyond its collision stub.
+        for body_index, name, vertices, faces in meshes:
+            spec.add_mesh(name=name, uservert=vertices.ravel(), userface=faces.ravel())
+            body_specs[body_index].add_geom(
+                name=name, default=visual, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name
+            )
+        if self.params.forearm:
+            # The upper arm, from the elbow on in line with the forearm (an arm held straight);
+            # frame sources may turn it toward the shoulder (HandBinding.point_upper_arm).
+            hl = self.params.hand_length
+            length, radius = (r * hl for r in UPPER_ARM_RATIOS)
+            elbow = np.array([0.0, -ELBOW_RATIO * hl, 0.0])
+            body_specs[0].add_geom(
+                name=UPPER_ARM_GEOM,
+                default=visual,
+                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                fromto=np.concatenate([elbow, elbow - [0.0, length, 0.0]]),
+                size=(radius, 0, 0),
+            )
 
         for k, (body_index, pos) in enumerate(self.skeleton.keypoints):
             body_specs[body_index].add_site(
@@ -1004,6 +1043,10 @@ class HandBinding:
                 [model.site(n).id for n in hand.point_site_names], dtype=np.intp
             )
             self.mocap_id = int(model.body(hand.mocap_body).mocapid[0])
+            self.palm_id = model.body(hand.root_body).id
+            self.upper_arm_id = (
+                model.geom(hand.prefix + UPPER_ARM_GEOM).id if hand.params.forearm else -1
+            )
         except KeyError as err:
             raise UnknownName(
                 f"the model does not contain the {hand.params.side} hand "
@@ -1037,6 +1080,46 @@ class HandBinding:
             mujoco.mj_kinematics(self.model, data)
         else:
             mujoco.mj_forward(self.model, data)
+
+    def point_upper_arm(self, data: mujoco.MjData, shoulder_m: np.ndarray) -> None:
+        """Turn the upper arm from the elbow to a shoulder, reaching it (drawn only).
+
+        Call it after the pose is set (:meth:`set_pose`): it writes the upper arm's capsule
+        into the model (geom position, orientation, half length and bounds, in the palm frame)
+        and into ``data``'s geom poses, so the next render draws it and a later forward keeps
+        it. Its length is the elbow-shoulder distance, at most 0.8 m. No effect on a hand
+        without a forearm.
+
+        Args:
+            data: the simulation data, forwarded at the pose.
+            shoulder_m: (3,) the shoulder, world, metres.
+        """
+        g = self.upper_arm_id
+        if g < 0:
+            return
+        model = self.model
+        rot = data.xmat[self.palm_id].reshape(3, 3)
+        hl = self.hand.params.hand_length
+        elbow = np.array([0.0, -ELBOW_RATIO * hl, 0.0])
+        reach = rot.T @ (np.asarray(shoulder_m, dtype=np.float64) - data.xpos[self.palm_id])
+        reach -= elbow
+        length = float(np.linalg.norm(reach))
+        # In line with the forearm when the shoulder is at the elbow.
+        axis = reach / length if length > 1e-6 else np.array([0.0, -1.0, 0.0])
+        length = min(length, 0.8)
+        half = 0.5 * length
+        radius = float(model.geom_size[g, 0])
+        quat = np.empty(4)
+        mujoco.mju_quatZ2Vec(quat, axis)  # the capsule's axis is its local z
+        model.geom_pos[g] = elbow + axis * half
+        model.geom_quat[g] = quat
+        model.geom_size[g, 1] = half
+        model.geom_rbound[g] = half + radius
+        model.geom_aabb[g] = (0.0, 0.0, 0.0, radius, radius, half + radius)
+        local = np.empty(9)
+        mujoco.mju_quat2Mat(local, quat)
+        data.geom_xpos[g] = data.xpos[self.palm_id] + rot @ model.geom_pos[g]
+        data.geom_xmat[g] = (rot @ local.reshape(3, 3)).ravel()
 
     def set_target(self, data: mujoco.MjData, pose: HandPose) -> None:
         """Physics mode: move the mocap target to the wrist pose and set the finger targets.

@@ -55,7 +55,16 @@ import numpy as np
 
 from handsim.hand.lofting import loft_faces
 
-__all__ = ["SURFACES", "SkinPart", "build_skin", "round_cone_profile"]
+__all__ = [
+    "SURFACES",
+    "SkinPart",
+    "build_skin",
+    "round_cone_profile",
+    "FOREARM_LENGTH_RATIO",
+    "ELBOW_RATIO",
+    "UPPER_ARM_RATIOS",
+    "forearm_extension",
+]
 
 SURFACES: tuple[str, ...] = ("skin", "capsules")
 """Valid values of :attr:`HandParams.surface <handsim.hand.model.HandParams.surface>`."""
@@ -647,3 +656,78 @@ def digit_volume_m3(binding, data, digit: str, samples: int = 200_000, seed: int
         rot, t = frames[part.body]
         inside |= part.sdf((points - t) @ rot) < 0.0
     return float(inside.mean() * np.prod(hi - lo))
+
+
+# The forearm ----------------------------------------------------------------------------------
+
+FOREARM_LENGTH_RATIO = 1.40
+"""Wrist crease to the tip of the elbow over hand length: the forearm (wrist to elbow joint) is
+about 1.35 hand lengths (segment lengths 0.146 and 0.108 of body height, Drillis & Contini's
+table in Winter, *Biomechanics and Motor Control of Human Movement*), plus the olecranon's
+rounded end [estimate]."""
+
+ELBOW_RATIO = 1.35
+"""Wrist crease to the elbow joint's centre over hand length (the segment lengths above)."""
+UPPER_ARM_RATIOS = (1.72, 0.24)
+"""The upper arm, elbow to shoulder, over hand length: its length (0.186 of body height in the
+same table) and its radius (45 mm at 189 mm, a mid-arm circumference of 0.28 m) [estimate]."""
+
+# The forearm beyond the stub of the palm's skin: elliptic sections (y, half width, half depth)
+# in hand lengths (depths also times thickness_scale), from inside the stub to the elbow, where a
+# half-ellipsoid cap closes it. Broadest a third of the way up (the flexor and extensor bellies,
+# 87 x 66 mm at 189 mm, a circumference of about 0.24 m) [estimate]. From y = -0.51 on it lies
+# 0.5 mm outside the stub, whose rounded end it hides.
+_FOREARM_PROFILE = np.array(
+    [
+        (-0.45, 0.170, 0.110),
+        (-0.51, 0.182, 0.127),
+        (-0.55, 0.183, 0.128),
+        (-0.80, 0.225, 0.165),
+        (-1.05, 0.230, 0.175),
+        (-1.30, 0.205, 0.160),
+    ]
+)
+_FOREARM_AROUND = 16
+_FOREARM_CAP_DEG = (30.0, 60.0)  # cap rings, degrees from the elbow's pole
+
+
+def _forearm_extension(hl: float, thick: float) -> tuple[np.ndarray, np.ndarray]:
+    """The lofted forearm from inside the stub to the elbow: (V, 3) vertices, (F, 3) faces."""
+    y, a, c = _FOREARM_PROFILE.T * hl
+    c = c * thick
+    cap_len = y[-1] + FOREARM_LENGTH_RATIO * hl  # from the last ring to the elbow's tip
+    # Rings advance along +y (elbow first): loft_faces' winding with u = +x, v = +z.
+    rings = [
+        (y[-1] - cap_len * np.cos(np.deg2rad(phi)), s * a[-1], s * c[-1])
+        for phi, s in ((p, np.sin(np.deg2rad(p))) for p in _FOREARM_CAP_DEG)
+    ]
+    rings += list(zip(y[::-1], a[::-1], c[::-1], strict=True))
+    t = 2.0 * np.pi * np.arange(_FOREARM_AROUND) / _FOREARM_AROUND
+    ring_points = [
+        np.stack([ai * np.cos(t), np.full_like(t, yi), ci * np.sin(t)], axis=1)
+        for yi, ai, ci in rings
+    ]
+    vertices = np.concatenate(
+        [[[0.0, -FOREARM_LENGTH_RATIO * hl, 0.0]], *ring_points, [[0.0, y[0], 0.0]]]
+    )
+    return vertices, loft_faces(len(rings), _FOREARM_AROUND)
+
+
+def forearm_extension(params) -> tuple[np.ndarray, np.ndarray]:
+    """The forearm beyond the palm's stub, to the elbow: a lofted elliptic tube.
+
+    It starts inside the stub of the palm's skin (whose rounded end it hides) and ends
+    :data:`FOREARM_LENGTH_RATIO` hand lengths from the wrist crease, in line with the hand, in
+    a few hundred triangles (the palm's skin has about 16 000).
+
+    Args:
+        params: hand parameters (:class:`~handsim.hand.model.HandParams`).
+
+    Returns:
+        (V, 3) float64 vertices in the palm frame, metres, and (F, 3) int32 faces,
+        counter-clockwise seen from outside.
+    """
+    vertices, faces = _forearm_extension(params.hand_length, params.thickness_scale)
+    if params.side == "left":
+        return vertices * np.array([-1.0, 1.0, 1.0]), faces[:, ::-1].copy()
+    return vertices, faces

@@ -8,10 +8,14 @@ Object pose (poses are ``T_cam_from_obj``; model points in the object frame)
   GROUND-TRUTH-posed point, the distance to the NEAREST ESTIMATE-posed point, averaged
   (``scipy.spatial.cKDTree`` on the estimated points, queried with the ground-truth points, as
   the BOP toolkit's ``adi``). Not symmetric in its arguments.
-- ADD(-S): ADI for symmetric objects, ADD otherwise. An object is symmetric when
-  ``obj.symmetry.kind != "none"``: in handsim the master chef can, bowl and marker
-  (continuous) and the wood block, foam brick and both clamps (discrete), i.e. the BOP ycbv set
-  {1, 13, 16, 18, 19, 20, 21}. PoseCNN's ADD-S set is {13, 16, 19, 20, 21}; pass
+- ADD(-S): ADI for symmetric objects, ADD otherwise. Which symmetries count is the
+  ``modality`` parameter (:meth:`~handsim.world.YCBObject.symmetry_of`). ``"texture"``
+  (default): the object looks the same in colour, ``obj.symmetry.kind != "none"``: in handsim
+  the master chef can, bowl and marker (continuous) and the wood block, foam brick and both
+  clamps (discrete), i.e. the BOP ycbv set {1, 13, 16, 18, 19, 20, 21}. ``"depth"``: the
+  shape alone, for estimators that see depth only: also the tomato soup and tuna cans
+  (plain cylinders, continuous) and the plain boxes (cracker, sugar, pudding, gelatin, potted
+  meat: half turns about their axes). PoseCNN's ADD-S set is {13, 16, 19, 20, 21}; pass
   ``symmetric=`` to override.
 - ADD-sym and MSSD use the symmetry transforms ``S`` of :meth:`Symmetry.transforms` (continuous
   symmetries discretized into ``n_continuous`` steps): ADD-sym = ``min_S mean_x |T_est x -
@@ -64,7 +68,7 @@ from handsim.metrics._common import (
     _thresholds,
 )
 from handsim.world.camera import CameraIntrinsics
-from handsim.world.objects import Symmetry
+from handsim.world.objects import SYMMETRY_MODALITIES, Symmetry, SymmetryModality
 
 # Object pose -----------------------------------------------------------------------------------
 
@@ -177,7 +181,11 @@ def adi_error_mm(T_est: Any, T_gt: Any, model_points_m: Any) -> float:  # noqa: 
     return float(np.mean(dist) * MM_PER_M)
 
 
-def _is_symmetric(obj: Any, symmetric: bool | None) -> bool:
+def _is_symmetric(obj: Any, symmetric: bool | None, modality: str = "texture") -> bool:
+    if modality not in SYMMETRY_MODALITIES:
+        raise InvalidMetricInput(
+            f"modality must be one of {SYMMETRY_MODALITIES}; received {modality!r}"
+        )
     if symmetric is not None:
         if not isinstance(symmetric, (bool, np.bool_)):
             raise InvalidMetricInput(
@@ -190,6 +198,8 @@ def _is_symmetric(obj: Any, symmetric: bool | None) -> bool:
             f"obj must have a `symmetry` (handsim.world.Symmetry) or symmetric= must be given; "
             f"received {type(obj).__name__}"
         )
+    if modality == "depth" and isinstance(getattr(obj, "depth_symmetry", None), Symmetry):
+        sym = obj.depth_symmetry
     return sym.kind != "none"
 
 
@@ -208,6 +218,7 @@ def add_or_adi_error_mm(
     obj: Any,
     *,
     symmetric: bool | None = None,
+    modality: SymmetryModality = "texture",
 ) -> float:
     """ADD(-S): ADI for a symmetric object, ADD otherwise.
 
@@ -216,7 +227,9 @@ def add_or_adi_error_mm(
         T_gt: (4, 4) ground-truth ``T_cam_from_obj``, metres.
         obj: a :class:`~handsim.world.YCBObject` (or anything with ``model_points_m`` and
             ``symmetry``).
-        symmetric: override; default ``obj.symmetry.kind != "none"``.
+        symmetric: override; default ``obj.symmetry_of(modality).kind != "none"``.
+        modality: which symmetries count: ``"texture"`` (colour, BOP's) or ``"depth"`` (the
+            shape alone: also plain cans and boxes); module docstring.
 
     Returns:
         The error, mm.
@@ -225,7 +238,7 @@ def add_or_adi_error_mm(
         InvalidMetricInput: on a bad transform or object.
     """
     pts = _object_points(obj)
-    if _is_symmetric(obj, symmetric):
+    if _is_symmetric(obj, symmetric, modality):
         return adi_error_mm(T_est, T_gt, pts)
     return add_error_mm(T_est, T_gt, pts)
 
@@ -528,6 +541,7 @@ def evaluate_object_poses(
     *,
     intrinsics: CameraIntrinsics | None = None,
     symmetric: bool | None = None,
+    modality: SymmetryModality = "texture",
     fraction: float = ADD_FRACTION,
     threshold_px: float = REPROJECTION_THRESHOLD_PX,
     auc_rule: AucRule = "posecnn",
@@ -541,7 +555,9 @@ def evaluate_object_poses(
         obj: a :class:`~handsim.world.YCBObject` (or anything with ``name``,
             ``model_points_m``, ``diameter_m`` and ``symmetry``).
         intrinsics: camera intrinsics for the 2D reprojection error (skipped if ``None``).
-        symmetric: override of ADD(-S)'s choice; default ``obj.symmetry.kind != "none"``.
+        symmetric: override of ADD(-S)'s choice; default
+            ``obj.symmetry_of(modality).kind != "none"``.
+        modality: which symmetries count for ADD(-S): ``"texture"`` or ``"depth"``.
         fraction: ADD(-S) correctness threshold as a fraction of the diameter (0.1).
         threshold_px: reprojection correctness threshold, px (5).
         auc_rule: integration rule of the YCB-Video AUCs (see :func:`ycbv_auc`).
@@ -553,7 +569,7 @@ def evaluate_object_poses(
         InvalidMetricInput: on different frame counts, an empty set, a bad transform or object.
     """
     pts = _object_points(obj)
-    is_sym = _is_symmetric(obj, symmetric)
+    is_sym = _is_symmetric(obj, symmetric, modality)
     diameter_m = getattr(obj, "diameter_m", None)
     threshold_mm = add_threshold_mm(diameter_m, fraction)  # type: ignore[arg-type]
     threshold_px = _positive("threshold_px", threshold_px)

@@ -275,8 +275,11 @@ def keypoint_visibility(
     palm: int,
     occluder_self: int,
     occluder_scene: int,
+    sensor_depth_m: np.ndarray,
+    sensor_tolerance_m: float,
     visible: np.ndarray,
     occluder: np.ndarray,
+    visible_sensor: np.ndarray,
 ) -> None:
     """Per-keypoint visibility and occluder from the clean render (``handsim.frame``).
 
@@ -284,7 +287,9 @@ def keypoint_visibility(
     lies within ``band[k]`` of the keypoint's; it blocks it when its depth is nearer than that.
     The keypoint is visible when its own pixel confirms it, or a neighbour does and its own
     pixel does not block it; a blocked, invisible keypoint's occluder is its pixel's object
-    instance, ``occluder_self`` (the hand) or ``occluder_scene``.
+    instance, ``occluder_self`` (the hand) or ``occluder_scene``. A visible keypoint is also
+    seen by the sensor when one of the pixels that made it visible (its own, or else the
+    confirming neighbours) has a sensor depth within ``sensor_tolerance_m`` of the clean one.
 
     Args:
         depth_m: (H, W) float32 clean depth, metres, 0 = none.
@@ -297,11 +302,15 @@ def keypoint_visibility(
         parts: (21, P) int16 labels each keypoint's surface may carry.
         neighbours: (9, 2) int (row, column) offsets, the pixel itself first.
         object_offset: label of object instance 0.
-        palm: the palm's label (the hand's labels are ``palm .. object_offset - 1``).
+        palm: the lowest label of the person (the arm; the labels ``palm ..
+            object_offset - 1`` are theirs): a blocker among them is self-occlusion.
         occluder_self: occluder code of the hand itself.
         occluder_scene: occluder code of the table or anything else.
+        sensor_depth_m: (H, W) float32 depth the sensor returned, metres, 0 = none.
+        sensor_tolerance_m: largest sensor-minus-clean depth difference that agrees, metres.
         visible: (21,) bool, written where ``in_frame`` (the caller fills False).
         occluder: (21,) int32, written where ``in_frame`` and hidden.
+        visible_sensor: (21,) bool, written where ``in_frame`` (the caller fills False).
     """
     h, w = depth_m.shape
     for k in range(z.size):
@@ -311,6 +320,8 @@ def keypoint_visibility(
         vis = False
         neighbour_confirms = False
         centre_label = 0
+        centre_sensed = False
+        neighbour_sensed = False
         for n in range(neighbours.shape[0]):
             r = min(max(np.intp(row[k]) + neighbours[n, 0], 0), h - 1)
             c = min(max(np.intp(col[k]) + neighbours[n, 1], 0), w - 1)
@@ -321,13 +332,23 @@ def keypoint_visibility(
                 if label == parts[k, p]:
                     own = True
             confirms = own and seen > 0 and abs(seen - z[k]) <= band[k]
+            sensed = False
+            if confirms:
+                measured = np.float64(sensor_depth_m[r, c])
+                sensed = measured > 0 and abs(measured - seen) <= sensor_tolerance_m
             if n == 0:
                 centre_label = label
                 centre_blocked = seen > 0 and seen < z[k] - band[k]
                 vis = confirms
+                centre_sensed = sensed
             elif confirms:
                 neighbour_confirms = True
-        vis = vis or (not centre_blocked and neighbour_confirms)
+                neighbour_sensed = neighbour_sensed or sensed
+        if vis:
+            visible_sensor[k] = centre_sensed
+        else:
+            vis = not centre_blocked and neighbour_confirms
+            visible_sensor[k] = vis and neighbour_sensed
         visible[k] = vis
         if centre_blocked and not vis:
             if centre_label >= object_offset:

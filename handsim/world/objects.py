@@ -73,6 +73,8 @@ __all__ = [
     "InvalidObjectParams",
     "MeshImportWarning",
     "Symmetry",
+    "SYMMETRY_MODALITIES",
+    "SymmetryModality",
     "NO_SYMMETRY",
     "YCBObject",
     "ObjectSpec",
@@ -277,6 +279,11 @@ class Symmetry:
 NO_SYMMETRY = Symmetry()
 """An object without symmetries."""
 
+SymmetryModality = Literal["texture", "depth"]
+SYMMETRY_MODALITIES: tuple[str, ...] = ("texture", "depth")
+"""What a symmetry is judged on: the textured appearance (colour, BOP's ycbv symmetries) or
+the shape alone (depth)."""
+
 
 def _close_group(generators: list[np.ndarray]) -> list[np.ndarray]:
     group = [np.eye(3)]
@@ -348,6 +355,29 @@ class YCBObject:
     cavity_point_m: np.ndarray | None = dataclasses.field(default=None, repr=False)
     """(3,) a point inside the cavity that fingers can enter (bowl, mug, pitcher), metres,
     object frame; ``None`` for solid objects."""
+    depth_symmetry: Symmetry | None = dataclasses.field(default=None, repr=False)
+    """Symmetries of the shape alone, as a depth camera sees it (colour and print ignored),
+    where they exceed :attr:`symmetry`: e.g. the soup and tuna cans, plain cylinders whose
+    labels break the rotation in colour only. ``None``: the same as :attr:`symmetry`."""
+
+    def symmetry_of(self, modality: SymmetryModality = "texture") -> Symmetry:
+        """The symmetries that hold for a modality (:data:`SYMMETRY_MODALITIES`).
+
+        Args:
+            modality: ``"texture"``: poses that look the same in colour (BOP's ycbv
+                symmetries, :attr:`symmetry`); ``"depth"``: poses that give the same depth
+                image (:attr:`depth_symmetry`, else :attr:`symmetry`).
+
+        Raises:
+            InvalidObjectParams: for another modality.
+        """
+        if modality == "texture":
+            return self.symmetry
+        if modality == "depth":
+            return self.symmetry if self.depth_symmetry is None else self.depth_symmetry
+        raise InvalidObjectParams(
+            f"symmetry modality must be one of {SYMMETRY_MODALITIES}; received {modality!r}"
+        )
 
     @property
     def body_name(self) -> str:
@@ -432,6 +462,7 @@ class ObjectSpec:
             seed=seed,
             recenter=True,
             cavity=geom.cavity,
+            depth_symmetry=geom.depth_symmetry,
         )
 
 
@@ -442,6 +473,7 @@ class _Geometry:
     rest_up: np.ndarray
     symmetry: Symmetry = NO_SYMMETRY
     cavity: np.ndarray | None = None
+    depth_symmetry: Symmetry | None = None
 
 
 def _finalize(
@@ -460,6 +492,7 @@ def _finalize(
     recenter: bool,
     mass_mesh: trimesh.Trimesh | None = None,
     cavity: np.ndarray | None = None,
+    depth_symmetry: Symmetry | None = None,
 ) -> YCBObject:
     """Centre (optionally), then derive mass properties, samples, diameter, corners, rest pose."""
     visual = visual.copy()
@@ -470,6 +503,8 @@ def _finalize(
         for p in pieces:
             p.apply_translation(shift)
         symmetry = symmetry.moved(shift)
+        if depth_symmetry is not None:
+            depth_symmetry = depth_symmetry.moved(shift)
     else:
         shift = np.zeros(3)
 
@@ -520,6 +555,7 @@ def _finalize(
         shape=shape,
         ycbv_id=ycbv_id,
         cavity_point_m=cavity_point,
+        depth_symmetry=depth_symmetry,
         **arrays,
     )
 

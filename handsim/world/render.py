@@ -444,6 +444,51 @@ class DepthRenderer:
         mujoco.mjr_readPixels(rgb, None, rect, self._context)
         return self._geom_ids(rgb)
 
+    def render_segmentation_canvas(
+        self, data: mujoco.MjData, region: tuple[int, int, int, int]
+    ) -> np.ndarray:
+        """The geom-id image of a pixel box that may reach beyond the image.
+
+        The image's pixel grid continues beyond its borders, as on a larger sensor with the
+        same intrinsics (BOP renders an object on a canvas three times the image's size with
+        the principal point shifted to see its whole silhouette). A box inside the image is
+        one ordinary render; otherwise the box is cut into windows of at most the image's size
+        (one for a box no larger than the image), each rendered with the camera's principal
+        point shifted by a whole number of pixels so that the window falls on the image: pixel
+        ``(u, v)`` of the canvas is then what a sensor that large would see there.
+
+        Args:
+            data: simulation data.
+            region: ``(u0, v0, u1, v1)`` pixel box, end exclusive, in image pixel coordinates
+                (negative or past the image size outside it).
+
+        Returns:
+            (v1 - v0, u1 - u0) int32 geom ids, -1 for background.
+        """
+        w, h = self.intrinsics.width, self.intrinsics.height
+        u0, v0, u1, v1 = (int(x) for x in region)
+        if u1 <= u0 or v1 <= v0:
+            return np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
+        if u0 >= 0 and v0 >= 0 and u1 <= w and v1 <= h:
+            return self.render_segmentation(data, region)
+        out = np.empty((v1 - v0, u1 - u0), dtype=np.int32)
+        intrinsic = self.model.cam_intrinsic[self.camera_id]
+        saved = intrinsic.copy()
+        # The principal point in the model is in sensor units (metres): pixel pitch per axis.
+        pitch = self.model.cam_sensorsize[self.camera_id] / (w, h)
+        try:
+            for ov in range(v0, v1, h):
+                for ou in range(u0, u1, w):
+                    # Principal pixel + o shows canvas pixel u' + o at image pixel u'.
+                    intrinsic[2] = saved[2] + ou * pitch[0]
+                    intrinsic[3] = saved[3] + ov * pitch[1]
+                    cw, ch = min(w, u1 - ou), min(h, v1 - ov)
+                    tile = self.render_segmentation(data, (0, 0, cw, ch))
+                    out[ov - v0 : ov - v0 + ch, ou - u0 : ou - u0 + cw] = tile
+        finally:
+            intrinsic[:] = saved
+        return out
+
     def close(self) -> None:
         """Free the OpenGL context (idempotent); in :func:`shared_render_context`, keep it."""
         if self._context is not None and _SPARE.depth > 0:

@@ -8,9 +8,12 @@ keeps the model, its data, the hand binding and the segmentation labels. Placeme
 cameras from :func:`third_person_camera`, :func:`egocentric_camera` or the seeded
 :func:`sample_viewpoint`.
 
-Segmentation labels (:data:`SEGMENT_LABELS`): 0 background, 1 table, 2 palm (with the forearm
-stub), 3 thumb, 4 index, 5 middle, 6 ring, 7 little, and ``8 + k`` for object instance ``k`` in
-the order of :attr:`SceneSpec.objects`.
+Segmentation labels (:data:`SEGMENT_LABELS`): 0 background (no surface), 1 table, 2 backdrop
+(:attr:`SceneSpec.background`), 3 arm (the forearm beyond the palm's stub, and the upper
+arm), 4 palm (with the forearm stub), 5 thumb,
+6 index, 7 middle, 8 ring, 9 little, and ``10 + k`` (:data:`OBJECT_LABEL_OFFSET` ``+ k``) for
+object instance ``k`` in the order of :attr:`SceneSpec.objects`. The hand's labels are
+``palm`` up to the objects' (the forearm is not the hand).
 """
 
 from __future__ import annotations
@@ -24,7 +27,13 @@ import numpy as np
 
 from handsim._validate import boolean, integer, is_real, real_array, real_scalar, show
 from handsim.errors import HandSimError
-from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandParams
+from handsim.hand.model import (
+    FOREARM_GEOM,
+    HAND_PHYSICS_OPTIONS,
+    UPPER_ARM_GEOM,
+    Hand,
+    HandParams,
+)
 from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import CameraIntrinsics, add_camera, camera_preset, look_at_quat_wxyz
 from handsim.world.mjcf import save_spec, spec_to_xml
@@ -34,6 +43,7 @@ from handsim.world.registry import get_object
 __all__ = [
     "SEGMENT_LABELS",
     "OBJECT_LABEL_OFFSET",
+    "BACKGROUNDS",
     "ObjectPlacement",
     "CameraSpec",
     "SceneSpec",
@@ -45,11 +55,44 @@ __all__ = [
     "sample_placements",
 ]
 
-SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "palm", *DIGITS)
+SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "palm", *DIGITS)
 """Names of the fixed segmentation labels; objects follow from :data:`OBJECT_LABEL_OFFSET`."""
 OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
 
+BACKGROUNDS: tuple[str, ...] = ("none", "wall", "torso", "clutter")
+"""What stands beyond the table (:attr:`SceneSpec.background`): nothing (no depth), a wall, the
+person's torso and head in front of a wall, or furniture in front of a wall."""
+
 _TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
+_BACKDROP_BODY = "backdrop"
+_BACKDROP_PREFIX = "backdrop_"  # every backdrop geom's name starts so (label "backdrop")
+# Backdrop geoms in the backdrop body's frame (+x toward the camera, +z up; the front plane is
+# x = 0, the body origin at table-top height): (name, type, size, pos). A wall 6 m by 4 m; a
+# seated adult's torso (chest 0.36 m broad, 0.22 m deep, 0.6 m from the table top up) and head
+# (0.2 m) [estimate], with the wall 0.4 m behind the torso.
+_BOX, _CYLINDER = mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_CYLINDER
+_WALL = ("backdrop_wall", _BOX, (0.01, 3.0, 2.0), (-0.01, 0.0, 0.5))
+_BACKDROPS = {
+    "wall": (_WALL,),
+    "torso": (
+        ("backdrop_torso", mujoco.mjtGeom.mjGEOM_ELLIPSOID, (0.11, 0.18, 0.30), (-0.11, 0.0, 0.3)),
+        ("backdrop_head", mujoco.mjtGeom.mjGEOM_ELLIPSOID, (0.09, 0.075, 0.11), (-0.1, 0.0, 0.73)),
+        (_WALL[0], _WALL[1], _WALL[2], (-0.41, 0.0, 0.5)),
+    ),
+    # A room's furniture, all of it behind the front plane: a cabinet, a desk with a monitor
+    # and a bottle, a floor lamp, the wall 0.65 m behind [estimate].
+    "clutter": (
+        ("backdrop_cabinet", _BOX, (0.2, 0.25, 0.45), (-0.2, -0.7, -0.3)),
+        ("backdrop_desk", _BOX, (0.3, 0.6, 0.02), (-0.3, 0.35, 0.1)),
+        ("backdrop_monitor", _BOX, (0.03, 0.27, 0.17), (-0.45, 0.35, 0.3)),
+        ("backdrop_bottle", _CYLINDER, (0.04, 0.12, 0.0), (-0.12, 0.0, 0.24)),
+        ("backdrop_lamp", _CYLINDER, (0.1, 0.6, 0.0), (-0.35, 0.95, -0.15)),
+        (_WALL[0], _WALL[1], _WALL[2], (-0.66, 0.0, 0.5)),
+    ),
+}
+# Beyond the table's far edge, the default backdrop leaves this much for a hand and forearm
+# reaching past it, metres.
+_BACKDROP_REACH_M = 0.3
 _DEFAULT_HAND_TARGET = (0.0, 0.0, 0.12)
 # OpenGL near clip plane, metres: well inside every sensor's minimum range.
 _GL_NEAR_M = 0.01
@@ -337,6 +380,12 @@ class SceneSpec:
         objects: object instances on the table.
         cameras: depth cameras (at least one); names must be unique.
         table: add the table (top at ``z = 0``).
+        background: what stands beyond the table (:data:`BACKGROUNDS`): ``"none"`` (no depth
+            there), ``"wall"``, ``"torso"`` (the person's torso and head, a wall behind) or
+            ``"clutter"`` (a cabinet, a desk with a monitor, a lamp; a wall behind).
+            Its geoms are drawn only (no contact, no mass) and labelled ``"backdrop"``; it
+            stands upright, facing the first camera beyond the table (and beyond anything a
+            hand reaches over it), and :meth:`Scene.place_backdrop` moves it per frame.
     """
 
     hand: HandParams | None = dataclasses.field(default_factory=HandParams)
@@ -345,6 +394,7 @@ class SceneSpec:
         default_factory=lambda: (third_person_camera(),)
     )
     table: bool = True
+    background: str = "none"
 
     def __post_init__(self) -> None:
         if self.hand is not None and not isinstance(self.hand, HandParams):
@@ -364,6 +414,11 @@ class SceneSpec:
                 )
             object.__setattr__(self, field, tuple(items))
         boolean("table", self.table, InvalidScene)
+        if not isinstance(self.background, str) or self.background not in BACKGROUNDS:
+            raise InvalidScene(
+                f"background must be one of {', '.join(map(repr, BACKGROUNDS))}; received "
+                f"{show(self.background)}"
+            )
         if not self.cameras:
             raise InvalidScene("a scene needs at least one camera; received none")
         names = [c.name for c in self.cameras]
@@ -447,6 +502,14 @@ class Scene:
                 rgba=[0.55, 0.45, 0.35, 1.0],
                 group=0,
             )
+        if spec.background != "none":
+            # Drawn only: no contact, no mass; moved with the body (place_backdrop).
+            backdrop = mj.worldbody.add_body(name=_BACKDROP_BODY)
+            for name, kind, size, pos in _BACKDROPS[spec.background]:
+                backdrop.add_geom(
+                    name=name, type=kind, size=size, pos=pos, contype=0, conaffinity=0,
+                    density=0.0, group=0, rgba=[0.8, 0.8, 0.75, 1.0],
+                )  # fmt: skip
         self.hand = Hand(spec.hand) if spec.hand is not None else None
         if self.hand is not None:
             self.hand.attach_to(mj)
@@ -653,12 +716,69 @@ class Scene:
                 body_label[body_id] = SEGMENT_LABELS.index(b.part)
         for k, (body, _) in enumerate(self.objects):
             body_label[self.model.body(body).id] = OBJECT_LABEL_OFFSET + k
+        p = "" if self.hand is None else self.hand.prefix
+        arm = () if self.hand is None else (p + FOREARM_GEOM, p + UPPER_ARM_GEOM)
         for g in range(self.model.ngeom):
-            if self.model.geom(g).name == "table":
+            name = self.model.geom(g).name
+            if name == "table":
                 labels[g] = SEGMENT_LABELS.index("table")
+            elif name in arm:
+                labels[g] = SEGMENT_LABELS.index("arm")
+            elif name.startswith(_BACKDROP_PREFIX):
+                labels[g] = SEGMENT_LABELS.index("backdrop")
             else:
                 labels[g] = body_label.get(int(self.model.geom_bodyid[g]), 0)
         return labels
+
+    def place_backdrop(
+        self, eye_m: np.ndarray, target_m: np.ndarray, distance_m: float, *, forward: bool = True
+    ) -> None:
+        """Stand the backdrop upright, facing a camera, ``distance_m`` beyond it.
+
+        Its front is the vertical plane at horizontal distance ``distance_m`` from ``eye_m``
+        along the horizontal direction to ``target_m``, and all of it lies behind that plane:
+        a surface nearer than ``distance_m`` along that direction is never hidden by it (along
+        any ray of the camera the horizontal distance grows). Centred on the line of sight. No
+        effect without a background.
+
+        Args:
+            eye_m: (3,) camera position, world, metres.
+            target_m: (3,) a point the camera looks at, world, metres.
+            distance_m: horizontal distance of the front plane from the eye, metres.
+            forward: also update the data's geom poses (``mj_kinematics``); False leaves that
+                to the caller's next forward.
+        """
+        if self.spec.background == "none":
+            return
+        eye = np.asarray(eye_m, dtype=np.float64)
+        ahead = np.asarray(target_m, dtype=np.float64) - eye
+        ahead[2] = 0.0
+        norm = float(np.linalg.norm(ahead))
+        # A camera looking straight down: any horizontal direction (the wall is out of view).
+        ahead = ahead / norm if norm > 1e-9 else np.array([0.0, 1.0, 0.0])
+        body = self.model.body(_BACKDROP_BODY).id
+        front = eye + ahead * float(distance_m)
+        self.model.body_pos[body] = (front[0], front[1], 0.0)
+        yaw = np.arctan2(-ahead[1], -ahead[0])  # body +x toward the camera
+        self.model.body_quat[body] = (np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2))
+        if forward:
+            mujoco.mj_kinematics(self.model, self.data)
+
+    def _place_default_backdrop(self) -> None:
+        # Facing the first camera, beyond the table's farthest corner (or the hand's default
+        # target) by what a hand and forearm reach past it.
+        cam = self.spec.cameras[0]
+        eye = np.asarray(cam.pos_m)
+        rot = np.empty(9)
+        mujoco.mju_quat2Mat(rot, np.asarray(cam.quat_wxyz))
+        ahead = -rot.reshape(3, 3)[:, 2]  # a MuJoCo camera looks along its -z
+        ahead[2] = 0.0
+        ahead = ahead / max(float(np.linalg.norm(ahead)), 1e-9)
+        hx, hy, _ = _TABLE_HALF_SIZE_M
+        corners = np.array([(x, y, 0.0) for x in (-hx, hx) for y in (-hy, hy)])
+        points = np.vstack([corners, _DEFAULT_HAND_TARGET])
+        far = float(((points - eye) @ ahead).max())
+        self.place_backdrop(eye, eye + ahead, far + _BACKDROP_REACH_M, forward=False)
 
     def reset(self, hand_pose: HandPose | None = None) -> None:
         """Reset the data: objects at their placements, hand at ``hand_pose``.
@@ -667,6 +787,7 @@ class Scene:
             hand_pose: default: a flat hand, palm down, above the table centre.
         """
         mujoco.mj_resetData(self.model, self.data)
+        self._place_default_backdrop()
         if self.binding is not None:
             if hand_pose is None:
                 # Palm down (hand z = palmar -> world -z), fingers toward +y.

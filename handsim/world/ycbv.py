@@ -130,11 +130,18 @@ def _box(name: str, four_fold_axis: int | None = None) -> _Geometry:
     mesh = _hull(local @ rot.T)
     up = rot[:, int(np.argmin(dims))]
     symmetry = NO_SYMMETRY
+    # A plain box's shape turns onto itself by 180 degrees about each of its axes; the print
+    # of a cereal box does not, so this holds in depth only.
+    half_turns = [rot @ _rot(a, 180.0) @ rot.T for a in "xyz"]
+    depth_symmetry = Symmetry.from_rotations(half_turns)
     if four_fold_axis is not None:
         others = [i for i in range(3) if i != four_fold_axis]
         gens = [_rot("xyz"[four_fold_axis], 90.0)] + [_rot("xyz"[i], 180.0) for i in others]
         symmetry = Symmetry.from_rotations([rot @ g @ rot.T for g in gens])
-    return _Geometry(mesh, [mesh.copy()], rest_up=up, symmetry=symmetry)
+        depth_symmetry = None  # the texture's group already holds the shape's
+    return _Geometry(
+        mesh, [mesh.copy()], rest_up=up, symmetry=symmetry, depth_symmetry=depth_symmetry
+    )
 
 
 def _bottle(rows_mm: Sequence[Sequence[float]], piece_rows: Sequence[tuple[int, int]]) -> _Geometry:
@@ -825,6 +832,19 @@ def _with_symmetry(build: Callable[[], _Geometry], symmetry: Symmetry) -> Callab
     return wrapped
 
 
+def _with_depth_symmetry(
+    build: Callable[[], _Geometry], symmetry: Symmetry
+) -> Callable[[], _Geometry]:
+    """A shape symmetric in depth only (a plain can whose label breaks it in colour)."""
+
+    def wrapped() -> _Geometry:
+        geom = build()
+        geom.depth_symmetry = symmetry
+        return geom
+
+    return wrapped
+
+
 _Y_AXIS = Symmetry.continuous((0.0, 1.0, 0.0))
 
 # name: (builder, shape description, rgba)
@@ -845,7 +865,7 @@ _RECIPES: dict[str, tuple[Callable[[], _Geometry], str, tuple[float, float, floa
         (0.95, 0.9, 0.6, 1.0),
     ),
     "005_tomato_soup_can": (
-        functools.partial(_can, 34.0, 102.0, 120.7),
+        _with_depth_symmetry(functools.partial(_can, 34.0, 102.0, 120.7), _Y_AXIS),
         "cylinder r 34 mm along y, chamfered ends",
         (0.75, 0.1, 0.1, 1.0),
     ),
@@ -855,7 +875,7 @@ _RECIPES: dict[str, tuple[Callable[[], _Geometry], str, tuple[float, float, floa
         (0.95, 0.8, 0.1, 1.0),
     ),
     "007_tuna_fish_can": (
-        functools.partial(_can, 43.0, 34.0, 90.2),
+        _with_depth_symmetry(functools.partial(_can, 43.0, 34.0, 90.2), _Y_AXIS),
         "cylinder r 43 mm along y, chamfered ends",
         (0.55, 0.6, 0.7, 1.0),
     ),

@@ -227,13 +227,16 @@ def test_human_render_mode_needs_a_display(monkeypatch):
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_render_modes(env_id):
-    """rgb_array and depth_array (colour-mapped) give (render_height, render_width, 3) uint8."""
-    for mode in ("rgb_array", "depth_array"):
+    """rgb_array and depth_rgb_array give (H, W, 3) uint8; depth_array (H, W) float32 metres."""
+    for mode in ("rgb_array", "depth_rgb_array", "depth_array"):
         env = _make(env_id, render_mode=mode)
         env.reset(seed=0)
         image = env.render()
         h, w = env.unwrapped.config.render_height, env.unwrapped.config.render_width
-        assert image.shape == (h, w, 3) and image.dtype == np.uint8 and image.std() > 0
+        if mode == "depth_array":
+            assert image.shape == (h, w) and image.dtype == np.float32 and image.max() > 0
+        else:
+            assert image.shape == (h, w, 3) and image.dtype == np.uint8 and image.std() > 0
         env.close()
 
 
@@ -285,6 +288,21 @@ def test_random_viewpoint_and_hand_size_range_are_seeded():
     _, c = env.reset(seed=7)
     assert _same_labels(a["labels"], c["labels"])
     assert not np.array_equal(a["labels"]["T_cam_from_world"], b["labels"]["T_cam_from_world"])
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_expert_actions_are_float32_inside_the_action_space(env_id):
+    """expert.action(state) is what env.step expects: (27,) float32, contained in the space."""
+    env = _make(env_id, obs_mode="state")
+    env.reset(seed=0)
+    expert = env.unwrapped.make_expert()
+    for _ in range(40):
+        action = expert.action(env.unwrapped.expert_state())
+        assert action.dtype == np.float32 and env.action_space.contains(action)
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            break
     env.close()
 
 

@@ -83,7 +83,7 @@ def test_grasps_are_physical_in_the_env():
 
 
 def test_clutter_target_label_names_the_target():
-    """The target label is 8 + the target's instance; the scene has num_objects objects."""
+    """The target label is the first object label + the target's instance (num_objects)."""
     env = gym.make("handsim/GraspClutter-v0", num_objects=(4, 4), obs_mode="depth+segmentation")
     for seed in range(3):
         obs, info = env.reset(seed=seed)

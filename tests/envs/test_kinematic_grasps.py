@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from handsim.data.config import PRESETS, GenerationConfig, InvalidGenerationConfig
+from handsim.data.config import PRESETS, CannotDraw, GenerationConfig, InvalidGenerationConfig
 from handsim.data.generation import generate, generate_shard
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
@@ -35,13 +35,22 @@ TINY = {
 
 
 def _frames(source: GraspSource, seed: int, episodes: int, frames: int):
-    """(arrays, deepest overlap in m) of the frames of a few episodes, measured as made."""
+    """(arrays, deepest overlap in m) of the frames of a few episodes, measured as made.
+
+    Episodes that cannot be drawn are redrawn from the same generator, as a shard does.
+    """
     rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(episodes):
-        for arrays in source.episode(rng, lambda ratio: True, frames):
-            scene = next(reversed(source._scenes.values()))[0]  # the episode's scene
-            out.append((arrays, _depths(scene, scene.binding.pose(scene.data))[1]))
+    out, done = [], 0
+    for _ in range(10 * episodes):
+        try:
+            for arrays in source.episode(rng, lambda ratio, visible: True, frames):
+                scene = next(reversed(source._scenes.values()))[0]  # the episode's scene
+                out.append((arrays, _depths(scene, scene.binding.pose(scene.data))[1]))
+        except CannotDraw:
+            continue
+        done += 1
+        if done == episodes:
+            break
     return out
 
 
@@ -124,8 +133,8 @@ def test_a_kept_source_changes_no_shard(tmp_path):
     generation.close_kept_source()
 
 
-def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path, monkeypatch):
-    """No hovering hand: an object the planner cannot grasp is not a target, and is counted."""
+def test_an_object_without_a_grasp_is_redrawn_and_counted_in_the_manifest(tmp_path, monkeypatch):
+    """No hovering hand: an episode whose object has no grasp is redrawn, and counted."""
     plan_grasp = kinematic_grasps.plan_grasp
 
     def no_marker_grasp(obj, *args, **kwargs):
@@ -134,7 +143,7 @@ def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path
         return plan_grasp(obj, *args, **kwargs)
 
     monkeypatch.setattr(kinematic_grasps, "plan_grasp", no_marker_grasp)
-    # One frame an episode: six episodes, some of which try the marker first.
+    # One frame an episode: six episodes, some of which draw the marker.
     config = GenerationConfig.from_mapping(
         TINY,
         frames_per_episode=1,
@@ -142,13 +151,12 @@ def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path
         objects=("005_tomato_soup_can", "040_large_marker"),
     )
     manifest = generate(config, tmp_path)
-    skipped = manifest.shards[0].skipped
-    assert list(skipped) == ["no grasp: 040_large_marker"] and skipped[list(skipped)[0]] >= 1
+    assert set(manifest.redraws) == {"grasp"} and manifest.redraws["grasp"] >= 1
     # Written to manifest.json and read back.
-    assert Manifest.read(tmp_path).shards == manifest.shards
+    assert Manifest.read(tmp_path).redraws == manifest.redraws
     reader = ShardReader(tmp_path / "shard-00000.h5")
-    assert (reader.labels("contact_count") > 0).all()
-    # Every contact is with the can, never with the marker.
+    assert len(reader) == 6 and (reader.labels("contact_count") > 0).all()
+    # Every contact is with a can, never with the marker.
     can_id = OBJECTS["005_tomato_soup_can"].ycbv_id
     for i in range(len(reader)):
         a = reader[i]
@@ -157,22 +165,23 @@ def test_an_object_without_a_grasp_is_skipped_and_named_in_the_manifest(tmp_path
         touched = set(a["contact_instance"][:n].tolist())
         assert touched and touched <= can
 
-    # An episode whose only object has no grasp yields no frame (it never hovers).
+    # The episode says which object and why.
     source = GraspSource(GenerationConfig.from_mapping(TINY, objects=("040_large_marker",)))
     try:
-        assert list(source.episode(np.random.default_rng(0), lambda r: True, 2)) == []
-        assert source.skipped == {"no grasp: 040_large_marker": 1}
+        with pytest.raises(CannotDraw, match="no grasp: 040_large_marker at its sampled pose"):
+            next(source.episode(np.random.default_rng(0), lambda r, v: True, 2))
     finally:
         source.close()
 
 
-def test_a_grasp_that_cannot_close_without_overlap_is_skipped(monkeypatch):
-    """A planned grasp whose closed hand would enter the can too deep is not shown, and counted."""
+def test_a_grasp_that_cannot_close_without_overlap_is_redrawn(monkeypatch):
+    """A planned grasp whose closed hand would enter the can too deep is not shown."""
     monkeypatch.setattr(kinematic_grasps, "close_onto", lambda scene, plan: None)
     source = GraspSource(GenerationConfig.from_mapping(TINY))
     try:
-        assert list(source.episode(np.random.default_rng(0), lambda r: True, 2)) == []
-        assert source.skipped == {"closed grasp overlaps: 005_tomato_soup_can": 1}
+        with pytest.raises(CannotDraw, match="closed grasp overlaps: 005_tomato_soup_can") as err:
+            next(source.episode(np.random.default_rng(0), lambda r, v: True, 2))
+        assert err.value.reason == "grasp"
     finally:
         source.close()
 

@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -71,3 +72,23 @@ def test_cli_export_minari_refuses_a_folder_and_records_an_env(tmp_path):
     report = json.loads(ok.stdout)
     assert report["dataset_id"] == "handsim/hand-pose-expert-v0" and report["episodes"] == 1
     assert report["path"] == str(tmp_path / "m" / "handsim" / "hand-pose-expert-v0")
+
+
+def test_data_collector_sees_every_expert_action_in_the_action_space(tmp_path, monkeypatch):
+    """Minari's DataCollector warns about no action or observation of the expert's episode."""
+    import gymnasium as gym
+    from minari import DataCollector
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    env = DataCollector(gym.make("handsim/HandPose-v0", max_episode_steps=20))
+    env.reset(seed=0)
+    expert = env.get_wrapper_attr("make_expert")()
+    expert_state = env.get_wrapper_attr("expert_state")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        done = False
+        while not done:
+            _, _, terminated, truncated, _ = env.step(expert.action(expert_state()))
+            done = terminated or truncated
+    env.close()
+    assert [str(w.message) for w in caught if "not in" in str(w.message)] == []

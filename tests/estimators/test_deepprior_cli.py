@@ -220,3 +220,33 @@ def test_cli_device_cuda_without_a_gpu_is_one_error_line(command, tmp_path, caps
     }[command]  # fmt: skip
     assert main([*args, "--device", "cuda", "-q"]) == 2
     assert "no CUDA device is available to torch; use cpu" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            {"size": 100_000},
+            r"size must be a multiple of 32 in \[32, 512\] pixels; received 100000",
+        ),
+        ({"size": 48}, "size must be a multiple of 32"),
+        ({"weight_decay": -1.0}, r"weight_decay must be in \[0, 1\]; received -1.0"),
+        ({"offset_sigma_m": float("nan")}, r"offset_sigma_m must be in \[0, 0.5\] metres"),
+        ({"lr": float("inf")}, r"lr must be in \[0, 1\]"),
+        ({"cube_m": 0.0}, r"cube_m must be in \(0, 1\] metres; received 0.0"),
+        ({"width": -0.5}, r"width must be in \(0, 8\]"),
+    ],
+)
+def test_train_config_out_of_range_is_refused_before_any_work(change, message, tmp_path):
+    """The Python surface checks what the CLI checks: NaN, negatives, absurd crop sizes."""
+    with pytest.raises(InvalidTrainConfig, match=message):
+        train([tmp_path], tmp_path / "r", TrainConfig(**{**TINY, **change}), progress=False)
+    assert not (tmp_path / "r").exists()
+
+
+def test_env_frames_refuse_an_unknown_env_id():
+    """An unregistered id is a handsim error that lists the envs, not Gymnasium's NameNotFound."""
+    from handsim.estimators.deepprior.data import InvalidTrainingData, env_frames
+
+    with pytest.raises(InvalidTrainingData, match=r"one of handsim/HandPose-v0, .*'handsim/Nope"):
+        env_frames("handsim/Nope-v0")

@@ -9,7 +9,14 @@ from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose_sources import gesture
 from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.mesh_import import load_object
-from handsim.world.scene import CameraSpec, ObjectPlacement, Scene, SceneSpec
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+)
 
 ICVL = camera_preset("icvl")
 PANEL_HALF_M = np.array([0.05, 0.01, 0.12])  # an axis-aligned panel: 10 x 2 x 24 cm
@@ -145,7 +152,7 @@ def test_contacts_between_hand_and_object(panel):
     with FrameRenderer(scene, "front") as renderer:
         frame = renderer.render(np.random.default_rng(0))
     parts = {c.hand_part for c in frame.contacts}
-    assert 5 in parts  # the middle finger's label
+    assert SEGMENT_LABELS.index("middle") in parts
     assert all(c.instance == 0 for c in frame.contacts)
     assert max(c.normal_force_n for c in frame.contacts) > 0
 
@@ -177,10 +184,16 @@ def test_silhouette_shortcut_matches_rendering_each_object_alone():
         scene = Scene(SceneSpec(objects=placements, cameras=(cam,)))
         with FrameRenderer(scene, "view") as renderer:
             frame = renderer.render(rng)
+            canvas = (-ICVL.width, -ICVL.height, 2 * ICVL.width, 2 * ICVL.height)
             for label in frame.objects:
-                alone = renderer._render_only(scene.data, renderer._object_geoms[label.instance])
+                # BOP counts the whole silhouette, on a canvas 3 times the image's size.
+                alone = renderer._render_only(
+                    scene.data, renderer._object_geoms[label.instance], canvas
+                )
                 seen = scene.geom_labels[np.maximum(alone, 0)]
-                expected = int(np.count_nonzero((alone >= 0) & (seen == 8 + label.instance)))
+                expected = int(
+                    np.count_nonzero((alone >= 0) & (seen == OBJECT_LABEL_OFFSET + label.instance))
+                )
                 assert label.px_count_all == expected
 
 
@@ -300,6 +313,50 @@ def test_visibility_is_decided_on_the_clean_render():
     np.testing.assert_array_equal(dropped.occluder, clean.occluder)
 
 
+class _Offset:
+    """A sensor that adds a constant to every measured depth."""
+
+    def __init__(self, offset_m: float, hole: tuple[int, int] | None = None):
+        self.offset_m, self.hole = offset_m, hole
+
+    def apply(self, depth_m, intrinsics, rng):
+        out = np.where(depth_m > 0, depth_m + np.float32(self.offset_m), np.float32(0.0))
+        if self.hole is not None:  # a 5 x 5 dropout around one pixel (u, v)
+            u, v = self.hole
+            out[v - 2 : v + 3, u - 2 : u + 3] = 0.0
+        return out.astype(np.float32)
+
+
+def test_visible_sensor_says_where_the_sensor_returned_the_keypoint():
+    """visible_sensor: visible, and the noisy depth at its pixel is valid and agrees (10 mm)."""
+    from handsim.frame import SENSOR_AGREEMENT_M
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+
+    def render(sensor):
+        with FrameRenderer(scene, "front", sensor=sensor) as renderer:
+            return renderer.render(np.random.default_rng(0))
+
+    clean = render(None)
+    assert clean.visible.all()
+    np.testing.assert_array_equal(clean.visible_sensor, clean.visible)
+    assert not render(_DropEverything()).visible_sensor.any()
+    within = render(_Offset(0.8 * SENSOR_AGREEMENT_M))
+    np.testing.assert_array_equal(within.visible_sensor, within.visible)
+    beyond = render(_Offset(1.2 * SENSOR_AGREEMENT_M))
+    assert beyond.visible.all() and not beyond.visible_sensor.any()
+    # A dropout over one fingertip's pixels: that keypoint alone is lost to the sensor.
+    tip = KEYPOINT_NAMES.index("index_tip")
+    u, v = np.rint(clean.keypoints_px[tip]).astype(int)
+    holed = render(_Offset(0.0, hole=(u, v)))
+    expected = np.ones(21, dtype=bool)
+    expected[tip] = False
+    np.testing.assert_array_equal(holed.visible_sensor, expected)
+    np.testing.assert_array_equal(holed.visible, clean.visible)
+
+
 def test_a_keypoint_is_visible_only_on_its_own_part():
     """Every visible keypoint's pixel (or a neighbour) shows its own hand part near its depth."""
     from handsim.frame import _NEIGHBOURS, _keypoint_parts
@@ -383,12 +440,18 @@ def test_reused_silhouette_differs_from_a_fresh_render_only_on_its_boundary():
             with FrameRenderer(scene, "third_person", silhouette_tolerance_px=0.0) as fresh:
                 new = fresh.render(rng)
                 for k, (a, b) in enumerate(zip(kept.objects, new.objects, strict=True)):
+                    # On BOP's canvas: the image and one image size beyond it on every side.
                     mask = reused._silhouette_masks[k]
-                    cached = np.zeros(new.segmentation.shape, dtype=bool)
+                    H, W = new.segmentation.shape  # noqa: N806
+                    cached = np.zeros((3 * H, 3 * W), dtype=bool)
                     h, w = mask.pixels.shape
-                    cached[mask.v0 : mask.v0 + h, mask.u0 : mask.u0 + w] = mask.pixels
-                    alone = fresh._render_only(data, fresh._object_geoms[k])
-                    truth = (alone >= 0) & (scene.geom_labels[np.maximum(alone, 0)] == 8 + k)
+                    cached[H + mask.v0 : H + mask.v0 + h, W + mask.u0 : W + mask.u0 + w] = (
+                        mask.pixels
+                    )
+                    alone = fresh._render_only(data, fresh._object_geoms[k], (-W, -H, 2 * W, 2 * H))
+                    truth = (alone >= 0) & (
+                        scene.geom_labels[np.maximum(alone, 0)] == OBJECT_LABEL_OFFSET + k
+                    )
                     assert truth.sum() == b.px_count_all
                     kernel = np.ones((3, 3), np.uint8)
                     grown = cv2.dilate(truth.view(np.uint8), kernel).view(bool)
@@ -414,3 +477,66 @@ def test_silhouette_tolerance_is_checked():
     for bad in (-0.1, 0.5, "0.1", True, float("nan")):
         with pytest.raises(InvalidScene, match="silhouette_tolerance_px"):
             FrameRenderer(scene, "third_person", silhouette_tolerance_px=bad)
+
+
+@pytest.fixture(scope="module")
+def screen(tmp_path_factory):
+    """A 30 x 1 x 30 cm board, large enough to hide a whole hand."""
+    path = tmp_path_factory.mktemp("screen") / "screen.stl"
+    trimesh.creation.box(extents=(0.3, 0.01, 0.3)).export(path)
+    return load_object(path, name="screen", mass_kg=0.2, decomposition="convex_hull")
+
+
+def test_hand_occlusion_ratio_leaves_the_forearm_out(screen):
+    """A board hiding the hand from the wrist crease up scores >= 0.95, forearm in view or not."""
+    eye_z, hand_y = 0.19, 0.5
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, eye_z), (0.0, hand_y, eye_z))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))  # wrist crease at z = 0.1, forearm down toward z = 0
+    with FrameRenderer(scene, "front") as renderer:
+        bare = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    assert bare.hand_occlusion_ratio == pytest.approx(0.0, abs=1e-9)
+    # The board's lower edge on the ray from the camera to 5 mm below the crease on the palm
+    # surface (~14 mm in front of the wrist's centre): the forearm below it stays in view.
+    front_y, palm_y, edge_z = 0.4, hand_y - 0.014, 0.095
+    lower_edge_z = eye_z + (edge_z - eye_z) * front_y / palm_y
+    board = ObjectPlacement("screen", (0.0, front_y + 0.005, lower_edge_z + 0.15), mesh=screen)
+    scene = Scene(SceneSpec(cameras=(cam,), objects=(board,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), hand_occlusion=True)
+    forearm_px = np.count_nonzero(frame.segmentation == 2)  # palm label: forearm only here
+    assert forearm_px > 300
+    assert not frame.visible.any()
+    assert frame.hand_occlusion_ratio >= 0.95
+
+
+@pytest.mark.parametrize("side", ["left", "bottom"])
+def test_border_cut_object_counts_its_whole_silhouette(panel, side):
+    """A panel half outside the image: px_count_all is its whole projected box (BOP), not 1.0."""
+    from matplotlib.path import Path as Polygon
+    from scipy.spatial import ConvexHull
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.05), (0.0, 1.0, 0.05))
+    # Centre the panel on the ray of the image's left column / bottom row, 0.4 m ahead.
+    d = 0.4
+    x = -ICVL.cx / ICVL.fx * d if side == "left" else 0.0
+    z = 0.05 - (ICVL.height - 1 - ICVL.cy) / ICVL.fy * d if side == "bottom" else 0.05
+    place = ObjectPlacement("panel", (x, d, z), mesh=panel)
+    scene = Scene(SceneSpec(cameras=(cam,), objects=(place,), table=False))
+    scene.reset(gesture("open").replace(wrist_pos=np.array([0.0, -1.0, 0.0])))  # behind
+    with FrameRenderer(scene, "front") as renderer:
+        label = renderer.render(np.random.default_rng(0)).objects[0]
+    # The silhouette of a box: the convex hull of its 8 projected corners. Count the pixel
+    # centres inside it, on the whole canvas and inside the image.
+    corners_px = ICVL.project(label.corners_cam)
+    hull = corners_px[ConvexHull(corners_px).vertices]
+    v, u = np.mgrid[-ICVL.height : 2 * ICVL.height, -ICVL.width : 2 * ICVL.width]
+    inside = Polygon(hull).contains_points(np.stack([u.ravel(), v.ravel()], -1)).reshape(u.shape)
+    in_image = (u >= 0) & (u < ICVL.width) & (v >= 0) & (v < ICVL.height)
+    expected_all, expected_visib = inside.sum(), (inside & in_image).sum()
+    perimeter = np.sum(np.linalg.norm(hull - np.roll(hull, 1, axis=0), axis=1))
+    assert abs(label.px_count_all - expected_all) <= perimeter
+    assert abs(label.px_count_visib - expected_visib) <= perimeter
+    assert label.visib_fract == pytest.approx(expected_visib / expected_all, abs=0.02)
+    assert 0.4 < label.visib_fract < 0.6  # about half of it is in the image

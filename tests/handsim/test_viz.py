@@ -9,7 +9,14 @@ from handsim.estimator import Estimate
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, FrameRenderer
 from handsim.hand.pose_sources import gesture
 from handsim.world.camera import camera_preset
-from handsim.world.scene import Scene, SceneSpec, sample_placements, third_person_camera
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    Scene,
+    SceneSpec,
+    sample_placements,
+    third_person_camera,
+)
 
 K = np.array([[100.0, 0.0, 40.0], [0.0, 100.0, 30.0], [0.0, 0.0, 1.0]])
 
@@ -60,8 +67,11 @@ def test_depth_colormap_shape_scale_bar_and_units():
 
 def test_segmentation_colours_and_object_cycle():
     """Fixed labels take LABEL_BGR; object labels beyond the palette cycle through objects."""
-    n_obj = len(viz.LABEL_BGR) - 8
-    labels = np.array([[0, 1, 2, 7], [8, 9, 8 + n_obj, 8 + n_obj + 1]], dtype=np.int16)
+    first = OBJECT_LABEL_OFFSET
+    n_obj = len(viz.LABEL_BGR) - first
+    labels = np.array(
+        [[0, 1, 2, first - 1], [first, first + 1, first + n_obj, first + n_obj + 1]], np.int16
+    )
     image = viz.draw_segmentation(labels)
     assert image.shape == (2, 4, 3) and image.dtype == np.uint8
     np.testing.assert_array_equal(image[0, 2], viz.LABEL_BGR[2])
@@ -141,13 +151,52 @@ def test_draw_estimate_two_skeletons(frame):
     viz.draw_estimate(frame.depth, frame, None, scale_bar=False)
 
 
+def test_outline_keeps_a_skeleton_visible_on_its_own_colour():
+    """On a background of the skeleton's colour only a border shows it; the border is drawn."""
+    points = np.random.default_rng(1).uniform(10, 90, size=(21, 2)).round()
+    green = np.full((100, 100, 3), viz.TRUTH_BGR, np.uint8)
+    plain = viz.draw_skeleton(green, points, colour=viz.TRUTH_BGR)
+    assert np.array_equal(plain, green)  # the failure the border fixes: nothing to see
+    bordered = viz.draw_skeleton(green, points, colour=viz.TRUTH_BGR, outline=(0, 0, 0))
+    dark = bordered.sum(axis=-1) < 100
+    assert dark.sum() > 200
+    for u, v in points.astype(int):  # each keypoint keeps its colour, ringed by the border
+        assert tuple(bordered[v, u]) == viz.TRUTH_BGR
+        assert dark[v - 4 : v + 5, u - 4 : u + 5].any()
+
+
+def test_draw_estimate_truth_shows_on_the_green_of_the_colour_map(frame):
+    """Where turbo is green (mid-range depth), the true skeleton is outlined in black."""
+    depth = np.where(frame.depth > 0, 0.5, 0.0).astype(np.float32)  # one mid-range colour
+    image = viz.draw_estimate(depth, frame, None, near_m=0.3, far_m=0.7, scale_bar=False)
+    background = viz.depth_colormap(depth, near_m=0.3, far_m=0.7, scale_bar=False)
+    visible = frame.visible & frame.in_frame
+    dark = image.sum(axis=-1) < 100
+    for u, v in frame.keypoints_px[visible].round().astype(int):
+        window = (slice(max(v - 5, 0), v + 6), slice(max(u - 5, 0), u + 6))
+        assert dark[window].any() and not (background[window].sum(axis=-1) < 100).all()
+
+
+def test_frame_legend_names_marks_and_colours():
+    """The key of draw_frame: its width is the picture's; narrower pictures get it shrunk."""
+    strip = viz.frame_legend(1280)
+    assert strip.shape == (44, 1280, 3) and strip.dtype == np.uint8
+    for style in ("object", "self"):  # the red and yellow crosses are drawn
+        assert np.all(strip == viz.KEYPOINT_STYLES[style][1], axis=-1).any()
+    palm = viz.LABEL_BGR[SEGMENT_LABELS.index("palm")].astype(np.uint8)
+    assert np.all(strip == palm, axis=-1).any()
+    assert viz.frame_legend(280).shape == (22, 280, 3)
+    with pytest.raises(viz.InvalidImageInput, match="width must be an integer >= 1"):
+        viz.frame_legend(0)
+
+
 def test_draw_frame_panels(frame):
     """Depth with scale bar beside segmentation with the skeleton; needs the images."""
     panels = viz.draw_frame_panels(frame)
     h, w = frame.depth.shape
     assert panels.shape == (h, 2 * w + viz.SCALE_BAR_WIDTH, 3)
     labels = panels[:, w + viz.SCALE_BAR_WIDTH :]
-    palm = viz.LABEL_BGR[2].astype(np.uint8)
+    palm = viz.LABEL_BGR[SEGMENT_LABELS.index("palm")].astype(np.uint8)
     assert np.all(labels == palm, axis=-1).any()
     import dataclasses
 

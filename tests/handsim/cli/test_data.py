@@ -1,6 +1,9 @@
 """Tests of `handsim generate`, `handsim dataset check|info` and `handsim export`."""
 
 import json
+import os
+import subprocess
+import sys
 
 import pytest
 
@@ -69,6 +72,71 @@ def test_export_writes_the_format(dataset, capsys, tmp_path, fmt):
     assert any((tmp_path / fmt).iterdir())
 
 
+def test_export_hand_labels_subprocess_writes_its_schema(dataset, tmp_path):
+    """`handsim export hand-labels` as a program: schema.json, labels, depth and hand masks."""
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "labels"
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "export", "hand-labels", str(dataset), str(out)],
+        capture_output=True,
+        text=True,
+        env={**os.environ, "MUJOCO_GL": "egl"},
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["format"] == "hand-labels"
+    schema = json.loads((out / "schema.json").read_text())
+    assert schema["format"] == "handsim-hand-labels-2"
+    assert {"-1", "-2", "-3", "k >= 0"} == set(schema["occluder_codes"])
+    splits = [k for k in report if k not in ("format", "out")]
+    assert sum(report[k] for k in splits) == 2
+    for split in splits:
+        lines = (out / split / "labels.jsonl").read_text().splitlines()
+        assert len(lines) == report[split]
+        for text in lines:
+            line = json.loads(text)
+            assert set(line) == set(schema["fields"])
+            assert all(isinstance(code, int) for code in line["occluder"])
+            assert (out / split / line["depth"]).is_file()
+            assert (out / split / line["hand_mask"]).is_file()
+
+
+def test_export_bop_symmetry_subprocess(dataset, tmp_path):
+    """`handsim export bop --symmetry depth`: the soup can's models_info is continuous."""
+    import os
+    import subprocess
+    import sys
+
+    from handsim.cli.data import _SYMMETRIES
+    from handsim.world.objects import SYMMETRY_MODALITIES
+    from handsim.world.registry import OBJECTS
+
+    assert _SYMMETRIES == SYMMETRY_MODALITIES
+    out = tmp_path / "bop"
+    command = [sys.executable, "-m", "handsim.cli", "export", "bop", str(dataset), str(out)]
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    result = subprocess.run(
+        [*command, "--symmetry", "depth"], capture_output=True, text=True, env=env, timeout=300
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["symmetry"] == "depth"
+    info = json.loads((out / "models" / "models_info.json").read_text())
+    soup = str(OBJECTS["005_tomato_soup_can"].ycbv_id)
+    assert info[soup]["symmetries_continuous"][0]["axis"] == [0.0, 1.0, 0.0]
+    bad = subprocess.run(
+        [*command[:-1], str(tmp_path / "x"), "--symmetry", "rgb"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert bad.returncode == 2 and "choose from 'texture', 'depth'" in bad.stderr
+
+
 def test_errors_are_one_line(capsys, tmp_path):
     """A folder that is no dataset, a bad preset and a bad config field: one line, exit 2."""
     assert main(["dataset", "info", str(tmp_path)]) == 2
@@ -80,3 +148,92 @@ def test_errors_are_one_line(capsys, tmp_path):
     (tmp_path / "bad.json").write_text(json.dumps({"frame": 3}))
     assert main(["generate", "--config", str(tmp_path / "bad.json"), "--out", str(tmp_path)]) == 2
     assert "unknown config field(s) frame" in capsys.readouterr().err
+
+
+def test_generate_and_info_report_redraws_subprocess(tmp_path):
+    """Through the real program: crowded tables are redrawn, and `dataset info` counts them.
+
+    Three or four cracker boxes often do not fit on the table (the placement fails for about a
+    third of the episodes): the run completes and reports the redraws by cause.
+    """
+    crowded = dict(
+        CONFIG,
+        frames=6,
+        frames_per_shard=6,
+        objects=["003_cracker_box"],
+        num_objects_range=[3, 4],
+    )
+    (tmp_path / "crowded.json").write_text(json.dumps(crowded))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    out = tmp_path / "d"
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "handsim.cli",
+            "generate",
+            "--config",
+            str(tmp_path / "crowded.json"),
+        ]
+        + ["--workers", "1", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    made = json.loads(run.stdout)
+    assert made["frames"] == 6 and made["redraws"]["placement"] >= 1
+    info = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "dataset", "info", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+    )
+    assert json.loads(info.stdout)["redraws"] == made["redraws"]
+
+
+def test_info_reports_the_hands_and_views_subprocess(tmp_path):
+    """`handsim generate` and `handsim dataset info` as programs: the distribution is printed.
+
+    Hand-alone third-person frames keep the palm cone; the mixes name the pose sources and
+    views drawn; the constant-mean-pose error lies below the joints' mean distance.
+    """
+    config = {
+        "frames": 8,
+        "frames_per_shard": 4,
+        "frames_per_episode": 2,
+        "sensor": "none",
+        "num_objects_range": [0, 0],
+        "viewpoints": ["third_person"],
+        "pose_sources": ["gesture", "motion"],
+    }
+    (tmp_path / "config.json").write_text(json.dumps(config))
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    run = [sys.executable, "-m", "handsim.cli"]
+    out = tmp_path / "d"
+    made = subprocess.run(
+        [*run, "generate", "--config", str(tmp_path / "config.json"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert made.returncode == 0, made.stderr
+    result = subprocess.run(
+        [*run, "dataset", "info", str(out)], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    dist = json.loads(result.stdout)["distribution"]
+    assert dist["frames"] == 8
+    assert dist["viewpoints"] == {"third_person": 1.0}
+    assert set(dist["pose_sources"]) <= {"gesture", "motion"}
+    assert sum(dist["palm_angle"]["counts"]) == 8
+    assert dist["palm_angle"]["facing_angle_max_deg"] < 62.0
+    assert dist["contact_rate"] == 0.0 and dist["occlusion"]["counts"][0] == 8
+    assert 0.0 < dist["constant_pose_error_mm"] < dist["mean_joint_distance_mm"]
+    # One view: its own mean pose is the dataset's.
+    assert dist["constant_pose_error_mm_by_viewpoint"] == {
+        "third_person": dist["constant_pose_error_mm"]
+    }

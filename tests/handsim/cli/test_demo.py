@@ -3,10 +3,11 @@
 import json
 
 import cv2
+import numpy as np
 
 from handsim.cli.demo import DEMO_GESTURES, run_demo
 from handsim.hand.model import HAND_SIZES
-from handsim.viz import SCALE_BAR_WIDTH
+from handsim.viz import SCALE_BAR_WIDTH, frame_legend
 
 
 def test_demo_writes_contact_sheet_and_summary(tmp_path):
@@ -19,7 +20,9 @@ def test_demo_writes_contact_sheet_and_summary(tmp_path):
     assert json.loads((tmp_path / "summary.json").read_text()) == summary
     assert "contact sheet" in (tmp_path / "summary.txt").read_text()
     frames = cv2.imread(str(tmp_path / "frames.png"))
-    assert frames.shape == (2 * 240, 4 * 320, 3) and frames.std() > 10
+    legend = frame_legend(4 * 320)  # the key of the marks and colours, under the frames
+    assert frames.shape == (2 * 240 + len(legend), 4 * 320, 3) and frames.std() > 10
+    assert np.array_equal(frames[2 * 240 :], legend)
     panels = cv2.imread(str(tmp_path / "frame_panels.png"))
     assert panels.shape == (240, 2 * 320 + SCALE_BAR_WIDTH, 3) and panels.std() > 10
     stats = summary["labelled_frames"]

@@ -72,7 +72,7 @@ def test_help_lists_valid_values(capsys):
         (["closed-loop", "--noise-mm", "nan"], "--noise-mm: expected a finite number >= 0"),
         (["closed-loop", "--noise-mm", "-1"], "--noise-mm: expected a finite number >= 0"),
         (["closed-loop", "--estimator", "deepprior3"], "unknown estimator .deepprior3.; give one"),
-        (["demo", "--size", "0"], "--size: expected an integer >= 1"),
+        (["demo", "--size", "0"], r"--size: expected an integer in \[32, 1024\]; received '0'"),
         (["demo", "--closed-loop-episodes", "-1"], "expected an integer >= 0"),
         (["teleport"], "invalid choice: 'teleport'"),
     ],

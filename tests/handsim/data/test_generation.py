@@ -12,13 +12,14 @@ import pytest
 
 from handsim.data.generation import (
     PRESETS,
+    CannotDraw,
     GenerationConfig,
     GenerationError,
     InvalidGenerationConfig,
     generate,
     generate_shard,
 )
-from handsim.data.manifest import Manifest, check_dataset
+from handsim.data.manifest import InvalidManifest, Manifest, check_dataset
 from handsim.data.shards import PARTIAL_SUFFIX, ShardReader, file_sha256
 from handsim.world.scene import SEGMENT_LABELS
 
@@ -56,14 +57,24 @@ def test_every_preset_is_a_valid_config():
         ({"occlusion_buckets": ((0, 0.5), (0.5, 0.5))}, r"one more edge than fractions"),
         ({"occlusion_buckets": ((0, 0.5, 1), (0.5, 0.6))}, r"fractions must be >= 0 and sum"),
         ({"paired_clean": "yes"}, r"paired_clean must be true or false"),
+        ({"min_visible_keypoints": 22}, r"min_visible_keypoints must be an integer in \[0, 21\]"),
+        (
+            {"max_fraction_below_min_visible": 1.5},
+            r"max_fraction_below_min_visible must be a number in \[0, 1\]; received 1.5",
+        ),
+        (
+            {"max_fraction_below_min_visible": "5 %"},
+            r"max_fraction_below_min_visible must be a number in \[0, 1\]; received '5 %'",
+        ),
         (
             {"viewpoints": ("through_object",), "num_objects_range": (0, 0)},
             r"'through_object' needs objects",
         ),
         (
             {"colour": "red"},
-            r"unknown config field\(s\) colour; valid fields: approach_fraction, camera",
+            r"unknown config field\(s\) colour; valid fields: approach_fraction, background",
         ),
+        ({"background": "sky"}, r"background must be one of none, wall, torso, clutter; received"),
     ],
 )
 def test_config_errors_name_the_field_and_what_is_valid(values, match):
@@ -164,8 +175,11 @@ def test_occlusion_control_keeps_the_range_and_fills_buckets(tmp_path):
 
 def test_an_unreachable_occlusion_range_fails_clearly(tmp_path, monkeypatch):
     """A marker cannot hide 97 % of a hand: the error says what to change, nothing is left."""
+    # The source draws (kinematic) and the error message (generation) read the limit.
     from handsim.data import generation as generate_module
+    from handsim.data import kinematic
 
+    monkeypatch.setattr(kinematic, "MAX_TRIES_PER_FRAME", 3)
     monkeypatch.setattr(generate_module, "MAX_TRIES_PER_FRAME", 3)
     config = GenerationConfig.from_mapping(
         TINY, frames=1, objects=("040_large_marker",), occlusion_range=(0.97, 1.0)
@@ -230,11 +244,16 @@ def test_a_dataset_made_before_new_config_fields_resumes(tmp_path):
     config = GenerationConfig.from_mapping(TINY, frames=2)
     made = generate(config, tmp_path)
     doc = json.loads((tmp_path / "manifest.json").read_text())
-    for key in ("source", "env_id", "frame_stride"):
+    keys = ("source", "env_id", "frame_stride")
+    for key in (*keys, "min_visible_keypoints", "max_fraction_below_min_visible"):
         del doc["config"][key]
+    del doc["redraws"]
+    for record in doc["shards"]:
+        del record["redraws"]
     (tmp_path / "manifest.json").write_text(json.dumps(doc))
     assert generate(config, tmp_path).shards == made.shards
     assert Manifest.read(tmp_path).config == config.to_json()
+    assert Manifest.read(tmp_path).redraws == {}
 
 
 def test_scenes_kept_between_shards_change_no_frame(tmp_path):
@@ -334,3 +353,233 @@ def test_the_hand_and_objects_lie_within_the_sensors_range(tmp_path, preset):
         assert not np.any(mask & (frame["depth_clean"] < 0.35)), i
         seen += np.count_nonzero(mask & (frame["depth"] > 0))
     assert seen > 0.8 * labelled  # the rest: projector shadows, grazing angles
+
+
+# Every episode's objects fail to fit with probability 1/2, decided by the episode's own
+# generator (so a shard is still a function of (seed, index)); the seed gives redraws.
+FAILING_PLACEMENTS = """
+from handsim.data import kinematic
+from handsim.world.scene import InvalidScene
+
+_place = kinematic.sample_placements
+
+
+def _sometimes_no_fit(rng, names, **kwargs):
+    if rng.random() < 0.5:
+        raise InvalidScene(f"could not place {names[0]!r} without overlap (test)")
+    return _place(rng, names, **kwargs)
+"""
+
+
+def _arrays(folder):
+    """Every shard's images and labels, by shard name."""
+    out = {}
+    for path in sorted(folder.glob("shard-*.h5")):
+        reader = ShardReader(path)
+        f = reader._open()
+        out[path.name] = {"depth": f["depth"][()], "episode": f["episode"][()]} | {
+            key: f["labels"][key][()] for key in f["labels"]
+        }
+        reader.close()
+    return out
+
+
+def test_an_episode_that_cannot_be_placed_is_redrawn_and_counted(tmp_path, monkeypatch):
+    """Objects that do not fit: the episode is redrawn from the same generator and counted."""
+    from handsim.data import kinematic
+
+    namespace = {}
+    exec(FAILING_PLACEMENTS, namespace)
+    monkeypatch.setattr(kinematic, "sample_placements", namespace["_sometimes_no_fit"])
+    config = GenerationConfig.from_mapping(TINY, frames=6)
+    full = generate(config, tmp_path / "full")
+    assert full.frames == 6
+    per_shard = [r.redraws.get("placement", 0) for r in full.shards.values()]
+    assert sum(per_shard) >= 1 and full.redraws["placement"] == sum(per_shard)
+    assert Manifest.read(tmp_path / "full").redraws == full.redraws
+    doc = json.loads((tmp_path / "full" / "manifest.json").read_text())
+    assert doc["redraws"] == full.redraws
+    # A redrawn episode keeps its index: episode numbers skip the redrawn ones.
+    redrawn = next(i for i, n in enumerate(per_shard) if n)
+    episodes = ShardReader(tmp_path / "full" / Manifest.shard_name(redrawn))._open()["episode"]
+    assert episodes[()].min() % 1_000_000 >= 1
+
+    # The shard with a redraw, made again alone, is the same file with the same count.
+    (tmp_path / "again").mkdir()
+    again = generate_shard(config, redrawn, tmp_path / "again")
+    assert again == full.shards[redrawn]
+
+
+def test_a_run_with_redraws_resumes_identically_after_sigkill(tmp_path):
+    """SIGKILL mid-run, with episodes redrawn: the resumed dataset equals an uninterrupted one."""
+    values = dict(TINY, frames=8)
+    code = (
+        FAILING_PLACEMENTS
+        + "kinematic.sample_placements = _sometimes_no_fit\n"
+        + "import sys; from handsim.data.generation import GenerationConfig, generate\n"
+        + f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
+    )
+    run = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-c", code, str(run)])
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (run / "manifest.json").exists() and Manifest.read(run).shards:
+            break
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert 1 <= len(Manifest.read(run).shards) < 4 or proc.returncode != -signal.SIGKILL
+    subprocess.run([sys.executable, "-c", code, str(run)], check=True)
+    subprocess.run([sys.executable, "-c", code, str(tmp_path / "clean")], check=True)
+    resumed, clean = Manifest.read(run), Manifest.read(tmp_path / "clean")
+    assert resumed.shards == clean.shards and clean.redraws["placement"] >= 1
+    a, b = _arrays(run), _arrays(tmp_path / "clean")
+    assert a.keys() == b.keys() and len(a) == 4
+    for name in a:
+        for key in a[name]:
+            np.testing.assert_array_equal(a[name][key], b[name][key], err_msg=f"{name} {key}")
+
+
+def test_objects_that_never_fit_fail_clearly(tmp_path):
+    """Six cracker boxes never fit on the table: after five tries, the error says why."""
+    config = GenerationConfig.from_mapping(
+        TINY, frames=1, objects=("003_cracker_box",), num_objects_range=(6, 6)
+    )
+    with pytest.raises(
+        GenerationError,
+        match=r"5 episodes in a row could not be drawn \(0 of the shard's 1 frames made\); "
+        r"the last: placement: could not place '003_cracker_box'",
+    ):
+        generate(config, tmp_path)
+    assert not list(tmp_path.glob("*.h5*"))
+
+
+def test_cannot_draw_needs_a_reason_that_can_be_counted():
+    """A redraw's cause is a short lowercase identifier (a manifest key)."""
+    assert CannotDraw("grasp", "no grasp").reason == "grasp"
+    with pytest.raises(GenerationError, match=r"lowercase identifier .*received 'No Fit'"):
+        CannotDraw("No Fit", "objects overlap")
+
+
+def test_a_manifest_with_malformed_redraws_is_refused(tmp_path):
+    """Redraw counts are checked on reading: a negative count names the shard record."""
+    generate(GenerationConfig.from_mapping(TINY, frames=2), tmp_path)
+    doc = json.loads((tmp_path / "manifest.json").read_text())
+    doc["shards"][0]["redraws"] = {"placement": -1}
+    (tmp_path / "manifest.json").write_text(json.dumps(doc))
+    with pytest.raises(InvalidManifest, match=r"a shard record is malformed .*redraws must map"):
+        Manifest.read(tmp_path)
+
+
+def test_the_visible_keypoint_cap_counts_only_accepted_frames():
+    """floor(fraction * frames) frames below the minimum; a refused frame takes no bucket."""
+    from handsim.data.generation import _Acceptor
+
+    config = GenerationConfig.from_mapping(
+        PRESETS["occlusion-heavy"], occlusion_buckets=((0.0, 0.5, 1.0), (0.5, 0.5))
+    )
+    accept = _Acceptor(config, 40)  # 5 % of 40: 2 frames without a visible keypoint
+    assert accept.below_left == 2 and list(accept.left) == [20, 20]
+    assert accept(0.9, 0) and accept(0.9, 0)
+    assert not accept(0.9, 0)  # the cap is full: refused, the bucket keeps its place
+    assert list(accept.left) == [20, 18]
+    assert accept(0.9, 1) and list(accept.left) == [20, 17]
+    assert _Acceptor(GenerationConfig.from_mapping(TINY), 40).below_left == 40  # no cap
+    # 0.29 * 100 is 28.999... in floating point: still 29 frames.
+    capped = GenerationConfig.from_mapping(TINY, max_fraction_below_min_visible=0.29)
+    assert _Acceptor(capped, 100).below_left == 29
+
+
+def test_a_shard_keeps_the_visible_keypoint_cap(tmp_path):
+    """No frame with fewer than 12 visible keypoints when the cap allows none."""
+    config = GenerationConfig.from_mapping(
+        TINY,
+        frames=4,
+        frames_per_shard=4,
+        min_visible_keypoints=12,
+        max_fraction_below_min_visible=0.0,
+    )
+    generate(config, tmp_path)
+    visible = ShardReader(tmp_path / "shard-00000.h5").labels("visible")
+    assert visible.shape == (4, 21) and (visible.sum(axis=1) >= 12).all()
+
+
+def _kinematic_frames(config, n):
+    """(arrays, scene, renderer) of the first ``n`` frames of shard 0's first episode."""
+    from handsim.data.kinematic import KinematicSource
+
+    source = KinematicSource(config)
+    try:
+        for arrays in source.episode(
+            np.random.default_rng([config.seed, 0]), lambda ratio, visible: True, n
+        ):
+            scene, renderer = next(reversed(source._scenes.values()))
+            yield arrays, scene, renderer
+    finally:
+        source.close()
+
+
+def test_the_backdrop_never_hides_the_hand_arm_or_objects():
+    """Per frame the backdrop stands behind the hand, arm and objects.
+
+    Rendered without it, every hand, arm and object pixel of a frame is the same; it covers
+    only empty pixels or the table (a wall may cut the table), and carries the label
+    ``backdrop``.
+    """
+    config = GenerationConfig.from_mapping(
+        TINY, camera="nyu_carmine", background="torso", viewpoints=("third_person", "random")
+    )
+    person_or_object = SEGMENT_LABELS.index("arm")
+    backdrop = SEGMENT_LABELS.index("backdrop")
+    seen = 0
+    for arrays, scene, renderer in _kinematic_frames(config, 6):
+        labels = arrays["segmentation"]
+        names = [scene.model.geom(g).name for g in range(scene.model.ngeom)]
+        others = np.array([not n.startswith("backdrop") for n in names])
+        alone = scene.segment(renderer._render_only(scene.data, np.flatnonzero(others)))
+        mine = (alone >= person_or_object) & (labels > 0)  # labels 0: beyond the range
+        np.testing.assert_array_equal(labels[mine], alone[mine])
+        assert set(np.unique(alone[labels == backdrop]).tolist()) <= {0, 1}
+        seen += np.count_nonzero(labels == backdrop)
+    assert seen > 0
+
+
+def test_the_arm_leaves_the_image():
+    """In the hand-object preset's frames the arm runs out of the image.
+
+    The arm (forearm, then the upper arm to the shoulder) reaches the image border in most
+    frames (86 % of 250 frames of ``handsim generate --preset hand-object --frames 250``).
+    """
+    config = GenerationConfig.from_mapping(
+        PRESETS["hand-object"], frames=24, frames_per_shard=24, frames_per_episode=6
+    )
+    arm = SEGMENT_LABELS.index("arm")
+    touches = []
+    for arrays, _, _ in _kinematic_frames(config, 24):
+        mask = arrays["segmentation"] == arm
+        touches.append(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+    assert np.mean(touches) >= 0.7, touches
+
+
+def test_a_forearm_in_the_table_is_measured():
+    """The kinematic source measures how far the (drawn only) forearm enters the table.
+
+    Frames deeper than MAX_PENETRATION_M are redrawn. An upright hand's forearm points down
+    its full length from the wrist.
+    """
+    from handsim.data.kinematic import KinematicSource, forearm_geom
+    from handsim.hand.model import hand_params
+    from handsim.hand.pose import HandPose
+    from handsim.hand.skin import FOREARM_LENGTH_RATIO
+    from handsim.world.scene import Scene, SceneSpec
+
+    for side in ("right", "left"):
+        scene = Scene(SceneSpec(hand=hand_params("medium", side)))
+        forearm = forearm_geom(scene)
+        upright = HandPose.neutral(wrist_pos=(0.0, 0.0, 0.1), wrist_rotvec=(np.pi / 2, 0, 0))
+        scene.binding.set_pose(scene.data, upright)
+        depth = KinematicSource._forearm_below_table_m(scene, forearm)
+        # MuJoCo keeps mesh vertices in float32: 0.3 m to about 1e-8 m.
+        assert depth == pytest.approx(FOREARM_LENGTH_RATIO * 0.189 - 0.1, abs=1e-7)
+        scene.reset()  # palm down 0.12 m above the table: the forearm lies above it
+        assert KinematicSource._forearm_below_table_m(scene, forearm) == 0.0

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from handsim.data.arrays import LABEL_SCHEMA
+from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
 from handsim.data.shards import (
     PARTIAL_SUFFIX,
     InvalidShard,
@@ -172,3 +172,51 @@ def test_read_block_can_give_the_images_as_stored(tmp_path):
         np.testing.assert_array_equal(stored[key] * scale, block[key])
     np.testing.assert_array_equal(stored["segmentation"], block["segmentation"])
     np.testing.assert_array_equal(stored["keypoints_cam"], block["keypoints_cam"])
+
+
+def test_draw_labels_are_stored_and_old_shards_read_minus_one(tmp_path, frame_arrays):
+    """pose_source and viewpoint are stored when given, -1 when not.
+
+    A shard written before them reads -1 for every frame.
+    """
+    import h5py
+
+    given = [{**a, "pose_source": np.int8(4), "viewpoint": np.int8(1)} for a in frame_arrays]
+    _write(tmp_path / "given.h5", given[:2] + frame_arrays[2:])
+    reader = ShardReader(tmp_path / "given.h5")
+    np.testing.assert_array_equal(reader.labels("pose_source"), [4, 4, -1])
+    np.testing.assert_array_equal(reader.labels("viewpoint"), [1, 1, -1])
+    assert reader[0]["pose_source"] == 4 and reader[0]["pose_source"].dtype == np.int8
+    reader.close()
+    _write(tmp_path / "old.h5", frame_arrays)
+    with h5py.File(tmp_path / "old.h5", "a") as f:
+        for key in DRAW_LABEL_SCHEMA:
+            del f["labels"][key]
+    assert check_shard(tmp_path / "old.h5") == []
+    reader = ShardReader(tmp_path / "old.h5")
+    for key, (_, dtype, _) in DRAW_LABEL_SCHEMA.items():
+        labels = reader.labels(key)
+        assert labels.dtype == dtype
+        np.testing.assert_array_equal(labels, [-1, -1, -1])
+        assert reader[1][key] == -1
+
+
+def test_a_shard_written_before_visible_sensor_reads_with_it_filled(tmp_path, frame_arrays):
+    """An older shard (no labels/visible_sensor) is sound and reads visible_sensor = visible."""
+    import h5py
+
+    from handsim.frame import Frame
+
+    _write(tmp_path / "old.h5", frame_arrays)
+    with h5py.File(tmp_path / "old.h5", "r+") as f:
+        del f["labels/visible_sensor"]
+    assert check_shard(tmp_path / "old.h5") == []
+    reader = ShardReader(tmp_path / "old.h5")
+    for i, arrays in enumerate(frame_arrays):
+        back = reader[i]
+        np.testing.assert_array_equal(back["visible_sensor"], arrays["visible"])
+        assert back["visible_sensor"].dtype == np.bool_
+        Frame.from_arrays(back)  # the Frame of older data reads too
+    np.testing.assert_array_equal(
+        reader.labels("visible_sensor"), np.stack([a["visible"] for a in frame_arrays])
+    )

@@ -11,12 +11,15 @@ from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.kinematics import ForwardKinematics
 from handsim.hand.model import (
     FINGER_OMEGA,
+    FOREARM_GEOM,
     HAND_SIZES,
+    UPPER_ARM_GEOM,
     Hand,
     HandParams,
     hand_params,
 )
 from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose, joint_index
+from handsim.hand.skin import ELBOW_RATIO, FOREARM_LENGTH_RATIO, build_skin, forearm_extension
 
 PRESETS = list(itertools.product(HAND_SIZES, ("right", "left")))
 MIRROR = np.array([-1.0, 1.0, 1.0])
@@ -387,11 +390,97 @@ def test_unknown_size_preset():
 
 
 def test_forearm_is_optional():
-    """Without the forearm stub the hand loses exactly its two capsules (visual + collision)."""
+    """Without the forearm the hand loses its stub and the arm drawn beyond it.
+
+    The stub is two capsules (visual + collision); the arm the forearm's mesh and the upper
+    arm's capsule.
+    """
     # The capsule look has one visual copy per collision capsule; the skin has one mesh per body.
     with_arm = Hand(HandParams(forearm=True, surface="capsules")).compile()
     without = Hand(HandParams(forearm=False, surface="capsules")).compile()
-    assert with_arm.ngeom == without.ngeom + 4
+    assert with_arm.ngeom == without.ngeom + 6
+    for name in (FOREARM_GEOM, UPPER_ARM_GEOM):
+        assert with_arm.geom("rh_" + name).id >= 0
+        with pytest.raises(KeyError):
+            without.geom("rh_" + name)
+
+
+@pytest.mark.parametrize("surface", ["skin", "capsules"])
+def test_the_arm_is_drawn_only(surface):
+    """The arm has no contact and no mass: bodies weigh and collide as without its geoms."""
+    hand = Hand(HandParams(surface=surface))
+    model = hand.spec.copy().compile()  # names unprefixed, as in the spec
+    for name in (FOREARM_GEOM, UPPER_ARM_GEOM):
+        g = model.geom(name).id
+        assert (model.geom_contype[g], model.geom_conaffinity[g], model.geom_group[g]) == (0, 0, 2)
+    bare = hand.spec.copy()
+    for name in (FOREARM_GEOM, UPPER_ARM_GEOM):
+        bare.delete(bare.geom(name))
+    bare = bare.compile()
+    for field in ("body_mass", "body_inertia", "body_ipos", "body_iquat", "body_subtreemass"):
+        np.testing.assert_array_equal(getattr(model, field), getattr(bare, field), err_msg=field)
+    collides = model.geom_contype > 0
+    assert np.count_nonzero(collides) == np.count_nonzero(bare.geom_contype > 0)
+    for field in ("geom_size", "geom_pos", "geom_quat", "geom_friction", "geom_bodyid"):
+        np.testing.assert_array_equal(
+            getattr(model, field)[collides], getattr(bare, field)[bare.geom_contype > 0], field
+        )
+
+
+@pytest.mark.parametrize(
+    "params",
+    [HandParams(), HandParams(side="left", hand_length=0.15, thickness_scale=0.8)],
+    ids=["medium-right", "small-left-thin"],
+)
+def test_the_forearm_reaches_the_elbow_beyond_the_stub(params):
+    """The forearm ends FOREARM_LENGTH_RATIO hand lengths from the wrist, past the stub.
+
+    In line with the hand, it covers the end of the palm skin's stub: a closed tube of a few
+    hundred triangles.
+    """
+    vertices, faces = forearm_extension(params)
+    hl = params.hand_length
+    assert vertices[:, 1].min() == pytest.approx(-FOREARM_LENGTH_RATIO * hl, abs=1e-12)
+    assert vertices[:, 1].max() < 0.0  # proximal of the wrist crease
+    assert len(faces) < 400
+    # Closed, faces counter-clockwise from outside: a positive volume; every edge twice.
+    tri = vertices[faces]
+    volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0
+    assert volume > 0.0
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    assert np.all(np.unique(edges, axis=0, return_counts=True)[1] == 2)
+    # The stub's end (the palm skin's most proximal point) lies inside the forearm.
+    palm = build_skin(params)[0]
+    end = palm.vertices[np.argmin(palm.vertices[:, 1])]
+    section_y = vertices[1:-1, 1]
+    ring = vertices[1:-1][np.abs(section_y - end[1]) == np.abs(section_y - end[1]).min()]
+    half_w, half_d = np.abs(ring[:, 0]).max(), np.abs(ring[:, 2]).max()
+    assert np.hypot(end[0] / half_w, end[2] / half_d) < 1.0
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_the_upper_arm_reaches_the_shoulder(side):
+    """point_upper_arm runs the capsule from the elbow to the shoulder, in model and data."""
+    hand = Hand(hand_params("medium", side))
+    model = hand.compile()
+    data = mujoco.MjData(model)
+    binding = hand.bind(model)
+    pose = HandPose.neutral(wrist_pos=(0.05, 0.0, 0.12), wrist_rotvec=(0.3, np.pi, 0.2))
+    binding.set_pose(data, pose)
+    shoulder = np.array([0.18, -0.55, 0.30])
+    binding.point_upper_arm(data, shoulder)
+    g = model.geom(hand.prefix + UPPER_ARM_GEOM).id
+    axis = data.geom_xmat[g].reshape(3, 3)[:, 2]
+    half = model.geom_size[g, 1]
+    np.testing.assert_allclose(data.geom_xpos[g] + half * axis, shoulder, atol=1e-9)
+    palm = model.body(hand.root_body).id
+    elbow = data.xpos[palm] + data.xmat[palm].reshape(3, 3) @ (0, -ELBOW_RATIO * 0.189, 0)
+    np.testing.assert_allclose(data.geom_xpos[g] - half * axis, elbow, atol=1e-9)
+    # The model holds it too: a later forward draws the same capsule.
+    xpos, xmat = data.geom_xpos[g].copy(), data.geom_xmat[g].copy()
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.geom_xpos[g], xpos, atol=1e-12)
+    np.testing.assert_allclose(data.geom_xmat[g], xmat, atol=1e-12)
 
 
 def test_hands_of_the_same_parameters_compile_to_the_same_model():

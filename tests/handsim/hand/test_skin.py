@@ -7,7 +7,7 @@ import trimesh
 
 from handsim.errors import InvalidHandParams
 from handsim.frame import FrameRenderer
-from handsim.hand.model import Hand, HandParams
+from handsim.hand.model import FOREARM_GEOM, UPPER_ARM_GEOM, Hand, HandParams
 from handsim.hand.pose import DIGITS, JOINT_LIMITS, JOINT_NAMES, HandPose
 from handsim.hand.pose_sources import gesture
 from handsim.hand.skin import (
@@ -66,10 +66,17 @@ def test_surface_selects_the_visual_geoms_and_keeps_the_collision_geoms():
         }
 
     assert geoms(skin, 3) == geoms(caps, 3)
-    visual = geoms(skin, 2)
-    assert len(visual) == 16 and skin.nmesh == 16
+    # The arm beyond the palm's stub is drawn the same by both: a mesh and a capsule.
+    arm = {"rh_" + FOREARM_GEOM, "rh_" + UPPER_ARM_GEOM}
+    assert {n: v for n, v in geoms(skin, 2).items() if n in arm} == {
+        n: v for n, v in geoms(caps, 2).items() if n in arm
+    }
+    visual = {n: v for n, v in geoms(skin, 2).items() if n not in arm}
+    assert len(visual) == 16 and skin.nmesh == 17  # the skin's, and the forearm's
     assert all(t == mujoco.mjtGeom.mjGEOM_MESH for t, _ in visual.values())
-    assert all(t != mujoco.mjtGeom.mjGEOM_MESH for t, _ in geoms(caps, 2).values())
+    assert all(
+        t != mujoco.mjtGeom.mjGEOM_MESH for n, (t, _) in geoms(caps, 2).items() if n not in arm
+    )
     for i in np.nonzero(skin.geom_group == 2)[0]:
         assert skin.geom_contype[i] == 0 and skin.geom_conaffinity[i] == 0
 

@@ -302,6 +302,24 @@ def test_bowl_add_large_adi_small_under_symmetry_rotation():
     assert not is_add_correct(add, bowl.diameter_m)
 
 
+def test_a_soup_can_turned_about_its_axis_is_symmetric_in_depth_only():
+    """ADD(-S) with modality="depth" uses ADI for the plain can; "texture" (default) ADD."""
+    can = get_object("005_tomato_soup_can")
+    T_gt = pose((0.3, 0.0, 0.1), (0.02, -0.01, 0.6))  # noqa: N806
+    T_est = T_gt @ pose(np.deg2rad(50.0) * np.asarray(can.symmetry_of("depth").axis))  # noqa: N806
+    add = add_error_mm(T_est, T_gt, can.model_points_m)
+    adi = adi_error_mm(T_est, T_gt, can.model_points_m)
+    assert add > 20.0 and adi < 3.0
+    assert add_or_adi_error_mm(T_est, T_gt, can) == pytest.approx(add)
+    assert add_or_adi_error_mm(T_est, T_gt, can, modality="depth") == pytest.approx(adi)
+    depth = evaluate_object_poses([T_est], [T_gt], can, modality="depth")
+    texture = evaluate_object_poses([T_est], [T_gt], can)
+    assert depth.symmetric and not texture.symmetric
+    assert depth.add_s_mm[0] == pytest.approx(adi) and texture.add_s_mm[0] == pytest.approx(add)
+    with pytest.raises(InvalidMetricInput, match="modality must be one of"):
+        add_or_adi_error_mm(T_est, T_gt, can, modality="rgb")
+
+
 def test_non_symmetric_object_uses_add():
     """ADD(-S) of an object without symmetry is ADD."""
     obj = toy_object(ring())

@@ -208,3 +208,44 @@ def test_working_range():
     extent = scene.model.stat.extent
     assert scene.model.vis.map.zfar * extent == pytest.approx(1.5)
     assert scene.model.vis.map.znear * extent == pytest.approx(0.01)
+
+
+def test_canvas_beyond_the_image_equals_a_larger_sensors_render():
+    """Tiles with a shifted principal point give exactly a 3x larger sensor's image (BOP)."""
+    intr = camera_preset("icvl")
+    big = CameraIntrinsics(
+        3 * intr.width, 3 * intr.height, intr.fx, intr.fy, intr.cx + intr.width,
+        intr.cy + intr.height, "big", intr.range_m,
+    )  # fmt: skip
+
+    def model(intrinsics):
+        spec = mujoco.MjSpec()
+        spec.visual.global_.offwidth, spec.visual.global_.offheight = big.width, big.height
+        # Boxes in the image, across its border and beyond it on every side.
+        for x, y in [(0.03, 0.02), (0.5, 0.3), (-0.6, -0.1), (0.7, -0.55), (0.66, 0.0)]:
+            body = spec.worldbody.add_body(pos=[x, y, 1.0])
+            body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.07, 0.05])
+        add_camera(spec.worldbody, "cam", intrinsics, np.zeros(3), np.array([0, 1.0, 0, 0]))
+        m = spec.compile()
+        d = mujoco.MjData(m)
+        mujoco.mj_forward(m, d)
+        return m, d
+
+    m, d = model(intr)
+    with DepthRenderer(m, "cam", intr) as renderer:
+        w, h = intr.width, intr.height
+        canvas = renderer.render_segmentation_canvas(d, (-w, -h, 2 * w, 2 * h))
+        # Boxes across the border, each rendered as windows shifted by whole pixels.
+        boxes = [(-50, 100, w + 7, 2 * h - 3), (-137, -61, 40, 90), (w - 30, h - 20, 2 * w, h + 5)]
+        parts = [renderer.render_segmentation_canvas(d, box) for box in boxes]
+        inside = renderer.render_segmentation_canvas(d, (0, 0, w, h))
+        np.testing.assert_array_equal(inside, renderer.render_segmentation(d))
+        intrinsic = m.cam_intrinsic.copy()
+    np.testing.assert_array_equal(m.cam_intrinsic, intrinsic)  # restored
+    m_big, d_big = model(big)
+    with DepthRenderer(m_big, "cam", big) as renderer:
+        reference = renderer.render_segmentation(d_big)
+    assert all(np.count_nonzero(reference == g) > 1000 for g in range(5))
+    np.testing.assert_array_equal(canvas, reference)
+    for (u0, v0, u1, v1), part in zip(boxes, parts, strict=True):
+        np.testing.assert_array_equal(part, reference[h + v0 : h + v1, w + u0 : w + u1])

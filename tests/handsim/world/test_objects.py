@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 import trimesh
 from scipy.spatial.distance import pdist
+from scipy.spatial.transform import Rotation
 
 from handsim.errors import HandSimError, UnknownName
 from handsim.hand.model import HAND_PHYSICS_OPTIONS
@@ -346,6 +347,49 @@ def test_symmetries_map_the_shape_onto_itself(name):
         moved = points @ t[:3, :3].T + t[:3, 3]
         d = _distance_to_mesh(moved, obj.visual_mesh, reach=3e-3)
         assert np.mean(d < 5e-4) >= 0.9 and np.all(d <= 3e-3)
+
+
+DEPTH_ONLY_SYMMETRIC = (
+    "003_cracker_box", "004_sugar_box", "005_tomato_soup_can", "007_tuna_fish_can",
+    "008_pudding_box", "009_gelatin_box", "010_potted_meat_can",
+)  # fmt: skip
+
+
+@pytest.mark.parametrize("name", DEPTH_ONLY_SYMMETRIC)
+def test_depth_symmetries_map_the_shape_onto_itself(name):
+    """Plain cans and boxes: symmetric in depth (the shape), not in texture (their print)."""
+    obj = get_object(name)
+    assert obj.symmetry_of("texture") is obj.symmetry and obj.symmetry.kind == "none"
+    depth = obj.symmetry_of("depth")
+    expected = "continuous" if name.endswith("_can") and "meat" not in name else "discrete"
+    assert depth.kind == expected
+    points = _subsample(obj.model_points_m, 200)
+    transforms = depth.transforms(n_continuous=7)[1:]
+    assert len(transforms) >= 3
+    for t in transforms:
+        moved = points @ t[:3, :3].T + t[:3, 3]
+        assert np.all(_distance_to_mesh(moved, obj.visual_mesh, reach=3e-3) < 5e-4)
+    # A turn that is no symmetry moves points off the surface (the check can fail).
+    quarter = np.eye(4)
+    quarter[:3, :3] = Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix()
+    moved = points @ quarter[:3, :3].T
+    assert np.any(_distance_to_mesh(moved, obj.visual_mesh, reach=3e-3) > 2e-3)
+
+
+@pytest.mark.parametrize("name", OBJECT_NAMES)
+def test_depth_symmetry_contains_the_texture_symmetry(name):
+    """Whatever looks the same in colour gives the same depth: depth symmetries are a superset."""
+    obj = get_object(name)
+    depth, texture = obj.symmetry_of("depth"), obj.symmetry_of("texture")
+    if texture.kind == "continuous":
+        assert depth.kind == "continuous" and depth.axis == texture.axis
+    elif texture.kind == "discrete":
+        for t in texture.discrete:
+            assert any(np.allclose(t, d, atol=1e-9) for d in depth.transforms())
+    if name not in DEPTH_ONLY_SYMMETRIC:
+        assert depth is texture
+    with pytest.raises(InvalidObjectParams, match="modality must be one of"):
+        obj.symmetry_of("rgb")
 
 
 @pytest.mark.parametrize("name", OBJECT_NAMES)

@@ -237,7 +237,7 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
     scene.reset(gesture("fist").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2)))
     built_m = scene.hand.params.hand_length
     skin = scene.hand_skin_geom_ids
-    assert len(skin) == len(scene.hand_mesh_ids) == 16
+    assert len(skin) == len(scene.hand_mesh_ids) == 17  # the skin's 16 and the forearm's
     assert set(scene.model.geom_dataid[skin]) == set(scene.hand_mesh_ids)
     with FrameRenderer(scene, "camera") as kept:
         for length_m in (0.15, 0.22, built_m):
@@ -278,3 +278,84 @@ def test_a_rescaled_scene_is_for_kinematic_use_only():
     Scene(scene.spec).to_xml()  # the spec holds the new length: a scene built for it
     with pytest.raises(InvalidScene, match="needs a scene with a hand"):
         Scene(SceneSpec(hand=None)).set_hand_length(0.17)
+
+
+def test_backdrop_is_validated():
+    """An unknown background is refused with the valid names."""
+    with pytest.raises(
+        InvalidScene,
+        match=r"background must be one of 'none', 'wall', 'torso', 'clutter'; received 'sky'",
+    ):
+        SceneSpec(background="sky")
+    with pytest.raises(InvalidScene, match=r"background must be one of .*; received 1"):
+        SceneSpec(background=1)
+
+
+def _farthest_m(scene, eye, target):
+    """The farthest geom bounding-box corner (all geoms) along the horizontal line of sight."""
+    ahead = np.asarray(target, dtype=float) - eye
+    ahead[2] = 0.0
+    ahead /= np.linalg.norm(ahead)
+    model, data = scene.model, scene.data
+    far = -np.inf
+    for g in range(model.ngeom):
+        if model.geom(g).name.startswith("backdrop"):
+            continue
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        signs = np.array(np.meshgrid(*[(-1, 1)] * 3)).reshape(3, -1).T
+        corners = (centre + signs * half) @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+        far = max(far, float(((corners - eye) @ ahead).max()))
+    return far
+
+
+@pytest.mark.parametrize("background", ["wall", "torso", "clutter"])
+def test_the_backdrop_fills_only_empty_pixels(background):
+    """Placed beyond the scene along the line of sight, the backdrop hides nothing.
+
+    Every pixel of the scene without it is the same with it; the rest is the backdrop's.
+    """
+    placements = sample_placements(np.random.default_rng(1), OBJECTS[:2])
+    icvl = camera_preset("icvl")
+    rng = np.random.default_rng(3)
+    views = [third_person_camera(icvl, name="camera"), egocentric_camera(icvl, name="camera")]
+    views += [sample_viewpoint(rng, icvl, name="camera") for _ in range(4)]
+    seen_backdrop = 0
+    for cam in views:
+        plain = Scene(SceneSpec(objects=placements, cameras=(cam,)))
+        backed = Scene(SceneSpec(objects=placements, cameras=(cam,), background=background))
+        eye = np.asarray(cam.pos_m)
+        target = (0.0, 0.0, 0.12)
+        backed.place_backdrop(eye, target, _farthest_m(backed, eye, target) + 0.01)
+        with shared_render_context():
+            with DepthRenderer(plain.model, "camera", icvl) as renderer:
+                depth0, geoms0 = renderer.render(plain.data)
+                labels0 = plain.segment(geoms0)
+            with DepthRenderer(backed.model, "camera", icvl) as renderer:
+                depth1, geoms1 = renderer.render(backed.data)
+                labels1 = backed.segment(geoms1)
+        scene_px = labels0 > 0
+        np.testing.assert_array_equal(labels1[scene_px], labels0[scene_px])
+        np.testing.assert_array_equal(depth1[scene_px], depth0[scene_px])
+        backdrop = labels1 == SEGMENT_LABELS.index("backdrop")
+        assert np.array_equal(backdrop, ~scene_px & (labels1 > 0))
+        seen_backdrop += np.count_nonzero(backdrop)
+    assert seen_backdrop > 0
+
+
+def test_the_default_backdrop_stands_beyond_the_table_and_the_arm():
+    """Unplaced, the backdrop faces the first camera 0.3 m beyond the table's far edge.
+
+    The third-person view sees the hand, arm and table in front of it (a Carmine: the wall
+    is beyond the 1 m range of the ICVL sensor).
+    """
+    cam = third_person_camera(camera_preset("nyu_carmine"), name="camera")
+    plain = Scene(SceneSpec(cameras=(cam,)))
+    backed = Scene(SceneSpec(cameras=(cam,), background="wall"))
+    with shared_render_context():
+        with DepthRenderer(plain.model, "camera", cam.intrinsics) as renderer:
+            labels0 = plain.segment(renderer.render(plain.data)[1])
+        with DepthRenderer(backed.model, "camera", cam.intrinsics) as renderer:
+            labels1 = backed.segment(renderer.render(backed.data)[1])
+    np.testing.assert_array_equal(labels1[labels0 > 0], labels0[labels0 > 0])
+    assert SEGMENT_LABELS.index("arm") in labels0
+    assert np.count_nonzero(labels1 == SEGMENT_LABELS.index("backdrop")) > 0
