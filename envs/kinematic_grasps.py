@@ -175,9 +175,10 @@ def close_onto(scene: Scene, plan: GraspPlan) -> HandPose | None:
 class GraspSource(KinematicSource):
     """Frames of a hand grasping an object, posed without physics (see the module docstring).
 
+    Frames are labelled with pose source ``"grasp"``; ``pose_sources`` is not used.
+
     Args:
         config: the generation config (``source="grasp"``).
-
     """
 
     def __init__(self, config: GenerationConfig) -> None:
