@@ -24,7 +24,7 @@ import numpy as np
 
 from handsim.errors import HandSimError
 from handsim.frame import OCCLUDER_NONE, OCCLUDER_SELF, Frame
-from handsim.world.scene import OBJECT_LABEL_OFFSET
+from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS
 
 if TYPE_CHECKING:
     from handsim.estimator import Estimate
@@ -475,10 +475,10 @@ def draw_frame(frame: Frame) -> np.ndarray:
     return tile
 
 
-_LEGEND_LABELS = (
-    (2, "palm"), (3, "thumb"), (4, "index"), (5, "middle"), (6, "ring"), (7, "little"),
-    (1, "table"), (_OBJECT_LABEL, "objects"),
-)  # fmt: skip
+_LEGEND_LABELS = tuple(
+    (SEGMENT_LABELS.index(name), name)
+    for name in ("arm", "palm", "thumb", "index", "middle", "ring", "little", "table")
+) + ((_OBJECT_LABEL, "objects"),)
 
 
 def frame_legend(width: int) -> np.ndarray:

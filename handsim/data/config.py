@@ -128,6 +128,7 @@ class CannotDraw(HandSimError, RuntimeError):
 SOURCES: dict[str, str] = {
     "kinematic": "handsim.data.kinematic:KinematicSource",
     "rollout": "handsim.envs.rollouts:RolloutSource",
+    "grasp": "handsim.envs.kinematic_grasps:GraspSource",
 }
 """Frame sources by name -> ``"module:class"`` of a :class:`FrameSource`, imported when used
 (so the core does not import the envs; spawned and Ray workers import the module by name).
@@ -279,7 +280,9 @@ class GenerationConfig:
             (``floor(fraction * shard frames)``); others are redrawn. 1 keeps every frame.
         depth_scale_mm: stored depth unit, millimetres.
         source: where frames come from (:data:`SOURCES`): ``"kinematic"`` (posed hands, no
-            physics) or ``"rollout"`` (an env driven by its expert, with physical contact).
+            physics), ``"grasp"`` (posed hands closed onto an object by the grasp planner's
+            grasp, no physics) or ``"rollout"`` (an env driven by its expert, with physical
+            contact).
         env_id: the env of the rollout source (``handsim/Grasp-v0``,
             ``handsim/GraspClutter-v0`` or ``handsim/HandPose-v0``); ``None`` otherwise.
         frame_stride: rollout source: env steps between kept frames (1 = every step).
@@ -290,6 +293,8 @@ class GenerationConfig:
             everything the camera sees of the hand (forearm included) and the objects; its
             pixels carry the segmentation label ``"backdrop"``. The rollout source renders its
             env's scene, which has none.
+        approach_fraction: grasp source: fraction of frames drawn along the approach to the
+            grasp (the open hand, not yet in contact) instead of at the grasp.
     """
 
     frames: int = 1000
@@ -315,10 +320,24 @@ class GenerationConfig:
     env_id: str | None = None
     frame_stride: int = 1
     background: str = "none"
+    approach_fraction: float = 0.0
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
         _int("frame_stride", self.frame_stride, 1, 10_000)
+        if (
+            isinstance(self.approach_fraction, bool)
+            or not isinstance(self.approach_fraction, (int, float))
+            or not 0.0 <= self.approach_fraction <= 1.0
+        ):
+            raise InvalidGenerationConfig(
+                f"approach_fraction must be a number in [0, 1]; received {self.approach_fraction!r}"
+            )
+        if self.approach_fraction and self.source != "grasp":
+            raise InvalidGenerationConfig(
+                "approach_fraction is a field of the 'grasp' source; set source: grasp or "
+                f"remove it (received {self.approach_fraction!r} with source {self.source!r})"
+            )
         if (
             isinstance(self.depth_scale_mm, bool)
             or not isinstance(self.depth_scale_mm, (int, float))
@@ -501,8 +520,9 @@ flat boxes and can seen edge-on hide little."""
 
 PRESETS: dict[str, dict[str, Any]] = {
     "hand-only": {"num_objects_range": (0, 0)},
-    "hand-object": {"num_objects_range": (1, 3)},
+    "hand-object": {"source": "grasp", "num_objects_range": (1, 3)},
     "occlusion-heavy": {
+        "source": "grasp",
         "num_objects_range": (2, 4),
         "viewpoints": ("through_object",),
         "distance_range_m": (0.4, 0.7),
@@ -530,9 +550,11 @@ PRESETS: dict[str, dict[str, Any]] = {
         "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
     },
 }
-"""Named configs: hand alone (third-person and egocentric views), hand among objects, objects
-between camera and hand with the occlusion ratio stratified in four buckets from 0.1 to 0.95
-and at most 5 % of frames without a visible keypoint (kinematic), Grasp-v0 rollouts of the
-grasp expert, every fifth step (10 Hz) of the approach, grasp and lift (physical contact), and
-the same rollouts of :data:`OCCLUDING_OBJECTS` seen through the object (a view drawn per kept
-step) with the occlusion buckets of ``occlusion-heavy``."""
+"""Named configs: hand alone (third-person and egocentric views; kinematic), hand grasping one
+of the objects on the table, objects between camera and hand with the occlusion ratio
+stratified in four buckets from 0.1 to 0.95 and at most 5 % of frames without a visible
+keypoint (both from the grasp planner's grasps, posed without physics: the ``"grasp"``
+source), Grasp-v0 rollouts of the grasp expert, every fifth step (10 Hz) of the approach,
+grasp and lift (physical contact), and the same rollouts of :data:`OCCLUDING_OBJECTS` seen
+through the object (a view drawn per kept step) with the occlusion buckets of
+``occlusion-heavy``."""

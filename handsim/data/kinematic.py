@@ -79,6 +79,12 @@ SHOULDER_M = np.array([0.18, -0.55, 0.30])
 """The right shoulder of the person at the table's -y edge (the left one at -x), world,
 metres: seated, 0.3 m above the table top, shoulders 0.36 m apart [estimate]. The upper arm
 is drawn from the elbow to it."""
+# A hand alone: the shoulder from the palm (third person, the person facing the camera: behind
+# the hand, below it, on the image's left for a right hand) or from the eye (egocentric: below
+# and beside a head-mounted camera pitched down about 40 deg), in the alone camera's axes
+# (world: +x image right, +y the line of sight, +z up), metres [estimate].
+_ALONE_SHOULDER_FROM_PALM_M = np.array([-0.18, 0.30, -0.25])
+_ALONE_SHOULDER_FROM_EYE_M = np.array([0.18, 0.10, -0.20])
 # The backdrop's gap behind the farthest hand or object point, metres: a wall anywhere from
 # just behind to a room's depth away; the torso just behind the elbow [estimate].
 _BACKDROP_GAP_M = {"wall": (0.1, 1.5), "torso": (0.05, 0.3), "clutter": (0.1, 0.8)}
@@ -311,15 +317,16 @@ class KinematicSource:
 
     def _hand_alone(
         self, rng: np.random.Generator, view: str, is_left: bool
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A hand alone turned toward the camera as the view draws it (:mod:`.views`).
 
         The camera looks along world +y from in front of the palm, the world's +z up in the
         image (there is no table); the hand is turned in the camera's frame.
 
         Returns:
-            Wrist position, rotation vector and palm centre (world, m), then the camera's eye
-            (world, m) and orientation ``quat_wxyz`` (world from MuJoCo camera).
+            Wrist position, rotation vector and palm centre (world, m), the camera's eye
+            (world, m) and orientation ``quat_wxyz`` (world from MuJoCo camera), and the
+            shoulder the upper arm is drawn to (world, m): the person's, placed for the view.
         """
         distance = rng.uniform(*self.config.distance_range_m)
         R_cam_from_hand = hand_rotation_in_camera(rng, view, is_left)  # noqa: N806
@@ -329,7 +336,13 @@ class KinematicSource:
         quat, rotvec = np.empty(4), np.empty(3)
         mujoco.mju_mat2Quat(quat, R.reshape(-1))
         mujoco.mju_quat2Vel(rotvec, quat, 1.0)
-        return wrist, rotvec, palm, palm - distance * _ALONE_VIEW_AXIS, _ALONE_CAM_QUAT_WXYZ
+        eye = palm - distance * _ALONE_VIEW_AXIS
+        mirror = np.array([-1.0, 1.0, 1.0]) if is_left else np.ones(3)
+        if view == "egocentric":
+            shoulder = eye + mirror * _ALONE_SHOULDER_FROM_EYE_M
+        else:
+            shoulder = palm + mirror * _ALONE_SHOULDER_FROM_PALM_M
+        return wrist, rotvec, palm, eye, _ALONE_CAM_QUAT_WXYZ, shoulder
 
     def _wrist(
         self, rng: np.random.Generator, scene: Scene, beside: bool
@@ -449,6 +462,54 @@ class KinematicSource:
                 deepest = max(deepest, -float(con.dist))
         return deepest
 
+    def _view(
+        self,
+        rng: np.random.Generator,
+        scene: Scene,
+        renderer: FrameRenderer,
+        camera: tuple[np.ndarray, np.ndarray],
+        palm: np.ndarray,
+        geoms: np.ndarray,
+        behind: np.ndarray,
+        accept: Callable[[float, int], bool],
+        source: str,
+        view: str,
+    ) -> dict[str, np.ndarray] | None:
+        """The arrays of the posed hand seen from ``camera``, or None if refused.
+
+        The camera (``(eye, quat_wxyz)``, world, looking at the palm centre ``palm``) moves
+        back until ``geoms`` are beyond the near range, the backdrop (if any) stands behind
+        ``behind``, and the frame is rendered; None when the camera would be below the table,
+        fewer than :data:`MIN_KEYPOINTS_IN_FRAME` keypoints are in the image or ``accept``
+        refuses it. ``source`` and ``view`` are labelled (``pose_source``, ``viewpoint``).
+        """
+        eye, quat = camera
+        eye = beyond_near(scene, geoms, eye, palm, self._near_m)
+        if eye is None:
+            return None
+        if self.config.background != "none":
+            self._place_backdrop(rng, scene, behind, eye, palm)
+        cam = scene.model.camera("camera").id
+        scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
+        mujoco.mj_camlight(scene.model, scene.data)
+        frame = renderer.render(
+            rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
+        )
+        ratio = frame.hand_occlusion_ratio or 0.0
+        visible = int(frame.visible.sum())
+        if frame.in_frame.sum() < MIN_KEYPOINTS_IN_FRAME or not accept(ratio, visible):
+            return None
+        arrays = frame_to_arrays(frame)
+        arrays["hand_occlusion_ratio"][()] = ratio
+        arrays["pose_source"] = np.int8(POSE_SOURCE_CODES.index(source))
+        arrays["viewpoint"] = np.int8(VIEWPOINT_CODES.index(view))
+        # The frame's own images, not copies: the writer only reads them, and before the
+        # next frame is rendered.
+        arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
+        if frame.depth_clean is not None:
+            arrays["depth_clean"] = frame.depth_clean
+        return arrays
+
     def episode(
         self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
     ) -> Iterator[dict[str, np.ndarray]]:
@@ -467,7 +528,6 @@ class KinematicSource:
         """
         scene, renderer = self._scene(rng)
         source = str(rng.choice(self.config.pose_sources))
-        cam = scene.model.camera("camera").id
         viewpoints = list(self.config.viewpoints)
         alone = not scene.objects and not scene.spec.table
         is_left = scene.spec.hand.side == "left"
@@ -486,10 +546,11 @@ class KinematicSource:
                     postures, used = self._postures(rng, source, batch), 0
                 view = viewpoints[int(rng.integers(len(viewpoints)))]
                 if alone:
-                    wrist, rotvec, palm, eye, quat = self._hand_alone(rng, view, is_left)
+                    wrist, rotvec, palm, eye, quat, arm_to = self._hand_alone(rng, view, is_left)
                     obj = None
                 else:
                     wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
+                    arm_to = shoulder
                 pose = HandPose(wrist, rotvec, postures[used])
                 used += 1
                 if alone:  # nothing to touch: no contacts to find or label
@@ -502,29 +563,11 @@ class KinematicSource:
                     if self._forearm_below_table_m(scene, forearm) > MAX_PENETRATION_M:
                         continue
                     eye, quat = self._camera(rng, view, palm, obj, rotvec)
-                scene.binding.point_upper_arm(scene.data, shoulder)
-                eye = beyond_near(scene, geoms, eye, palm, self._near_m)
-                if eye is None:
-                    continue
-                if self.config.background != "none":
-                    self._place_backdrop(rng, scene, behind, eye, palm)
-                scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
-                mujoco.mj_camlight(scene.model, scene.data)
-                frame = renderer.render(
-                    rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
+                scene.binding.point_upper_arm(scene.data, arm_to)
+                arrays = self._view(
+                    rng, scene, renderer, (eye, quat), palm, geoms, behind, accept, source, view
                 )
-                ratio = frame.hand_occlusion_ratio or 0.0
-                visible = int(frame.visible.sum())
-                if frame.in_frame.sum() >= MIN_KEYPOINTS_IN_FRAME and accept(ratio, visible):
-                    arrays = frame_to_arrays(frame)
-                    arrays["hand_occlusion_ratio"][()] = ratio
-                    arrays["pose_source"] = np.int8(POSE_SOURCE_CODES.index(source))
-                    arrays["viewpoint"] = np.int8(VIEWPOINT_CODES.index(view))
-                    # The frame's own images, not copies: the writer only reads them, and
-                    # before the next frame is rendered.
-                    arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
-                    if frame.depth_clean is not None:
-                        arrays["depth_clean"] = frame.depth_clean
+                if arrays is not None:
                     yield arrays
                     break
             else:

@@ -33,7 +33,14 @@ from handsim.frame import FrameRenderer
 from handsim.hand.pose_sources import gesture
 from handsim.world.camera import camera_preset
 from handsim.world.registry import OBJECTS
-from handsim.world.scene import OBJECT_LABEL_OFFSET, CameraSpec, ObjectPlacement, Scene, SceneSpec
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    CameraSpec,
+    ObjectPlacement,
+    Scene,
+    SceneSpec,
+)
 
 # Small: one object, noise-free, two frames 3 steps apart per episode.
 TINY = {
@@ -228,7 +235,8 @@ def test_through_object_views_put_the_object_between_camera_and_hand():
             assert eye[2] >= MIN_EYE_HEIGHT_M
             frame = renderer.render(rng)
             assert not frame.visible[k] and frame.occluder[k] == 0  # object instance 0
-            seen = frame.segmentation >= 2  # hand parts and the object
+            # The hand (the arm is drawn only, and may come nearer) and the object.
+            seen = frame.segmentation >= SEGMENT_LABELS.index("palm")
             assert seen.any() and frame.depth[seen].min() >= 0.35
             assert (frame.segmentation == OBJECT_LABEL_OFFSET).any()
     assert len(looked_at) > 5  # drawn from the hand's keypoints

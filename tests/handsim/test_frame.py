@@ -505,7 +505,8 @@ def test_hand_occlusion_ratio_leaves_the_forearm_out(screen):
     scene.reset(_flat_hand_facing(0.0))
     with FrameRenderer(scene, "front") as renderer:
         frame = renderer.render(np.random.default_rng(0), hand_occlusion=True)
-    forearm_px = np.count_nonzero(frame.segmentation == 2)  # palm label: forearm only here
+    # The palm label below the board: the forearm stub of the palm skin only.
+    forearm_px = np.count_nonzero(frame.segmentation == SEGMENT_LABELS.index("palm"))
     assert forearm_px > 300
     assert not frame.visible.any()
     assert frame.hand_occlusion_ratio >= 0.95

@@ -183,7 +183,7 @@ def test_frame_legend_names_marks_and_colours():
     assert strip.shape == (44, 1280, 3) and strip.dtype == np.uint8
     for style in ("object", "self"):  # the red and yellow crosses are drawn
         assert np.all(strip == viz.KEYPOINT_STYLES[style][1], axis=-1).any()
-    palm = viz.LABEL_BGR[2].astype(np.uint8)
+    palm = viz.LABEL_BGR[SEGMENT_LABELS.index("palm")].astype(np.uint8)
     assert np.all(strip == palm, axis=-1).any()
     assert viz.frame_legend(280).shape == (22, 280, 3)
     with pytest.raises(viz.InvalidImageInput, match="width must be an integer >= 1"):

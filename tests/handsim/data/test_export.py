@@ -13,6 +13,7 @@ from handsim.data.shards import ShardReader
 from handsim.errors import InvalidKeypoints
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, format_flags
 from handsim.world.registry import get_object
+from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,8 @@ def test_hand_labels_hold_every_frame_and_format(dataset, tmp_path):
     mask = cv2.imread(str(tmp_path / "out" / split / line["hand_mask"]), cv2.IMREAD_UNCHANGED)
     assert mask.dtype == np.uint8 and set(np.unique(mask)) <= {0, 255}
     seg = frame["segmentation"]
-    np.testing.assert_array_equal(mask == 255, (seg >= 2) & (seg < 8))
+    palm = SEGMENT_LABELS.index("palm")
+    np.testing.assert_array_equal(mask == 255, (seg >= palm) & (seg < OBJECT_LABEL_OFFSET))
     assert mask.any()
     # Per format: the canonical flags, copied (mediapipe21 is the identity).
     mp = line["formats"]["mediapipe21"]

@@ -70,7 +70,10 @@ def test_every_preset_is_a_valid_config():
             {"viewpoints": ("through_object",), "num_objects_range": (0, 0)},
             r"'through_object' needs objects",
         ),
-        ({"colour": "red"}, r"unknown config field\(s\) colour; valid fields: background"),
+        (
+            {"colour": "red"},
+            r"unknown config field\(s\) colour; valid fields: approach_fraction, background",
+        ),
         ({"background": "sky"}, r"background must be one of none, wall, torso, clutter; received"),
     ],
 )
