@@ -17,7 +17,9 @@ the palm to the camera is the camera's -z.
     front at arm's length, fingers forward, palm down, then turned as a forearm turns: a roll
     about the fingers' axis (:data:`EGO_ROLL_DEG`, positive turns the thumb up), the fingers
     raised or lowered (:data:`EGO_PITCH_DEG`) and swung left or right (:data:`EGO_YAW_DEG`).
-    The camera sees the back of the hand, or its thumb side when the hand is turned up.
+    The camera sees the back of the hand, or its thumb side when the hand is turned up. The
+    forearm points down in the image (within :data:`EGO_FOREARM_FROM_DOWN_DEG`): the arm
+    comes in from the bottom, as in a head-mounted camera's view; other draws are redrawn.
 ``random``
     A uniform rotation over SO(3) (for robustness studies; not in the presets).
 
@@ -44,6 +46,7 @@ __all__ = [
     "EGO_ROLL_DEG",
     "EGO_PITCH_DEG",
     "EGO_YAW_DEG",
+    "EGO_FOREARM_FROM_DOWN_DEG",
     "hand_rotation_in_camera",
     "mirror_rotation",
 ]
@@ -66,6 +69,9 @@ EGO_PITCH_DEG = (-30.0, 15.0)
 """Egocentric: fingers raised (positive) or lowered from horizontal, uniform, deg."""
 EGO_YAW_DEG = 30.0
 """Egocentric: fingers swung left or right from straight ahead, uniform within +-, deg."""
+EGO_FOREARM_FROM_DOWN_DEG = 60.0
+"""Egocentric: the forearm's direction in the image lies within this of straight down (the arm
+comes in from the bottom of a head-mounted camera's image); other draws are redrawn, deg."""
 
 # Palm toward the camera, fingers up in the image (thumb on the image's right for a right
 # hand); the back toward the camera is the same turned half a turn about the fingers.
@@ -121,6 +127,18 @@ def _third_person(rng: np.random.Generator) -> np.ndarray:
 
 
 def _egocentric(rng: np.random.Generator) -> np.ndarray:
+    # Redrawn until the forearm (the hand's -y) points down in the image: turned otherwise, it
+    # would run from the wrist toward the eye and hide the hand, which a real arm cannot.
+    min_down = np.cos(np.radians(EGO_FOREARM_FROM_DOWN_DEG))
+    while True:
+        R_cam_from_hand = _egocentric_draw(rng)  # noqa: N806
+        forearm = -R_cam_from_hand[:2, 1]  # image x (right) and y (down)
+        norm = float(np.linalg.norm(forearm))
+        if norm > 1e-9 and forearm[1] >= min_down * norm:
+            return R_cam_from_hand
+
+
+def _egocentric_draw(rng: np.random.Generator) -> np.ndarray:
     pitch_cam = np.radians(rng.uniform(*EGO_CAMERA_PITCH_DEG))
     # The camera's axes in the level head frame: z forward and down by the pitch.
     c, s = np.cos(pitch_cam), np.sin(pitch_cam)

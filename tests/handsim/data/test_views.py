@@ -75,6 +75,10 @@ def test_egocentric_sees_the_back_of_the_hand_with_fingers_away():
     assert np.mean(angles > 90.0) > 0.85
     assert angles.min() > 45.0
     assert np.all(R[:, 2, 1] > 0.0)  # the distal axis has a +z (away) component
+    # The forearm (-distal) comes in from the bottom of the image: within 60 deg of down.
+    forearm = -R[:, :2, 1]
+    from_down = np.degrees(np.arctan2(np.abs(forearm[:, 0]), forearm[:, 1]))
+    assert from_down.max() <= views.EGO_FOREARM_FROM_DOWN_DEG + 1e-9
 
 
 def test_random_view_is_uniform_over_so3():
