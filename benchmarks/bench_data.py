@@ -111,7 +111,8 @@ def _replay_plain_render_fps(folder: Path) -> float:
     import mujoco
     from scipy.spatial.transform import Rotation
 
-    from handsim.data.kinematic import SHOULDER_M
+    from handsim.data.arrays import VIEWPOINT_CODES
+    from handsim.data.kinematic import alone_shoulder_m
     from handsim.data.manifest import Manifest
     from handsim.data.shards import ShardReader
     from handsim.hand.model import hand_params
@@ -123,7 +124,10 @@ def _replay_plain_render_fps(folder: Path) -> float:
 
     manifest = Manifest.read(folder)
     intr = camera_preset(manifest.config["camera"])
-    labels = {key: [] for key in ("hand_pose", "hand_length_m", "is_left", "T_cam_from_world")}
+    labels = {
+        key: []
+        for key in ("hand_pose", "hand_length_m", "is_left", "T_cam_from_world", "viewpoint")
+    }
     for record in manifest.shards.values():
         reader = ShardReader(folder / record.name)
         for key in labels:
@@ -161,10 +165,10 @@ def _replay_plain_render_fps(folder: Path) -> float:
         scene.model.cam_pos[camera_id] = -T[:3, :3].T @ T[:3, 3]
         scene.model.cam_quat[camera_id] = np.roll(Rotation.from_matrix(R).as_quat(), 1)
         scene.binding.set_pose(scene.data, HandPose.from_vector(labels["hand_pose"][i]))
-        # The upper arm toward the shoulder, as the kinematic source draws it.
-        scene.binding.point_upper_arm(
-            scene.data, SHOULDER_M * ((-1, 1, 1) if side == "left" else 1)
-        )
+        # The upper arm toward the shoulder, as the kinematic source draws it for a hand alone.
+        view = VIEWPOINT_CODES[int(labels["viewpoint"][i])]
+        eye = scene.model.cam_pos[camera_id].copy()
+        scene.binding.point_upper_arm(scene.data, alone_shoulder_m(view, side == "left", eye))
         cpu0, start = _cpu_s(), time.perf_counter()
         renderer.update_scene(scene.data, camera="camera")
         depth_m = renderer.render()

@@ -65,6 +65,7 @@ __all__ = [
     "through_object_direction",
     "near_range_m",
     "forearm_geom",
+    "alone_shoulder_m",
     "near_geoms",
     "beyond_near",
 ]
@@ -170,6 +171,21 @@ def camera_on_line(
 def near_range_m(intrinsics: CameraIntrinsics, sensor: object) -> float:
     """The nearest distance that gets depth: the camera's and the sensor's working range."""
     return max(intrinsics.range_m[0], float(getattr(sensor, "min_range_m", 0.0)))
+
+
+def alone_shoulder_m(view: str, is_left: bool, eye_m: np.ndarray) -> np.ndarray:
+    """The shoulder a hand alone's upper arm is drawn to (world, m), for the view.
+
+    Args:
+        view: the frame's viewpoint.
+        is_left: a left hand (the shoulder mirrored).
+        eye_m: (3,) the camera's eye, world, metres (it looks at the palm, at the alone
+            frames' fixed palm centre).
+    """
+    mirror = np.array([-1.0, 1.0, 1.0]) if is_left else np.ones(3)
+    if view == "egocentric":
+        return np.asarray(eye_m, dtype=np.float64) + mirror * _ALONE_SHOULDER_FROM_EYE_M
+    return _ALONE_PALM + mirror * _ALONE_SHOULDER_FROM_PALM_M
 
 
 def forearm_geom(scene: Scene) -> int | None:
@@ -317,16 +333,15 @@ class KinematicSource:
 
     def _hand_alone(
         self, rng: np.random.Generator, view: str, is_left: bool
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """A hand alone turned toward the camera as the view draws it (:mod:`.views`).
 
         The camera looks along world +y from in front of the palm, the world's +z up in the
         image (there is no table); the hand is turned in the camera's frame.
 
         Returns:
-            Wrist position, rotation vector and palm centre (world, m), the camera's eye
-            (world, m) and orientation ``quat_wxyz`` (world from MuJoCo camera), and the
-            shoulder the upper arm is drawn to (world, m): the person's, placed for the view.
+            Wrist position, rotation vector and palm centre (world, m), then the camera's eye
+            (world, m) and orientation ``quat_wxyz`` (world from MuJoCo camera).
         """
         distance = rng.uniform(*self.config.distance_range_m)
         R_cam_from_hand = hand_rotation_in_camera(rng, view, is_left)  # noqa: N806
@@ -337,12 +352,7 @@ class KinematicSource:
         mujoco.mju_mat2Quat(quat, R.reshape(-1))
         mujoco.mju_quat2Vel(rotvec, quat, 1.0)
         eye = palm - distance * _ALONE_VIEW_AXIS
-        mirror = np.array([-1.0, 1.0, 1.0]) if is_left else np.ones(3)
-        if view == "egocentric":
-            shoulder = eye + mirror * _ALONE_SHOULDER_FROM_EYE_M
-        else:
-            shoulder = palm + mirror * _ALONE_SHOULDER_FROM_PALM_M
-        return wrist, rotvec, palm, eye, _ALONE_CAM_QUAT_WXYZ, shoulder
+        return wrist, rotvec, palm, eye, _ALONE_CAM_QUAT_WXYZ
 
     def _wrist(
         self, rng: np.random.Generator, scene: Scene, beside: bool
@@ -474,6 +484,7 @@ class KinematicSource:
         accept: Callable[[float, int], bool],
         source: str,
         view: str,
+        shoulder_for_eye: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> dict[str, np.ndarray] | None:
         """The arrays of the posed hand seen from ``camera``, or None if refused.
 
@@ -482,11 +493,15 @@ class KinematicSource:
         ``behind``, and the frame is rendered; None when the camera would be below the table,
         fewer than :data:`MIN_KEYPOINTS_IN_FRAME` keypoints are in the image or ``accept``
         refuses it. ``source`` and ``view`` are labelled (``pose_source``, ``viewpoint``).
+        ``shoulder_for_eye`` (the final eye -> the shoulder, world) turns the upper arm once the
+        eye is in range; without it the caller has turned it.
         """
         eye, quat = camera
         eye = beyond_near(scene, geoms, eye, palm, self._near_m)
         if eye is None:
             return None
+        if shoulder_for_eye is not None:  # the arm is not among ``geoms``: after the move
+            scene.binding.point_upper_arm(scene.data, shoulder_for_eye(eye))
         if self.config.background != "none":
             self._place_backdrop(rng, scene, behind, eye, palm)
         cam = scene.model.camera("camera").id
@@ -546,11 +561,10 @@ class KinematicSource:
                     postures, used = self._postures(rng, source, batch), 0
                 view = viewpoints[int(rng.integers(len(viewpoints)))]
                 if alone:
-                    wrist, rotvec, palm, eye, quat, arm_to = self._hand_alone(rng, view, is_left)
+                    wrist, rotvec, palm, eye, quat = self._hand_alone(rng, view, is_left)
                     obj = None
                 else:
                     wrist, rotvec, palm, obj = self._wrist(rng, scene, view == "through_object")
-                    arm_to = shoulder
                 pose = HandPose(wrist, rotvec, postures[used])
                 used += 1
                 if alone:  # nothing to touch: no contacts to find or label
@@ -563,9 +577,21 @@ class KinematicSource:
                     if self._forearm_below_table_m(scene, forearm) > MAX_PENETRATION_M:
                         continue
                     eye, quat = self._camera(rng, view, palm, obj, rotvec)
-                scene.binding.point_upper_arm(scene.data, arm_to)
+                    scene.binding.point_upper_arm(scene.data, shoulder)
+                # A hand alone's shoulder is placed for the view, from the eye in range.
+                arm_to = (lambda e, v=view: alone_shoulder_m(v, is_left, e)) if alone else None
                 arrays = self._view(
-                    rng, scene, renderer, (eye, quat), palm, geoms, behind, accept, source, view
+                    rng,
+                    scene,
+                    renderer,
+                    (eye, quat),
+                    palm,
+                    geoms,
+                    behind,
+                    accept,
+                    source,
+                    view,
+                    shoulder_for_eye=arm_to,
                 )
                 if arrays is not None:
                     yield arrays
