@@ -45,7 +45,7 @@ import numpy as np
 from handsim import metrics, viz
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.errors import HandSimError
-from handsim.estimator import Estimator
+from handsim.estimator import Estimator, describe_estimator
 
 __all__ = [
     "evaluate_closed_loop",
@@ -83,9 +83,16 @@ def to_strict_json(value: Any) -> Any:
 
 
 def estimator_label(report: dict[str, Any]) -> str:
-    """The estimator and its settings as the report names it (its ``repr``)."""
+    """The estimator and its settings as the report names it.
+
+    Its own description (:func:`~handsim.estimator.describe_estimator`); for one that has
+    none, the command line's ``module:Class:{kwargs}`` spec when the report has it, else the
+    class name.
+    """
     estimator = report.get("estimator")
     if isinstance(estimator, dict):
+        if not estimator.get("describes_itself", True) and estimator.get("spec"):
+            return str(estimator["spec"])
         return str(estimator.get("repr") or estimator.get("name") or "estimator")
     return str(estimator) if estimator else "estimator"
 
@@ -235,6 +242,8 @@ def _run_mode(
     taus = metrics.threshold_grid_mm()
     f_tau = metrics.fraction_of_frames_within(frame_max_mm, taus)
     finite = np.isfinite(frame_mean_mm)
+    if not finite.any():  # no keypoints at all: no curve exists (null in the JSON, not 0)
+        f_tau = np.full(len(taus), math.nan)
     buckets = metrics.errors_by_occlusion(
         np.where(finite, frame_mean_mm, np.nan), np.array(occlusion), OCCLUSION_EDGES
     )
@@ -244,7 +253,7 @@ def _run_mode(
         by_object.setdefault(o["object"] or "(none)", []).append(o["success"])
     return {
         "feedback": feedback,
-        "estimator": repr(estimator),
+        "estimator": describe_estimator(estimator),
         "control_dt_s": getattr(env.unwrapped, "control_dt", None),
         "episodes": outcomes,
         "success_rate": float(np.mean([o["success"] for o in outcomes])),
@@ -259,7 +268,7 @@ def _run_mode(
         "center_mm": (float(np.nanmean(center_mm)) if np.isfinite(center_mm).any() else math.nan),
         "f_tau_thresholds_mm": [float(t) for t in taus],
         "f_tau": [float(v) for v in f_tau],
-        "f_tau_auc": metrics.curve_auc(taus, f_tau),
+        "f_tau_auc": metrics.curve_auc(taus, f_tau) if finite.any() else math.nan,
         "by_occlusion": [
             {
                 "occlusion": [b.lower, b.upper],
@@ -334,7 +343,10 @@ def evaluate_closed_loop(
         "env_kwargs": kwargs,
         "episodes": episodes,
         "seed": seed,
-        "estimator": {"repr": first.get("estimator", "")},
+        "estimator": {
+            "repr": first.get("estimator", ("", False))[0],
+            "describes_itself": first.get("estimator", ("", False))[1],
+        },
         "modes": modes,
     }
 
@@ -385,7 +397,11 @@ def write_report(report: dict[str, Any], out_dir: str | Path) -> dict[str, Path]
             mode["f_tau_thresholds_mm"],
             100 * np.array(mode["f_tau"]),
             color=colours.get(name),
-            label=f"{_mode_label(name)} (AUC {mode['f_tau_auc']:.3f})",
+            label=(
+                f"{_mode_label(name)} (AUC {mode['f_tau_auc']:.3f})"
+                if math.isfinite(mode["f_tau_auc"])
+                else f"{_mode_label(name)} (no keypoints: no curve)"
+            ),
         )
     ax.set_xlabel("Distance threshold tau / mm")
     ax.set_ylabel("Frames with max keypoint error <= tau / %")

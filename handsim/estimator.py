@@ -55,6 +55,7 @@ __all__ = [
     "EstimatorBase",
     "hand_center",
     "estimate_errors",
+    "describe_estimator",
     "validate_depth_input",
     "validate_batch_input",
 ]
@@ -524,3 +525,21 @@ def estimate_errors(
             add_or_adi[label.instance] = adi_mm if symmetric else add_mm
     errors.update(add_mm=add, adi_mm=adi, add_or_adi_mm=add_or_adi)
     return errors
+
+
+def describe_estimator(estimator: Any) -> tuple[str, bool]:
+    """How reports and plot titles name an estimator, and whether it names itself.
+
+    Its ``describe()`` when it has one (an optional method beside the protocol's three), else
+    its ``repr`` when its class defines one, else the class name (an ``object`` repr such as
+    ``<MyNet object at 0x7f...>`` says nothing of the estimator's settings).
+
+    Returns:
+        ``(text, own)``: the name, and False when it is only the class name.
+    """
+    describe = getattr(estimator, "describe", None)
+    if callable(describe):
+        return str(describe()), True
+    if type(estimator).__repr__ is not object.__repr__:
+        return repr(estimator), True
+    return type(estimator).__qualname__, False

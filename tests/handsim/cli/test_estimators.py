@@ -32,6 +32,17 @@ class FixedCentre:
         return f"FixedCentre(z_m={self.z_m})"
 
 
+class Plain(FixedCentre):
+    """FixedCentre without a repr of its own."""
+
+    __repr__ = object.__repr__
+
+
+class Described(FixedCentre):
+    def describe(self):
+        return f"described, {self.z_m} m"
+
+
 class NoBatch:
     def predict(self, depth, K):
         return Estimate(valid=False)
@@ -120,4 +131,43 @@ def test_user_estimator_in_the_closed_loop(user_module, capsys):
     off = report["modes"]["feedback_off"]
     # A localizer gives no keypoints: the keypoint figures are null, the centre error is not.
     assert off["kp_mean_mm"] is None and off["center_mm"] > 0
+    # No keypoints, no F(tau) curve: null, not a flat 0 % and an AUC of 0.
+    assert off["f_tau_auc"] is None and set(off["f_tau"]) == {None}
     assert off["n_frames"] == 151 and off["n_frames_with_keypoints"] == 0
+
+
+def test_reports_name_estimators_without_object_addresses(user_module):
+    """describe() first, then a class's own repr; a bare object repr gives the class name.
+
+    Through the command line an estimator without a name of its own is titled by its spec
+    (``module:Class:{kwargs}``), never ``<... object at 0x...>``.
+    """
+    from handsim.envs.closed_loop import estimator_label
+    from handsim.estimator import describe_estimator
+
+    spec = parse_estimator_spec('user_est:Plain:{"z_m": 0.4}')
+    assert describe_estimator(spec.make()) == ("Plain", False)
+    assert describe_estimator(parse_estimator_spec("user_est:FixedCentre").make()) == (
+        "FixedCentre(z_m=0.5)",
+        True,
+    )
+    described = parse_estimator_spec('user_est:Described:{"z_m": 0.3}').make()
+    assert describe_estimator(described) == ("described, 0.3 m", True)
+    report = {"estimator": {"repr": "Plain", "describes_itself": False, "spec": spec.text}}
+    assert estimator_label(report) == 'user_est:Plain:{"z_m": 0.4}'
+    report["estimator"]["describes_itself"] = True
+    assert estimator_label(report) == "Plain"
+
+
+def test_a_plain_user_estimator_is_titled_by_its_spec(user_module):
+    """The closed-loop report of an estimator without a repr: its spec, in JSON and titles."""
+    import json
+
+    out = user_module / "out"
+    argv = ["closed-loop", "--env", "handsim/HandPose-v0", "--episodes", "1", "--sensor"]
+    argv += ["none", "-q", "--estimator", 'user_est:Plain:{"z_m": 0.45}', "--out", str(out)]
+    assert main(argv) == 0
+    report = json.loads((out / "closed_loop.json").read_text())
+    assert report["estimator"]["repr"] == "Plain"
+    assert report["estimator"]["describes_itself"] is False
+    assert "object at" not in json.dumps(report)
