@@ -18,7 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from handsim.data.shards import DEFAULT_DEPTH_SCALE_MM
+from handsim.data.shards import DEFAULT_DEPTH_SCALE_MM, DEPTH_SCALE_RANGE_MM
 from handsim.errors import HandSimError
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
@@ -341,10 +341,12 @@ class GenerationConfig:
         if (
             isinstance(self.depth_scale_mm, bool)
             or not isinstance(self.depth_scale_mm, (int, float))
-            or not 0.001 <= self.depth_scale_mm <= 10.0
+            or not DEPTH_SCALE_RANGE_MM[0] <= self.depth_scale_mm <= DEPTH_SCALE_RANGE_MM[1]
         ):
+            lo, hi = DEPTH_SCALE_RANGE_MM
             raise InvalidGenerationConfig(
-                f"depth_scale_mm must be a number in [0.001, 10]; received {self.depth_scale_mm!r}"
+                f"depth_scale_mm must be a number in [{lo:g}, {hi:g}]; received "
+                f"{self.depth_scale_mm!r}"
             )
         if self.env_id is not None and not isinstance(self.env_id, str):
             raise InvalidGenerationConfig(

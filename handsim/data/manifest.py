@@ -21,7 +21,13 @@ from typing import Any
 import numpy as np
 
 from handsim.data.arrays import DRAW_LABEL_SCHEMA, LABEL_SCHEMA
-from handsim.data.shards import PARTIAL_SUFFIX, SHARD_SUFFIX, ShardInfo, check_shard
+from handsim.data.shards import (
+    DEPTH_SCALE_RANGE_MM,
+    PARTIAL_SUFFIX,
+    SHARD_SUFFIX,
+    ShardInfo,
+    check_shard,
+)
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -182,25 +188,55 @@ class Manifest:
             shards = {
                 int(s["index"]): ShardInfo(
                     name=str(s["name"]),
-                    frames=int(s["frames"]),
+                    frames=_count("frames", s["frames"], 1),
                     sha256=str(s["sha256"]),
-                    bytes=int(s["bytes"]),
+                    bytes=_count("bytes", s["bytes"], 0),
                     redraws=_redraws(s.get("redraws", {})),
                 )
                 for s in doc["shards"]
             }
         except (KeyError, TypeError, ValueError) as err:
             raise InvalidManifest(f"{path}: a shard record is malformed ({err!r})") from err
+        scale = doc["depth_scale_mm"]
+        if (
+            isinstance(scale, bool)
+            or not isinstance(scale, (int, float))
+            or not DEPTH_SCALE_RANGE_MM[0] <= scale <= DEPTH_SCALE_RANGE_MM[1]
+        ):
+            lo, hi = DEPTH_SCALE_RANGE_MM
+            raise InvalidManifest(
+                f"{path}: depth_scale_mm must be a number in [{lo:g}, {hi:g}] (millimetres "
+                f"per stored depth unit); received {scale!r}"
+            )
+        shape = doc["image_shape"]
+        if not (
+            isinstance(shape, list)
+            and len(shape) == 2
+            and all(isinstance(n, int) and not isinstance(n, bool) and n > 0 for n in shape)
+        ):
+            raise InvalidManifest(
+                f"{path}: image_shape must be [height, width] in pixels (positive integers); "
+                f"received {shape!r}"
+            )
+        if not isinstance(doc["config"], dict):
+            raise InvalidManifest(f"{path}: config must be a mapping; received {doc['config']!r}")
         return cls(
             config=doc["config"],
             seeds=[int(s) for s in doc["seeds"]],
             shards=shards,
-            depth_scale_mm=float(doc["depth_scale_mm"]),
-            image_shape=tuple(int(s) for s in doc["image_shape"]),
+            depth_scale_mm=float(scale),
+            image_shape=tuple(shape),
             versions=doc["versions"],
             git_commit=doc.get("git_commit"),
             occlusion_histogram=doc.get("occlusion_histogram"),
         )
+
+
+def _count(name: str, value: Any, lo: int) -> int:
+    """A shard record's integer field, checked (a string or a float is malformed)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < lo:
+        raise ValueError(f"{name} must be an integer >= {lo}; received {value!r}")
+    return value
 
 
 def _redraws(value: Any) -> dict[str, int]:

@@ -68,6 +68,8 @@ PARTIAL_SUFFIX = ".h5.partial"
 """Suffix of a shard being written (never read; deleted on resume)."""
 DEFAULT_DEPTH_SCALE_MM = 0.1
 """Stored depth unit, millimetres (BOP ``depth_scale``)."""
+DEPTH_SCALE_RANGE_MM = (0.001, 10.0)
+"""Stored depth units a dataset may use, millimetres (a config's and a manifest's)."""
 
 # gzip (every HDF5 reader has it) at level 1: a depth image is mostly zeros, and level 1
 # writes it ~2x and decodes it ~3x faster than level 4, for ~20 % more bytes. Byte shuffle

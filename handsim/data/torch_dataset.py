@@ -125,6 +125,12 @@ class HandSimDataset:
             splits = folder_splits(folder, manifest) if split != "all" else {}
             for record in sorted(manifest.shards.values(), key=lambda s: s.name):
                 reader = ShardReader(Path(folder) / record.name)
+                if len(reader) != record.frames:
+                    raise InvalidDatasetQuery(
+                        f"{Path(folder) / record.name} holds {len(reader)} frames but the "
+                        f"manifest says {record.frames}: the folder was changed after it was "
+                        "made; run `handsim dataset check` on it"
+                    )
                 keep = np.ones(len(reader), dtype=bool)
                 if split != "all":
                     keep &= split_mask(splits, reader.labels("episode"), split, str(folder))

@@ -237,3 +237,26 @@ def test_info_reports_the_hands_and_views_subprocess(tmp_path):
     assert dist["constant_pose_error_mm_by_viewpoint"] == {
         "third_person": dist["constant_pose_error_mm"]
     }
+
+
+def test_check_and_info_refuse_a_tampered_manifest_subprocess(dataset, tmp_path):
+    """`dataset check` and `dataset info` as programs: a bad depth scale is a one-line error."""
+    import shutil
+
+    folder = tmp_path / "tampered"
+    shutil.copytree(dataset, folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    doc["depth_scale_mm"] = "abc"
+    (folder / "manifest.json").write_text(json.dumps(doc))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    for command in (["dataset", "check"], ["dataset", "info"]):
+        run = subprocess.run(
+            [sys.executable, "-m", "handsim.cli", *command, str(folder)],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=False,
+        )
+        assert run.returncode == 2 and "Traceback" not in run.stderr
+        assert "depth_scale_mm must be a number in [0.001, 10]" in run.stderr
+        assert "received 'abc'" in run.stderr

@@ -152,3 +152,52 @@ def test_a_batch_across_folders_with_and_without_an_image_is_an_error(dataset_fo
     assert data.batch([0])["depth_clean"].shape == (1, 1, 240, 320)
     with pytest.raises(InvalidDatasetQuery, match="mixes shards with and without 'depth_clean'"):
         data.batch([0, 1])
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"depth_scale_mm": -1}, r"depth_scale_mm must be a number in \[0.001, 10\].*-1"),
+        ({"depth_scale_mm": "abc"}, r"depth_scale_mm must be a number .*'abc'"),
+        ({"image_shape": [240]}, r"image_shape must be \[height, width\]"),
+        ({"config": [1, 2]}, r"config must be a mapping"),
+        ({"frames": "2"}, r"a shard record is malformed .*frames must be an integer >= 1"),
+        ({"frames": 0}, r"frames must be an integer >= 1; received 0"),
+    ],
+)
+def test_a_tampered_manifest_is_refused_with_the_field(dataset_folder, tmp_path, change, message):
+    """Every manifest field is checked on reading: no silent wrong depth scale or shape."""
+    import json
+    import shutil
+
+    from handsim.data.manifest import InvalidManifest, Manifest
+
+    folder = tmp_path / "ds"
+    shutil.copytree(dataset_folder, folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    if "frames" in change:
+        doc["shards"][0]["frames"] = change["frames"]
+    else:
+        doc.update(change)
+    (folder / "manifest.json").write_text(json.dumps(doc))
+    with pytest.raises(InvalidManifest, match=message):
+        Manifest.read(folder)
+    with pytest.raises(InvalidDatasetQuery, match=message):
+        HandSimDataset(folder)
+
+
+def test_a_manifest_that_miscounts_a_shard_is_refused(dataset_folder, tmp_path):
+    """A record that says 1 frame for a shard of 2: the Dataset names the shard, never serves 2."""
+    import json
+    import shutil
+
+    folder = tmp_path / "ds"
+    shutil.copytree(dataset_folder, folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    doc["shards"][0]["frames"] = 1
+    (folder / "manifest.json").write_text(json.dumps(doc))
+    with pytest.raises(
+        InvalidDatasetQuery,
+        match=r"shard-00000.h5 holds 2 frames but the manifest says 1: .*handsim dataset check",
+    ):
+        HandSimDataset(folder)
