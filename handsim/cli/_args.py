@@ -11,8 +11,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 __all__ = [
@@ -21,6 +23,7 @@ __all__ = [
     "integer",
     "number",
     "object_name",
+    "output_folder",
     "positive_int",
     "non_negative_int",
     "non_negative_float",
@@ -68,6 +71,34 @@ def _interval(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) 
     if hi is not None:
         return f"{'<' if hi_open else '<='} {_text(hi)}"
     return ""
+
+
+def output_folder(value: str) -> Path:
+    """An argparse ``type``: a folder the command can create or write into.
+
+    Refused, with the reason: a path that is a file, a path inside a file, and a folder (or its
+    nearest existing parent) that this user cannot write. Whether an existing folder may be
+    used (empty, the same dataset) is the command's own check.
+    """
+    path = Path(value)
+    if not value:
+        raise argparse.ArgumentTypeError("expected an output folder; received ''")
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{value!r} is a file, not a folder; give a folder")
+    parent = path
+    while not parent.exists():
+        if parent.parent == parent:
+            break
+        parent = parent.parent
+    if parent.exists() and not parent.is_dir():
+        raise argparse.ArgumentTypeError(
+            f"{value!r} cannot be made: {str(parent)!r} is a file, not a folder"
+        )
+    if parent.exists() and not os.access(parent, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(
+            f"{value!r} cannot be written: {str(parent)!r} is not writable by this user"
+        )
+    return path
 
 
 def integer(lo: int | None = None, hi: int | None = None, why: str = "") -> Callable[[str], int]:

@@ -23,6 +23,7 @@ from handsim.cli._args import (
     add_quiet,
     choice_help,
     integer,
+    output_folder,
     positive_int,
     progress_bar,
     seed,
@@ -238,7 +239,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "running cluster ('auto', 'ray://HOST:10001'), instead of --workers; needs pip install "
         "'handsim[ray]'",
     )
-    gen.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    gen.add_argument(
+        "--out", type=output_folder, required=True, metavar="DIR", help="dataset folder"
+    )
     add_quiet(gen)
     gen.set_defaults(func=_generate)
 
@@ -282,7 +285,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     export.add_argument(
         "dir", metavar="SOURCE", help="dataset folder (hand-labels, bop) or env id (minari)"
     )
-    export.add_argument("out", type=Path, help="output folder (new or empty)")
+    export.add_argument("out", type=output_folder, help="output folder (new or empty)")
     export.add_argument(
         "--episodes", type=positive_int, default=10, help="minari: episodes to record (10)"
     )

@@ -18,6 +18,7 @@ from handsim.cli._args import (
     integer,
     non_negative_int,
     number,
+    output_folder,
     positive_int,
     seed,
     strict_json,
@@ -168,7 +169,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     tr.add_argument(
         "--data", nargs="+", required=True, type=Path, metavar="DIR", help="dataset folders"
     )
-    tr.add_argument("--out", required=True, type=Path, metavar="DIR", help="run folder")
+    tr.add_argument("--out", required=True, type=output_folder, metavar="DIR", help="run folder")
     tr.add_argument("--epochs", type=integer(1, 100_000), default=20, help="epochs (default: 20)")
     tr.add_argument("--batch-size", type=integer(1, 4096), default=64, help="batch (default: 64)")
     tr.add_argument(
@@ -306,7 +307,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--every", type=positive_int, help="with --env: keep every N-th step (default: 5)"
     )
     ev.add_argument("--seed", type=seed, help="with --env: first seed (default: 0)")
-    ev.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    ev.add_argument("--out", required=True, type=output_folder, metavar="DIR", help="output folder")
     ev.add_argument(
         "--split",
         choices=("train", "val", "test", "all"),

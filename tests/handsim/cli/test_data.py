@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -260,3 +261,49 @@ def test_check_and_info_refuse_a_tampered_manifest_subprocess(dataset, tmp_path)
         assert run.returncode == 2 and "Traceback" not in run.stderr
         assert "depth_scale_mm must be a number in [0.001, 10]" in run.stderr
         assert "received 'abc'" in run.stderr
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["generate", "--preset", "hand-only", "--frames", "1", "--out"],
+        ["export", "bop", "DATASET"],
+        ["export", "hand-labels", "DATASET"],
+        ["train", "localizer", "--data", "DATASET", "--out"],
+    ],
+)
+def test_an_output_folder_that_is_a_file_is_refused_subprocess(dataset, tmp_path, command):
+    """--out (or the export's folder) that is a file, or inside one: a usage error, exit 2."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    argv = [str(dataset) if a == "DATASET" else a for a in command]
+    for out, message in (
+        (blocker, "is a file, not a folder; give a folder"),
+        (blocker / "inside", "cannot be made: .*a_file' is a file, not a folder"),
+    ):
+        run = subprocess.run(
+            [sys.executable, "-m", "handsim.cli", *argv, str(out)],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=False,
+        )
+        assert run.returncode == 2 and "Traceback" not in run.stderr, run.stderr
+        assert re.search(message, run.stderr), run.stderr
+    assert blocker.read_text() == "not a folder"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write into any folder")
+def test_an_output_folder_that_cannot_be_written_is_refused(tmp_path, capsys):
+    """A read-only parent: refused before any work, with the folder named."""
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        with pytest.raises(SystemExit) as exit_info:
+            main(["generate", "--preset", "hand-only", "--out", str(locked / "d")])
+        assert exit_info.value.code == 2
+        assert "is not writable by this user" in capsys.readouterr().err
+    finally:
+        locked.chmod(0o700)
