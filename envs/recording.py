@@ -33,6 +33,10 @@ class MinariUnavailable(HandSimError, ImportError):
     """Minari (with its ``create`` extra) is not installed."""
 
 
+_DATASET_ID = re.compile(r"(?:[A-Za-z0-9_][A-Za-z0-9_-]*/)*[A-Za-z0-9_][A-Za-z0-9_-]*-v[0-9]+")
+"""A Minari dataset id: an optional namespace, a name and a version; no path parts."""
+
+
 def default_dataset_id(env_id: str) -> str:
     """``handsim/Grasp-v0`` -> ``handsim/grasp-expert-v0`` (Minari's ``namespace/name-vN``)."""
     match = re.fullmatch(r"handsim/([A-Za-z]+)-v(\d+)", env_id)
@@ -98,6 +102,13 @@ def record_minari(
         MinariUnavailable: without ``minari[create]``.
         HandSimError: for a bad ``env_id``, ``episodes`` or an existing dataset id.
     """
+    if dataset_id is not None and (
+        not isinstance(dataset_id, str) or not _DATASET_ID.fullmatch(dataset_id)
+    ):
+        raise HandSimError(
+            "dataset_id must be a Minari id 'namespace/name-vN' (letters, digits, '_' and '-', "
+            f"e.g. 'handsim/grasp-expert-v0'); received {dataset_id!r}"
+        )
     try:
         import minari
         from minari import DataCollector

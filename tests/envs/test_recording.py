@@ -62,6 +62,15 @@ def test_cli_export_minari_refuses_a_folder_and_records_an_env(tmp_path):
     cmd = [sys.executable, "-m", "handsim.cli.main", "export", "minari"]
     bad = subprocess.run([*cmd, str(tmp_path), str(tmp_path / "m")], capture_output=True, text=True)
     assert bad.returncode == 2 and "SOURCE must be one of handsim/Grasp-v0" in bad.stderr
+    evil = subprocess.run(
+        [*cmd, "handsim/HandPose-v0", "m", "--dataset-id", "../../evil"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert evil.returncode == 2 and "Traceback" not in evil.stderr
+    assert "dataset_id must be a Minari id 'namespace/name-vN'" in evil.stderr
+    assert "received '../../evil'" in evil.stderr and not (tmp_path / "m").exists()
     ok = subprocess.run(
         [*cmd, "handsim/HandPose-v0", "m", "--episodes", "1"],
         capture_output=True,
