@@ -99,6 +99,25 @@ def load_checkpoint(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any
         ) from None
     if not isinstance(state, dict) or "model" not in state:
         raise InvalidCheckpoint(f"checkpoint {path} has no 'model' state dict")
+    model = state["model"]
+    if not isinstance(model, dict) or not all(
+        isinstance(k, str) and isinstance(v, torch.Tensor) for k, v in model.items()
+    ):
+        raise InvalidCheckpoint(
+            f"checkpoint {path}: 'model' must map parameter names to tensors; received "
+            f"{type(model).__name__}"
+        )
+    for key, value in model.items():
+        if value.is_floating_point() and not bool(torch.isfinite(value).all()):
+            raise InvalidCheckpoint(
+                f"checkpoint {path} has non-finite weights (NaN or inf) in {key!r}: the run that "
+                "wrote it diverged; use an earlier checkpoint or train again"
+            )
+    if not isinstance(config, dict) or not isinstance(config.get("model"), dict):
+        raise InvalidCheckpoint(
+            f"{path.with_suffix('.json')} must be a JSON object with a 'model' mapping (the "
+            f"network's configuration); received {type(config).__name__}"
+        )
     return state, config
 
 
@@ -109,10 +128,17 @@ def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tup
     from .models import build_model
 
     state, config = load_checkpoint(name_or_path)
-    model = build_model(config["model"])
-    model.load_state_dict(
-        {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
-    )
+    try:
+        model = build_model(config["model"])
+        model.load_state_dict(
+            {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
+        )
+    except (HandSimError, KeyError, TypeError, ValueError, RuntimeError) as err:
+        # Wrong keys or shapes (RuntimeError from torch), or a model config it cannot build.
+        raise InvalidCheckpoint(
+            f"checkpoint {name_or_path} does not fit its network: {type(err).__name__}: "
+            f"{str(err).splitlines()[0]}"
+        ) from None
     # Channels-last convolutions are ~1.5x faster at batch 1 on a CPU core (oneDNN).
     return model.to(device=device, memory_format=torch.channels_last).eval(), config
 

@@ -142,3 +142,42 @@ def test_precise_bn_gives_plain_averages_of_batch_statistics():
     assert torch.equal(torch.get_rng_state(), rng_state)  # dropout drew nothing
     precise_bn(model, dataset[:9], batch_size=8, batches=2)  # a last batch of one is skipped
     assert torch.isfinite(first.running_var).all()
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        ("nan", r"has non-finite weights \(NaN or inf\) in '.*': the run that wrote it diverged"),
+        ("not_tensors", r"'model' must map parameter names to tensors"),
+        ("wrong_keys", r"does not fit its network: RuntimeError"),
+        ("config_list", r"must be a JSON object with a 'model' mapping"),
+    ],
+)
+def test_a_broken_checkpoint_is_refused_naming_it(tmp_path, damage, message):
+    """NaN weights, non-tensor values, wrong keys, a config that is no mapping: named errors."""
+    import json
+    import shutil
+
+    import torch
+
+    from handsim.estimators.deepprior.checkpoint import (
+        WEIGHTS_DIR,
+        InvalidCheckpoint,
+        load_model,
+    )
+
+    path = tmp_path / "broken.pt"
+    shutil.copy(WEIGHTS_DIR / "localizer.json", path.with_suffix(".json"))
+    state = torch.load(WEIGHTS_DIR / "localizer.pt", map_location="cpu", weights_only=True)
+    first = next(k for k, v in state["model"].items() if v.is_floating_point())
+    if damage == "nan":
+        state["model"][first] = torch.full_like(state["model"][first], float("nan"))
+    elif damage == "not_tensors":
+        state["model"] = {k: 1.0 for k in state["model"]}
+    elif damage == "wrong_keys":
+        state["model"] = {f"other.{k}": v for k, v in state["model"].items()}
+    else:
+        path.with_suffix(".json").write_text(json.dumps([1, 2]))
+    torch.save(state, path)
+    with pytest.raises(InvalidCheckpoint, match=message):
+        load_model(path)
