@@ -37,6 +37,8 @@ import contextlib
 import dataclasses
 import json
 import os
+import signal
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -329,6 +331,60 @@ def generate(
     folder = Path(out)
     _int("workers", workers, 1, 256)
     folder.mkdir(parents=True, exist_ok=True)
+    with _folder_lock(folder):
+        return _generate_in(folder, config, workers, progress, ray)
+
+
+LOCK_NAME = ".handsim-generate.lock"
+"""File in a dataset folder that a running :func:`generate` holds locked (``flock``)."""
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """Hold the dataset folder for this run: a second run into it is refused.
+
+    The lock is the kernel's (``flock``): it goes with the process, so a killed run never
+    leaves a stale lock behind.
+    """
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock, as before
+        yield
+        return
+    with open(folder / LOCK_NAME, "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise GenerationError(
+                f"another `handsim generate` is writing into {folder} (it holds "
+                f"{folder / LOCK_NAME}); wait for it to end, or use another folder"
+            ) from None
+        yield
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Pool worker initializer: end when the generating process ends (Linux).
+
+    A worker whose parent was killed would otherwise finish its shard unseen and could race a
+    resumed run for the same file.
+    """
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+
+
+def _generate_in(
+    folder: Path,
+    config: GenerationConfig,
+    workers: int,
+    progress: Callable[[int, int], None] | None,
+    ray: str | None,
+) -> Manifest:
+    """:func:`generate` in a folder this run holds."""
     for partial in folder.glob(f"*{PARTIAL_SUFFIX}"):
         partial.unlink()  # a shard in progress when a run was killed
     shape = (camera_preset(config.camera).height, camera_preset(config.camera).width)
@@ -385,7 +441,12 @@ def generate(
     else:
         # Spawned workers get fresh GL contexts; a worker that dies breaks the pool (an
         # error), where multiprocessing.Pool would replace it and wait forever.
-        pool = ProcessPoolExecutor(min(workers, len(jobs)), mp_context=get_context("spawn"))
+        pool = ProcessPoolExecutor(
+            min(workers, len(jobs)),
+            mp_context=get_context("spawn"),
+            initializer=_die_with_parent,
+            initargs=(os.getpid(),),
+        )
         results = (f.result() for f in as_completed([pool.submit(_worker, j) for j in jobs]))
     try:
         for index, info in results:

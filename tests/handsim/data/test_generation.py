@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -583,3 +584,68 @@ def test_a_forearm_in_the_table_is_measured():
         assert depth == pytest.approx(FOREARM_LENGTH_RATIO * 0.189 - 0.1, abs=1e-7)
         scene.reset()  # palm down 0.12 m above the table: the forearm lies above it
         assert KinematicSource._forearm_below_table_m(scene, forearm) == 0.0
+
+
+def test_a_second_run_into_a_folder_being_written_is_refused(tmp_path):
+    """The folder is held (flock) by its run: another run into it stops with a clear error."""
+    import fcntl
+
+    from handsim.data.generation import LOCK_NAME
+
+    tmp_path.mkdir(exist_ok=True)
+    with open(tmp_path / LOCK_NAME, "w") as held:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(GenerationError, match=r"another `handsim generate` is writing into"):
+            generate(GenerationConfig.from_mapping(TINY, frames=1), tmp_path)
+    # Released with its holder (a killed run leaves no stale lock): the folder is usable.
+    assert generate(GenerationConfig.from_mapping(TINY, frames=1), tmp_path).frames == 1
+
+
+def _children(pid):
+    """Every descendant pid of ``pid`` (Linux /proc)."""
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                kids = (task / "children").read_text().split()
+            except OSError:
+                continue
+            for kid in map(int, kids):
+                if kid not in found:
+                    found.add(kid)
+                    todo.append(kid)
+    return found
+
+
+def _alive(pid):
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal is Linux's")
+def test_killing_the_generating_process_ends_its_workers(tmp_path):
+    """SIGKILL of `generate` alone (not its group): its spawned workers end with it."""
+    values = dict(TINY, frames=40, frames_per_shard=10)
+    code = (
+        "import sys; from handsim.data.generation import GenerationConfig, generate\n"
+        f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1], workers=2)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code, str(tmp_path / "d")])
+    deadline = time.monotonic() + 120
+    workers = set()
+    while time.monotonic() < deadline and proc.poll() is None:
+        workers = {p for p in _children(proc.pid) if _alive(p)}
+        if len(workers) >= 2 and list((tmp_path / "d").glob("*.partial")):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None and len(workers) >= 2
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(p) for p in workers):
+        time.sleep(0.05)
+    assert not [p for p in workers if _alive(p)]  # the shard workers and the resource tracker
