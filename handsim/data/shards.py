@@ -28,10 +28,12 @@ stored as 0 (no measurement). File attributes: ``format`` (:data:`SHARD_FORMAT`)
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from isal import isal_zlib
@@ -351,6 +353,26 @@ class ShardWriter:
             self.abort()
 
 
+def _named_on_corruption(method: Callable) -> Callable:
+    """Make a damaged shard's read error name the file.
+
+    A read of damaged bytes (h5py's OSError, e.g. a failed filter) raises :class:`InvalidShard`
+    naming the file and the check to run, not a bare HDF5 error.
+    """
+
+    @functools.wraps(method)
+    def read(self: ShardReader, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return method(self, *args, **kwargs)
+        except OSError as err:
+            raise InvalidShard(
+                f"{self.path} cannot be read ({err}): the shard is damaged; run `handsim "
+                "dataset check` on its folder (a rerun of `handsim generate` makes it again)"
+            ) from err
+
+    return read
+
+
 class ShardReader:
     """Random access to the frames of one complete shard.
 
@@ -395,6 +417,7 @@ class ShardReader:
     def __len__(self) -> int:
         return self.frames
 
+    @_named_on_corruption
     def __getitem__(self, index: int) -> dict[str, np.ndarray]:
         """Frame ``index``: every label, ``depth`` (float32 metres), ``segmentation``, indices."""
         if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
@@ -416,6 +439,7 @@ class ShardReader:
         out["step"] = labels["step"][index]
         return out
 
+    @_named_on_corruption
     def read_block(
         self,
         start: int,
@@ -457,6 +481,7 @@ class ShardReader:
             out["segmentation"] = segmentation if stored else segmentation.astype(np.int16)
         return out
 
+    @_named_on_corruption
     def _all_labels(self) -> dict[str, np.ndarray]:
         # Labels are a few kB per frame: read each shard's once (per process) instead of
         # decompressing a 64-frame chunk of every label for every sample.

@@ -220,3 +220,32 @@ def test_a_shard_written_before_visible_sensor_reads_with_it_filled(tmp_path, fr
     np.testing.assert_array_equal(
         reader.labels("visible_sensor"), np.stack([a["visible"] for a in frame_arrays])
     )
+
+
+def test_a_damaged_chunk_is_named_when_read(tmp_path, frame_arrays):
+    """Flipped bytes in the depth's compressed chunk: reading names the shard and the check.
+
+    h5py's own error ("filter returned failure") names no file; the reader's does, for a
+    frame, a block of frames and the labels alike.
+    """
+    import h5py
+
+    path = tmp_path / "damaged.h5"
+    _write(path, frame_arrays)
+    with h5py.File(path, "r") as f:
+        chunk = f["depth"].id.get_chunk_info(0)
+        labels = f["labels"]["keypoints_cam"].id.get_chunk_info(0)
+    data = bytearray(path.read_bytes())
+    for where in (chunk, labels):
+        middle = where.byte_offset + where.size // 2
+        data[middle : middle + 32] = bytes(32)
+    path.write_bytes(bytes(data))
+    reader = ShardReader(path)
+    message = r"damaged.h5 cannot be read .*the shard is damaged; run `handsim dataset check`"
+    with pytest.raises(InvalidShard, match=message):
+        reader[0]
+    with pytest.raises(InvalidShard, match=message):
+        reader.read_block(0, 2)
+    with pytest.raises(InvalidShard, match=message):
+        reader.labels("keypoints_cam")
+    reader.close()
