@@ -78,7 +78,7 @@ from scipy.spatial.transform import Rotation
 from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
 from handsim.hand.keypoints import EXTRA_POINT_NAMES, EXTRA_POINT_RULES, KEYPOINT_NAMES
-from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose
+from handsim.hand.pose import FINGERS, JOINT_LIMITS, JOINT_NAMES, HandPose, InvalidPose
 from handsim.hand.skin import (
     ELBOW_RATIO,
     SURFACES,
@@ -1008,6 +1008,20 @@ def _xml_naming_comment(hand: Hand) -> str:
 """
 
 
+def _one_pose(method: str, pose: object) -> None:
+    """Refuse anything but one pose (a name, None, a vector or a batch), saying what to pass."""
+    if not isinstance(pose, HandPose):
+        raise InvalidPose(
+            f"{method} takes a HandPose (e.g. gesture('open') or HandPose.from_vector(v)); "
+            f"received {type(pose).__name__}"
+        )
+    if pose.batch_shape:
+        raise InvalidPose(
+            f"{method} takes one pose; received a batch of shape {pose.batch_shape} (index it, "
+            "e.g. pose[0])"
+        )
+
+
 class HandBinding:
     """Index look-ups of one :class:`Hand` inside one compiled model.
 
@@ -1067,7 +1081,11 @@ class HandBinding:
             kinematics_only: compute only the positions and orientations of bodies, geoms and
                 sites (``mj_kinematics``), not contacts and forces (``mj_forward``): what
                 keypoints and rendering need, at a fraction of the cost.
+
+        Raises:
+            InvalidPose: for anything but one :class:`~handsim.hand.pose.HandPose`.
         """
+        _one_pose("set_pose", pose)
         pose = pose.clip()
         q = self.root_qpos
         data.qpos[q : q + 3] = pose.wrist_pos
@@ -1125,7 +1143,11 @@ class HandBinding:
         """Physics mode: move the mocap target to the wrist pose and set the finger targets.
 
         Angles are clamped to the joint limits (the actuators' ctrlrange).
+
+        Raises:
+            InvalidPose: for anything but one :class:`~handsim.hand.pose.HandPose`.
         """
+        _one_pose("set_target", pose)
         pose = pose.clip()
         data.mocap_pos[self.mocap_id] = pose.wrist_pos
         data.mocap_quat[self.mocap_id] = pose.quat_wxyz

@@ -256,7 +256,19 @@ class HandPose:
         Raises:
             InvalidPose: on a wrong shape or non-finite values.
         """
-        v = np.asarray(vector, dtype=np.float64)
+        try:
+            v = np.asarray(vector)
+            if v.dtype == object:
+                v = np.array(v.tolist(), dtype=np.float64)
+        except (TypeError, ValueError):
+            v = np.asarray(None)
+        if v.dtype.kind not in "iuf":
+            raise InvalidPose(
+                f"a hand pose vector must be real numbers of shape (..., {NUM_DOF}) "
+                f"[wrist_pos(3), wrist_rotvec(3), angles(21)]; received {type(vector).__name__} "
+                f"of dtype {v.dtype}"
+            )
+        v = v.astype(np.float64)
         if v.ndim == 0 or v.shape[-1] != NUM_DOF:
             raise InvalidPose(
                 f"a hand pose vector must have shape (..., {NUM_DOF}) "

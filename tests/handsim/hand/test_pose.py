@@ -131,3 +131,44 @@ def test_len_of_single_pose_raises():
     """len() of a single pose is an error, not 27 or 3."""
     with pytest.raises(TypeError, match="not a batch"):
         len(HandPose.neutral())
+
+
+@pytest.mark.parametrize(
+    ("vector", "message"),
+    [
+        ("abc", r"must be real numbers of shape \(\.\.\., 27\).*received str of dtype <U3"),
+        (np.zeros(27, dtype=complex), r"must be real numbers .*received ndarray of dtype complex"),
+        ([[0.0] * 27, [0.0] * 5], r"must be real numbers .*received list of dtype object"),
+    ],
+)
+def test_from_vector_refuses_what_is_not_real_numbers(vector, message):
+    """A string, complex values or a ragged list: InvalidPose, never a silent real part."""
+    with pytest.raises(InvalidPose, match=message):
+        HandPose.from_vector(vector)
+
+
+@pytest.mark.parametrize(
+    ("pose", "message"),
+    [
+        ("open", r"set_pose takes a HandPose \(e.g. gesture\('open'\).*received str"),
+        (None, r"set_pose takes a HandPose .*received NoneType"),
+        (np.zeros(27), r"set_pose takes a HandPose .*received ndarray"),
+        (
+            HandPose.from_vector(np.zeros((2, 27))),
+            r"set_pose takes one pose; received a batch of shape \(2,\)",
+        ),
+    ],
+)
+def test_set_pose_takes_one_pose(pose, message):
+    """A gesture's name, None, a bare vector or a batch: InvalidPose saying what to pass."""
+    import mujoco
+
+    from handsim.hand.model import Hand, hand_params
+
+    hand = Hand(hand_params("medium", "right"))
+    model = hand.compile()
+    data = mujoco.MjData(model)
+    with pytest.raises(InvalidPose, match=message):
+        hand.bind(model).set_pose(data, pose)
+    with pytest.raises(InvalidPose, match=message.replace("set_pose", "set_target")):
+        hand.bind(model).set_target(data, pose)
