@@ -321,7 +321,25 @@ def evaluate_closed_loop(
 
     Raises:
         ValueError: for ``episodes < 1``, or ``video`` without ``media_dir``.
+        HandSimError: for an estimator instance where a factory is expected, or feedback modes
+            that are not booleans.
     """
+    instance = not isinstance(make_estimator, type) and hasattr(make_estimator, "predict")
+    if instance or not callable(make_estimator):
+        received = "an estimator instance" if instance else type(make_estimator).__name__
+        raise HandSimError(
+            "make_estimator must build a fresh estimator per feedback mode (a class or a "
+            f"function, e.g. lambda: OracleEstimator(noise_mm=10)); received {received}"
+        )
+    if (
+        not isinstance(feedback_modes, (tuple, list))
+        or not feedback_modes
+        or not all(isinstance(m, (bool, np.bool_)) for m in feedback_modes)
+    ):
+        raise HandSimError(
+            "feedback_modes must be a non-empty tuple of booleans, e.g. (False, True); "
+            f"received {feedback_modes!r}"
+        )
     if not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes must be an int >= 1; received {episodes!r}")
     if video and media_dir is None:

@@ -274,9 +274,27 @@ _NORMAL_MAX_STEP = 0.05
 """A neighbour more than this fraction of the depth away lies on another surface (no normal)."""
 
 
-def _check_depth(depth_m: np.ndarray, intrinsics: CameraIntrinsics) -> np.ndarray:
-    """The depth as float32 (the caller's array itself when it already is one: never write)."""
+def _check_depth(
+    depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: object = np.random.Generator
+) -> np.ndarray:
+    """The depth as float32 (the caller's array itself when it already is one: never write).
+
+    ``intrinsics`` must be a :class:`CameraIntrinsics` and ``rng`` (when the model draws) a
+    NumPy generator: a preset's name, a bare K or a missing generator are refused here.
+    """
+    if not isinstance(intrinsics, CameraIntrinsics):
+        raise InvalidSensor(
+            "intrinsics must be a CameraIntrinsics (e.g. camera_preset('icvl')), not a preset "
+            f"name or a bare K; received {type(intrinsics).__name__}"
+        )
+    if rng is not np.random.Generator and not isinstance(rng, np.random.Generator):
+        raise InvalidSensor(
+            "rng must be a numpy.random.Generator (e.g. numpy.random.default_rng(0)): the noise "
+            f"is drawn from it; received {type(rng).__name__}"
+        )
     depth = np.asarray(depth_m)
+    if depth.dtype.kind not in "iuf":
+        raise InvalidSensor(f"depth must be real numbers in metres; received dtype {depth.dtype}")
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise InvalidSensor(
             f"depth must have shape (H, W) = ({intrinsics.height}, {intrinsics.width}) to match "
@@ -546,7 +564,7 @@ class StructuredLight:
         Returns:
             (H, W) float32 noisy depth, metres, 0 = no measurement.
         """
-        clean = _check_depth(depth_m, intrinsics)
+        clean = _check_depth(depth_m, intrinsics, rng)
         # Only the box around the pixels with depth is processed (a hand alone covers a few
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
         # and by one more pixel, the neighbours of each (normals). Outside it no pixel can get
@@ -631,7 +649,7 @@ class TimeOfFlight:
         self, depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: np.random.Generator
     ) -> np.ndarray:
         """Noisy copy of a clean depth image (same arguments as :meth:`StructuredLight.apply`)."""
-        clean = _check_depth(depth_m, intrinsics)
+        clean = _check_depth(depth_m, intrinsics, rng)
         h, w = clean.shape
         scratch = _scratch(h * w)
         valid = np.greater(clean, 0, out=scratch.get("valid", (h, w), np.bool_))
@@ -685,7 +703,7 @@ class Compose:
         self, depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: np.random.Generator
     ) -> np.ndarray:
         """Apply every model in turn."""
-        out = _check_depth(depth_m, intrinsics).copy()
+        out = _check_depth(depth_m, intrinsics, rng).copy()
         for model in self.models:
             out = model.apply(out, intrinsics, rng)
         return out

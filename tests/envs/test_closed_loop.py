@@ -101,3 +101,17 @@ def test_write_report_strict_json_and_plots(report, tmp_path, monkeypatch):
         assert "Fake(noise_mm=3.0, latency_steps=2)" in title.replace("\n", " ")
     assert estimator_label(report) == "Fake(noise_mm=3.0, latency_steps=2)"
     assert estimator_label({"estimator": "Oracle(noise_mm=10)"}) == "Oracle(noise_mm=10)"
+
+
+def test_evaluate_closed_loop_says_what_it_takes():
+    """An estimator instance where a factory belongs, or feedback modes that are not booleans."""
+    from handsim.envs.closed_loop import evaluate_closed_loop
+    from handsim.errors import HandSimError
+    from handsim.estimators import OracleEstimator
+
+    with pytest.raises(HandSimError, match=r"must build a fresh estimator .*an estimator instance"):
+        evaluate_closed_loop("handsim/HandPose-v0", OracleEstimator())
+    with pytest.raises(HandSimError, match=r"must build a fresh estimator .*received int"):
+        evaluate_closed_loop("handsim/HandPose-v0", 3)
+    with pytest.raises(HandSimError, match=r"feedback_modes must be a non-empty tuple of booleans"):
+        evaluate_closed_loop("handsim/HandPose-v0", OracleEstimator, feedback_modes=("yes",))

@@ -334,3 +334,21 @@ def test_tof_dropout_rate(probability):
     )
     assert np.mean(out == 0) == pytest.approx(probability, abs=0.01)
     assert np.all((out == 0) | np.isclose(out, 0.5))
+
+
+@pytest.mark.parametrize("name", ["structured_light", "tof", "none"])
+def test_apply_refuses_a_preset_name_a_bare_k_or_no_generator(name):
+    """Every model: intrinsics that are not CameraIntrinsics, rng None, a boolean image."""
+    intr = camera_preset("icvl")
+    depth = np.full((intr.height, intr.width), 0.5, np.float32)
+    model = sensor_model(name)
+    rng = np.random.default_rng(0)
+    with pytest.raises(InvalidSensor, match=r"intrinsics must be a CameraIntrinsics .*str"):
+        model.apply(depth, "icvl", rng)
+    with pytest.raises(InvalidSensor, match=r"intrinsics must be a CameraIntrinsics .*ndarray"):
+        model.apply(depth, intr.K, rng)
+    if name != "none":  # the clean model draws nothing
+        with pytest.raises(InvalidSensor, match=r"rng must be a numpy.random.Generator .*None"):
+            model.apply(depth, intr, None)
+    with pytest.raises(InvalidSensor, match=r"depth must be real numbers in metres; .*bool"):
+        model.apply(depth > 0, intr, rng)
