@@ -96,7 +96,13 @@ def hand_center(keypoints_cam: Any) -> np.ndarray:
             f"hand_center expects (..., {N_KEYPOINTS}, 3) keypoints in metres; received shape "
             f"{kp.shape}"
         )
-    return kp[..., HAND_CENTER_INDICES, :].mean(axis=-2)
+    centre = kp[..., HAND_CENTER_INDICES, :]
+    if not np.all(np.isfinite(centre)):
+        raise InvalidKeypoints(
+            "hand_center needs finite wrist and finger MCP keypoints (indices "
+            f"{list(HAND_CENTER_INDICES)}); received NaN or inf among them"
+        )
+    return centre.mean(axis=-2)
 
 
 def _read_only_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -491,9 +497,21 @@ def estimate_errors(
           built once per object model and cached.
 
     Raises:
-        InvalidEstimate: if the estimate poses an instance the frame does not have.
-        InvalidEstimatorInput: if an object model cannot be found (see ``objects``).
+        InvalidEstimate: if ``estimate`` is not an Estimate, or poses an instance the frame
+            does not have.
+        InvalidEstimatorInput: if ``frame`` is not a Frame, or an object model cannot be found
+            (see ``objects``).
     """
+    if not isinstance(estimate, Estimate):
+        raise InvalidEstimate(
+            f"estimate must be an Estimate (what predict returns); received "
+            f"{type(estimate).__name__}"
+        )
+    if not all(hasattr(frame, key) for key in ("keypoints_cam", "objects")):
+        raise InvalidEstimatorInput(
+            f"frame must be the ground-truth Frame of the estimated depth (env.unwrapped.frame, "
+            f"info['frame']); received {type(frame).__name__}"
+        )
     nan = math.nan
     instances = [label.instance for label in frame.objects]
     unknown = sorted(set(estimate.object_poses) - set(instances))

@@ -318,3 +318,20 @@ def test_object_errors_equal_the_metrics_and_reuse_one_tree_per_object():
             add_or_adi_error_mm(poses[k], T_gt, model), abs=1e-9
         )
         assert _model_tree(model)[1] is _model_tree(model)[1]
+
+
+def test_estimate_errors_and_hand_center_refuse_what_they_cannot_measure():
+    """No frame, a non-Estimate, keypoints with NaN at the centre: named errors, not NaN."""
+    from handsim.errors import InvalidEstimatorInput, InvalidKeypoints
+    from handsim.estimator import Estimate, InvalidEstimate, estimate_errors, hand_center
+
+    with pytest.raises(InvalidEstimatorInput, match=r"frame must be the ground-truth Frame .*None"):
+        estimate_errors(Estimate(valid=False), None)
+    with pytest.raises(InvalidEstimate, match=r"estimate must be an Estimate .*dict"):
+        estimate_errors({"keypoints_cam": None}, None)
+    kp = np.full((21, 3), np.nan)
+    with pytest.raises(InvalidKeypoints, match=r"needs finite wrist and finger MCP keypoints"):
+        hand_center(kp)
+    kp[:] = 0.1
+    kp[8] = np.nan  # a fingertip is not part of the centre
+    np.testing.assert_allclose(hand_center(kp), [0.1, 0.1, 0.1])
