@@ -204,14 +204,8 @@ def test_the_occlusion_heavy_preset_fills_its_rare_bucket_in_a_small_shard(tmp_p
     assert manifest.occlusion_histogram["counts"] == [38, 38, 37, 37]
 
 
-def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
-    """A run killed with SIGKILL mid-way resumes to the same dataset as an uninterrupted run."""
-    values = dict(TINY, frames=8)
-    code = (
-        "import sys; from handsim.data.generation import GenerationConfig, generate\n"
-        f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
-    )
-    run = tmp_path / "killed"
+def _kill_after_the_first_shard(code, run):
+    """Run ``code`` (a generation into ``run``) and SIGKILL it once a shard is complete."""
     proc = subprocess.Popen([sys.executable, "-c", code, str(run)])
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
@@ -220,6 +214,18 @@ def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    return proc
+
+
+def test_sigkill_loses_only_the_shard_in_progress(tmp_path):
+    """A run killed with SIGKILL mid-way resumes to the same dataset as an uninterrupted run."""
+    values = dict(TINY, frames=8)
+    code = (
+        "import sys; from handsim.data.generation import GenerationConfig, generate\n"
+        f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
+    )
+    run = tmp_path / "killed"
+    proc = _kill_after_the_first_shard(code, run)
     before = Manifest.read(run)
     assert 1 <= len(before.shards) < 4 or proc.returncode != -signal.SIGKILL
     resumed = generate(GenerationConfig.from_mapping(values), run)
@@ -421,14 +427,7 @@ def test_a_run_with_redraws_resumes_identically_after_sigkill(tmp_path):
         + f"generate(GenerationConfig.from_mapping({values!r}), sys.argv[1])\n"
     )
     run = tmp_path / "killed"
-    proc = subprocess.Popen([sys.executable, "-c", code, str(run)])
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and proc.poll() is None:
-        if (run / "manifest.json").exists() and Manifest.read(run).shards:
-            break
-        time.sleep(0.05)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    proc = _kill_after_the_first_shard(code, run)
     assert 1 <= len(Manifest.read(run).shards) < 4 or proc.returncode != -signal.SIGKILL
     subprocess.run([sys.executable, "-c", code, str(run)], check=True)
     subprocess.run([sys.executable, "-c", code, str(tmp_path / "clean")], check=True)
