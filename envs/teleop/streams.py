@@ -106,6 +106,11 @@ class InvalidStream(HandSimError, ValueError):
     """An operator stream (file, packet or array) is malformed; the message names the field."""
 
 
+MAX_RESAMPLED_FRAMES = 2_000_000
+"""Most frames a resampled stream may have (about 4.6 h at 120 Hz, 1 GB of keypoints): a longer
+span is a clock or unit mistake, refused before it is allocated."""
+
+
 def _points_format(fmt: str) -> tuple[str, int]:
     """(format of :func:`from_format`, number of points) of a keypoint stream format."""
     if fmt in ("handsim21", "mediapipe_world"):
@@ -226,7 +231,15 @@ class OperatorStream:
         if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
             raise InvalidStream(f"rate_hz must be a finite number > 0; received {rate_hz!r}")
         t0 = self.times_s[0]
-        n = int(math.floor(self.duration_s * rate_hz + 1e-9)) + 1
+        frames = self.duration_s * rate_hz
+        if not frames < MAX_RESAMPLED_FRAMES:  # also NaN and inf
+            raise InvalidStream(
+                f"the stream spans {self.duration_s:.4g} s (t from {t0:.6g} to "
+                f"{self.times_s[-1]:.6g}); at {rate_hz:g} Hz that is {frames:.3g} frames, more "
+                f"than {MAX_RESAMPLED_FRAMES}: check that its timestamps are seconds from one "
+                "clock (or its fps)"
+            )
+        n = int(math.floor(frames + 1e-9)) + 1
         t = t0 + np.arange(n) / rate_hz
         src = self.times_s
         idx = np.clip(np.searchsorted(src, t, side="right") - 1, 0, len(src) - 1)
@@ -494,6 +507,10 @@ def load_stream(path: str | os.PathLike[str], rate_hz: float | None = None) -> O
             doc = json.loads(p.read_text())
         except (UnicodeDecodeError, json.JSONDecodeError) as err:
             raise InvalidStream(f"stream {p}: not valid JSON ({err})") from None
+        except RecursionError:
+            raise InvalidStream(
+                f"stream {p}: JSON nested too deeply to be a stream (the schema is two levels)"
+            ) from None
     elif suffix == ".npz":
         try:
             with np.load(p, allow_pickle=False) as npz:

@@ -493,11 +493,19 @@ class GenerationConfig:
                 values = yaml.safe_load(text)
             except yaml.YAMLError as err:
                 raise InvalidGenerationConfig(f"{path} is not valid YAML ({err})") from err
+            except RecursionError:
+                raise InvalidGenerationConfig(
+                    f"{path}: YAML nested too deeply to be a config (fields are one level)"
+                ) from None
         else:
             try:
                 values = json.loads(text)
             except json.JSONDecodeError as err:
                 raise InvalidGenerationConfig(f"{path} is not valid JSON ({err})") from err
+            except RecursionError:
+                raise InvalidGenerationConfig(
+                    f"{path}: JSON nested too deeply to be a config (fields are one level)"
+                ) from None
         return cls.from_mapping(values, **overrides)
 
 

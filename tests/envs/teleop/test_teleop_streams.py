@@ -246,3 +246,30 @@ def test_stream_arrays_are_checked():
         OperatorStream(np.array([0.0, 0.0]), np.zeros((2, 21, 3)))
     with pytest.raises(InvalidStream, match="rate_hz must be a finite number > 0"):
         OperatorStream(np.arange(2.0), np.zeros((2, 21, 3))).resample(0)
+
+
+def test_a_stream_too_long_to_resample_is_refused_before_it_is_allocated(tmp_path):
+    """Timestamps 1e6 s apart at 500 Hz, or fps 1e-300: a message, not 108 GiB asked for."""
+    kp, _ = _keypoints(3)
+    spread = {
+        "format": "handsim21",
+        "frames": [{"t": 1e6 * i, "keypoints": k.tolist()} for i, k in enumerate(kp)],
+    }
+    slow = {"format": "handsim21", "fps": 1e-300, "frames": [{"keypoints": k.tolist()} for k in kp]}
+    for doc, span in ((spread, "2e\\+06 s"), (slow, "2e\\+300 s")):
+        path = tmp_path / "long.json"
+        path.write_text(json.dumps(doc))
+        with pytest.raises(InvalidStream, match=rf"the stream spans {span} .*more than 2000000"):
+            load_stream(path, rate_hz=500.0)
+
+
+def test_a_deeply_nested_json_stream_or_config_is_refused(tmp_path):
+    """100 000 nested lists: a clear error for a stream file and for a generation config."""
+    from handsim.data.config import GenerationConfig, InvalidGenerationConfig
+
+    deep = "[" * 100_000 + "]" * 100_000
+    (tmp_path / "deep.json").write_text(deep)
+    with pytest.raises(InvalidStream, match="JSON nested too deeply to be a stream"):
+        load_stream(tmp_path / "deep.json")
+    with pytest.raises(InvalidGenerationConfig, match="JSON nested too deeply to be a config"):
+        GenerationConfig.from_file(tmp_path / "deep.json")
