@@ -482,30 +482,28 @@ class GenerationConfig:
         if not path.is_file():
             raise InvalidGenerationConfig(f"config file {path} does not exist")
         text = path.read_text()
-        if path.suffix in (".yaml", ".yml"):
-            try:
-                import yaml
-            except ImportError as err:
-                raise InvalidGenerationConfig(
-                    "YAML configs need PyYAML (pip install pyyaml); or write the config as JSON"
-                ) from err
-            try:
-                values = yaml.safe_load(text)
-            except yaml.YAMLError as err:
-                raise InvalidGenerationConfig(f"{path} is not valid YAML ({err})") from err
-            except RecursionError:
-                raise InvalidGenerationConfig(
-                    f"{path}: YAML nested too deeply to be a config (fields are one level)"
-                ) from None
-        else:
-            try:
-                values = json.loads(text)
-            except json.JSONDecodeError as err:
-                raise InvalidGenerationConfig(f"{path} is not valid JSON ({err})") from err
-            except RecursionError:
-                raise InvalidGenerationConfig(
-                    f"{path}: JSON nested too deeply to be a config (fields are one level)"
-                ) from None
+        kind = "YAML" if path.suffix in (".yaml", ".yml") else "JSON"
+        try:
+            if kind == "YAML":
+                try:
+                    import yaml
+                except ImportError as err:
+                    raise InvalidGenerationConfig(
+                        "YAML configs need PyYAML (pip install pyyaml); or write the config as JSON"
+                    ) from err
+                try:
+                    values = yaml.safe_load(text)
+                except yaml.YAMLError as err:
+                    raise InvalidGenerationConfig(f"{path} is not valid YAML ({err})") from err
+            else:
+                try:
+                    values = json.loads(text)
+                except json.JSONDecodeError as err:
+                    raise InvalidGenerationConfig(f"{path} is not valid JSON ({err})") from err
+        except RecursionError:
+            raise InvalidGenerationConfig(
+                f"{path}: {kind} nested too deeply to be a config (fields are one level)"
+            ) from None
         return cls.from_mapping(values, **overrides)
 
 

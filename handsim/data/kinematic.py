@@ -484,7 +484,6 @@ class KinematicSource:
         accept: Callable[[float, int], bool],
         source: str,
         view: str,
-        shoulder_for_eye: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> dict[str, np.ndarray] | None:
         """The arrays of the posed hand seen from ``camera``, or None if refused.
 
@@ -493,15 +492,16 @@ class KinematicSource:
         ``behind``, and the frame is rendered; None when the camera would be below the table,
         fewer than :data:`MIN_KEYPOINTS_IN_FRAME` keypoints are in the image or ``accept``
         refuses it. ``source`` and ``view`` are labelled (``pose_source``, ``viewpoint``).
-        ``shoulder_for_eye`` (the final eye -> the shoulder, world) turns the upper arm once the
-        eye is in range; without it the caller has turned it.
+        A hand alone's upper arm is turned here, to the shoulder placed for the view from the
+        eye in range (:func:`alone_shoulder_m`); at the table the caller has turned it.
         """
         eye, quat = camera
         eye = beyond_near(scene, geoms, eye, palm, self._near_m)
         if eye is None:
             return None
-        if shoulder_for_eye is not None:  # the arm is not among ``geoms``: after the move
-            scene.binding.point_upper_arm(scene.data, shoulder_for_eye(eye))
+        if not scene.objects and not scene.spec.table:  # the arm is not among ``geoms``
+            left = scene.spec.hand.side == "left"
+            scene.binding.point_upper_arm(scene.data, alone_shoulder_m(view, left, eye))
         if self.config.background != "none":
             self._place_backdrop(rng, scene, behind, eye, palm)
         cam = scene.model.camera("camera").id
@@ -578,20 +578,8 @@ class KinematicSource:
                         continue
                     eye, quat = self._camera(rng, view, palm, obj, rotvec)
                     scene.binding.point_upper_arm(scene.data, shoulder)
-                # A hand alone's shoulder is placed for the view, from the eye in range.
-                arm_to = (lambda e, v=view: alone_shoulder_m(v, is_left, e)) if alone else None
                 arrays = self._view(
-                    rng,
-                    scene,
-                    renderer,
-                    (eye, quat),
-                    palm,
-                    geoms,
-                    behind,
-                    accept,
-                    source,
-                    view,
-                    shoulder_for_eye=arm_to,
+                    rng, scene, renderer, (eye, quat), palm, geoms, behind, accept, source, view
                 )
                 if arrays is not None:
                     yield arrays
