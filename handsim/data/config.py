@@ -527,7 +527,8 @@ extra-large clamp excepted (an open frame). Scissors, clamps, the marker, the ba
 flat boxes and can seen edge-on hide little."""
 
 PRESETS: dict[str, dict[str, Any]] = {
-    "hand-only": {"num_objects_range": (0, 0)},
+    "hand-only": {"num_objects_range": (0, 0), "viewpoints": ("third_person",)},
+    "hand-only-egocentric": {"num_objects_range": (0, 0), "viewpoints": ("egocentric",)},
     "hand-object": {"source": "grasp", "num_objects_range": (1, 3)},
     "occlusion-heavy": {
         "source": "grasp",
@@ -558,7 +559,8 @@ PRESETS: dict[str, dict[str, Any]] = {
         "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
     },
 }
-"""Named configs: hand alone (third-person and egocentric views; kinematic), hand grasping one
+"""Named configs: hand alone seen by a sensor in front of the person (third person, views as in
+NYU's test set) or by a head-mounted camera (egocentric; kinematic), hand grasping one
 of the objects on the table, objects between camera and hand with the occlusion ratio
 stratified in four buckets from 0.1 to 0.95 and at most 5 % of frames without a visible
 keypoint (both from the grasp planner's grasps, posed without physics: the ``"grasp"``
