@@ -325,9 +325,24 @@ def generate(
         The final manifest (also written to ``out/manifest.json``).
 
     Raises:
-        InvalidGenerationConfig: if ``out`` holds a dataset made with another config.
+        InvalidGenerationConfig: if ``out`` holds a dataset made with another config, or for
+            arguments of the wrong type.
         GenerationError: if a shard cannot be made.
     """
+    if not isinstance(config, GenerationConfig):
+        raise InvalidGenerationConfig(
+            "config must be a GenerationConfig (e.g. GenerationConfig.from_mapping("
+            f"PRESETS['hand-only'])); received {type(config).__name__}"
+        )
+    if not isinstance(out, (str, os.PathLike)):
+        raise InvalidGenerationConfig(
+            f"out must be a folder path (str or os.PathLike); received {type(out).__name__}"
+        )
+    if progress is not None and not callable(progress):
+        raise InvalidGenerationConfig(
+            "progress must be None or a callable taking (frames done, frames total); "
+            f"received {progress!r}"
+        )
     folder = Path(out)
     _int("workers", workers, 1, 256)
     folder.mkdir(parents=True, exist_ok=True)

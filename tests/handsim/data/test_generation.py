@@ -139,6 +139,18 @@ def test_generate_resumes_after_a_crash_and_check_finds_damage(tmp_path):
     assert not list(run.glob(f"*{PARTIAL_SUFFIX}"))
 
 
+def test_generate_refuses_arguments_of_the_wrong_type(tmp_path):
+    """Swapped arguments and a progress flag in place of a callback: clear errors, no folder."""
+    config = GenerationConfig.from_mapping(PRESETS["hand-only"], frames=1)
+    with pytest.raises(InvalidGenerationConfig, match="config must be a GenerationConfig"):
+        generate(str(tmp_path / "d"), config)
+    with pytest.raises(InvalidGenerationConfig, match="out must be a folder path"):
+        generate(config, config)
+    with pytest.raises(InvalidGenerationConfig, match="progress must be None or a callable"):
+        generate(config, tmp_path / "d", progress=False)
+    assert not (tmp_path / "d").exists()
+
+
 def test_another_config_is_refused_in_an_existing_dataset(tmp_path):
     """Resuming with a different config would mix datasets: refused, naming the fields."""
     generate(GenerationConfig.from_mapping(TINY, frames=2), tmp_path)
