@@ -297,7 +297,7 @@ def _histogram(folder: Path, manifest: Manifest, edges: Sequence[float]) -> dict
         ratio = reader.labels("hand_occlusion_ratio")
         counts += np.histogram(np.nan_to_num(ratio), bins=edges)[0]
         reader.close()
-    return {"edges": [float(e) for e in edges], "counts": counts.tolist()}
+    return {"edges": [round(float(e), 6) for e in edges], "counts": counts.tolist()}
 
 
 def generate(
