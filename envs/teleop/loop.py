@@ -33,6 +33,7 @@ import math
 import pathlib
 import time
 import warnings
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -43,6 +44,7 @@ from handsim.envs.teleop import metrics as tm
 from handsim.envs.teleop.capture import Capture, world_from_cam
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
+from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
 from handsim.errors import HandSimError, InvalidKeypoints
@@ -257,6 +259,7 @@ class TeleopLoop:
         self.env_kwargs = kwargs
         self.env = gym.make(env_id, **self.env_kwargs)
         self._capture: Capture | None = None
+        self._side_checked: weakref.WeakSet[OperatorStream] = weakref.WeakSet()
         self._capture_key: tuple | None = None
 
     def close(self) -> None:
@@ -304,6 +307,11 @@ class TeleopLoop:
 
         Returns:
             The episode's metrics (and arrays with ``config.record``).
+
+        Raises:
+            InvalidStream: a stream of the other hand side than the task's hand, by its
+                ``hand`` or by its geometry (:func:`~handsim.envs.teleop.handedness.check_side`;
+                live: on its first fully tracked frames).
         """
         cfg = self.config
         env, base = self.env, self.env.unwrapped
@@ -311,7 +319,17 @@ class TeleopLoop:
         dt = self.control_dt
         limit = (env.spec.max_episode_steps if env.spec is not None else None) or 1000
         frames: Callable[[int], tuple[np.ndarray | None, np.ndarray | None]]
+        side = base.scene.hand.params.side
         if isinstance(stream, OperatorStream):
+            name = stream.source or "the stream"
+            if stream.side != side:
+                raise InvalidStream(
+                    f"{name} is a {stream.side} hand, but the task's hand is {side}: make the "
+                    f"env with handedness={stream.side!r} (the CLI does), or mirror the stream"
+                )
+            if stream.poses is None and stream not in self._side_checked:
+                check_side(stream.keypoints_world, stream.side, name)
+                self._side_checked.add(stream)
             s = stream.resample(1.0 / dt)
             if cfg.anchor == "start":
                 start = base.scene.binding.keypoints(base.scene.data)[0]
@@ -328,12 +346,23 @@ class TeleopLoop:
         else:
             steps = max_steps or limit
             anchor_offset: list[np.ndarray] = []
+            if isinstance(stream, LiveSampler) and stream.side != side:
+                raise InvalidTeleopConfig(
+                    f"the live sampler follows the {stream.side} hand, but the task's hand is "
+                    f"{side}: make the env with handedness={stream.side!r}"
+                )
+            # The first fully tracked live frames vote on the stream's side.
+            to_check: list[np.ndarray] = []
 
             def frames(i: int) -> tuple[np.ndarray | None, np.ndarray | None]:
                 kp = stream(i)
                 if kp is None:
                     return None, None
                 kp = np.asarray(kp, dtype=np.float64)
+                if len(to_check) < SIDE_CHECK_FRAMES and fully_tracked(kp):
+                    to_check.append(kp)
+                    if len(to_check) == SIDE_CHECK_FRAMES:
+                        check_side(np.stack(to_check), side, "the live stream")
                 if cfg.anchor == "start":
                     if not anchor_offset and np.all(np.isfinite(kp[0])):
                         start = base.scene.binding.keypoints(base.scene.data)[0]
