@@ -59,7 +59,7 @@ class LiveSampler:
         residual_s: per packet applied, ``applied`` minus the sender instant that the
             applied pose stands for (after delay and prediction), seconds.
         clock: ``"unix"``, ``"relative"`` or ``"arrival"`` (see the module docstring).
-        used: the ``seq`` values whose packet was the newest one at some step.
+        packets_used: how many packets were the newest one at some step (applied).
     """
 
     def __init__(
@@ -89,7 +89,7 @@ class LiveSampler:
         self.latencies_s: list[float] = []
         self.residual_s: list[float] = []
         self.clock: str | None = None
-        self.used: set[int] = set()
+        self.packets_used = 0
         self._offset = math.inf
         self._resets = 0
         self._newest: object = None
@@ -124,7 +124,6 @@ class LiveSampler:
         # Sender instants -> receiver clock: as they are for Unix time, else by the offset.
         shift = 0.0 if self.clock == "unix" else self._offset
         now = time.time()
-        self.used.add(frames[-1].seq)
         want = now - shift - self.delay_s + self.predict_s
         # Never extrapolate further than the prediction asks.
         want = min(want, t[-1] + self.predict_s)
@@ -132,6 +131,7 @@ class LiveSampler:
         if frames[-1] is not self._newest:
             # Latency is per packet: from its timestamp to its first application.
             self._newest = frames[-1]
+            self.packets_used += 1
             self._pending = (t[-1] + shift, want + shift)
         return kp
 
@@ -159,7 +159,7 @@ class LiveSampler:
             "residual_latency_p50_ms": pct(res, 50),
             "residual_latency_p95_ms": pct(res, 95),
             "latency_clock": self.clock,
-            "packets_used": len(self.used),
+            "packets_used": self.packets_used,
             "predict_s": self.predict_s,
             "delay_s": self.delay_s,
         }

@@ -395,7 +395,7 @@ def _live(args: argparse.Namespace) -> int:
                 )
             packets = dict(receiver.counters)
             accepted = max(packets["accepted"], 1)
-            extra = {"packets": packets, "packets_used_fraction": len(sampler.used) / accepted}
+            extra = {"packets": packets, "packets_used_fraction": sampler.packets_used / accepted}
             return _finish(args, loop, episode, extra)
     finally:
         receiver.close()
