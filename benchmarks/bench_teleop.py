@@ -1,6 +1,7 @@
 """Benchmark: the teleop loop's steps per second on one core, per mode, with the time per stage.
 
-Run: ``python benchmarks/bench_teleop.py [--steps 300] [--repeats 2] [--live-s 5] [--out FILE]``.
+Run: ``python benchmarks/bench_teleop.py [--steps 300] [--repeats 2] [--live-s 5] [--only live|loop]
+[--out FILE]``.
 
 After the live runs the process is pinned to one CPU core (``os.sched_setaffinity``; Mesa's
 software rasterizer runs without worker threads, ``LP_NUM_THREADS=0``). For each task
@@ -127,7 +128,10 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--out", default="benchmarks/results/bench_teleop.json")
     parser.add_argument("--live-s", type=float, default=5.0)
+    parser.add_argument("--only", choices=("live", "loop"), default=None)
     args = parser.parse_args()
+    if args.only == "loop":
+        args.live_s = 0.0
     cores = sorted(os.sched_getaffinity(0))
     results_live = []
     if args.live_s > 0:
@@ -157,7 +161,7 @@ def main() -> None:
         "tasks": {},
         "live": results_live,
     }
-    for env_id, kwargs in TASKS.items():
+    for env_id, kwargs in TASKS.items() if args.only != "live" else ():
         stream = stream_from_expert(env_id, 0, env_kwargs=kwargs)
         entry: dict = {"stream_frames": len(stream)}
         best: dict = {}
