@@ -11,12 +11,14 @@ interpenetration, slip, jitter, lag, unintended presses).
 - :mod:`~handsim.envs.teleop.sampling`: timestamp-aware sampling, prediction, latency.
 - :mod:`~handsim.envs.teleop.handedness`: the side check of streams.
 - :mod:`~handsim.envs.teleop.capture`: camera mode's capture scene.
+- :mod:`~handsim.envs.teleop.events`: interaction events (pinch, grab, buttons, slider).
 - :mod:`~handsim.envs.teleop.faults`, :mod:`~handsim.envs.teleop.filters`: faults, smoothing.
 - :mod:`~handsim.envs.teleop.loop`: :class:`TeleopLoop`, rollouts.
 - :mod:`~handsim.envs.teleop.metrics`: the metrics.
 - :mod:`~handsim.envs.teleop.sweep`: degradation sweeps (table and plots).
 """
 
+from handsim.envs.teleop.events import EVENT_KINDS, InteractionEvent
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector, InvalidFaults
 from handsim.envs.teleop.filters import (
     FILTERS,
@@ -85,4 +87,6 @@ __all__ = [
     "BehindRealTime",
     "write_rollout",
     "read_rollout",
+    "InteractionEvent",
+    "EVENT_KINDS",
 ]

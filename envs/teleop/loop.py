@@ -42,6 +42,7 @@ import numpy as np
 
 from handsim.envs.teleop import metrics as tm
 from handsim.envs.teleop.capture import Capture, world_from_cam
+from handsim.envs.teleop.events import EventDetector, InteractionEvent
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
@@ -180,10 +181,12 @@ class TeleopEpisode:
             ``unintended_presses``, ``tracking_error_mm``, ``steps``, ``dropped_frames``,
             ``steps_per_s``) and ``stage_ms`` (mean milliseconds per stage).
         arrays: per-step arrays when recorded (see :func:`write_rollout`), else empty.
+        events: the interaction events, in order (:mod:`~handsim.envs.teleop.events`).
     """
 
     metrics: dict[str, Any]
     arrays: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    events: list[InteractionEvent] = dataclasses.field(default_factory=list)
 
 
 class TeleopLoop:
@@ -395,6 +398,7 @@ class TeleopLoop:
             base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
         )
         times = dict.fromkeys(STAGES, 0.0)
+        detector = EventDetector(base, dt)
         previous: HandPose | None = None
         scale: float | None = None
         rec: dict[str, list[Any]] = {
@@ -488,6 +492,7 @@ class TeleopLoop:
             times["physics"] += time.perf_counter() - t5
             if sampler is not None:
                 sampler.applied()
+            detector.update(i, tracked, data, info)
             n_done = i
             penetration, touching = tm.hand_penetration_m(data, hand_geoms)
             physical = base.scene.binding.keypoints(data)
@@ -571,6 +576,7 @@ class TeleopLoop:
             "steps_per_s": n_done / wall if wall > 0 else math.nan,
             "realtime_factor": n_done * dt / wall if wall > 0 else math.nan,
             "stage_ms": {k: (v / n_done * 1e3 if n_done else math.nan) for k, v in times.items()},
+            "events": detector.counts(),
         }
         if sampler is not None:
             metrics.update(sampler.summary())
@@ -595,7 +601,7 @@ class TeleopLoop:
                     K=rec["K"],
                     T_cam_from_world=rec["T_cam_from_world"],
                 )
-        return TeleopEpisode(metrics, arrays)
+        return TeleopEpisode(metrics, arrays, detector.events)
 
 
 def _estimate_world(estimate: Estimate, T_cam_from_world: np.ndarray) -> np.ndarray:  # noqa: N803
@@ -609,7 +615,9 @@ def write_rollout(
 ) -> pathlib.Path:
     """Save a recorded episode for ``handsim view`` (compressed NPZ).
 
-    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics);
+    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics, and
+    ``events``: the interaction events as dicts of
+    :class:`~handsim.envs.teleop.events.InteractionEvent`);
     ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
     state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
     3) metres, world frame; ``dropped``, ``success`` (T,) bool; ``penetration_m`` (T,); and in
@@ -635,6 +643,7 @@ def write_rollout(
         "seed": episode.metrics["seed"],
         "control_dt_s": episode.metrics["control_dt_s"],
         "metrics": episode.metrics,
+        "events": [e.to_dict() for e in episode.events],
     }
     np.savez_compressed(p, meta=np.array(json.dumps(to_strict_json(meta))), **episode.arrays)
     return p

@@ -274,6 +274,8 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
         print(f"  {k:22s} {v:.3f}" if isinstance(v, float) else f"  {k:22s} {v}")
     stages = ", ".join(f"{k} {v:.2f}" for k, v in metrics["stage_ms"].items())
     print(f"  {'stage_ms':22s} {stages}")
+    events = ", ".join(f"{k} {v}" for k, v in metrics.get("events", {}).items() if v)
+    print(f"  {'events':22s} {events or 'none'}")
 
 
 def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, Any]) -> int:
@@ -281,7 +283,8 @@ def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, 
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "teleop.json").write_text(strict_json({**episode.metrics, **extra}))
+    log = {"event_log": [e.to_dict() for e in episode.events]}
+    (out / "teleop.json").write_text(strict_json({**episode.metrics, **extra, **log}))
     print(f"{episode.metrics['env_id']} ({loop.config.label()}):")
     _print_metrics(episode.metrics)
     if args.rollout:

@@ -73,6 +73,9 @@ def test_generate_replay_and_view(tmp_path, capsys):
     assert main(args) == 0
     metrics = json.loads((tmp_path / "out" / "teleop.json").read_text())
     assert metrics["success"] is True and metrics["env_id"] == "handsim/Press-v0"
+    # Seed 1 of the random press task is a button or the slider: either reports its events.
+    acts = [e for e in metrics["event_log"] if e["kind"] in ("button_press", "slider")]
+    assert acts and 0 < acts[0]["t_s"] <= metrics["time_to_success_s"]
     assert (
         main(["view", str(rollout), "--out", str(tmp_path / "v.gif"), "--every", "10", "--quiet"])
         == 0
