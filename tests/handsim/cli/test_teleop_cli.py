@@ -31,7 +31,8 @@ from handsim.cli import main
         ),
         (
             ["teleop", "live", "--help"],
-            ["--udp", "--websocket", "--host", "127.0.0.1", "--duration"],
+            ["--udp", "--websocket", "--host", "127.0.0.1", "--duration", "--hand"]
+            + ["right, left", "--rate-hz", "--delay-ms", "--predict-ms", "--rollout"],
         ),
         (
             ["teleop", "sweep", "--help"],
@@ -134,6 +135,10 @@ def test_errors_are_one_line(argv, message, capsys):
         (["teleop", "replay", "x.json", "--dropout", "2"], "expected a number in [0, 1]"),
         (["teleop", "live"], "one of the arguments --udp --websocket is required"),
         (["teleop", "sweep", "--latency", "0,x"], "--latency"),
+        (["teleop", "live", "--udp", "9000", "--rate-hz", "200"], "--rate-hz: expected a number"),
+        (["teleop", "replay", "x.json", "--rate-hz", "0"], "--rate-hz: expected a number"),
+        (["teleop", "live", "--udp", "9000", "--predict-ms", "500"], "--predict-ms"),
+        (["teleop", "live", "--udp", "9000", "--hand", "both"], "invalid choice: 'both'"),
     ],
 )
 def test_bad_options_are_usage_errors(argv, message, capsys):
