@@ -24,9 +24,10 @@ with the oracle and in direct mode.
 resampled to 90 and 120 Hz, over local UDP (each packet stamped with Unix time) into the live
 loop (direct mode, real time, :class:`~handsim.envs.teleop.sampling.LiveSampler`) for
 ``--live-s`` seconds, at the control rate sized to the stream and, as the control, at the
-envs' fixed 50 Hz; per run: the control rate, the real-time factor, the fraction of packets
-ever applied, the end-to-end latency (sender timestamp -> after the physics step) p50 / p95 in
-ms, and the kernel's UDP drops. Results go to ``benchmarks/results/bench_teleop.json``.
+envs' fixed 50 Hz, and once at 90 Hz with 10 ms of prediction; per run: the control rate, the
+real-time factor, the fraction of packets ever applied, the end-to-end latency (sender
+timestamp -> after the physics step) p50 / p95 in ms and what is left of it after the
+prediction, and the kernel's UDP drops. Results go to ``benchmarks/results/bench_teleop.json``.
 """
 
 from __future__ import annotations
@@ -83,7 +84,9 @@ def _send_forever(stream, port: int) -> None:
         send_stream(stream, port)
 
 
-def _live(stream, rate_hz: float, control_hz: float, seconds: float) -> dict:
+def _live(
+    stream, rate_hz: float, control_hz: float, seconds: float, predict_s: float = 0.0
+) -> dict:
     """One live session: a sender process at ``rate_hz``, the loop at ``control_hz``."""
     with UdpReceiver(0) as rx:
         sender = multiprocessing.get_context("fork").Process(
@@ -99,7 +102,7 @@ def _live(stream, rate_hz: float, control_hz: float, seconds: float) -> dict:
                 control_rate_hz=control_hz,
                 episode_s=seconds,
             ) as loop:
-                sampler = LiveSampler(rx)
+                sampler = LiveSampler(rx, predict_s=predict_s)
                 steps = int(round(seconds / loop.control_dt))
                 start = dict(rx.counters)
                 m = loop.run(sampler, 0, max_steps=steps, realtime=True, stop_at_success=False)
@@ -116,6 +119,9 @@ def _live(stream, rate_hz: float, control_hz: float, seconds: float) -> dict:
         "latency_p50_ms": m["latency_p50_ms"],
         "latency_p95_ms": m["latency_p95_ms"],
         "latency_clock": m["latency_clock"],
+        "predict_ms": 1e3 * predict_s,
+        "residual_latency_p50_ms": m["residual_latency_p50_ms"],
+        "residual_latency_p95_ms": m["residual_latency_p95_ms"],
         "kernel_dropped": rx.counters["kernel_dropped"],
         "stage_ms": m["stage_ms"],
     }
@@ -138,17 +144,19 @@ def main() -> None:
         # Before pinning: the sender process gets the other cores.
         press = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
         print(f"live, direct mode, {args.live_s:g} s each (sender in its own process):")
-        for rate in (90.0, 120.0):
-            for control in (rate, 50.0):
-                run = _live(press, rate, control, args.live_s)
-                results_live.append(run)
-                print(
-                    f"  stream {rate:3.0f} Hz, control {run['control_hz']:5.1f} Hz: "
-                    f"real time x{run['realtime_factor']:.2f}, packets applied "
-                    f"{100 * run['packets_used_fraction']:3.0f} %, latency p50 "
-                    f"{run['latency_p50_ms']:.1f} ms, p95 {run['latency_p95_ms']:.1f} ms "
-                    f"({run['latency_clock']} clock), kernel drops {run['kernel_dropped']}"
-                )
+        runs = [(90.0, 90.0, 0.0), (90.0, 50.0, 0.0), (120.0, 120.0, 0.0), (120.0, 50.0, 0.0)]
+        runs.append((90.0, 90.0, 0.01))  # prediction: the residual latency drops by 10 ms
+        for rate, control, predict_s in runs:
+            run = _live(press, rate, control, args.live_s, predict_s)
+            results_live.append(run)
+            print(
+                f"  stream {rate:3.0f} Hz, control {run['control_hz']:5.1f} Hz, predict "
+                f"{1e3 * predict_s:2.0f} ms: real time x{run['realtime_factor']:.2f}, packets "
+                f"applied {100 * run['packets_used_fraction']:3.0f} %, latency p50 "
+                f"{run['latency_p50_ms']:.1f} ms, p95 {run['latency_p95_ms']:.1f} ms "
+                f"({run['latency_clock']} clock), after prediction p50 "
+                f"{run['residual_latency_p50_ms']:.1f} ms, kernel drops {run['kernel_dropped']}"
+            )
     core = cores[0]
     os.sched_setaffinity(0, {core})
     results: dict = {
