@@ -8,7 +8,8 @@ key             meaning
 ``seq``         int in [0, 2**53) (JavaScript's exact integers), increasing per sender and
                 hand. A packet whose ``seq`` is at most :data:`MAX_SEQ_GAP` behind the
                 last accepted one (or equal to it) is out of order and dropped; a jump of
-                more than :data:`MAX_SEQ_GAP` either way starts a new stream (a restarted
+                more than :data:`MAX_SEQ_GAP` either way, or a packet more than
+                :data:`STREAM_GAP_S` after the last one, starts a new stream (a restarted
                 sender, a corrupted counter): it is accepted and counted as ``seq_reset``.
 ``t``           sender time, seconds (optional). Unix time (``time.time()``,
                 ``(performance.timeOrigin + performance.now()) / 1000`` in a browser)
@@ -81,6 +82,7 @@ __all__ = [
     "LOCAL_HOSTS",
     "MAX_SEQ",
     "MAX_SEQ_GAP",
+    "STREAM_GAP_S",
     "MAX_CONNECTIONS",
     "UDP_BUFFER_BYTES",
     "HANDS",
@@ -99,6 +101,9 @@ MAX_SEQ_GAP = 64
 """A ``seq`` jump larger than this (either way) starts a new stream instead of being dropped
 as out of order: about 0.5 s of packets at 120 Hz, far more reordering than a network does,
 and a sender restarted after that long is followed at once."""
+STREAM_GAP_S = 0.5
+"""A packet more than this after its hand's last accepted one starts a new stream whatever its
+``seq`` (a sender restarted within :data:`MAX_SEQ_GAP` packets of its old count)."""
 MAX_CONNECTIONS = 8
 """WebSocket clients served at once (more get HTTP 503)."""
 UDP_BUFFER_BYTES = 1 << 20
@@ -293,7 +298,9 @@ class LiveReceiver(abc.ABC):
             return
         with self.lock:
             last = self._last_seq.get(frame.side)
-            if last is not None and abs(frame.seq - last) > MAX_SEQ_GAP:
+            history = self.history[frame.side]
+            quiet = bool(history) and frame.received_s - history[-1].received_s > STREAM_GAP_S
+            if last is not None and (abs(frame.seq - last) > MAX_SEQ_GAP or quiet):
                 # A new stream (restarted sender or a corrupted counter), not a freeze.
                 self.counters["seq_reset"] += 1
                 self.history[frame.side].clear()

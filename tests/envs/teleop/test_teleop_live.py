@@ -204,6 +204,19 @@ def test_seq_is_bounded_and_a_jump_starts_a_new_stream():
         parse_packet(packet(2**53, 0.0, _kp()))
 
 
+def test_a_sender_restarted_after_a_pause_is_followed_at_once():
+    """A seq of 0 again 0.6 s after seq 30: a new stream (within the gap, but after a pause)."""
+    from handsim.envs.teleop.live import STREAM_GAP_S
+
+    rx = UdpReceiver(0)
+    rx.handle(_good(30))
+    rx.handle(_good(29))  # no pause: out of order
+    rx.history["right"][-1].received_s -= STREAM_GAP_S + 0.1  # as if it came 0.6 s ago
+    rx.handle(_good(0))
+    assert rx.latest().seq == 0
+    assert rx.counters["seq_reset"] == 1 and rx.counters["out_of_order"] == 1
+
+
 def test_packet_hand_is_kept_per_side():
     """Packets of the two hands keep their own seq and history."""
     rx = UdpReceiver(0)
