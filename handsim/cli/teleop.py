@@ -359,6 +359,13 @@ def _live(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 1
+        other = "left" if args.hand == "right" else "right"
+        if args.wait > 0 and not receiver.history[args.hand] and receiver.history[other]:
+            print(
+                f"handsim: warning: the packets so far are of the {other} hand and --hand is "
+                f"{args.hand}: they are ignored (use --hand {other})",
+                file=sys.stderr,
+            )
         rate = args.rate_hz
         if rate is None:
             measured = _measured_rate_hz(receiver, args.hand) if args.wait > 0 else None
