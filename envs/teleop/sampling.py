@@ -107,6 +107,9 @@ class LiveSampler:
         self._pending = None
         if not frames:
             return None
+        resets = self.receiver.counters["seq_reset"]
+        if resets != self._resets:  # a new stream may have a new clock
+            self._resets, self._offset, self.clock = resets, math.inf, None
         if self.clock is None:
             first = frames[-1]
             if not math.isfinite(first.t):
@@ -115,9 +118,6 @@ class LiveSampler:
                 self.clock = "unix"
             else:
                 self.clock = "relative"
-        resets = self.receiver.counters["seq_reset"]
-        if resets != self._resets:  # a new stream may have a new clock
-            self._resets, self._offset = resets, math.inf
         t = self._times(frames)
         received = np.array([f.received_s for f in frames])
         self._offset = min(self._offset, float(np.min(received - t)))
@@ -168,6 +168,8 @@ class LiveSampler:
 def _sample(t: np.ndarray, keypoints: list[np.ndarray], want: float) -> np.ndarray:
     """Keypoints at sender instant ``want``: interpolated, extrapolated past the end, held."""
     n = len(t)
+    if n > 1 and np.any(np.diff(t) <= 0):  # a sender clock that stepped back: no interpolation
+        return keypoints[-1].copy()
     if n == 1 or want <= t[0]:
         return keypoints[0 if want <= t[0] else -1].copy()
     k = int(np.searchsorted(t, want, side="right"))
