@@ -125,6 +125,8 @@ class EventDetector:
             b = model.body(body_name).id
             for g in np.flatnonzero(model.geom_bodyid == b):
                 self._geom_object[int(g)] = body_name
+        self._is_object = np.zeros(model.ngeom, dtype=bool)
+        self._is_object[list(self._geom_object)] = True
         self._pinching = False
         self._held: dict[str, int] = {}  # object -> last step with opposition
         self._pressed: np.ndarray | None = None
@@ -156,12 +158,15 @@ class EventDetector:
                     self._pinching = False
                     self._emit("pinch_end", step, value=gap)
         touching: dict[str, set[int]] = {}
-        for c in data.contact[: data.ncon]:
-            g1, g2 = int(c.geom1), int(c.geom2)
-            for hand_geom, other in ((g1, g2), (g2, g1)):
-                digit = self._geom_digit[hand_geom]
-                if digit >= 0 and other in self._geom_object:
-                    touching.setdefault(self._geom_object[other], set()).add(int(digit))
+        if data.ncon:
+            pairs = np.asarray(data.contact.geom[: data.ncon])
+            # Both orders of each pair; keep (finger digit, object geom) ones.
+            hand_g = np.concatenate([pairs[:, 0], pairs[:, 1]])
+            other_g = np.concatenate([pairs[:, 1], pairs[:, 0]])
+            digits = self._geom_digit[hand_g]
+            keep = (digits >= 0) & self._is_object[other_g]
+            for digit, other in zip(digits[keep], other_g[keep], strict=True):
+                touching.setdefault(self._geom_object[int(other)], set()).add(int(digit))
         release_steps = max(1, int(math.ceil(RELEASE_S / self.dt_s - 1e-9)))
         for obj, digits in touching.items():
             if {0, 1} <= digits:
