@@ -18,7 +18,8 @@ Per control step of the task env (``obs_mode="state"``: the task itself renders 
 5. **filter** (:mod:`~handsim.envs.teleop.filters`): One Euro, exponential or none.
 6. **retarget** (:class:`~handsim.hand.retarget.Retargeter`, warm-started, partial keypoints,
    floating scale) onto the physical hand; the pose is the env's action (``"pose"`` control).
-7. **physics**: the env steps; contacts give the interpenetration.
+7. **physics**: the env steps; contacts give the interpenetration, and the interaction
+   events (:mod:`~handsim.envs.teleop.events`) are detected.
 
 :meth:`TeleopLoop.run` returns a :class:`TeleopEpisode` with the metrics of
 :mod:`handsim.envs.teleop.metrics`, the mean time of every stage, and (``record=True``) the
@@ -179,7 +180,11 @@ class TeleopEpisode:
             ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
             ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
             ``unintended_presses``, ``tracking_error_mm``, ``steps``, ``dropped_frames``,
-            ``steps_per_s``) and ``stage_ms`` (mean milliseconds per stage).
+            ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean milliseconds per
+            stage), ``events`` (count per kind) and, for a
+            :class:`~handsim.envs.teleop.sampling.LiveSampler` stream, its latency summary
+            (``latency_p50_ms``, ``latency_p95_ms``, ``residual_latency_*``,
+            ``latency_clock``, ``packets_used``).
         arrays: per-step arrays when recorded (see :func:`write_rollout`), else empty.
         events: the interaction events, in order (:mod:`~handsim.envs.teleop.events`).
     """
