@@ -238,3 +238,6 @@ def test_live_runs_for_the_requested_duration_past_the_episode_limit(tmp_path):
 
     meta, arrays = read_rollout(rollout)
     assert arrays["qpos"].shape[0] == 300 and meta["env_id"] == "handsim/Press-v0"
+    video = tmp_path / "live.gif"  # the recorded session plays back
+    assert main(["view", str(rollout), "--out", str(video), "--every", "50", "--quiet"]) == 0
+    assert video.stat().st_size > 1000
