@@ -13,7 +13,10 @@ control step, returns the hand at a chosen instant of the sender's clock:
   the two packets around it; past the newest packet, the last two packets are extrapolated
   at constant velocity by at most ``predict_s`` (the newest packet is held beyond that);
 - ``delay_s`` (default 0) trades latency for smoothness (one packet period gives pure
-  interpolation); ``predict_s`` (default 0) compensates measured latency by extrapolating.
+  interpolation); ``predict_s`` (default 0) compensates latency by extrapolating;
+  ``predict_s="auto"`` predicts by the median end-to-end latency of the last
+  :data:`AUTO_WINDOW` packets (at most :data:`MAX_PREDICT_S`), so the applied pose stands for
+  the present.
 
 End-to-end latency is, per packet, ``applied - t``: the instant the first pose that used it
 reached the physics (after the env's step) minus its sender timestamp (a stream that stops does
@@ -35,13 +38,15 @@ import numpy as np
 from handsim.envs.teleop.live import HANDS, LiveReceiver
 from handsim.envs.teleop.streams import InvalidStream
 
-__all__ = ["LiveSampler", "UNIX_CLOCK_TOLERANCE_S", "MAX_PREDICT_S"]
+__all__ = ["LiveSampler", "UNIX_CLOCK_TOLERANCE_S", "MAX_PREDICT_S", "AUTO_WINDOW"]
 
 UNIX_CLOCK_TOLERANCE_S = 10.0
 """A sender time within this of the receiver's Unix time is taken as Unix time."""
 MAX_PREDICT_S = 0.1
 """Largest prediction: constant-velocity extrapolation of hand tracking past ~100 ms
 overshoots every stop and turn."""
+AUTO_WINDOW = 50
+"""Packets whose latency ``predict_s="auto"`` follows (about 0.5 s at 90 Hz)."""
 
 
 class LiveSampler:
@@ -52,7 +57,8 @@ class LiveSampler:
         side: the hand to follow, ``"right"`` or ``"left"``; packets of the other hand are
             ignored (counted in :attr:`other_hand`).
         delay_s: how far behind the newest data to sample, seconds, in [0, 0.1].
-        predict_s: prediction, seconds, in [0, :data:`MAX_PREDICT_S`].
+        predict_s: prediction, seconds, in [0, :data:`MAX_PREDICT_S`], or ``"auto"`` (the
+            measured latency).
 
     Attributes:
         latencies_s: per packet applied, ``applied - t``, seconds.
@@ -68,10 +74,13 @@ class LiveSampler:
         side: str = "right",
         *,
         delay_s: float = 0.0,
-        predict_s: float = 0.0,
+        predict_s: float | str = 0.0,
     ) -> None:
         if side not in HANDS:
             raise InvalidStream(f"side={side!r} is not valid; one of right, left")
+        self.auto = predict_s == "auto"
+        if self.auto:
+            predict_s = 0.0
         for name, value, top in (
             ("delay_s", delay_s, 0.1),
             ("predict_s", predict_s, MAX_PREDICT_S),
@@ -82,7 +91,9 @@ class LiveSampler:
                 or not 0 <= value <= top
             ):
                 raise InvalidStream(
-                    f"{name} must be a number of seconds in [0, {top}]; received {value!r}"
+                    f"{name} must be a number of seconds in [0, {top}]"
+                    + (' or "auto"' if name == "predict_s" else "")
+                    + f"; received {value!r}"
                 )
         self.receiver, self.side = receiver, side
         self.delay_s, self.predict_s = float(delay_s), float(predict_s)
@@ -94,6 +105,7 @@ class LiveSampler:
         self._resets = 0
         self._newest: object = None
         self._pending: tuple[float, float] | None = None
+        self._predicted: list[float] = []
 
     def _times(self, frames: list) -> np.ndarray:
         # The sender's instants (arrival time when a packet has no t).
@@ -124,6 +136,10 @@ class LiveSampler:
         # Sender instants -> receiver clock: as they are for Unix time, else by the offset.
         shift = 0.0 if self.clock == "unix" else self._offset
         now = time.time()
+        if self.auto and self.latencies_s:
+            recent = self.latencies_s[-AUTO_WINDOW:]
+            self.predict_s = min(MAX_PREDICT_S, max(0.0, float(np.median(recent))))
+            self._predicted.append(self.predict_s)
         want = now - shift - self.delay_s + self.predict_s
         # Never extrapolate further than the prediction asks.
         want = min(want, t[-1] + self.predict_s)
@@ -160,7 +176,10 @@ class LiveSampler:
             "residual_latency_p95_ms": pct(res, 95),
             "latency_clock": self.clock,
             "packets_used": self.packets_used,
-            "predict_s": self.predict_s,
+            "predict_s": (
+                float(np.mean(self._predicted)) if self.auto and self._predicted else self.predict_s
+            ),
+            "predict_auto": self.auto,
             "delay_s": self.delay_s,
         }
 

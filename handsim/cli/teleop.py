@@ -75,6 +75,15 @@ def _list(kind: Any, what: str) -> Any:
     return parse
 
 
+def _predict_ms(text: str) -> float | str:
+    if text == "auto":
+        return text
+    try:
+        return number(0, 100)(text)
+    except argparse.ArgumentTypeError as err:
+        raise argparse.ArgumentTypeError(f"{err}, or auto") from None
+
+
 def _filter_name(text: str) -> str:
     if text not in _FILTERS:
         raise argparse.ArgumentTypeError(f"unknown filter {text!r}; one of {', '.join(_FILTERS)}")
@@ -390,8 +399,9 @@ def _live(args: argparse.Namespace) -> int:
                 f"--duration {args.duration:g} s runs in one episode",
                 file=sys.stderr,
             )
+            predict = args.predict_ms if args.predict_ms == "auto" else args.predict_ms / 1e3
             sampler = LiveSampler(
-                receiver, args.hand, delay_s=args.delay_ms / 1e3, predict_s=args.predict_ms / 1e3
+                receiver, args.hand, delay_s=args.delay_ms / 1e3, predict_s=predict
             )
 
             def show(message: Any, *_: Any, **__: Any) -> None:
@@ -593,10 +603,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--predict-ms",
-        type=number(0, 100),
+        type=_predict_ms,
         default=0.0,
-        help="extrapolate the stream this far ahead to compensate latency, ms, [0, 100] "
-        "(default: 0)",
+        help="extrapolate the stream this far ahead to compensate latency, ms, [0, 100], or "
+        "auto: by the measured end-to-end latency (default: 0)",
     )
     p.add_argument("--out", default="teleop_out", help="output folder (default: teleop_out)")
     p.add_argument(

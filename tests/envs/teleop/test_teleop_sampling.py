@@ -137,3 +137,23 @@ def test_a_sender_clock_that_steps_back_gives_the_newest_packet():
     for k, t in enumerate((1000.0, 1000.02, 1000.01)):
         rx.handle(packet(k, t, kps[k]))
     np.testing.assert_allclose(LiveSampler(rx, delay_s=0.05)(0), kps[2], atol=1e-6)
+
+
+def test_auto_prediction_follows_the_measured_latency(monkeypatch):
+    """predict_s='auto': after packets 40 ms old, the next sample is predicted 40 ms ahead."""
+    now = [time.time()]
+    monkeypatch.setattr(time, "time", lambda: now[0])
+    rx = UdpReceiver(0)
+    base, sent = _feed(rx, n=3, age_s=0.04)
+    sampler = LiveSampler(rx, predict_s="auto")
+    sampler(0)  # no latency measured yet: no prediction
+    sampler.applied()
+    assert sampler.latencies_s == [pytest.approx(0.04, abs=1e-6)]
+    kp = sampler(1)
+    # The newest packet is 40 ms old: extrapolated 40 ms, the hand where it is now.
+    assert _time_of(kp, base, sent) == pytest.approx(sent - 0.04 + 0.04, abs=1e-5)
+    assert sampler.summary()["predict_auto"] is True
+    with pytest.raises(
+        InvalidStream, match='predict_s must be a number of seconds in .* or "auto"'
+    ):
+        LiveSampler(rx, predict_s="soon")

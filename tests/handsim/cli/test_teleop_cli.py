@@ -138,6 +138,7 @@ def test_errors_are_one_line(argv, message, capsys):
         (["teleop", "live", "--udp", "9000", "--rate-hz", "200"], "--rate-hz: expected a number"),
         (["teleop", "replay", "x.json", "--rate-hz", "0"], "--rate-hz: expected a number"),
         (["teleop", "live", "--udp", "9000", "--predict-ms", "500"], "--predict-ms"),
+        (["teleop", "live", "--udp", "9000", "--predict-ms", "soon"], "or auto"),
         (["teleop", "live", "--udp", "9000", "--hand", "both"], "invalid choice: 'both'"),
     ],
 )
