@@ -24,10 +24,11 @@ with the oracle and in direct mode.
 resampled to 90 and 120 Hz, over local UDP (each packet stamped with Unix time) into the live
 loop (direct mode, real time, :class:`~handsim.envs.teleop.sampling.LiveSampler`) for
 ``--live-s`` seconds, at the control rate sized to the stream and, as the control, at the
-envs' fixed 50 Hz, and once at 90 Hz with 10 ms of prediction; per run: the control rate, the
-real-time factor, the fraction of packets ever applied, the end-to-end latency (sender
-timestamp -> after the physics step) p50 / p95 in ms and what is left of it after the
-prediction, and the kernel's UDP drops. Results go to ``benchmarks/results/bench_teleop.json``.
+envs' fixed 50 Hz, and at 90 Hz with 10 ms and with automatic prediction; per run: the
+control rate, the real-time factor, the fraction of packets ever applied, the end-to-end
+latency (sender timestamp -> after the physics step) p50 / p95 in ms and what is left of it
+after the prediction, and the kernel's UDP drops. Results go to
+``benchmarks/results/bench_teleop.json``.
 """
 
 from __future__ import annotations
@@ -85,7 +86,7 @@ def _send_forever(stream, port: int) -> None:
 
 
 def _live(
-    stream, rate_hz: float, control_hz: float, seconds: float, predict_s: float = 0.0
+    stream, rate_hz: float, control_hz: float, seconds: float, predict_s: float | str = 0.0
 ) -> dict:
     """One live session: a sender process at ``rate_hz``, the loop at ``control_hz``."""
     with UdpReceiver(0) as rx:
@@ -119,7 +120,8 @@ def _live(
         "latency_p50_ms": m["latency_p50_ms"],
         "latency_p95_ms": m["latency_p95_ms"],
         "latency_clock": m["latency_clock"],
-        "predict_ms": 1e3 * predict_s,
+        "predict_ms": 1e3 * m["predict_s"],
+        "predict_auto": m["predict_auto"],
         "residual_latency_p50_ms": m["residual_latency_p50_ms"],
         "residual_latency_p95_ms": m["residual_latency_p95_ms"],
         "kernel_dropped": rx.counters["kernel_dropped"],
@@ -146,13 +148,15 @@ def main() -> None:
         print(f"live, direct mode, {args.live_s:g} s each (sender in its own process):")
         runs = [(90.0, 90.0, 0.0), (90.0, 50.0, 0.0), (120.0, 120.0, 0.0), (120.0, 50.0, 0.0)]
         runs.append((90.0, 90.0, 0.01))  # prediction: the residual latency drops by 10 ms
+        runs.append((90.0, 90.0, "auto"))  # by the measured latency: residual about 0
         for rate, control, predict_s in runs:
             run = _live(press, rate, control, args.live_s, predict_s)
             results_live.append(run)
+            auto = " (auto)" if run["predict_auto"] else ""
             print(
                 f"  stream {rate:3.0f} Hz, control {run['control_hz']:5.1f} Hz, predict "
-                f"{1e3 * predict_s:2.0f} ms: real time x{run['realtime_factor']:.2f}, packets "
-                f"applied {100 * run['packets_used_fraction']:3.0f} %, latency p50 "
+                f"{run['predict_ms']:4.1f} ms{auto}: real time x{run['realtime_factor']:.2f}, "
+                f"packets applied {100 * run['packets_used_fraction']:3.0f} %, latency p50 "
                 f"{run['latency_p50_ms']:.1f} ms, p95 {run['latency_p95_ms']:.1f} ms "
                 f"({run['latency_clock']} clock), after prediction p50 "
                 f"{run['residual_latency_p50_ms']:.1f} ms, kernel drops {run['kernel_dropped']}"
