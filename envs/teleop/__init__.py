@@ -8,12 +8,17 @@ interpenetration, slip, jitter, lag, unintended presses).
 
 - :mod:`~handsim.envs.teleop.streams`: operator streams (files, generated).
 - :mod:`~handsim.envs.teleop.live`: live packets over UDP and WebSocket.
+- :mod:`~handsim.envs.teleop.sampling`: timestamp-aware sampling, prediction, latency.
+- :mod:`~handsim.envs.teleop.handedness`: the side check of streams.
+- :mod:`~handsim.envs.teleop.capture`: camera mode's capture scene.
+- :mod:`~handsim.envs.teleop.events`: interaction events (pinch, grab, buttons, slider).
 - :mod:`~handsim.envs.teleop.faults`, :mod:`~handsim.envs.teleop.filters`: faults, smoothing.
 - :mod:`~handsim.envs.teleop.loop`: :class:`TeleopLoop`, rollouts.
 - :mod:`~handsim.envs.teleop.metrics`: the metrics.
 - :mod:`~handsim.envs.teleop.sweep`: degradation sweeps (table and plots).
 """
 
+from handsim.envs.teleop.events import EVENT_KINDS, InteractionEvent
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector, InvalidFaults
 from handsim.envs.teleop.filters import (
     FILTERS,
@@ -31,6 +36,7 @@ from handsim.envs.teleop.live import (
     parse_packet,
 )
 from handsim.envs.teleop.loop import (
+    BehindRealTime,
     InvalidTeleopConfig,
     TeleopConfig,
     TeleopEpisode,
@@ -38,6 +44,7 @@ from handsim.envs.teleop.loop import (
     read_rollout,
     write_rollout,
 )
+from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import (
     STREAM_FORMATS,
     InvalidStream,
@@ -63,6 +70,7 @@ __all__ = [
     "LiveReceiver",
     "UdpReceiver",
     "WebSocketReceiver",
+    "LiveSampler",
     "FaultConfig",
     "FaultInjector",
     "InvalidFaults",
@@ -76,6 +84,9 @@ __all__ = [
     "TeleopLoop",
     "TeleopEpisode",
     "InvalidTeleopConfig",
+    "BehindRealTime",
     "write_rollout",
     "read_rollout",
+    "InteractionEvent",
+    "EVENT_KINDS",
 ]

@@ -5,9 +5,17 @@ Packet schema (one JSON object per UDP datagram or WebSocket text/binary message
 ==============  ========================================================================
 key             meaning
 ==============  ========================================================================
-``seq``         int >= 0, increasing per sender; a packet whose ``seq`` is not greater
-                than the last accepted one is out of order and dropped.
-``t``           sender time, seconds (optional, informational).
+``seq``         int in [0, 2**53) (JavaScript's exact integers), increasing per sender and
+                hand. A packet whose ``seq`` is at most :data:`MAX_SEQ_GAP` behind the
+                last accepted one (or equal to it) is out of order and dropped; a jump of
+                more than :data:`MAX_SEQ_GAP` either way, or a packet more than
+                :data:`STREAM_GAP_S` after the last one, starts a new stream (a restarted
+                sender, a corrupted counter): it is accepted and counted as ``seq_reset``.
+``t``           sender time, seconds (optional). Unix time (``time.time()``,
+                ``(performance.timeOrigin + performance.now()) / 1000`` in a browser)
+                lets the loop measure the end-to-end latency; any other clock gives
+                the latency relative to the fastest packet.
+``hand``        ``"right"`` (default) or ``"left"``.
 ``format``      a keypoint format of :data:`~handsim.envs.teleop.streams.STREAM_FORMATS`
                 except ``pose27`` (default ``handsim21``).
 ``units``       ``"m"`` (default) or ``"mm"``.
@@ -20,6 +28,15 @@ A packet larger than ``max_packet_bytes`` (default 65536), not UTF-8 JSON, or no
 schema (wrong shape, non-finite or absurd values, fewer than 4 tracked points) is dropped and
 counted by reason in :attr:`LiveReceiver.counters`; nothing a sender sends stops the loop.
 
+Limits: a WebSocket message longer than ``max_packet_bytes`` is refused from its frame header,
+before its payload is read (``websockets`` closes that connection with code 1009, "message too
+big"; the sender reconnects); at most ``max_connections`` (default 8) WebSocket clients are
+served at once, the others get HTTP 503 and are closed at once, and a client that has not
+finished its handshake within 2 s is dropped, so idle connections cannot pile up threads. The
+UDP socket asks the kernel for a receive buffer of ``udp_buffer_bytes`` (default 1 MiB, about
+1500 packets of 700 bytes); on Linux the datagrams the kernel dropped because that buffer was
+full are counted as ``kernel_dropped`` (``SO_RXQ_OVFL``).
+
 Receivers bind to ``127.0.0.1`` by default. Any other address must be given explicitly and
 issues a :class:`UserWarning` (the loop then accepts hand poses from the network).
 WebSocket uses the maintained ``websockets`` package (``pip install 'handsim[teleop]'``).
@@ -28,10 +45,13 @@ WebSocket uses the maintained ``websockets`` package (``pip install 'handsim[tel
 from __future__ import annotations
 
 import abc
+import collections
 import contextlib
 import json
+import logging
 import math
 import socket
+import sys
 import threading
 import time
 import warnings
@@ -60,6 +80,12 @@ __all__ = [
     "UdpReceiver",
     "WebSocketReceiver",
     "LOCAL_HOSTS",
+    "MAX_SEQ",
+    "MAX_SEQ_GAP",
+    "STREAM_GAP_S",
+    "MAX_CONNECTIONS",
+    "UDP_BUFFER_BYTES",
+    "HANDS",
 ]
 
 LIVE_FORMATS: tuple[str, ...] = tuple(f for f in STREAM_FORMATS if f != "pose27")
@@ -67,6 +93,24 @@ DEFAULT_HOST = "127.0.0.1"
 LOCAL_HOSTS: tuple[str, ...] = ("127.0.0.1", "localhost", "::1")
 MAX_PACKET_BYTES = 65536
 _MAX_ABS_M = 100.0
+HANDS: tuple[str, ...] = ("right", "left")
+"""Values of a packet's ``hand``."""
+MAX_SEQ = 2**53
+"""``seq`` must be below this (the integers a JavaScript number holds exactly)."""
+MAX_SEQ_GAP = 64
+"""A ``seq`` jump larger than this (either way) starts a new stream instead of being dropped
+as out of order: about 0.5 s of packets at 120 Hz, far more reordering than a network does,
+and a sender restarted after that long is followed at once."""
+STREAM_GAP_S = 0.5
+"""A packet more than this after its hand's last accepted one starts a new stream whatever its
+``seq`` (a sender restarted within :data:`MAX_SEQ_GAP` packets of its old count)."""
+MAX_CONNECTIONS = 8
+"""WebSocket clients served at once (more get HTTP 503)."""
+UDP_BUFFER_BYTES = 1 << 20
+"""Receive buffer asked of the kernel for the UDP socket, bytes."""
+_HANDSHAKE_TIMEOUT_S = 2.0
+# Linux's socket option that attaches the count of datagrams dropped for a full buffer.
+_SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
 
 
 class InvalidPacket(HandSimError, ValueError):
@@ -83,15 +127,24 @@ class LiveFrame:
     Attributes:
         seq: the sender's sequence number.
         t: sender time, seconds (NaN when absent).
-        received_s: receiver's ``time.monotonic()`` at arrival, seconds.
+        received_s: receiver's ``time.time()`` at arrival, seconds (Unix time).
         keypoints_world: (21, 3) float64, world frame, metres (NaN rows: not tracked).
+        side: ``"right"`` or ``"left"`` (the packet's ``hand``).
     """
 
-    __slots__ = ("seq", "t", "received_s", "keypoints_world")
+    __slots__ = ("seq", "t", "received_s", "keypoints_world", "side")
 
-    def __init__(self, seq: int, t: float, received_s: float, keypoints_world: np.ndarray):
+    def __init__(
+        self,
+        seq: int,
+        t: float,
+        received_s: float,
+        keypoints_world: np.ndarray,
+        side: str = "right",
+    ):
         self.seq, self.t, self.received_s = seq, t, received_s
         self.keypoints_world = keypoints_world
+        self.side = side
 
 
 def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) -> LiveFrame:
@@ -110,11 +163,16 @@ def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) ->
     if not isinstance(doc, dict):
         raise InvalidPacket(f"a packet must be a JSON object; received {type(doc).__name__}")
     seq = doc.get("seq")
-    if isinstance(seq, bool) or not isinstance(seq, int) or seq < 0:
-        raise InvalidPacket(f"seq must be an int >= 0; received {seq!r}")
-    t = doc.get("t", math.nan)
-    if isinstance(t, bool) or not isinstance(t, (int, float)):
-        raise InvalidPacket(f"t must be a number of seconds; received {t!r}")
+    if isinstance(seq, bool) or not isinstance(seq, int) or not 0 <= seq < MAX_SEQ:
+        raise InvalidPacket(f"seq must be an int in [0, 2**53); received {seq!r}")
+    t = doc.get("t")
+    if t is None:
+        t = math.nan
+    elif isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t):
+        raise InvalidPacket(f"t must be a finite number of seconds; received {t!r}")
+    side = doc.get("hand", "right")
+    if side not in HANDS:
+        raise InvalidPacket(f"hand={side!r} is not valid; one of right, left")
     fmt = doc.get("format", "handsim21")
     if fmt not in LIVE_FORMATS:
         raise InvalidPacket(f"format={fmt!r} is not valid; one of {', '.join(LIVE_FORMATS)}")
@@ -158,15 +216,23 @@ def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) ->
     kp = frame_to_world(pts, fmt, up, scale)
     if np.count_nonzero(np.all(np.isfinite(kp), axis=1)) < 4:
         raise InvalidPacket("fewer than 4 tracked keypoints")
-    return LiveFrame(seq, float(t), time.monotonic(), kp)
+    return LiveFrame(seq, float(t), time.time(), kp, side)
 
 
 class LiveReceiver(abc.ABC):
-    """Base of the receivers: the latest accepted frame and the drop counters.
+    """Base of the receivers: the newest accepted frames per hand and the drop counters.
 
     Attributes:
-        counters: ``received``, ``accepted``, ``malformed``, ``oversized``, ``out_of_order``.
+        counters: ``received``, ``accepted``, ``malformed``, ``oversized``, ``out_of_order``,
+            ``seq_reset`` (accepted packets that started a new stream), ``kernel_dropped``
+            (UDP datagrams the kernel dropped, where measurable) and ``refused_connections``
+            (WebSocket clients over the limit).
+        history: per hand, the last :data:`HISTORY` accepted frames, oldest first (read
+            under :attr:`lock`; :class:`~handsim.envs.teleop.sampling.LiveSampler` does).
     """
+
+    HISTORY = 32
+    """Accepted frames kept per hand (timestamp-aware resampling reads them)."""
 
     def __init__(self, host: str, port: int, max_packet_bytes: int = MAX_PACKET_BYTES) -> None:
         if not isinstance(host, str) or not host:
@@ -174,6 +240,14 @@ class LiveReceiver(abc.ABC):
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise InvalidStream(
                 f"port must be an int in [0, 65535] (0: any free); received {port!r}"
+            )
+        if (
+            isinstance(max_packet_bytes, bool)
+            or not isinstance(max_packet_bytes, int)
+            or max_packet_bytes < 64
+        ):
+            raise InvalidStream(
+                f"max_packet_bytes must be an int >= 64; received {max_packet_bytes!r}"
             )
         if host not in LOCAL_HOSTS:
             warnings.warn(
@@ -185,40 +259,66 @@ class LiveReceiver(abc.ABC):
         self.host, self.port = host, port
         self.max_packet_bytes = int(max_packet_bytes)
         self.counters = dict.fromkeys(
-            ("received", "accepted", "malformed", "oversized", "out_of_order"), 0
+            (
+                "received",
+                "accepted",
+                "malformed",
+                "oversized",
+                "out_of_order",
+                "seq_reset",
+                "kernel_dropped",
+                "refused_connections",
+            ),
+            0,
         )
-        self._lock = threading.Lock()
+        self.lock = threading.Lock()
+        self.history: dict[str, collections.deque[LiveFrame]] = {
+            h: collections.deque(maxlen=self.HISTORY) for h in HANDS
+        }
         self._latest: LiveFrame | None = None
-        self._last_seq = -1
+        self._last_seq: dict[str, int] = {}
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
+    def count(self, reason: str, n: int = 1) -> None:
+        """Add ``n`` to a counter (thread-safe)."""
+        with self.lock:
+            self.counters[reason] += n
+
     def handle(self, data: bytes | str) -> None:
         """Parse one packet and keep it if valid (counted either way); never raises."""
-        with self._lock:
-            self.counters["received"] += 1
+        self.count("received")
         try:
             frame = parse_packet(data, self.max_packet_bytes)
         except InvalidPacket as err:
-            with self._lock:
-                self.counters[err.reason] += 1
+            self.count(err.reason)
             return
         except Exception:  # noqa: BLE001 (a packet must never stop the loop)
-            with self._lock:
-                self.counters["malformed"] += 1
+            self.count("malformed")
             return
-        with self._lock:
-            if frame.seq <= self._last_seq:
+        with self.lock:
+            last = self._last_seq.get(frame.side)
+            history = self.history[frame.side]
+            quiet = bool(history) and frame.received_s - history[-1].received_s > STREAM_GAP_S
+            if last is not None and (abs(frame.seq - last) > MAX_SEQ_GAP or quiet):
+                # A new stream (restarted sender or a corrupted counter), not a freeze.
+                self.counters["seq_reset"] += 1
+                self.history[frame.side].clear()
+            elif last is not None and frame.seq <= last:
                 self.counters["out_of_order"] += 1
                 return
-            self._last_seq = frame.seq
+            self._last_seq[frame.side] = frame.seq
             self._latest = frame
+            self.history[frame.side].append(frame)
             self.counters["accepted"] += 1
 
-    def latest(self) -> LiveFrame | None:
-        """The newest accepted frame (``None`` before the first)."""
-        with self._lock:
-            return self._latest
+    def latest(self, side: str | None = None) -> LiveFrame | None:
+        """The newest accepted frame of ``side`` (``None``: of either hand; ``None`` if none)."""
+        with self.lock:
+            if side is None:
+                return self._latest
+            h = self.history[side]
+            return h[-1] if h else None
 
     def wait_for(self, n_accepted: int, timeout_s: float) -> bool:
         """Block until ``n_accepted`` frames were accepted or ``timeout_s`` passed."""
@@ -252,12 +352,27 @@ class UdpReceiver(LiveReceiver):
         port: UDP port (0: a free one; read :attr:`port` after :meth:`start`).
         host: address to bind (default ``127.0.0.1``; others warn).
         max_packet_bytes: larger datagrams are dropped as ``oversized``.
+        buffer_bytes: receive buffer asked of the kernel, bytes (the kernel may grant less, up
+            to ``net.core.rmem_max``; read :attr:`buffer_bytes` after :meth:`start`).
+
+    Attributes:
+        buffer_bytes: after :meth:`start`, the buffer the kernel granted (Linux reports twice
+            the usable size, its bookkeeping included).
+        drops_measurable: whether the kernel reports its drops (Linux ``SO_RXQ_OVFL``).
     """
 
     def __init__(
-        self, port: int, host: str = DEFAULT_HOST, max_packet_bytes: int = MAX_PACKET_BYTES
+        self,
+        port: int,
+        host: str = DEFAULT_HOST,
+        max_packet_bytes: int = MAX_PACKET_BYTES,
+        buffer_bytes: int = UDP_BUFFER_BYTES,
     ) -> None:
         super().__init__(host, port, max_packet_bytes)
+        if isinstance(buffer_bytes, bool) or not isinstance(buffer_bytes, int) or buffer_bytes < 1:
+            raise InvalidStream(f"buffer_bytes must be an int >= 1; received {buffer_bytes!r}")
+        self.buffer_bytes = buffer_bytes
+        self.drops_measurable = False
         self._sock: socket.socket | None = None
 
     def start(self) -> None:
@@ -265,10 +380,17 @@ class UdpReceiver(LiveReceiver):
         family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
         sock = socket.socket(family, socket.SOCK_DGRAM)
         try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, self.buffer_bytes)
             sock.bind((self.host, self.port))
         except OSError as err:
             sock.close()
             raise InvalidStream(f"cannot bind UDP {self.host}:{self.port}: {err}") from None
+        self.buffer_bytes = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, _SO_RXQ_OVFL, 1)
+            self.drops_measurable = sys.platform.startswith("linux")
+        except OSError:
+            self.drops_measurable = False
         sock.settimeout(0.05)
         self._sock = sock
         self.port = sock.getsockname()[1]
@@ -277,13 +399,22 @@ class UdpReceiver(LiveReceiver):
 
     def _run(self) -> None:
         sock = self._sock
+        ancillary = socket.CMSG_SPACE(4) if self.drops_measurable else 0
+        dropped_before = 0
         while not self._stop.is_set():
             try:
-                data, _ = sock.recvfrom(self.max_packet_bytes + 1)
+                data, cmsgs, _, _ = sock.recvmsg(self.max_packet_bytes + 1, ancillary)
             except TimeoutError:
                 continue
             except OSError:
                 break
+            for level, kind, payload in cmsgs:
+                if level == socket.SOL_SOCKET and kind == _SO_RXQ_OVFL and len(payload) >= 4:
+                    # The kernel's running count of drops on this socket (uint32).
+                    total = int.from_bytes(payload[:4], sys.byteorder)
+                    if total > dropped_before:
+                        self.count("kernel_dropped", total - dropped_before)
+                        dropped_before = total
             self.handle(data)
 
     def close(self) -> None:
@@ -297,24 +428,44 @@ class UdpReceiver(LiveReceiver):
             self._sock = None
 
 
+_BUSY = b"HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+
+
 class WebSocketReceiver(LiveReceiver):
-    """Receives packets as WebSocket messages (any number of clients), with ``websockets``.
+    """Receives packets as WebSocket messages (``max_connections`` clients), with ``websockets``.
 
     Args:
         port: TCP port (0: a free one; read :attr:`port` after :meth:`start`).
         host: address to bind (default ``127.0.0.1``; others warn).
-        max_packet_bytes: larger messages are dropped as ``oversized`` (the connection stays).
+        max_packet_bytes: a longer message is refused from its header (counted as
+            ``oversized``; the connection is closed with code 1009).
+        max_connections: clients served at once; more get HTTP 503 (``refused_connections``).
     """
 
     def __init__(
-        self, port: int, host: str = DEFAULT_HOST, max_packet_bytes: int = MAX_PACKET_BYTES
+        self,
+        port: int,
+        host: str = DEFAULT_HOST,
+        max_packet_bytes: int = MAX_PACKET_BYTES,
+        max_connections: int = MAX_CONNECTIONS,
     ) -> None:
         super().__init__(host, port, max_packet_bytes)
+        if (
+            isinstance(max_connections, bool)
+            or not isinstance(max_connections, int)
+            or max_connections < 1
+        ):
+            raise InvalidStream(
+                f"max_connections must be an int >= 1; received {max_connections!r}"
+            )
+        self.max_connections = max_connections
         self._server: Any = None
+        self._open = 0
 
     def start(self) -> None:
         """Start the server in a background thread."""
         try:
+            from websockets.exceptions import ConnectionClosed
             from websockets.sync.server import serve
         except ImportError:
             raise InvalidStream(
@@ -323,16 +474,54 @@ class WebSocketReceiver(LiveReceiver):
             ) from None
 
         def handler(connection: Any) -> None:
-            with contextlib.suppress(Exception):
+            try:
                 for message in connection:
                     self.handle(message)
+            except ConnectionClosed as closed:
+                if closed.sent is not None and closed.sent.code == 1009:
+                    self.count("received")
+                    self.count("oversized")
+            except Exception:  # noqa: BLE001, S110 (a client must never stop the loop)
+                pass
 
         try:
-            # max_size=None: an oversized message is counted and dropped here, and the
-            # connection stays open (websockets would close it).
-            self._server = serve(handler, self.host, self.port, max_size=None)
+            # max_size: websockets refuses a longer message from its frame header, before
+            # reading the payload, and closes that connection (1009).
+            self._server = serve(
+                handler,
+                self.host,
+                self.port,
+                max_size=self.max_packet_bytes,
+                open_timeout=_HANDSHAKE_TIMEOUT_S,
+                logger=_QUIET,
+            )
         except OSError as err:
             raise InvalidStream(f"cannot bind WebSocket {self.host}:{self.port}: {err}") from None
+        server = self._server
+        inner = server.handler
+
+        def limited(sock: socket.socket, addr: Any) -> None:
+            # One thread per accepted socket is websockets' model; refusing here, before the
+            # handshake, keeps idle clients from holding three threads each.
+            with self.lock:
+                full = self._open >= self.max_connections
+                if not full:
+                    self._open += 1
+            if full:
+                self.count("refused_connections")
+                with contextlib.suppress(OSError):
+                    sock.sendall(_BUSY)
+                sock.close()
+                with server.lock:
+                    server.handler_threads.discard(threading.current_thread())
+                return
+            try:
+                inner(sock, addr)
+            finally:
+                with self.lock:
+                    self._open -= 1
+
+        self._server.handler = limited
         self.port = self._server.socket.getsockname()[1]
         self._thread = threading.Thread(
             target=self._server.serve_forever, name="handsim-websocket", daemon=True
@@ -347,3 +536,8 @@ class WebSocketReceiver(LiveReceiver):
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
+
+
+_QUIET = logging.getLogger("handsim.teleop.websocket")
+_QUIET.addHandler(logging.NullHandler())
+_QUIET.propagate = False

@@ -18,7 +18,8 @@ Per control step of the task env (``obs_mode="state"``: the task itself renders 
 5. **filter** (:mod:`~handsim.envs.teleop.filters`): One Euro, exponential or none.
 6. **retarget** (:class:`~handsim.hand.retarget.Retargeter`, warm-started, partial keypoints,
    floating scale) onto the physical hand; the pose is the env's action (``"pose"`` control).
-7. **physics**: the env steps; contacts give the interpenetration.
+7. **physics**: the env steps; contacts give the interpenetration, and the interaction
+   events (:mod:`~handsim.envs.teleop.events`) are detected.
 
 :meth:`TeleopLoop.run` returns a :class:`TeleopEpisode` with the metrics of
 :mod:`handsim.envs.teleop.metrics`, the mean time of every stage, and (``record=True``) the
@@ -32,20 +33,24 @@ import json
 import math
 import pathlib
 import time
+import warnings
+import weakref
 from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 
 from handsim.envs.teleop import metrics as tm
+from handsim.envs.teleop.capture import Capture, world_from_cam
+from handsim.envs.teleop.events import EventDetector, InteractionEvent
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
+from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
+from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
 from handsim.errors import HandSimError, InvalidKeypoints
 from handsim.estimator import Estimate, Estimator, PrivilegedEstimator
-from handsim.hand.model import hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.retarget import Retargeter
 
@@ -60,6 +65,10 @@ __all__ = [
     "write_rollout",
     "read_rollout",
     "ROLLOUT_VERSION",
+    "MAX_CONTROL_RATE_HZ",
+    "PHYSICS_DT_S",
+    "BehindRealTime",
+    "frame_skip_for",
 ]
 
 MODES: tuple[str, ...] = ("direct", "camera")
@@ -69,6 +78,40 @@ ANCHORS: tuple[str, ...] = ("none", "start")
 STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
 """The timed stages of a step."""
 ROLLOUT_VERSION = 1
+PHYSICS_DT_S = 0.002
+"""The envs' physics step, seconds (500 Hz)."""
+MAX_CONTROL_RATE_HZ = 120.0
+"""Fastest stream rate the loop follows one control step per packet (a headset's 120 Hz)."""
+_DEFAULT_CONTROL_DT_S = 0.02  # the envs' default frame_skip=10: their episode limits' unit
+_BEHIND_FRACTION = 0.9  # real-time factor under which a live loop warns
+_BEHIND_WINDOW_S = 1.0
+
+
+class BehindRealTime(UserWarning):
+    """A real-time loop ran slower than real time (the hand lags the operator more and more)."""
+
+
+def frame_skip_for(rate_hz: float) -> int:
+    """Physics steps per control step for a stream of ``rate_hz``.
+
+    The control rate is the fastest multiple of the physics period not slower than the stream,
+    so every packet is applied (90 Hz: 5 steps, 100 Hz control; 120 Hz: 4 steps, 125 Hz;
+    50 Hz: 10 steps); a rate within 0.5 % of a multiple takes it (a measured 50.2 Hz: 50 Hz).
+
+    Raises:
+        InvalidTeleopConfig: unless ``0 < rate_hz <= 120``.
+    """
+    if (
+        isinstance(rate_hz, bool)
+        or not isinstance(rate_hz, (int, float))
+        or not 0 < rate_hz <= MAX_CONTROL_RATE_HZ
+    ):
+        raise InvalidTeleopConfig(
+            f"control_rate_hz must be a number in (0, {MAX_CONTROL_RATE_HZ:g}] Hz; received "
+            f"{rate_hz!r} (a faster stream is resampled to {MAX_CONTROL_RATE_HZ:g} Hz)"
+        )
+    # Within 0.5 % of a multiple counts as it: a measured 50.2 Hz is a 50 Hz stream.
+    return max(1, int(math.floor(1.005 / (rate_hz * PHYSICS_DT_S))))
 
 
 class InvalidTeleopConfig(HandSimError, ValueError):
@@ -137,120 +180,18 @@ class TeleopEpisode:
             ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
             ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
             ``unintended_presses``, ``tracking_error_mm``, ``steps``, ``dropped_frames``,
-            ``steps_per_s``) and ``stage_ms`` (mean milliseconds per stage).
+            ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean milliseconds per
+            stage), ``events`` (count per kind) and, for a
+            :class:`~handsim.envs.teleop.sampling.LiveSampler` stream, its latency summary
+            (``latency_p50_ms``, ``latency_p95_ms``, ``residual_latency_*``,
+            ``latency_clock``, ``packets_used``).
         arrays: per-step arrays when recorded (see :func:`write_rollout`), else empty.
+        events: the interaction events, in order (:mod:`~handsim.envs.teleop.events`).
     """
 
     metrics: dict[str, Any]
     arrays: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
-
-
-def _world_from_cam(T_cam_from_world: np.ndarray, points_cam: np.ndarray) -> np.ndarray:  # noqa: N803
-    R, t = T_cam_from_world[:3, :3], T_cam_from_world[:3, 3]  # noqa: N806
-    return (points_cam - t) @ R
-
-
-@dataclasses.dataclass(frozen=True)
-class CaptureFrame:
-    """One capture of the operator hand: what an estimator (and an oracle) receives.
-
-    Attributes:
-        depth: (H, W) float32 depth with the sensor model, metres, 0 = no measurement.
-        K: (3, 3) intrinsics.
-        T_cam_from_world: (4, 4) the capture camera's extrinsics.
-        keypoints_cam: (21, 3) the operator hand's true keypoints, camera frame, metres.
-        objects: empty (the oracle's object truths; the teleop loop estimates the hand only).
-    """
-
-    depth: np.ndarray
-    K: np.ndarray  # noqa: N815
-    T_cam_from_world: np.ndarray  # noqa: N815
-    keypoints_cam: np.ndarray
-    objects: tuple = ()
-
-
-class _Capture:
-    """The capture scene: a render-only operator hand (and the task's objects) and a camera."""
-
-    def __init__(self, env: Any, operator_length_m: float, side: str, config: TeleopConfig):
-        from handsim.world.camera import T_cam_from_world, camera_preset
-        from handsim.world.render import DepthRenderer
-        from handsim.world.scene import Scene, SceneSpec, third_person_camera
-        from handsim.world.sensors import sensor_model
-
-        base = env.unwrapped
-        placements = tuple(getattr(base.scene.spec, "objects", ()))
-        camera = third_person_camera(camera_preset(config.camera), name="camera")
-        self.scene = Scene(
-            SceneSpec(
-                hand=hand_params(operator_length_m, side),
-                objects=placements,
-                cameras=(camera,),
-                table=True,
-            )
-        )
-        self.intrinsics = camera.intrinsics
-        self.renderer = DepthRenderer(self.scene.model, "camera", self.intrinsics)
-        self.sensor = sensor_model(config.sensor)
-        self.K = self.intrinsics.K.copy()
-        mujoco.mj_forward(self.scene.model, self.scene.data)
-        self.T_cam_from_world = T_cam_from_world(self.scene.data, self.renderer.camera_id)
-        self._range = tuple(np.float32(r) for r in self.intrinsics.range_m)
-        self.retargeter = Retargeter(self.scene.hand.params)
-        self.camera_pos_m = np.asarray(camera.pos_m, dtype=np.float64)
-        # Mirrored objects: (qpos address in the task, qpos address here).
-        self._objects = []
-        for (body, _), (body2, _) in zip(base.scene.objects, self.scene.objects, strict=True):
-            m1, m2 = base.scene.model, self.scene.model
-            self._objects.append(
-                (
-                    int(m1.jnt_qposadr[m1.body(body).jntadr[0]]),
-                    int(m2.jnt_qposadr[m2.body(body2).jntadr[0]]),
-                )
-            )
-        self._previous: HandPose | None = None
-        self._scale: float | None = None
-
-    def pose_operator(self, pose: np.ndarray | None, keypoints: np.ndarray, task_data: Any) -> None:
-        scene = self.scene
-        for a, b in self._objects:
-            scene.data.qpos[b : b + 7] = task_data.qpos[a : a + 7]
-        if pose is None:
-            try:
-                result = self.retargeter(
-                    keypoints,
-                    initial=self._previous,
-                    check_side=False,
-                    initial_scale=self._scale,
-                    report_clamped=False,
-                )
-            except InvalidKeypoints:  # too few tracked joints: the operator hand holds still
-                if self._previous is None:
-                    return
-                hand_pose = self._previous
-            else:
-                self._previous, self._scale = result.pose, result.scale
-                hand_pose = result.pose
-        else:
-            hand_pose = HandPose.from_vector(pose)
-        scene.binding.set_pose(scene.data, hand_pose)
-
-    def reset(self) -> None:
-        """Start an episode: the operator hand's retargeting starts cold."""
-        self._previous, self._scale = None, None
-
-    def render(self, rng: np.random.Generator) -> CaptureFrame:
-        """Depth of the posed operator hand with the sensor model, and its truth."""
-        depth, _ = self.renderer.render(self.scene.data)
-        near, far = self._range
-        depth[(depth < near) | (depth > far)] = 0.0
-        depth = self.sensor.apply(depth, self.intrinsics, rng)
-        T = self.T_cam_from_world  # noqa: N806
-        kp = self.scene.binding.keypoints(self.scene.data) @ T[:3, :3].T + T[:3, 3]
-        return CaptureFrame(depth, self.K, T, kp)
-
-    def close(self) -> None:
-        self.renderer.close()
+    events: list[InteractionEvent] = dataclasses.field(default_factory=list)
 
 
 class TeleopLoop:
@@ -263,10 +204,15 @@ class TeleopLoop:
         estimator: the estimator of ``camera`` mode (e.g.
             :class:`~handsim.estimators.oracle.OracleEstimator`); unused in ``direct`` mode.
         env_kwargs: more keyword arguments of ``gym.make`` (``obs_mode`` is ``"state"``).
+        control_rate_hz: the stream's rate, Hz, in (0, 120]: the physics sub-steps per control
+            step are sized to it (:func:`frame_skip_for`) and the episode limit is scaled to
+            keep its duration in seconds. ``None``: the env's default (50 Hz).
+        episode_s: raise the task's episode limit to at least this many seconds (a live
+            session of ``--duration`` seconds); ``None`` keeps the task's limit.
 
     Raises:
         InvalidTeleopConfig: camera mode without an estimator, or an estimator that does not
-            satisfy the protocol.
+            satisfy the protocol; a rate or duration out of range.
     """
 
     def __init__(
@@ -276,6 +222,8 @@ class TeleopLoop:
         *,
         estimator: Estimator | None = None,
         env_kwargs: dict[str, Any] | None = None,
+        control_rate_hz: float | None = None,
+        episode_s: float | None = None,
     ) -> None:
         import handsim.envs  # noqa: F401 (registers the ids)
 
@@ -294,9 +242,32 @@ class TeleopLoop:
                 )
         self.estimator = estimator
         self.env_id = env_id
-        self.env_kwargs = {**(env_kwargs or {}), "obs_mode": "state", "control_mode": "pose"}
+        kwargs = {**(env_kwargs or {}), "obs_mode": "state", "control_mode": "pose"}
+        if control_rate_hz is not None or episode_s is not None:
+            frame_skip = (
+                frame_skip_for(control_rate_hz)
+                if control_rate_hz is not None
+                else int(kwargs.get("frame_skip", 10))
+            )
+            kwargs["frame_skip"] = frame_skip
+            spec_steps = gym.spec(env_id).max_episode_steps or 1000
+            limit_s = kwargs.pop("max_episode_steps", spec_steps) * _DEFAULT_CONTROL_DT_S
+            if episode_s is not None:
+                if (
+                    isinstance(episode_s, bool)
+                    or not isinstance(episode_s, (int, float))
+                    or not 0 < episode_s <= 86400
+                ):
+                    raise InvalidTeleopConfig(
+                        f"episode_s must be a number of seconds in (0, 86400]; received "
+                        f"{episode_s!r}"
+                    )
+                limit_s = max(limit_s, float(episode_s))
+            kwargs["max_episode_steps"] = int(math.ceil(limit_s / (frame_skip * PHYSICS_DT_S)))
+        self.env_kwargs = kwargs
         self.env = gym.make(env_id, **self.env_kwargs)
-        self._capture: _Capture | None = None
+        self._capture: Capture | None = None
+        self._side_checked: weakref.WeakSet[OperatorStream] = weakref.WeakSet()
         self._capture_key: tuple | None = None
 
     def close(self) -> None:
@@ -329,18 +300,26 @@ class TeleopLoop:
         """Run one episode driven by ``stream``.
 
         Args:
-            stream: an :class:`OperatorStream` (resampled to the control rate here), or a
-                function ``step -> (21, 3) keypoints or None`` (live: the newest packet;
-                ``None``: nothing received yet, the hand holds still).
+            stream: an :class:`OperatorStream` (resampled to the control rate here), a
+                :class:`~handsim.envs.teleop.sampling.LiveSampler` (live: timestamp-aware,
+                with the end-to-end latency in the metrics), or a function
+                ``step -> (21, 3) keypoints or None`` (``None``: nothing received yet, the
+                hand holds still).
             seed: the env's episode seed (use the seed the stream was generated on).
             max_steps: stop after this many steps (default: the env's episode limit, or the
                 stream's length if longer; after a stream's last frame the operator holds
                 still).
-            realtime: pace the steps at the control rate (live streams).
+            realtime: pace the steps at the control rate (live streams); a loop slower
+                than 90 % of real time over a second warns once (:class:`BehindRealTime`).
             stop_at_success: end the episode at the task's success (the env terminates).
 
         Returns:
             The episode's metrics (and arrays with ``config.record``).
+
+        Raises:
+            InvalidStream: a stream of the other hand side than the task's hand, by its
+                ``hand`` or by its geometry (:func:`~handsim.envs.teleop.handedness.check_side`;
+                live: on its first fully tracked frames).
         """
         cfg = self.config
         env, base = self.env, self.env.unwrapped
@@ -348,7 +327,17 @@ class TeleopLoop:
         dt = self.control_dt
         limit = (env.spec.max_episode_steps if env.spec is not None else None) or 1000
         frames: Callable[[int], tuple[np.ndarray | None, np.ndarray | None]]
+        side = base.scene.hand.params.side
         if isinstance(stream, OperatorStream):
+            name = stream.source or "the stream"
+            if stream.side != side:
+                raise InvalidStream(
+                    f"{name} is a {stream.side} hand, but the task's hand is {side}: make the "
+                    f"env with handedness={stream.side!r} (the CLI does), or mirror the stream"
+                )
+            if stream.poses is None and stream not in self._side_checked:
+                check_side(stream.keypoints_world, stream.side, name)
+                self._side_checked.add(stream)
             s = stream.resample(1.0 / dt)
             if cfg.anchor == "start":
                 start = base.scene.binding.keypoints(base.scene.data)[0]
@@ -365,12 +354,23 @@ class TeleopLoop:
         else:
             steps = max_steps or limit
             anchor_offset: list[np.ndarray] = []
+            if isinstance(stream, LiveSampler) and stream.side != side:
+                raise InvalidTeleopConfig(
+                    f"the live sampler follows the {stream.side} hand, but the task's hand is "
+                    f"{side}: make the env with handedness={stream.side!r}"
+                )
+            # The first fully tracked live frames vote on the stream's side.
+            to_check: list[np.ndarray] = []
 
             def frames(i: int) -> tuple[np.ndarray | None, np.ndarray | None]:
                 kp = stream(i)
                 if kp is None:
                     return None, None
                 kp = np.asarray(kp, dtype=np.float64)
+                if len(to_check) < SIDE_CHECK_FRAMES and fully_tracked(kp):
+                    to_check.append(kp)
+                    if len(to_check) == SIDE_CHECK_FRAMES:
+                        check_side(np.stack(to_check), side, "the live stream")
                 if cfg.anchor == "start":
                     if not anchor_offset and np.all(np.isfinite(kp[0])):
                         start = base.scene.binding.keypoints(base.scene.data)[0]
@@ -380,6 +380,7 @@ class TeleopLoop:
                 return kp, None
 
             operator_length = None
+        sampler = stream if isinstance(stream, LiveSampler) else None
         params = base.scene.hand.params
         rng = np.random.default_rng(cfg.seed + seed)
         faults_cfg = cfg.faults
@@ -389,7 +390,7 @@ class TeleopLoop:
             if self._capture is None or self._capture_key != key:
                 if self._capture is not None:
                     self._capture.close()
-                self._capture = _Capture(env, key[0], params.side, cfg)
+                self._capture = Capture(env, key[0], params.side, cfg)
                 self._capture_key = key
             capture = self._capture
             capture.reset()
@@ -402,6 +403,7 @@ class TeleopLoop:
             base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
         )
         times = dict.fromkeys(STAGES, 0.0)
+        detector = EventDetector(base, dt)
         previous: HandPose | None = None
         scale: float | None = None
         rec: dict[str, list[Any]] = {
@@ -430,6 +432,7 @@ class TeleopLoop:
         unintended = math.nan
         n_done = 0
         start_wall = time.perf_counter()
+        window, warned = (start_wall, 0), False
         target = base.scene.binding.pose(data).vector
         terminated = truncated = False
         for i in range(1, steps + 1):
@@ -492,6 +495,9 @@ class TeleopLoop:
             t5 = time.perf_counter()
             _, _, terminated, truncated, info = env.step(target)
             times["physics"] += time.perf_counter() - t5
+            if sampler is not None:
+                sampler.applied()
+            detector.update(i, tracked, data, info)
             n_done = i
             penetration, touching = tm.hand_penetration_m(data, hand_geoms)
             physical = base.scene.binding.keypoints(data)
@@ -514,9 +520,25 @@ class TeleopLoop:
             if first_success is None and rec["success"][-1]:
                 first_success = i
             if realtime:
-                wait = start_wall + i * dt - time.perf_counter()
+                now = time.perf_counter()
+                wait = start_wall + i * dt - now
                 if wait > 0:
                     time.sleep(wait)
+                elif now - window[0] >= _BEHIND_WINDOW_S:
+                    factor = (i - window[1]) * dt / (now - window[0])
+                    if factor < _BEHIND_FRACTION and not warned:
+                        warned = True
+                        slowest = max(times, key=times.get)
+                        warnings.warn(
+                            f"the teleop loop runs at {100 * factor:.0f} % of real time "
+                            f"({1 / dt:.0f} Hz control; slowest stage: {slowest}, "
+                            f"{times[slowest] / i * 1e3:.1f} ms per step): the hand falls "
+                            "behind the operator; use mode='direct', a lower rate or a "
+                            "faster machine",
+                            BehindRealTime,
+                            stacklevel=2,
+                        )
+                    window = (now, i)
             if (terminated and stop_at_success) or truncated:
                 break
         wall = time.perf_counter() - start_wall
@@ -557,8 +579,12 @@ class TeleopLoop:
             "dropped_frames": int(np.sum(rec["dropped"])),
             "physics_diverged": bool(info.get("physics_diverged", False)),
             "steps_per_s": n_done / wall if wall > 0 else math.nan,
+            "realtime_factor": n_done * dt / wall if wall > 0 else math.nan,
             "stage_ms": {k: (v / n_done * 1e3 if n_done else math.nan) for k, v in times.items()},
+            "events": detector.counts(),
         }
+        if sampler is not None:
+            metrics.update(sampler.summary())
         arrays: dict[str, np.ndarray] = {}
         if record:
             arrays = {
@@ -580,13 +606,13 @@ class TeleopLoop:
                     K=rec["K"],
                     T_cam_from_world=rec["T_cam_from_world"],
                 )
-        return TeleopEpisode(metrics, arrays)
+        return TeleopEpisode(metrics, arrays, detector.events)
 
 
 def _estimate_world(estimate: Estimate, T_cam_from_world: np.ndarray) -> np.ndarray:  # noqa: N803
     if not estimate.valid or estimate.keypoints_cam is None:
         return np.full((21, 3), np.nan)
-    return _world_from_cam(np.asarray(T_cam_from_world), np.asarray(estimate.keypoints_cam))
+    return world_from_cam(np.asarray(T_cam_from_world), np.asarray(estimate.keypoints_cam))
 
 
 def write_rollout(
@@ -594,7 +620,9 @@ def write_rollout(
 ) -> pathlib.Path:
     """Save a recorded episode for ``handsim view`` (compressed NPZ).
 
-    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics);
+    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics, and
+    ``events``: the interaction events as dicts of
+    :class:`~handsim.envs.teleop.events.InteractionEvent`);
     ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
     state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
     3) metres, world frame; ``dropped``, ``success`` (T,) bool; ``penetration_m`` (T,); and in
@@ -620,6 +648,7 @@ def write_rollout(
         "seed": episode.metrics["seed"],
         "control_dt_s": episode.metrics["control_dt_s"],
         "metrics": episode.metrics,
+        "events": [e.to_dict() for e in episode.events],
     }
     np.savez_compressed(p, meta=np.array(json.dumps(to_strict_json(meta))), **episode.arrays)
     return p

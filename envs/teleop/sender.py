@@ -1,7 +1,8 @@
 """A small sender of live operator packets: replays a stream over UDP or WebSocket.
 
 ``handsim teleop send FILE --udp PORT`` (or ``--websocket PORT``) sends a stream file's frames
-as the JSON packets of :mod:`handsim.envs.teleop.live` at the stream's own rate; a tracker
+as the JSON packets of :mod:`handsim.envs.teleop.live` at the stream's own rate, each stamped
+with the Unix time it is sent (``t``) and the stream's ``hand``; a tracker
 bridge can do the same with :func:`packet` and a socket. Example, in Python::
 
     from handsim.envs.teleop.sender import send_stream
@@ -16,7 +17,7 @@ import json
 import math
 import socket
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -28,7 +29,7 @@ __all__ = ["packet", "packets", "send_stream", "PROTOCOLS"]
 PROTOCOLS: tuple[str, ...] = ("udp", "websocket")
 
 
-def packet(seq: int, t: float, keypoints_world: np.ndarray) -> bytes:
+def packet(seq: int, t: float, keypoints_world: np.ndarray, hand: str = "right") -> bytes:
     """One packet (``handsim21`` keypoints, world frame, metres; NaN rows become ``null``)."""
     rows = [
         None if not np.all(np.isfinite(p)) else [round(float(v), 6) for v in p]
@@ -39,15 +40,22 @@ def packet(seq: int, t: float, keypoints_world: np.ndarray) -> bytes:
         "t": round(float(t), 6),
         "format": "handsim21",
         "up_axis": "z",
+        "hand": hand,
         "keypoints": rows,
     }
     return json.dumps(doc, separators=(",", ":")).encode()
 
 
 def packets(stream: OperatorStream) -> Iterator[tuple[float, bytes]]:
-    """``(t, packet)`` for every frame of ``stream`` (``seq`` counts from 0)."""
+    """``(t, packet)`` for every frame of ``stream`` (``seq`` counts from 0, stream time)."""
     for seq, (t, kp) in enumerate(zip(stream.times_s, stream.keypoints_world, strict=True)):
-        yield float(t), packet(seq, t, kp)
+        yield float(t), packet(seq, t, kp, stream.side)
+
+
+def _stamped(stream: OperatorStream) -> Iterator[tuple[float, Callable[[], bytes]]]:
+    # Stamped with Unix time when sent, so the receiver can measure end-to-end latency.
+    for seq, (t, kp) in enumerate(zip(stream.times_s, stream.keypoints_world, strict=True)):
+        yield float(t), (lambda seq=seq, kp=kp: packet(seq, time.time(), kp, stream.side))
 
 
 def send_stream(
@@ -92,9 +100,9 @@ def send_stream(
     if protocol == "udp":
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         with socket.socket(family, socket.SOCK_DGRAM) as sock:
-            for t, data in packets(stream):
+            for t, make in _stamped(stream):
                 pace(t)
-                sock.sendto(data, (host, port))
+                sock.sendto(make(), (host, port))
                 sent += 1
         return sent
     try:
@@ -105,9 +113,9 @@ def send_stream(
         ) from None
     try:
         with connect(f"ws://{host}:{port}", max_size=None) as ws:
-            for t, data in packets(stream):
+            for t, make in _stamped(stream):
                 pace(t)
-                ws.send(data.decode())
+                ws.send(make().decode())
                 sent += 1
     except OSError as err:
         raise InvalidStream(f"cannot reach ws://{host}:{port}: {err}") from None

@@ -34,7 +34,9 @@ key                 meaning
 ``hand_length_m``   the operator's hand length (``pose27`` only; default 0.189 m).
 ``fps``             frame rate, when frames carry no ``t``.
 ``frames``          JSON: a list of ``{"t": seconds, "keypoints": [[x, y, z], ...],
-                    "radii": [...]}`` (``radii`` optional, one per joint, OpenXR/WebXR) or
+                    "radii": [...]}`` (a ``null`` row, or three ``null``, for an
+                    untracked joint, as in live packets; ``radii`` optional, one per
+                    joint, OpenXR/WebXR) or
                     ``{"t": seconds, "pose": [27 numbers]}``.
 ``t``               NPZ: (T,) seconds, strictly increasing (or give ``fps``).
 ``keypoints``       NPZ: (T, N, 3) points of the format (NaN = not tracked).
@@ -215,6 +217,12 @@ class OperatorStream:
         """Time from the first to the last frame, seconds."""
         return float(self.times_s[-1] - self.times_s[0])
 
+    def rate_hz(self) -> float:
+        """The stream's rate, Hz: one over its median frame period (50 for a single frame)."""
+        if len(self) < 2:
+            return 50.0
+        return float(1.0 / np.median(np.diff(self.times_s)))
+
     def resample(self, rate_hz: float) -> OperatorStream:
         """The stream at ``rate_hz`` from its first timestamp to its last (interpolated).
 
@@ -359,7 +367,7 @@ def parse_stream(doc: dict[str, Any], source: str = "<dict>") -> OperatorStream:
                     f"{where}frames[{i}] must be an object with {key!r} {want}; received "
                     f"{str(frame)[:60]!r}"
                 )
-            values.append(_array(where, key, _nulls(frame[key]), i))
+            values.append(_array(where, key, _nulls(_null_rows(frame[key], fmt)), i))
             if values[-1].shape != (27,) if fmt == "pose27" else values[-1].shape != (n_points, 3):
                 raise InvalidStream(
                     f"{where}frames[{i}].{key} has shape {values[-1].shape}; format {fmt!r} "
@@ -474,6 +482,13 @@ def _str(value: Any) -> Any:
     if isinstance(value, np.ndarray) and value.ndim == 0:
         return str(value)
     return value
+
+
+def _null_rows(rows: Any, fmt: str) -> Any:
+    """A ``null`` joint row (untracked, as in live packets) -> three nulls."""
+    if fmt == "pose27" or not isinstance(rows, list):
+        return rows
+    return [[None, None, None] if row is None else row for row in rows]
 
 
 def _nulls(value: Any) -> Any:

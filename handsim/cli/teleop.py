@@ -44,6 +44,8 @@ _FILTERS = ("none", "one_euro", "ema")
 _ANCHORS = ("none", "start")
 _SENSORS = ("none", "structured_light", "tof")
 _DROPOUT_MODES = ("hold", "extrapolate")
+_HANDS = ("right", "left")
+_DEFAULT_LIVE_RATE_HZ = 90.0  # a headset's rate, when the stream cannot be measured
 
 
 # Delays in frames: the range FaultConfig accepts.
@@ -71,6 +73,15 @@ def _list(kind: Any, what: str) -> Any:
             raise argparse.ArgumentTypeError(f"{what}: {err}") from None
 
     return parse
+
+
+def _predict_ms(text: str) -> float | str:
+    if text == "auto":
+        return text
+    try:
+        return number(0, 100)(text)
+    except argparse.ArgumentTypeError as err:
+        raise argparse.ArgumentTypeError(f"{err}, or auto") from None
 
 
 def _filter_name(text: str) -> str:
@@ -258,12 +269,22 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
         "steps",
         "dropped_frames",
         "steps_per_s",
+        "realtime_factor",
+        "latency_p50_ms",
+        "latency_p95_ms",
+        "residual_latency_p50_ms",
+        "residual_latency_p95_ms",
+        "latency_clock",
     )
     for k in keys:
+        if k not in metrics:
+            continue
         v = metrics[k]
         print(f"  {k:22s} {v:.3f}" if isinstance(v, float) else f"  {k:22s} {v}")
     stages = ", ".join(f"{k} {v:.2f}" for k, v in metrics["stage_ms"].items())
     print(f"  {'stage_ms':22s} {stages}")
+    events = ", ".join(f"{k} {v}" for k, v in metrics.get("events", {}).items() if v)
+    print(f"  {'events':22s} {events or 'none'}")
 
 
 def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, Any]) -> int:
@@ -271,7 +292,8 @@ def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, 
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "teleop.json").write_text(strict_json({**episode.metrics, **extra}))
+    log = {"event_log": [e.to_dict() for e in episode.events]}
+    (out / "teleop.json").write_text(strict_json({**episode.metrics, **extra, **log}))
     print(f"{episode.metrics['env_id']} ({loop.config.label()}):")
     _print_metrics(episode.metrics)
     if args.rollout:
@@ -283,17 +305,45 @@ def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, 
 
 def _replay(args: argparse.Namespace) -> int:
     from handsim.envs.teleop import TeleopLoop, load_stream
+    from handsim.envs.teleop.loop import MAX_CONTROL_RATE_HZ
 
     stream = load_stream(args.file)
     config = _config(args, record=bool(args.rollout))
     env_kwargs = {"handedness": stream.side}
-    with TeleopLoop(args.task, config, estimator=_estimator(args), env_kwargs=env_kwargs) as loop:
+    rate = args.rate_hz or min(stream.rate_hz(), MAX_CONTROL_RATE_HZ)
+    with TeleopLoop(
+        args.task,
+        config,
+        estimator=_estimator(args),
+        env_kwargs=env_kwargs,
+        control_rate_hz=rate,
+    ) as loop:
         episode = loop.run(stream, args.seed, max_steps=args.max_steps)
         return _finish(args, loop, episode, {"stream": str(args.file)})
 
 
+def _measured_rate_hz(receiver: Any, side: str, timeout_s: float = 1.0) -> float | None:
+    """The stream's rate from its first packets' sender times (arrival times without ``t``)."""
+    import time
+
+    import numpy as np
+
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end and len(receiver.history[side]) < 12:
+        time.sleep(0.01)
+    with receiver.lock:
+        frames = list(receiver.history[side])
+    if len(frames) < 3:
+        return None
+    t = np.array([f.t if np.isfinite(f.t) else f.received_s for f in frames])
+    period = float(np.median(np.diff(t)))
+    return 1.0 / period if period > 0 else None
+
+
 def _live(args: argparse.Namespace) -> int:
     from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver
+    from handsim.envs.teleop.loop import MAX_CONTROL_RATE_HZ, BehindRealTime
+    from handsim.envs.teleop.sampling import LiveSampler
 
     if args.udp is not None:
         receiver = UdpReceiver(args.udp, host=args.host)
@@ -307,28 +357,66 @@ def _live(args: argparse.Namespace) -> int:
         print(f"handsim: warning: {w.message}", file=sys.stderr)
     proto = "udp" if args.udp is not None else "websocket"
     try:
-        with TeleopLoop(args.task, config, estimator=_estimator(args)) as loop:
-            loop.env.reset(seed=args.seed)  # build the scene before the operator starts
+        print(
+            f"listening on {proto}://{args.host}:{receiver.port} for {args.duration:g} s "
+            f"({args.hand} hand)",
+            file=sys.stderr,
+        )
+        if args.wait > 0 and not receiver.wait_for(1, args.wait):
             print(
-                f"listening on {proto}://{args.host}:{receiver.port} for {args.duration:g} s",
+                f"handsim: no valid packet in {args.wait:g} s; counters {receiver.counters}",
                 file=sys.stderr,
             )
-            if args.wait > 0 and not receiver.wait_for(1, args.wait):
-                print(
-                    f"handsim: no valid packet in {args.wait:g} s; counters {receiver.counters}",
-                    file=sys.stderr,
-                )
-                return 1
-
-            def newest(_: int) -> Any:
-                frame = receiver.latest()
-                return None if frame is None else frame.keypoints_world
-
-            steps = max(1, int(round(args.duration / loop.control_dt)))
-            episode = loop.run(
-                newest, args.seed, max_steps=steps, realtime=True, stop_at_success=False
+            return 1
+        other = "left" if args.hand == "right" else "right"
+        if args.wait > 0 and not receiver.history[args.hand] and receiver.history[other]:
+            print(
+                f"handsim: warning: the packets so far are of the {other} hand and --hand is "
+                f"{args.hand}: they are ignored (use --hand {other})",
+                file=sys.stderr,
             )
-            return _finish(args, loop, episode, {"packets": dict(receiver.counters)})
+        rate = args.rate_hz
+        if rate is None:
+            measured = _measured_rate_hz(receiver, args.hand) if args.wait > 0 else None
+            rate = min(measured or _DEFAULT_LIVE_RATE_HZ, MAX_CONTROL_RATE_HZ)
+            how = f"measured {measured:.1f} Hz" if measured else "no stream to measure"
+        else:
+            how = "--rate-hz"
+        with TeleopLoop(
+            args.task,
+            config,
+            estimator=_estimator(args),
+            env_kwargs={"handedness": args.hand},
+            control_rate_hz=min(rate, MAX_CONTROL_RATE_HZ),
+            episode_s=args.duration,
+        ) as loop:
+            steps = max(1, int(round(args.duration / loop.control_dt)))
+            limit = loop.env.spec.max_episode_steps
+            print(
+                f"control at {1 / loop.control_dt:.1f} Hz ({how}; "
+                f"{loop.env_kwargs['frame_skip']} physics steps of 2 ms each); the task's "
+                f"episode limit is {limit} steps ({limit * loop.control_dt:g} s) so that "
+                f"--duration {args.duration:g} s runs in one episode",
+                file=sys.stderr,
+            )
+            predict = args.predict_ms if args.predict_ms == "auto" else args.predict_ms / 1e3
+            sampler = LiveSampler(
+                receiver, args.hand, delay_s=args.delay_ms / 1e3, predict_s=predict
+            )
+
+            def show(message: Any, *_: Any, **__: Any) -> None:
+                print(f"handsim: warning: {message}", file=sys.stderr)
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("always", BehindRealTime)
+                warnings.showwarning = show
+                episode = loop.run(
+                    sampler, args.seed, max_steps=steps, realtime=True, stop_at_success=False
+                )
+            packets = dict(receiver.counters)
+            accepted = max(packets["accepted"], 1)
+            extra = {"packets": packets, "packets_used_fraction": sampler.packets_used / accepted}
+            return _finish(args, loop, episode, extra)
     finally:
         receiver.close()
         print(f"packets: {receiver.counters}", file=sys.stderr)
@@ -401,7 +489,6 @@ def _serve(args: argparse.Namespace) -> int:
         host=args.host,
         replay=args.replay,
         duration_s=args.duration,
-        out=args.out,
     )
 
 
@@ -455,6 +542,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="stop after this many steps (default: the episode limit)",
     )
+    p.add_argument(
+        "--rate-hz",
+        type=number(0, 120, lo_open=True),
+        default=None,
+        help="control rate, Hz, in (0, 120] (default: the stream's own rate, at most 120)",
+    )
     p.add_argument("--out", default="teleop_out", help="output folder (default: teleop_out)")
     p.add_argument(
         "--rollout", default=None, help="also write the rollout (.npz) for 'handsim view'"
@@ -486,8 +579,39 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=30.0,
         help="seconds to wait for the first valid packet (0: do not wait; default: 30)",
     )
+    p.add_argument(
+        "--hand",
+        choices=_HANDS,
+        default="right",
+        help=choice_help(
+            "the hand to drive (packets of the other hand are ignored)", _HANDS, "right"
+        ),
+    )
+    p.add_argument(
+        "--rate-hz",
+        type=number(0, 120, lo_open=True),
+        default=None,
+        help="control rate, Hz, in (0, 120] (default: the stream's, measured from its first "
+        "packets, at most 120; 90 if it cannot be measured)",
+    )
+    p.add_argument(
+        "--delay-ms",
+        type=number(0, 100),
+        default=0.0,
+        help="sample the stream this far behind its newest packet, ms, [0, 100] (smoother, "
+        "later; default: 0)",
+    )
+    p.add_argument(
+        "--predict-ms",
+        type=_predict_ms,
+        default=0.0,
+        help="extrapolate the stream this far ahead to compensate latency, ms, [0, 100], or "
+        "auto: by the measured end-to-end latency (default: 0)",
+    )
     p.add_argument("--out", default="teleop_out", help="output folder (default: teleop_out)")
-    p.add_argument("--rollout", default=None, help="also write the rollout (.npz)")
+    p.add_argument(
+        "--rollout", default=None, help="also record the session as a rollout (.npz) to view"
+    )
     p.set_defaults(func=_live)
 
     p = cmds.add_parser(
@@ -591,9 +715,6 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=non_negative_float,
         default=0.0,
         help="stop after this many seconds (0: until Ctrl-C)",
-    )
-    p.add_argument(
-        "--out", default=None, help="write the received packets as a stream file (.json or .npz)"
     )
     add_quiet(p, "accepted by every command; serve shows no progress bars")
     p.set_defaults(func=_serve)

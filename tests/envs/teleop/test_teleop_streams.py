@@ -273,3 +273,25 @@ def test_a_deeply_nested_json_stream_or_config_is_refused(tmp_path):
         load_stream(tmp_path / "deep.json")
     with pytest.raises(InvalidGenerationConfig, match="JSON nested too deeply to be a config"):
         GenerationConfig.from_file(tmp_path / "deep.json")
+
+
+def test_a_null_joint_row_is_an_untracked_joint_in_files_as_in_packets(tmp_path):
+    """`null` for a whole joint (what live packets and the page send) is a NaN row."""
+    from handsim.envs.teleop import parse_packet
+    from handsim.envs.teleop.sender import packet
+
+    kp = np.random.default_rng(0).normal(0.0, 0.05, (2, 21, 3))
+    rows = [[None if j == 4 else p.tolist() for j, p in enumerate(frame)] for frame in kp]
+    path = tmp_path / "nulls.json"
+    path.write_text(
+        json.dumps({"frames": [{"t": i / 90, "keypoints": r} for i, r in enumerate(rows)]})
+    )
+    stream = load_stream(path)
+    assert np.isnan(stream.keypoints_world[:, 4]).all()
+    np.testing.assert_allclose(stream.keypoints_world[:, 5:], kp[:, 5:])
+    # The same frame as a packet gives the same keypoints.
+    live = kp[0].copy()
+    live[4] = np.nan
+    frame = parse_packet(packet(0, 0.0, live))
+    np.testing.assert_allclose(frame.keypoints_world, stream.keypoints_world[0], atol=1e-6)
+    assert stream.rate_hz() == pytest.approx(90.0)

@@ -1,6 +1,7 @@
 """`handsim teleop` and `handsim view` from the command line: help, a replay, errors."""
 
 import json
+import re
 import subprocess
 import sys
 
@@ -30,7 +31,8 @@ from handsim.cli import main
         ),
         (
             ["teleop", "live", "--help"],
-            ["--udp", "--websocket", "--host", "127.0.0.1", "--duration"],
+            ["--udp", "--websocket", "--host", "127.0.0.1", "--duration", "--hand"]
+            + ["right, left", "--rate-hz", "--delay-ms", "--predict-ms", "--rollout"],
         ),
         (
             ["teleop", "sweep", "--help"],
@@ -72,6 +74,9 @@ def test_generate_replay_and_view(tmp_path, capsys):
     assert main(args) == 0
     metrics = json.loads((tmp_path / "out" / "teleop.json").read_text())
     assert metrics["success"] is True and metrics["env_id"] == "handsim/Press-v0"
+    # Seed 1 of the random press task is a button or the slider: either reports its events.
+    acts = [e for e in metrics["event_log"] if e["kind"] in ("button_press", "slider")]
+    assert acts and 0 < acts[0]["t_s"] <= metrics["time_to_success_s"]
     assert (
         main(["view", str(rollout), "--out", str(tmp_path / "v.gif"), "--every", "10", "--quiet"])
         == 0
@@ -130,6 +135,11 @@ def test_errors_are_one_line(argv, message, capsys):
         (["teleop", "replay", "x.json", "--dropout", "2"], "expected a number in [0, 1]"),
         (["teleop", "live"], "one of the arguments --udp --websocket is required"),
         (["teleop", "sweep", "--latency", "0,x"], "--latency"),
+        (["teleop", "live", "--udp", "9000", "--rate-hz", "200"], "--rate-hz: expected a number"),
+        (["teleop", "replay", "x.json", "--rate-hz", "0"], "--rate-hz: expected a number"),
+        (["teleop", "live", "--udp", "9000", "--predict-ms", "500"], "--predict-ms"),
+        (["teleop", "live", "--udp", "9000", "--predict-ms", "soon"], "or auto"),
+        (["teleop", "live", "--udp", "9000", "--hand", "both"], "invalid choice: 'both'"),
     ],
 )
 def test_bad_options_are_usage_errors(argv, message, capsys):
@@ -138,3 +148,97 @@ def test_bad_options_are_usage_errors(argv, message, capsys):
         main(argv)
     assert info.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def _free_port(kind):
+    import socket
+
+    with socket.socket(socket.AF_INET, kind) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def test_serve_starts_and_serves_the_page_over_http(tmp_path):
+    """`handsim teleop serve` runs (it crashed on an unknown keyword) and serves the page."""
+    import socket
+    import time
+    import urllib.request
+
+    port = _free_port(socket.SOCK_STREAM)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handsim.cli", "teleop", "serve", "--port", str(port)]
+        + ["--websocket", "8765", "--duration", "60"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        page = None
+        for _ in range(300):
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=2) as r:
+                    page = r.read().decode()
+                    break
+            except OSError:
+                if proc.poll() is not None:
+                    break
+                time.sleep(0.1)
+        assert page is not None, proc.communicate(timeout=10)
+        assert "<script" in page
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/config.json", timeout=2) as r:
+            assert json.loads(r.read())["ws_port"] == 8765
+    finally:
+        proc.terminate()
+        out, err = proc.communicate(timeout=30)
+    assert f"http://127.0.0.1:{port}/" in out
+    assert "Traceback" not in err
+
+
+def test_live_runs_for_the_requested_duration_past_the_episode_limit(tmp_path):
+    """`live --duration 6` on Press-v0 (a 5 s episode) runs 6 s, says so, reports latency."""
+    import socket
+    import threading
+
+    from handsim.envs.teleop import stream_from_expert
+    from handsim.envs.teleop.sender import send_stream
+
+    stream = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
+    port = _free_port(socket.SOCK_DGRAM)
+    out = tmp_path / "out"
+    rollout = tmp_path / "live.npz"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "handsim.cli", "teleop", "live", "--udp", str(port)]
+        + ["--task", "press", "--duration", "6", "--wait", "60", "--out", str(out)]
+        + ["--rollout", str(rollout)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    done = threading.Event()
+
+    def send():
+        while not done.is_set() and proc.poll() is None:
+            send_stream(stream, port)  # seq restarts each time: a new stream, followed
+
+    sender = threading.Thread(target=send, daemon=True)
+    sender.start()
+    try:
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        done.set()
+        sender.join(timeout=10)
+    assert proc.returncode == 0, stderr
+    assert re.search(r"measured (49|50)\.\d Hz", stderr)
+    assert "so that --duration 6 s runs in one episode" in stderr
+    metrics = json.loads((out / "teleop.json").read_text())
+    assert metrics["steps"] == 300 and metrics["control_dt_s"] == 0.02
+    assert metrics["latency_clock"] == "unix"
+    assert 0 < metrics["latency_p50_ms"] <= metrics["latency_p95_ms"] < 200
+    assert "latency_p95_ms" in stdout
+    from handsim.envs.teleop import read_rollout
+
+    meta, arrays = read_rollout(rollout)
+    assert arrays["qpos"].shape[0] == 300 and meta["env_id"] == "handsim/Press-v0"
+    video = tmp_path / "live.gif"  # the recorded session plays back
+    assert main(["view", str(rollout), "--out", str(video), "--every", "50", "--quiet"]) == 0
+    assert video.stat().st_size > 1000
