@@ -273,3 +273,42 @@ def test_a_deeply_nested_json_stream_or_config_is_refused(tmp_path):
         load_stream(tmp_path / "deep.json")
     with pytest.raises(InvalidGenerationConfig, match="JSON nested too deeply to be a config"):
         GenerationConfig.from_file(tmp_path / "deep.json")
+
+
+@pytest.mark.parametrize(
+    ("factor", "units", "match"),
+    [
+        # Metre values labelled millimetres: a 0.19 mm hand.
+        (1.0, "mm", r"a hand 0\.\d+ mm long .*'units': 'mm'.*the values look like metres: set "),
+        # Millimetre values of a child's 95 mm hand labelled metres (a 95 m hand, within the
+        # 100 m position bound).
+        (5e2, "m", r"a hand 9\.\d+e\+04 mm long.*look like millimetres: set 'units': 'mm'"),
+        # Neither: a hand 10x too big.
+        (1e1, "m", r"a hand 189\d mm long.*check the keypoint format and the units"),
+    ],
+)
+def test_a_hand_of_no_human_size_names_the_likely_unit(tmp_path, factor, units, match):
+    """Keypoints read at the wrong unit are refused (a 0.2 mm operator hand was driven)."""
+    kp, _ = _keypoints()
+    kp = kp - kp.mean(axis=1, keepdims=True)  # hands at the origin: 500x stays < 100 m
+    doc = {
+        "units": units,
+        "fps": 30,
+        "frames": [{"keypoints": (k * factor).tolist()} for k in kp],
+    }
+    with pytest.raises(InvalidStream, match=match):
+        load_stream(_write(tmp_path, doc))
+    if factor == 1.0:  # the same values with the right unit are accepted
+        doc["units"] = "m"
+        assert load_stream(_write(tmp_path, doc)).keypoints_world.shape == (5, 21, 3)
+
+
+def test_the_hand_size_check_skips_frames_without_the_middle_finger(tmp_path):
+    """A stream that never tracks the whole middle finger is not measured (nothing to tell)."""
+    kp, _ = _keypoints()
+    kp[:, 12] = np.nan
+    doc = {
+        "fps": 30,
+        "frames": [{"keypoints": np.where(np.isnan(k), None, k).tolist()} for k in kp],
+    }
+    assert load_stream(_write(tmp_path, doc)).keypoints_world.shape == (5, 21, 3)
