@@ -4,7 +4,7 @@ Runs random bang-bang actions (each action component at a bound, at random: the 
 tests/envs/test_divergence.py) on HandPose-v0 with the driver's speed check switched off, so
 every episode runs to its end unless MuJoCo itself warns (mjWARN_BADQACC / BADQVEL / BADQPOS,
 after which MuJoCo resets the state). Per control step it records the largest ratio of a DoF's
-speed to its bound (:func:`divergence_speed_bounds`), the deepest contact penetration and the
+speed to its bound (``HandDriver.speed_bounds``), the deepest contact penetration and the
 kinetic energy. A step whose ratio passes a threshold counts as *flagged*; a flag is *true* when
 the episode then blows up (MuJoCo warns, the state turns non-finite or no hand pose, or a
 speed passes 1000 times its bound) within the next
@@ -27,7 +27,6 @@ import mujoco
 import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
-from handsim.envs import physics
 from handsim.errors import HandSimError
 
 BLOW_UP = 1000.0  # speed / bound: orders of magnitude past any motion of a hand
@@ -39,8 +38,7 @@ def _episode(env_id: str, seed: int, hand_size: float, steps: int) -> dict:
     base = env.unwrapped
     driver = base.driver
     model, data = base.scene.model, base.scene.data
-    bounds = physics.divergence_speed_bounds(model, base.scene.hand.params.hand_length)
-    driver._speed_bounds = np.full(model.nv, np.inf)  # only MuJoCo's warnings and NaN stop it
+    driver._within_bounds = lambda: True  # only MuJoCo's warnings (and the blow-up) stop it
     lo, hi = env.action_space.low, env.action_space.high
     rng = np.random.default_rng(seed)
     ratios, depths, energies, where = [], [], [], []
@@ -58,6 +56,7 @@ def _episode(env_id: str, seed: int, hand_size: float, steps: int) -> dict:
             break
         qvel = data.qvel
         finite = bool(np.all(np.isfinite(qvel)))
+        bounds = driver.speed_bounds()
         ratios.append(float(np.max(np.abs(qvel) / bounds)) if finite else float("inf"))
         worst = int(np.argmax(np.abs(qvel) / bounds)) if finite else 0
         where.append("hand" if dof_is_hand[worst] else "object")
@@ -97,7 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
     episodes = [
-        _episode(args.env, seed, size, args.steps) for size in args.sizes for seed in range(args.seeds)
+        _episode(args.env, seed, size, args.steps)
+        for size in args.sizes
+        for seed in range(args.seeds)
     ]
     print(f"{args.env}: {len(episodes)} episodes ({args.seeds} seeds x sizes {args.sizes}), "
           f"{args.steps} steps of bang-bang actions, speed check off")  # fmt: skip

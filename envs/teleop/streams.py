@@ -34,7 +34,7 @@ key                 meaning
                     ``mediapipe_world``, else ``"z"``. Poses (``pose27``) must be ``"z"``.
 ``hand``            ``"right"`` (default) or ``"left"``.
 ``hand_length_m``   the operator's hand length (``pose27`` only; default 0.189 m).
-``fps``             frame rate, when frames carry no ``t``.
+``fps``             frame rate, when frames carry no ``t`` (0.01 to 10 000).
 ``frames``          JSON: a list of ``{"t": seconds, "keypoints": [[x, y, z], ...],
                     "radii": [...]}`` (``radii`` optional, one per joint, OpenXR/WebXR) or
                     ``{"t": seconds, "pose": [27 numbers]}``.
@@ -95,6 +95,8 @@ UP_AXES: tuple[str, ...] = ("z", "y", "-y")
 MAX_STREAM_FRAMES = 1_000_000
 """Longest stream accepted, frames (about 3 hours at 90 Hz)."""
 _MAX_ABS_M = 100.0  # positions farther than this from the origin are a unit mistake
+STREAM_FPS_RANGE = (0.01, 10_000.0)
+"""Frame rates a stream file may give with ``fps``, frames per second."""
 HAND_LENGTH_PLAUSIBLE_M = (0.08, 0.40)
 """Hand lengths a keypoint stream may show, metres (wrist to middle fingertip along its bones):
 adult hands measure 0.16-0.22 m; the range leaves room for children and tracker offsets, and
@@ -420,6 +422,13 @@ def parse_stream(doc: dict[str, Any], source: str = "<dict>") -> OperatorStream:
         fps = float(_array(where, "fps", fps))
         if not (math.isfinite(fps) and fps > 0):
             raise InvalidStream(f"{where}fps must be a number > 0; received {fps}")
+        low, high = STREAM_FPS_RANGE
+        if not low <= fps <= high:
+            # fps 1e-300 spread two frames 1e300 s apart without a word.
+            raise InvalidStream(
+                f"{where}fps must be in [{low:g}, {high:g}] frames per second (a tracker's "
+                f"rate); received {fps:g}"
+            )
         times_arr = np.arange(n) / fps
     if times_arr.shape != (n,):
         raise InvalidStream(f"{where}t has shape {times_arr.shape}; needs ({n},), one per frame")
