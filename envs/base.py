@@ -626,8 +626,7 @@ class HandSimEnv(gym.Env, abc.ABC):
         missing = [k for k in keys if k not in state]
         if missing:
             raise InvalidEnvConfig(
-                f"state lacks {', '.join(missing)}; a state from get_state() has "
-                f"{', '.join(keys)}"
+                f"state lacks {', '.join(missing)}; a state from get_state() has {', '.join(keys)}"
             )
         values = {}
         for key in keys:
@@ -638,8 +637,7 @@ class HandSimEnv(gym.Env, abc.ABC):
             shape = () if key == "time" else (27,) if key == "target" else getattr(data, key).shape
             if value.dtype.kind not in "iuf" or not np.all(np.isfinite(value)):
                 raise InvalidEnvConfig(
-                    f"state[{key!r}] must be finite real numbers; received "
-                    f"{str(state[key])[:60]!r}"
+                    f"state[{key!r}] must be finite real numbers; received {str(state[key])[:60]!r}"
                 )
             if value.shape != shape:
                 raise InvalidEnvConfig(

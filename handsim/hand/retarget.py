@@ -581,7 +581,9 @@ class Retargeter:
             InvalidPose: if ``initial`` is not one :class:`HandPose` or None.
         """
         kp, present = self._validate(keypoints, mask)
-        if initial is not None and not (isinstance(initial, HandPose) and initial.batch_shape == ()):
+        if initial is not None and not (
+            isinstance(initial, HandPose) and initial.batch_shape == ()
+        ):
             raise InvalidPose(
                 f"initial must be one HandPose (e.g. the previous frame's result.pose) or None; "
                 f"received {type(initial).__name__} {str(initial)[:40]!r}: for a named posture "
