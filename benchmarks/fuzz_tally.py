@@ -43,7 +43,10 @@ def _names(python: str) -> list[str]:
         f"import sys, json; sys.path.insert(0, {str(CASES.parent)!r}); import fuzz_cases; "
         "print(json.dumps([c.name for c in fuzz_cases.cases()]))"
     )
-    out = subprocess.run([python, "-c", code], capture_output=True, text=True, check=True)
+    # Not from the checkout's root: `python -c` would import its handsim, not the interpreter's.
+    out = subprocess.run(
+        [python, "-c", code], capture_output=True, text=True, check=True, cwd=tempfile.gettempdir()
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -52,7 +55,10 @@ def _run_cases(python: str, names: list[str]) -> list[dict]:
     left = list(names)
     while left:
         proc = subprocess.run(
-            [python, str(CASES), json.dumps(left)], capture_output=True, text=True
+            [python, str(CASES), json.dumps(left)],
+            capture_output=True,
+            text=True,
+            cwd=tempfile.gettempdir(),
         )
         done = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
         results += done
@@ -83,7 +89,7 @@ def _disk_full(python: str) -> dict | None:
         (t / "c.json").write_text(json.dumps(cfg))
         env = dict(os.environ, MNT=str(t / "mnt"), PY=python, CFG=str(t / "c.json"),
                    ERR=str(t / "err"), RC=str(t / "rc"))  # fmt: skip
-        subprocess.run(["unshare", "-rm", "sh", "-c", _DISK_FULL], env=env, check=True)
+        subprocess.run(["unshare", "-rm", "sh", "-c", _DISK_FULL], env=env, check=True, cwd=tmp)
         rc = int((t / "rc").read_text())
         err = (t / "err").read_text()
     if rc > 128 or rc < 0:

@@ -396,6 +396,15 @@ def _numeric_options() -> list[tuple[tuple[str, ...], str, int, bool]]:
     return sorted(set(found))
 
 
+UNBOUNDED_BY_DESIGN = {
+    ("teleop", o)
+    for o in ("--beta", "--min-cutoff-hz", "--bias-mm", "--noise-mm", "--duration", "--wait",
+              "--speed")
+}  # fmt: skip
+"""Options without an upper bound, where 1e300 is a valid (if extreme) value: the teleop
+filter's gains, the tracking faults, how long to run (the cases do not run them)."""
+
+
 def _positional_stub(path: tuple[str, ...]) -> list[str]:
     # Positionals some commands need before their options can be reached (parse order).
     stubs = {
@@ -505,10 +514,11 @@ def cases() -> list[Case]:
     for name, (call, match) in resumes.items():
         add(Case(f"train resume: {name}", "checkpoint", call, "InvalidCheckpoint", match))
 
-    # Every numeric CLI option at NaN, inf and hugely negative, and huge where it has an upper
-    # bound (1e300 is a valid, if extreme, value of an unbounded one: a filter gain).
-    for path, option, nargs, bounded in _numeric_options():
-        for value in ("nan", "inf", "-1e300", *(("1e300",) if bounded else ())):
+    # Every numeric CLI option at NaN, inf, hugely negative and huge, but for the teleop
+    # options where a huge value is valid (a filter gain, a duration: they run that long).
+    for path, option, nargs, _ in _numeric_options():
+        huge = () if (path[0], option) in UNBOUNDED_BY_DESIGN else ("1e300",)
+        for value in ("nan", "inf", "-1e300", *huge):
             add(_numeric_case(path, option, nargs, value))
 
     # Stream files.
