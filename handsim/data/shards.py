@@ -147,6 +147,16 @@ class _GuardedFile(io.FileIO):
     error: OSError | None = None
     discard = False
 
+    def readinto(self, buffer: Any) -> int:
+        # HDF5 reads blocks it has allocated but not yet written; h5py's file-object driver
+        # leaves the part past the end of the file as it was (uninitialized memory, which
+        # HDF5 may write back: shards differed from run to run). Zeros, as HDF5's own driver.
+        view = memoryview(buffer).cast("B")
+        n = super().readinto(view) or 0
+        if n < len(view):
+            view[n:] = bytes(len(view) - n)
+        return len(view)
+
     def write(self, data: Any) -> int:
         if self.discard:
             return len(memoryview(data))
