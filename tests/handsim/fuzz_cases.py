@@ -89,6 +89,8 @@ def classify(case: Case, scratch: Path, fixtures: dict[str, Path]) -> tuple[str,
 
     from handsim.errors import HandSimError
 
+    here = os.getcwd()
+    os.chdir(scratch)  # a command that runs writes its default output here, not in the checkout
     try:
         result = case.call(scratch, fixtures)
     except HandSimError as err:
@@ -105,6 +107,8 @@ def classify(case: Case, scratch: Path, fixtures: dict[str, Path]) -> tuple[str,
         kind = OTHER_CLEAR if deliberate and str(err) else LOW_LEVEL
         where = f"{last.filename}:{last.lineno}"
         return kind, False, f"{type(err).__name__}: {str(err)[:200]} (raised at {where})"
+    finally:
+        os.chdir(here)
     return SILENT, False, f"returned {str(result)[:200]!r}"
 
 
