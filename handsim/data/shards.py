@@ -150,7 +150,7 @@ class _GuardedFile(io.FileIO):
     def readinto(self, buffer: Any) -> int:
         # HDF5 reads blocks it has allocated but not yet written; h5py's file-object driver
         # leaves the part past the end of the file as it was (uninitialized memory, which
-        # HDF5 may write back: shards differed from run to run). Zeros, as HDF5's own driver.
+        # HDF5 could write back into the shard). Zeros, as HDF5's own driver gives.
         view = memoryview(buffer).cast("B")
         n = super().readinto(view) or 0
         if n < len(view):
@@ -158,13 +158,22 @@ class _GuardedFile(io.FileIO):
         return len(view)
 
     def write(self, data: Any) -> int:
+        view = memoryview(data).cast("B")
         if self.discard:
-            return len(memoryview(data))
+            return len(view)
+        # h5py's file-object driver ignores a short write's count: finish it here, as HDF5's
+        # own driver does (the rest of a short write on a nearly full disk raises ENOSPC).
+        done = 0
         try:
-            return super().write(data)
+            while done < len(view):
+                wrote = super().write(view[done:])
+                if not wrote:
+                    raise OSError(errno.EIO, f"no byte of a write reached {self.name}")
+                done += wrote
         except OSError as err:
             self.error = self.error or err
             raise
+        return done
 
     def truncate(self, size: int | None = None) -> int:
         if self.discard:
