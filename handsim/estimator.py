@@ -302,6 +302,16 @@ def validate_depth_input(depth: Any, K: Any) -> tuple[np.ndarray, np.ndarray]:  
             is not a pinhole matrix with positive focal lengths.
     """
     try:
+        dtype = np.asarray(depth).dtype
+    except (TypeError, ValueError):
+        dtype = None  # ragged: refused below
+    if dtype is not None and dtype.kind not in "fiu":
+        # A bool mask would read as 1 m everywhere, a complex image lose its imaginary part.
+        raise InvalidEstimatorInput(
+            f"depth must be real numbers (float metres); received {type(depth).__name__} of "
+            f"dtype {dtype}"
+        )
+    try:
         depth_m = np.asarray(depth, dtype=np.float32)
         K_cv = np.asarray(K, dtype=np.float64)  # noqa: N806
     except (TypeError, ValueError) as err:
