@@ -35,6 +35,7 @@ import socket
 import threading
 import time
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -311,6 +312,9 @@ class WebSocketReceiver(LiveReceiver):
     ) -> None:
         super().__init__(host, port, max_packet_bytes)
         self._server: Any = None
+        self.control_handler: Callable[[Any, str | bytes], bool] | None = None
+        """Sees each message first (``(connection, message) -> consumed``): a page's
+        subscription to the state (:class:`~handsim.envs.teleop.xr_state.StatePublisher`)."""
 
     def start(self) -> None:
         """Start the server in a background thread."""
@@ -325,6 +329,9 @@ class WebSocketReceiver(LiveReceiver):
         def handler(connection: Any) -> None:
             with contextlib.suppress(Exception):
                 for message in connection:
+                    control = self.control_handler
+                    if control is not None and control(connection, message):
+                        continue
                     self.handle(message)
 
         try:

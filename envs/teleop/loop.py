@@ -325,6 +325,7 @@ class TeleopLoop:
         max_steps: int | None = None,
         realtime: bool = False,
         stop_at_success: bool = True,
+        on_step: Callable[[int, dict[str, Any]], None] | None = None,
     ) -> TeleopEpisode:
         """Run one episode driven by ``stream``.
 
@@ -338,6 +339,10 @@ class TeleopLoop:
                 still).
             realtime: pace the steps at the control rate (live streams).
             stop_at_success: end the episode at the task's success (the env terminates).
+            on_step: called after every physics step with the step number and
+                ``{"operator_world", "tracked_world", "success"}`` ((21, 3) keypoints, world
+                frame, m, or ``None``; bool): e.g. a
+                :class:`~handsim.envs.teleop.xr_state.StatePublisher` streaming to the page.
 
         Returns:
             The episode's metrics (and arrays with ``config.record``).
@@ -513,6 +518,15 @@ class TeleopLoop:
                 unintended = float(info["unintended_presses"])
             if first_success is None and rec["success"][-1]:
                 first_success = i
+            if on_step is not None:
+                on_step(
+                    i,
+                    {
+                        "operator_world": operator_kp,
+                        "tracked_world": tracked,
+                        "success": rec["success"][-1],
+                    },
+                )
             if realtime:
                 wait = start_wall + i * dt - time.perf_counter()
                 if wait > 0:

@@ -1,0 +1,103 @@
+"""The state stream back to the page: scene glb, then body poses, over a real local WebSocket."""
+
+import json
+import threading
+
+import numpy as np
+import pytest
+
+from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver, stream_from_expert
+from handsim.envs.teleop.streams import InvalidStream
+from handsim.envs.teleop.xr_state import StatePublisher
+from handsim.world.gltf import body_poses
+
+websockets_client = pytest.importorskip("websockets.sync.client")
+
+
+def _packets(stream):
+    for k, kp in enumerate(stream.keypoints_world):
+        yield json.dumps(
+            {"seq": k, "format": "handsim21", "up_axis": "z", "keypoints": kp.tolist()}
+        )
+
+
+def test_a_subscribed_page_gets_the_scene_then_states_that_match_the_simulation():
+    """A subscriber receives the glb (one node per body) and per-step poses of those bodies."""
+    stream = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
+    with (
+        WebSocketReceiver(0) as rx,
+        TeleopLoop("handsim/Press-v0", env_kwargs={"task": "button"}) as loop,
+        StatePublisher(rx, loop.env) as publisher,
+        websockets_client.connect(f"ws://127.0.0.1:{rx.port}") as page,
+    ):
+        page.send(json.dumps({"type": "subscribe"}))
+        for message in _packets(stream):
+            page.send(message)
+        assert rx.wait_for(len(stream), 30.0), rx.counters
+        assert rx.counters["malformed"] == 0  # the subscription is not a malformed packet
+        states: list[dict] = []
+        header: dict = {}
+        glb = b""
+
+        def read() -> None:
+            nonlocal header, glb
+            while len(states) < 5:
+                message = page.recv(timeout=20)
+                if isinstance(message, bytes):
+                    glb = message
+                    continue
+                doc = json.loads(message)
+                if doc["type"] == "scene":
+                    header = doc
+                else:
+                    states.append(doc)
+
+        reader = threading.Thread(target=read)
+        reader.start()
+        episode = loop.run(
+            publisher.newest_keypoints,
+            0,
+            max_steps=40,
+            realtime=True,
+            stop_at_success=False,
+            on_step=publisher.on_step,
+        )
+        reader.join(timeout=30)
+        scene = loop.env.unwrapped.scene
+        last_poses = body_poses(scene.data, [scene.model.body(n).id for n in header["bodies"]])
+    assert episode.metrics["steps"] == 40
+    assert glb[:4] == b"glTF" and len(glb) == header["glb_bytes"]
+    assert "rh_palm" in header["bodies"] and "press_button_0" in header["bodies"]
+    assert len(states) >= 5 and states[0]["scene_id"] == header["scene_id"]
+    steps = [s["step"] for s in states]
+    assert steps == sorted(steps) and len(set(steps)) == len(steps)
+    poses = np.array(states[-1]["poses"]).reshape(-1, 7)
+    assert poses.shape == (len(header["bodies"]), 7)
+    # The newest state is at most a few steps old: the palm is near its final pose.
+    palm = header["bodies"].index("rh_palm")
+    assert np.linalg.norm(poses[palm, :3] - last_poses[palm, :3]) < 0.05
+    assert np.allclose(np.linalg.norm(poses[:, 3:], axis=1), 1.0, atol=1e-4)
+    assert states[-1]["seq"] == len(stream) - 1
+    tracked = [p for p in states[-1]["tracked"] if p is not None]
+    assert len(states[-1]["tracked"]) == 21 and len(tracked) == 21
+    # The anchor moved the stream (replayed in the world frame: no offset).
+    assert np.allclose(states[-1]["offset_m"], 0.0, atol=1e-9)
+    assert publisher.counters["scenes_sent"] == 1 and publisher.export_error is None
+
+
+def test_without_a_subscriber_nothing_is_encoded_and_the_state_needs_a_websocket():
+    """No page subscribed: on_step returns at once; a UDP receiver has no way back."""
+    with (
+        WebSocketReceiver(0) as rx,
+        TeleopLoop("handsim/Press-v0", env_kwargs={"task": "button"}) as loop,
+        StatePublisher(rx, loop.env) as publisher,
+    ):
+        loop.run(lambda i: None, 0, max_steps=5, on_step=publisher.on_step)
+        assert publisher.counters == {
+            "subscribers": 0,
+            "scenes_sent": 0,
+            "states_sent": 0,
+            "send_errors": 0,
+        }
+    with UdpReceiver(0) as udp, pytest.raises(InvalidStream, match="must be a WebSocketReceiver"):
+        StatePublisher(udp, None)
