@@ -16,6 +16,10 @@ key             meaning
 ``radii``       optional, one radius per joint (OpenXR / WebXR); checked, then ignored.
 ==============  ========================================================================
 
+A WebSocket message that is a JSON object with a ``type`` (under 256 bytes) is a control
+message, not a packet (:func:`control_message`): ``{"type": "subscribe"}`` asks for the
+simulation's state back on that connection (:mod:`~handsim.envs.teleop.xr_state`).
+
 A packet larger than ``max_packet_bytes`` (default 65536), not UTF-8 JSON, or not matching the
 schema (wrong shape, non-finite or absurd values, fewer than 4 tracked points) is dropped and
 counted by reason in :attr:`LiveReceiver.counters`; nothing a sender sends stops the loop.
@@ -68,6 +72,7 @@ DEFAULT_HOST = "127.0.0.1"
 LOCAL_HOSTS: tuple[str, ...] = ("127.0.0.1", "localhost", "::1")
 MAX_PACKET_BYTES = 65536
 _MAX_ABS_M = 100.0
+_MAX_CONTROL_BYTES = 256
 
 
 class InvalidPacket(HandSimError, ValueError):
@@ -160,6 +165,22 @@ def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) ->
     if np.count_nonzero(np.all(np.isfinite(kp), axis=1)) < 4:
         raise InvalidPacket("fewer than 4 tracked keypoints")
     return LiveFrame(seq, float(t), time.monotonic(), kp)
+
+
+def control_message(message: bytes | str) -> dict[str, Any] | None:
+    """A page's control message (a JSON object with a ``type``, under 256 bytes), else ``None``.
+
+    Control messages (``{"type": "subscribe"}``: the state back, see
+    :mod:`~handsim.envs.teleop.xr_state`) are not hand packets: they are neither counted nor
+    parsed as keypoints.
+    """
+    if len(message) > _MAX_CONTROL_BYTES:
+        return None
+    try:
+        doc = json.loads(message)
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        return None
+    return doc if isinstance(doc, dict) and isinstance(doc.get("type"), str) else None
 
 
 class LiveReceiver(abc.ABC):
@@ -312,9 +333,10 @@ class WebSocketReceiver(LiveReceiver):
     ) -> None:
         super().__init__(host, port, max_packet_bytes)
         self._server: Any = None
-        self.control_handler: Callable[[Any, str | bytes], bool] | None = None
-        """Sees each message first (``(connection, message) -> consumed``): a page's
-        subscription to the state (:class:`~handsim.envs.teleop.xr_state.StatePublisher`)."""
+        self.control_handler: Callable[[Any, dict[str, Any]], None] | None = None
+        """Receives the control messages (:func:`control_message`) with their connection: a
+        page's subscription to the state (:class:`~handsim.envs.teleop.xr_state.StatePublisher`);
+        without one they are ignored."""
 
     def start(self) -> None:
         """Start the server in a background thread."""
@@ -329,10 +351,11 @@ class WebSocketReceiver(LiveReceiver):
         def handler(connection: Any) -> None:
             with contextlib.suppress(Exception):
                 for message in connection:
-                    control = self.control_handler
-                    if control is not None and control(connection, message):
-                        continue
-                    self.handle(message)
+                    control = control_message(message)
+                    if control is None:
+                        self.handle(message)
+                    elif self.control_handler is not None:
+                        self.control_handler(connection, control)
 
         try:
             # max_size=None: an oversized message is counted and dropped here, and the

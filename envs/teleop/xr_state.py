@@ -45,7 +45,6 @@ __all__ = ["StatePublisher", "SUBSCRIBE"]
 
 SUBSCRIBE = "subscribe"
 """The ``type`` of the control message a page sends to receive the state."""
-_MAX_CONTROL_BYTES = 256
 
 
 class _Subscriber:
@@ -153,22 +152,15 @@ class StatePublisher:
 
     # -- the WebSocket's side --------------------------------------------------------------
 
-    def _on_control(self, connection: Any, message: str | bytes) -> bool:
-        if len(message) > _MAX_CONTROL_BYTES:
-            return False
-        try:
-            doc = json.loads(message)
-        except (ValueError, UnicodeDecodeError):
-            return False
-        if not isinstance(doc, dict) or doc.get("type") != SUBSCRIBE:
-            return False
+    def _on_control(self, connection: Any, doc: dict[str, Any]) -> None:
+        if doc.get("type") != SUBSCRIBE:
+            return
         with self._cond:
             if self._closed:
-                return True
+                return
             self._subscribers.append(_Subscriber(connection))
             self.counters["subscribers"] += 1
             self._cond.notify_all()
-        return True
 
     def _pending(self) -> bool:
         if self._closed:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver, stream_from_expert
+from handsim.envs.teleop.live import control_message
 from handsim.envs.teleop.streams import InvalidStream
 from handsim.envs.teleop.xr_state import StatePublisher
 from handsim.world.gltf import body_poses
@@ -101,3 +102,20 @@ def test_without_a_subscriber_nothing_is_encoded_and_the_state_needs_a_websocket
         }
     with UdpReceiver(0) as udp, pytest.raises(InvalidStream, match="must be a WebSocketReceiver"):
         StatePublisher(udp, None)
+
+
+@pytest.mark.parametrize(
+    ("message", "expected"),
+    [
+        ('{"type": "subscribe"}', {"type": "subscribe"}),
+        (b'{"type": "subscribe"}', {"type": "subscribe"}),
+        ('{"seq": 0, "keypoints": []}', None),  # a hand packet
+        ('{"type": 3}', None),
+        ("[1, 2]", None),
+        ("not json", None),
+        ('{"type": "subscribe", "pad": "' + "x" * 300 + '"}', None),  # too long to be one
+    ],
+)
+def test_control_messages_are_told_from_hand_packets(message, expected):
+    """Small JSON objects with a string ``type`` are control messages; the rest are packets."""
+    assert control_message(message) == expected

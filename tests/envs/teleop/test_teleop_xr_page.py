@@ -1,0 +1,242 @@
+"""The served page in headless Chromium: an emulated headset sees the hand and the objects.
+
+An emulated headset enters a session, streams its hand into the loop, and the screenshot shows
+the simulated hand, the object and the ghost.
+
+Chromium is driven through the DevTools protocol over its WebSocket (the ``websockets``
+package); the page's test hook (``?xrtest=1``) emulates ``navigator.xr`` with a scripted hand.
+"""
+
+import base64
+import contextlib
+import itertools
+import json
+import pathlib
+import shutil
+import subprocess
+import threading
+import time
+import urllib.request
+
+import cv2
+import numpy as np
+import pytest
+
+from handsim.envs.teleop import TeleopConfig, TeleopLoop, WebSocketReceiver
+from handsim.envs.teleop.web import make_server, static_files
+from handsim.envs.teleop.xr_state import StatePublisher
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+websockets_client = pytest.importorskip("websockets.sync.client")
+
+
+def test_the_page_its_scripts_and_three_js_are_served_and_nothing_else():
+    """`/` loads three.js from /static (no CDN); the vendored files and licence are served."""
+    files = static_files()
+    assert {
+        "/static/page.js",
+        "/static/xr_emulation.js",
+        "/static/three/three.module.min.js",
+        "/static/three/three.core.min.js",
+        "/static/three/addons/loaders/GLTFLoader.js",
+        "/static/three/addons/controls/OrbitControls.js",
+        "/static/three/LICENSE",
+    } <= set(files)
+    # Only what the page uses is vendored (~1 MB).
+    assert sum(map(len, files.values())) < 1_200_000
+    server = make_server(0, 9999)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    base = f"http://127.0.0.1:{server.server_address[1]}"
+    try:
+        page = urllib.request.urlopen(base + "/", timeout=10).read().decode()
+        assert (
+            "./static/three/three.module.min.js" in page
+            and "http" not in page.split("importmap", 1)[1].split("</script>", 1)[0]
+        )
+        with urllib.request.urlopen(base + "/static/page.js", timeout=10) as response:
+            assert response.headers["Content-Type"].startswith("text/javascript")
+            assert b"GLTFLoader" in response.read()
+        licence = urllib.request.urlopen(base + "/static/three/LICENSE", timeout=10).read()
+        assert b"MIT License" in licence
+        for bad in ("/static/../web.py", "/static/three/", "/static/nothing.js"):
+            with pytest.raises(urllib.error.HTTPError, match="404"):
+                urllib.request.urlopen(base + bad, timeout=10)
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+class _DevTools:
+    """The few DevTools protocol calls the test needs, on one page target."""
+
+    def __init__(self, port: int, timeout_s: float = 60.0) -> None:
+        end = time.monotonic() + timeout_s
+        while True:
+            try:
+                targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
+                page = next(t for t in targets if t["type"] == "page")
+                break
+            except (OSError, StopIteration):
+                if time.monotonic() > end:
+                    raise
+                time.sleep(0.2)
+        self._connection = websockets_client.connect(page["webSocketDebuggerUrl"], max_size=None)
+        self.ids = itertools.count(1)
+
+    def __enter__(self):
+        self.ws = self._connection.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        self._connection.__exit__(*exc)
+
+    def call(self, method: str, **params):
+        n = next(self.ids)
+        self.ws.send(json.dumps({"id": n, "method": method, "params": params}))
+        while True:
+            doc = json.loads(self.ws.recv(timeout=60))
+            if doc.get("id") == n:
+                if "error" in doc:
+                    raise RuntimeError(f"{method}: {doc['error']}")
+                return doc["result"]
+
+    def eval(self, expression: str):
+        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
+        return result["result"].get("value")
+
+    def wait(self, expression: str, timeout_s: float) -> bool:
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if self.eval(expression):
+                return True
+            time.sleep(0.2)
+        return False
+
+    def screenshot(self) -> np.ndarray:
+        """The page, (H, W, 3) uint8 RGB, after two more frames were drawn."""
+        n = self.eval("window.handsim.framesRendered")
+        self.wait(f"window.handsim.framesRendered >= {n + 2}", 10)
+        png = self.call("Page.captureScreenshot", format="png")["data"]
+        bgr = cv2.imdecode(np.frombuffer(base64.b64decode(png), np.uint8), cv2.IMREAD_COLOR)
+        return bgr[:, :, ::-1].copy()
+
+
+class _Stop(Exception):
+    pass
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp_path):
+    """Enter immersive-vr with the scripted hand: packets in, states back, pixels drawn.
+
+    The screenshot holds the physical hand's, the mustard bottle's and the ghost's pixels (each
+    found as the pixels that change when the page hides that part).
+    """
+    env_kwargs = {"objects": ["006_mustard_bottle"]}
+    stop = threading.Event()
+    with (
+        WebSocketReceiver(0) as rx,
+        TeleopLoop("handsim/Grasp-v0", TeleopConfig(anchor="start"), env_kwargs=env_kwargs) as loop,
+        StatePublisher(rx, loop.env) as publisher,
+    ):
+        loop.env.reset(seed=0)
+
+        def stream(i):
+            if stop.is_set():
+                raise _Stop
+            return publisher.newest_keypoints(i)
+
+        def run():
+            # Episodes end at the task's limit (8 s): run them until the test is done.
+            with contextlib.suppress(_Stop):
+                while True:
+                    loop.run(
+                        stream, 0, realtime=True, stop_at_success=False, on_step=publisher.on_step
+                    )
+
+        runner = threading.Thread(target=run, daemon=True)
+        runner.start()
+        server = make_server(0, rx.port)
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        url = f"http://127.0.0.1:{server.server_address[1]}/?xrtest=1&enter=immersive-vr"
+        profile = tmp_path / "profile"
+        browser = subprocess.Popen(
+            [
+                CHROMIUM,
+                "--headless=new",
+                "--no-sandbox",
+                "--no-first-run",
+                "--disable-dev-shm-usage",
+                "--enable-unsafe-swiftshader",
+                "--use-angle=swiftshader",
+                "--window-size=800,600",
+                "--remote-debugging-port=0",
+                f"--user-data-dir={profile}",
+                url,
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            port_file = pathlib.Path(profile / "DevToolsActivePort")
+            end = time.monotonic() + 60
+            while not port_file.exists() or not port_file.read_text().strip():
+                assert time.monotonic() < end, "Chromium wrote no DevToolsActivePort"
+                time.sleep(0.1)
+            with _DevTools(int(port_file.read_text().split()[0])) as devtools:
+                ready = (
+                    "window.handsim && handsim.mode === 'immersive-vr' && "
+                    "handsim.statesApplied > 25"
+                )
+                entered = devtools.wait(ready, 120)
+                page_state = devtools.eval(
+                    "JSON.stringify({mode: handsim.mode, sent: handsim.sent, scenes: "
+                    "handsim.scenesLoaded, states: handsim.statesApplied, errors: handsim.errors, "
+                    "xrFrames: window.handsimXrTest && handsimXrTest.frames, "
+                    "where: handsim.where()})"
+                )
+                assert entered, page_state
+                counters = dict(rx.counters)
+                # Freeze the view (no new states) so that only the hidden part changes.
+                devtools.eval("handsim.hold = true")
+                full = devtools.screenshot()
+                shots = {}
+                for part in ("hand", "objects", "ghost"):
+                    devtools.eval(f"handsim.setVisible('{part}', false)")
+                    shots[part] = devtools.screenshot()
+                    devtools.eval(f"handsim.setVisible('{part}', true)")
+                (tmp_path / "page.png").write_bytes(cv2.imencode(".png", full[:, :, ::-1])[1])
+        finally:
+            stop.set()
+            browser.terminate()
+            browser.wait(timeout=30)
+            server.shutdown()
+            server.server_close()
+            runner.join(timeout=10)
+    doc = json.loads(page_state)
+    # The world is placed so the physical hand lies over the operator's (the ghost's) wrist.
+    where = doc["where"]
+    assert np.linalg.norm(np.subtract(where["palm"], where["ghostWrist"])) < 0.05, where
+    assert doc["errors"] == [] and doc["scenes"] >= 1 and doc["xrFrames"] > 25
+    # The page's packets drove the loop, all valid.
+    assert counters["accepted"] > 25 and counters["malformed"] == counters["oversized"] == 0
+    assert publisher.counters["states_sent"] > 25
+
+    def covered(part):
+        diff = np.abs(full.astype(int) - shots[part].astype(int)).sum(axis=2) > 30
+        return diff, full[diff].mean(axis=0) if diff.any() else np.zeros(3)
+
+    hand, hand_rgb = covered("hand")
+    bottle, bottle_rgb = covered("objects")
+    ghost, ghost_rgb = covered("ghost")
+    h, w = full.shape[:2]
+    assert hand.sum() > 0.01 * h * w, f"hand pixels: {hand.sum()}"
+    assert bottle.sum() > 0.003 * h * w, f"object pixels: {bottle.sum()}"
+    assert ghost.sum() > 0.001 * h * w, f"ghost pixels: {ghost.sum()}"
+    # Their colours: skin (red > green > blue), mustard yellow (blue far below), cyan ghost.
+    r, g, b = hand_rgb
+    assert r > g > b and r > 90, hand_rgb
+    r, g, b = bottle_rgb
+    assert r > 1.5 * b and g > 1.5 * b, bottle_rgb
+    r, g, b = ghost_rgb
+    assert g > r and b > r, ghost_rgb
