@@ -333,10 +333,30 @@ class WebSocketReceiver(LiveReceiver):
     ) -> None:
         super().__init__(host, port, max_packet_bytes)
         self._server: Any = None
-        self.control_handler: Callable[[Any, dict[str, Any]], None] | None = None
-        """Receives the control messages (:func:`control_message`) with their connection: a
-        page's subscription to the state (:class:`~handsim.envs.teleop.xr_state.StatePublisher`);
-        without one they are ignored."""
+        self._control_handler: Callable[[Any, dict[str, Any]], None] | None = None
+        self._early_controls: list[tuple[Any, dict[str, Any]]] = []
+
+    def set_control_handler(self, handler: Callable[[Any, dict[str, Any]], None] | None) -> None:
+        """Send the control messages to ``handler``, those that came before it too.
+
+        ``handler(connection, doc)`` gets each :func:`control_message` (a page's subscription
+        to the state: :class:`~handsim.envs.teleop.xr_state.StatePublisher`). Without a handler
+        the latest 64 are kept for the next one.
+        """
+        with self._lock:
+            self._control_handler = handler
+            early, self._early_controls = self._early_controls, []
+        if handler is not None:
+            for connection, doc in early:
+                handler(connection, doc)
+
+    def _control(self, connection: Any, doc: dict[str, Any]) -> None:
+        with self._lock:
+            handler = self._control_handler
+            if handler is None:
+                self._early_controls = [*self._early_controls[-63:], (connection, doc)]
+                return
+        handler(connection, doc)
 
     def start(self) -> None:
         """Start the server in a background thread."""
@@ -354,8 +374,8 @@ class WebSocketReceiver(LiveReceiver):
                     control = control_message(message)
                     if control is None:
                         self.handle(message)
-                    elif self.control_handler is not None:
-                        self.control_handler(connection, control)
+                    else:
+                        self._control(connection, control)
 
         try:
             # max_size=None: an oversized message is counted and dropped here, and the

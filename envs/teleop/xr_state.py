@@ -95,7 +95,7 @@ class StatePublisher:
         self._raw: np.ndarray | None = None
         self._seq = -1
         self._closed = False
-        receiver.control_handler = self._on_control
+        receiver.set_control_handler(self._on_control)
         self._thread = threading.Thread(target=self._run, name="handsim-state", daemon=True)
         self._thread.start()
 
@@ -222,8 +222,7 @@ class StatePublisher:
             self._closed = True
             self._cond.notify_all()
         self._thread.join(timeout=2.0)
-        if self.receiver.control_handler == self._on_control:
-            self.receiver.control_handler = None
+        self.receiver.set_control_handler(None)
 
     def __enter__(self) -> StatePublisher:
         return self

@@ -306,6 +306,7 @@ def _live(args: argparse.Namespace) -> int:
     for w in caught:
         print(f"handsim: warning: {w.message}", file=sys.stderr)
     proto = "udp" if args.udp is not None else "websocket"
+    publisher = None
     try:
         with TeleopLoop(args.task, config, estimator=_estimator(args)) as loop:
             loop.env.reset(seed=args.seed)  # build the scene before the operator starts
@@ -324,12 +325,29 @@ def _live(args: argparse.Namespace) -> int:
                 frame = receiver.latest()
                 return None if frame is None else frame.keypoints_world
 
+            on_step = None
+            if isinstance(receiver, WebSocketReceiver):
+                # The page ('teleop serve') draws the simulation from this state stream.
+                from handsim.envs.teleop.xr_state import StatePublisher
+
+                publisher = StatePublisher(receiver, loop.env)
+                newest, on_step = publisher.newest_keypoints, publisher.on_step
             steps = max(1, int(round(args.duration / loop.control_dt)))
             episode = loop.run(
-                newest, args.seed, max_steps=steps, realtime=True, stop_at_success=False
+                newest,
+                args.seed,
+                max_steps=steps,
+                realtime=True,
+                stop_at_success=False,
+                on_step=on_step,
             )
-            return _finish(args, loop, episode, {"packets": dict(receiver.counters)})
+            extra: dict[str, Any] = {"packets": dict(receiver.counters)}
+            if publisher is not None:
+                extra["state_stream"] = dict(publisher.counters)
+            return _finish(args, loop, episode, extra)
     finally:
+        if publisher is not None:
+            publisher.close()
         receiver.close()
         print(f"packets: {receiver.counters}", file=sys.stderr)
 

@@ -1,7 +1,12 @@
 """The state stream back to the page: scene glb, then body poses, over a real local WebSocket."""
 
+import contextlib
 import json
+import socket
+import subprocess
+import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -119,3 +124,65 @@ def test_without_a_subscriber_nothing_is_encoded_and_the_state_needs_a_websocket
 def test_control_messages_are_told_from_hand_packets(message, expected):
     """Small JSON objects with a string ``type`` are control messages; the rest are packets."""
     assert control_message(message) == expected
+
+
+def test_teleop_live_over_websocket_streams_the_state_back(tmp_path):
+    """`handsim teleop live --websocket` (a subprocess) streams the state to a subscribed page.
+
+    The page gets the scene and then states; teleop.json counts them.
+    """
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    stream = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
+    cli = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "handsim.cli",
+            "teleop",
+            "live",
+            "--task",
+            "press",
+            "--websocket",
+            str(port),
+            "--duration",
+            "2",
+            "--wait",
+            "60",
+            "--out",
+            str(tmp_path),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    kinds: list[str] = []
+    try:
+        deadline = time.monotonic() + 120
+        while True:
+            try:
+                page = websockets_client.connect(f"ws://127.0.0.1:{port}")
+                break
+            except OSError:
+                assert time.monotonic() < deadline and cli.poll() is None, cli.stdout.read()
+                time.sleep(0.2)
+        with page:
+            page.send(json.dumps({"type": "subscribe"}))
+            for message in _packets(stream):
+                page.send(message)
+            with contextlib.suppress(Exception):  # the CLI ends and closes the connection
+                while len(kinds) < 20:
+                    message = page.recv(timeout=60)
+                    binary = isinstance(message, bytes)
+                    kinds.append("glb" if binary else json.loads(message)["type"])
+        output, _ = cli.communicate(timeout=120)
+    finally:
+        if cli.poll() is None:
+            cli.kill()
+    assert cli.returncode == 0, output
+    assert kinds[:3] == ["scene", "glb", "state"] and kinds.count("state") >= 10, kinds
+    summary = json.loads((tmp_path / "teleop.json").read_text())
+    assert summary["state_stream"]["subscribers"] == 1
+    assert summary["state_stream"]["states_sent"] >= 10
+    assert summary["packets"]["malformed"] == 0
