@@ -240,3 +240,28 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
     assert r > 1.5 * b and g > 1.5 * b, bottle_rgb
     r, g, b = ghost_rgb
     assert g > r and b > r, ghost_rgb
+
+
+def test_every_file_of_the_page_is_package_data():
+    """The package-data globs of pyproject.toml cover the page and every vendored file.
+
+    A wheel without them would serve a page that cannot load three.js.
+    """
+    import fnmatch
+
+    import tomllib
+
+    root = pathlib.Path(__file__).resolve().parents[3]
+    globs = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"][
+        "package-data"
+    ]["handsim.envs.teleop"]
+    folder = root / "envs" / "teleop"
+    files = [p.relative_to(folder).as_posix() for p in (folder / "web").rglob("*") if p.is_file()]
+    assert "web/static/three/three.module.min.js" in files
+
+    def matches(path: str, glob: str) -> bool:  # setuptools: '*' stays inside one folder
+        parts, pattern = path.split("/"), glob.split("/")
+        return len(parts) == len(pattern) and all(map(fnmatch.fnmatchcase, parts, pattern))
+
+    missing = [f for f in files if not any(matches(f, g) for g in globs)]
+    assert not missing, f"not in package-data: {missing}"
