@@ -22,7 +22,13 @@ import cv2
 import numpy as np
 import pytest
 
-from handsim.envs.teleop import TeleopConfig, TeleopLoop, WebSocketReceiver
+from handsim.envs.teleop import (
+    TeleopConfig,
+    TeleopLoop,
+    WebSocketReceiver,
+    save_stream,
+    stream_from_expert,
+)
 from handsim.envs.teleop.web import make_server, static_files
 from handsim.envs.teleop.xr_state import StatePublisher
 
@@ -125,12 +131,21 @@ class _Stop(Exception):
     pass
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
-def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp_path):
-    """Enter immersive-vr with the scripted hand: packets in, states back, pixels drawn.
+_PAGE_STATE = (
+    "JSON.stringify({mode: handsim.mode, sent: handsim.sent, scenes: handsim.scenesLoaded, "
+    "states: handsim.statesApplied, errors: handsim.errors, "
+    "xrFrames: window.handsimXrTest ? handsimXrTest.frames : 0, where: handsim.where()})"
+)
 
-    The screenshot holds the physical hand's, the mustard bottle's and the ghost's pixels (each
-    found as the pixels that change when the page hides that part).
+
+def _open_page(tmp_path, query, ready, *, replay=None):
+    """Open the page in headless Chromium on a live Grasp-v0 (mustard bottle) with the state.
+
+    Waits for ``ready`` (JS), freezes the view and screenshots it whole and without each part.
+
+    Returns:
+        ``(page, packets, stream, full, shots)``: the page's counters, the receiver's and the
+        publisher's counters, the screenshot (H, W, 3) RGB and one per hidden part.
     """
     env_kwargs = {"objects": ["006_mustard_bottle"]}
     stop = threading.Event()
@@ -156,9 +171,9 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
 
         runner = threading.Thread(target=run, daemon=True)
         runner.start()
-        server = make_server(0, rx.port)
+        server = make_server(0, rx.port, replay=replay)
         threading.Thread(target=server.serve_forever, daemon=True).start()
-        url = f"http://127.0.0.1:{server.server_address[1]}/?xrtest=1&enter=immersive-vr"
+        url = f"http://127.0.0.1:{server.server_address[1]}/{query}"
         profile = tmp_path / "profile"
         browser = subprocess.Popen(
             [
@@ -184,19 +199,10 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
                 assert time.monotonic() < end, "Chromium wrote no DevToolsActivePort"
                 time.sleep(0.1)
             with _DevTools(int(port_file.read_text().split()[0])) as devtools:
-                ready = (
-                    "window.handsim && handsim.mode === 'immersive-vr' && "
-                    "handsim.statesApplied > 25"
-                )
-                entered = devtools.wait(ready, 120)
-                page_state = devtools.eval(
-                    "JSON.stringify({mode: handsim.mode, sent: handsim.sent, scenes: "
-                    "handsim.scenesLoaded, states: handsim.statesApplied, errors: handsim.errors, "
-                    "xrFrames: window.handsimXrTest && handsimXrTest.frames, "
-                    "where: handsim.where()})"
-                )
-                assert entered, page_state
-                counters = dict(rx.counters)
+                ok = devtools.wait(ready, 120)
+                page = json.loads(devtools.eval(_PAGE_STATE))
+                assert ok, page
+                packets = dict(rx.counters)
                 # Freeze the view (no new states) so that only the hidden part changes.
                 devtools.eval("handsim.hold = true")
                 full = devtools.screenshot()
@@ -213,14 +219,11 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
             server.shutdown()
             server.server_close()
             runner.join(timeout=10)
-    doc = json.loads(page_state)
-    # The world is placed so the physical hand lies over the operator's (the ghost's) wrist.
-    where = doc["where"]
-    assert np.linalg.norm(np.subtract(where["palm"], where["ghostWrist"])) < 0.05, where
-    assert doc["errors"] == [] and doc["scenes"] >= 1 and doc["xrFrames"] > 25
-    # The page's packets drove the loop, all valid.
-    assert counters["accepted"] > 25 and counters["malformed"] == counters["oversized"] == 0
-    assert publisher.counters["states_sent"] > 25
+    return page, packets, dict(publisher.counters), full, shots
+
+
+def _assert_hand_object_and_ghost_drawn(full, shots):
+    """Each part covers enough pixels, of its colour (found by hiding it)."""
 
     def covered(part):
         diff = np.abs(full.astype(int) - shots[part].astype(int)).sum(axis=2) > 30
@@ -240,6 +243,40 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
     assert r > 1.5 * b and g > 1.5 * b, bottle_rgb
     r, g, b = ghost_rgb
     assert g > r and b > r, ghost_rgb
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp_path):
+    """Enter immersive-vr with the scripted hand: packets in, states back, pixels drawn.
+
+    The screenshot holds the physical hand's, the mustard bottle's and the ghost's pixels (each
+    found as the pixels that change when the page hides that part).
+    """
+    ready = "window.handsim && handsim.mode === 'immersive-vr' && handsim.statesApplied > 25"
+    page, packets, stream, full, shots = _open_page(tmp_path, "?xrtest=1&enter=immersive-vr", ready)
+    # The world is placed so the physical hand lies over the operator's (the ghost's) wrist.
+    where = page["where"]
+    assert np.linalg.norm(np.subtract(where["palm"], where["ghostWrist"])) < 0.05, where
+    assert page["errors"] == [] and page["scenes"] >= 1 and page["xrFrames"] > 25
+    # The page's packets drove the loop, all valid.
+    assert packets["accepted"] > 25 and packets["malformed"] == packets["oversized"] == 0
+    assert stream["states_sent"] > 25
+    _assert_hand_object_and_ghost_drawn(full, shots)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_without_a_headset_the_browser_view_shows_the_replayed_scene(tmp_path):
+    """No XR: the orbit view shows the scene while the page replays a recording into the loop."""
+    recording = save_stream(
+        stream_from_expert("handsim/Grasp-v0", 0, env_kwargs={"objects": ["006_mustard_bottle"]}),
+        tmp_path / "grasp.json",
+    )
+    ready = "window.handsim && handsim.sent > 60 && handsim.statesApplied > 25"
+    page, packets, stream, full, shots = _open_page(tmp_path, "", ready, replay=recording)
+    assert page["mode"] == "browser" and page["xrFrames"] == 0 and page["errors"] == []
+    assert packets["accepted"] > 60 and packets["malformed"] == 0
+    assert stream["states_sent"] > 25
+    _assert_hand_object_and_ghost_drawn(full, shots)
 
 
 def test_every_file_of_the_page_is_package_data():
