@@ -134,7 +134,8 @@ class _Stop(Exception):
 _PAGE_STATE = (
     "JSON.stringify({mode: handsim.mode, sent: handsim.sent, scenes: handsim.scenesLoaded, "
     "states: handsim.statesApplied, errors: handsim.errors, "
-    "xrFrames: window.handsimXrTest ? handsimXrTest.frames : 0, where: handsim.where()})"
+    "xrFrames: window.handsimXrTest ? handsimXrTest.frames : 0, where: handsim.where(), "
+    "drawn: handsim.drawn})"
 )
 
 
@@ -261,6 +262,9 @@ def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp
     # The page's packets drove the loop, all valid.
     assert packets["accepted"] > 25 and packets["malformed"] == packets["oversized"] == 0
     assert stream["states_sent"] > 25
+    # Drawn between two consecutive control steps (display-rate interpolation).
+    drawn = page["drawn"]
+    assert 0 <= drawn["to_step"] - drawn["from_step"] <= 1 and 0 <= drawn["alpha"] <= 1, drawn
     _assert_hand_object_and_ghost_drawn(full, shots)
 
 

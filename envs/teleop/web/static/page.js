@@ -35,6 +35,8 @@ const state = {
   errors: [], hold: false,
 };
 window.handsim = state;  // read by tests
+window.addEventListener("error", (e) => state.errors.push(String(e.message)));
+window.addEventListener("unhandledrejection", (e) => state.errors.push(String(e.reason)));
 const statusEl = document.getElementById("status");
 const status = (text) => { statusEl.textContent = text; };
 
@@ -126,33 +128,87 @@ function loadScene(header, buffer) {
   }, (err) => state.errors.push(String(err)));
 }
 
-function applyState(doc) {
-  if (!current || doc.scene_id !== current.id) return;
-  const p = doc.poses;
+// Display-rate motion: states come once per control step (50 Hz with the tasks' defaults),
+// frames at the display's rate (72-120 Hz). The view is drawn one state period in the past,
+// interpolated between the two states around that time, on the simulation's clock. Its offset
+// to this page's clock follows an early arrival at once and a late one by a third, so network
+// jitter hardly shakes it and a loop that falls behind real time is followed.
+// ?interp=0 draws the newest state as it comes instead.
+const interpolate = params.get("interp") !== "0";
+const history = [];  // { doc, t (sim ms), at (page ms) }, oldest first
+let clockOffsetMs = null;  // page time - simulation time
+const qa = new THREE.Quaternion(), qb = new THREE.Quaternion();
+
+function receiveState(doc) {
+  const last = history[history.length - 1];
+  // A new episode or scene restarts the clock.
+  if (last && (doc.scene_id !== last.doc.scene_id || doc.t_s <= last.doc.t_s)) {
+    history.length = 0;
+    clockOffsetMs = null;
+  }
+  const entry = { doc, t: doc.t_s * 1000, at: performance.now() };
+  history.push(entry);
+  if (history.length > 16) history.shift();
+  const sample = entry.at - entry.t;
+  clockOffsetMs = clockOffsetMs === null || sample < clockOffsetMs ? sample
+    : clockOffsetMs + (sample - clockOffsetMs) / 3;
+  state.statesReceived += 1;
+  state.lastState = doc;
+}
+
+function statesAt(now) {
+  const n = history.length;
+  if (n === 0) return null;
+  const newest = history[n - 1];
+  if (!interpolate || n < 2) return [newest, newest, 0];
+  const t = now - clockOffsetMs - (newest.t - history[n - 2].t);
+  if (t >= newest.t) return [newest, newest, 0];
+  for (let i = n - 2; i >= 0; i--) {
+    if (history[i].t <= t) {
+      const a = history[i], b = history[i + 1];
+      return [a, b, (t - a.t) / (b.t - a.t)];
+    }
+  }
+  return [history[0], history[0], 0];
+}
+
+function applyState(a, b, alpha) {
+  const doc = b;
+  if (!current || doc.scene_id !== current.id || a.scene_id !== doc.scene_id) return;
+  const pa = a.poses, p = doc.poses;
   current.nodes.forEach((node, i) => {
     if (!node) return;
-    node.position.set(p[7 * i], p[7 * i + 1], p[7 * i + 2]);
-    node.quaternion.set(p[7 * i + 4], p[7 * i + 5], p[7 * i + 6], p[7 * i + 3]);
+    const k = 7 * i;
+    node.position.set(pa[k] + alpha * (p[k] - pa[k]), pa[k + 1] + alpha * (p[k + 1] - pa[k + 1]),
+      pa[k + 2] + alpha * (p[k + 2] - pa[k + 2]));
+    qa.set(pa[k + 4], pa[k + 5], pa[k + 6], pa[k + 3]);
+    qb.set(p[k + 4], p[k + 5], p[k + 6], p[k + 3]);
+    node.quaternion.slerpQuaternions(qa, qb, alpha);
+  });
+  const tracked = doc.tracked.map((q, j) => {
+    const r = a.tracked[j];
+    return q && r ? q.map((v, c) => r[c] + alpha * (v - r[c])) : q;
   });
   const lines = boneGeometry.attributes.position;
-  doc.tracked.forEach((q, j) => {
+  tracked.forEach((q, j) => {
     ghostJoints[j].visible = q !== null;
     if (q) ghostJoints[j].position.set(q[0], q[1], q[2]);
   });
-  BONES.forEach(([a, b], k) => {
-    const qa = doc.tracked[a] || doc.tracked[b] || [0, 0, 0];
-    const qb = doc.tracked[b] || qa;
-    lines.setXYZ(2 * k, qa[0], qa[1], qa[2]);
-    lines.setXYZ(2 * k + 1, qb[0], qb[1], qb[2]);
+  BONES.forEach(([i, j], k) => {
+    const qi = tracked[i] || tracked[j] || [0, 0, 0];
+    const qj = tracked[j] || qi;
+    lines.setXYZ(2 * k, qi[0], qi[1], qi[2]);
+    lines.setXYZ(2 * k + 1, qj[0], qj[1], qj[2]);
   });
   lines.needsUpdate = true;
-  ghost.visible = doc.tracked.some((q) => q !== null) && state.showGhost !== false;
+  ghost.visible = tracked.some((q) => q !== null) && state.showGhost !== false;
   if (renderer.xr.isPresenting) {
     // xr = R_y_up (world - offset): the anchor the loop added is taken off again.
     const o = doc.offset_m;
     placement.position.set(-o[0], -o[2], o[1]);
   }
-  state.statesApplied += 1;
+  if (doc !== state.appliedState) { state.appliedState = doc; state.statesApplied += 1; }
+  state.drawn = { from_step: a.step, to_step: doc.step, alpha };
 }
 
 // Where things are in the view (tests): the palm body and the ghost's wrist, three.js world.
@@ -207,7 +263,7 @@ async function connect() {
       }
       const doc = JSON.parse(event.data);
       if (doc.type === "scene") sceneHeader = doc;
-      else if (doc.type === "state") { state.statesReceived += 1; state.lastState = doc; }
+      else if (doc.type === "state") receiveState(doc);
     };
   });
 }
@@ -265,9 +321,9 @@ async function enterXR(mode) {
 
 renderer.setAnimationLoop((time, frame) => {
   if (frame) streamHand(time, frame);
-  const doc = state.lastState;
   // hold: tests freeze the view (new states wait) to compare screenshots.
-  if (doc && doc !== state.appliedState && !state.hold) { applyState(doc); state.appliedState = doc; }
+  const around = state.hold ? null : statesAt(performance.now());
+  if (around) applyState(around[0].doc, around[1].doc, around[2]);
   if (!renderer.xr.isPresenting) controls.update();
   renderer.render(scene, camera);
   state.framesRendered += 1;
