@@ -135,7 +135,7 @@ _PAGE_STATE = (
     "JSON.stringify({mode: handsim.mode, sent: handsim.sent, scenes: handsim.scenesLoaded, "
     "states: handsim.statesApplied, errors: handsim.errors, "
     "xrFrames: window.handsimXrTest ? handsimXrTest.frames : 0, where: handsim.where(), "
-    "drawn: handsim.drawn})"
+    "drawn: handsim.drawn, passthrough: !!handsim.passthrough})"
 )
 
 
@@ -247,14 +247,16 @@ def _assert_hand_object_and_ghost_drawn(full, shots):
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
-def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp_path):
-    """Enter immersive-vr with the scripted hand: packets in, states back, pixels drawn.
+@pytest.mark.parametrize("mode", ["immersive-vr", "immersive-ar"])
+def test_an_emulated_headset_enters_streams_and_sees_the_hand_and_the_object(tmp_path, mode):
+    """Enter VR or AR with the scripted hand: packets in, states back, pixels drawn.
 
     The screenshot holds the physical hand's, the mustard bottle's and the ghost's pixels (each
-    found as the pixels that change when the page hides that part).
+    found as the pixels that change when the page hides that part); AR drops the background.
     """
-    ready = "window.handsim && handsim.mode === 'immersive-vr' && handsim.statesApplied > 25"
-    page, packets, stream, full, shots = _open_page(tmp_path, "?xrtest=1&enter=immersive-vr", ready)
+    ready = f"window.handsim && handsim.mode === '{mode}' && handsim.statesApplied > 25"
+    page, packets, stream, full, shots = _open_page(tmp_path, f"?xrtest=1&enter={mode}", ready)
+    assert page["passthrough"] == (mode == "immersive-ar")
     # The world is placed so the physical hand lies over the operator's (the ghost's) wrist.
     where = page["where"]
     assert np.linalg.norm(np.subtract(where["palm"], where["ghostWrist"])) < 0.05, where

@@ -186,3 +186,36 @@ def test_teleop_live_over_websocket_streams_the_state_back(tmp_path):
     assert summary["state_stream"]["subscribers"] == 1
     assert summary["state_stream"]["states_sent"] >= 10
     assert summary["packets"]["malformed"] == 0
+
+
+def test_a_reset_that_draws_another_object_sends_the_new_scene():
+    """A new object set on reset is a new scene: the page gets both, in order.
+
+    Seed 0 draws the marker, seed 1 the mustard bottle; every state names the scene whose
+    bodies it lists.
+    """
+    kwargs = {"objects": ["006_mustard_bottle", "040_large_marker"]}
+    with (
+        WebSocketReceiver(0) as rx,
+        TeleopLoop("handsim/Grasp-v0", env_kwargs=kwargs) as loop,
+        StatePublisher(rx, loop.env) as publisher,
+        websockets_client.connect(f"ws://127.0.0.1:{rx.port}") as page,
+    ):
+        page.send(json.dumps({"type": "subscribe"}))
+        while publisher.counters["subscribers"] == 0:
+            time.sleep(0.01)
+        for seed in (0, 1):
+            loop.run(lambda i: None, seed, max_steps=25, realtime=True, on_step=publisher.on_step)
+        scenes, states = [], []
+        with contextlib.suppress(TimeoutError):
+            while True:
+                message = page.recv(timeout=2)
+                if isinstance(message, str):
+                    doc = json.loads(message)
+                    (scenes if doc["type"] == "scene" else states).append(doc)
+    assert [s["scene_id"] for s in scenes] == [1, 2]
+    assert scenes[0]["bodies"][-1] == "obj_040_large_marker"
+    assert scenes[1]["bodies"][-1] == "obj_006_mustard_bottle"
+    assert {s["scene_id"] for s in states} == {1, 2}
+    n_bodies = {s["scene_id"]: len(s["bodies"]) for s in scenes}
+    assert all(len(s["poses"]) == 7 * n_bodies[s["scene_id"]] for s in states)

@@ -311,9 +311,11 @@ async function enterXR(mode) {
   state.mode = mode;
   // Passthrough: the room is the background.
   scene.background = mode === "immersive-ar" ? null : background;
+  state.passthrough = scene.background === null;
   session.addEventListener("end", () => {
     state.mode = "browser";
     scene.background = background;
+    state.passthrough = false;
     placement.position.set(0, 0, 0);
   });
   await renderer.xr.setSession(session);
