@@ -13,6 +13,7 @@ import itertools
 import json
 import pathlib
 import shutil
+import socket
 import subprocess
 import threading
 import time
@@ -308,3 +309,65 @@ def test_every_file_of_the_page_is_package_data():
 
     missing = [f for f in files if not any(matches(f, g) for g in globs)]
     assert not missing, f"not in package-data: {missing}"
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+def test_the_page_waits_for_the_loop_and_follows_it_when_it_restarts(tmp_path):
+    """Opened before any loop runs, the page connects when one starts, and again after it ends.
+
+    The second loop (another task on the same port) sends its own scene, which the page loads.
+    """
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        ws_port = probe.getsockname()[1]
+    server = make_server(0, ws_port)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    profile = tmp_path / "profile"
+    browser = subprocess.Popen(
+        [
+            CHROMIUM,
+            "--headless=new",
+            "--no-sandbox",
+            "--no-first-run",
+            "--disable-dev-shm-usage",
+            "--enable-unsafe-swiftshader",
+            "--use-angle=swiftshader",
+            "--window-size=400,300",
+            "--remote-debugging-port=0",
+            f"--user-data-dir={profile}",
+            f"http://127.0.0.1:{server.server_address[1]}/",
+        ],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    loaded = []
+    try:
+        port_file = pathlib.Path(profile / "DevToolsActivePort")
+        end = time.monotonic() + 60
+        while not port_file.exists() or not port_file.read_text().strip():
+            assert time.monotonic() < end, "Chromium wrote no DevToolsActivePort"
+            time.sleep(0.1)
+        with _DevTools(int(port_file.read_text().split()[0])) as devtools:
+            assert devtools.wait("window.handsim && handsim.framesRendered > 3", 60)
+            time.sleep(1.5)  # the page has tried and failed to connect
+            assert devtools.eval("handsim.connections") == 0
+            for run, task in enumerate(("handsim/Press-v0", "handsim/Grasp-v0"), 1):
+                with (
+                    WebSocketReceiver(ws_port) as rx,
+                    TeleopLoop(task) as loop,
+                    StatePublisher(rx, loop.env) as publisher,
+                ):
+                    ready = f"handsim.connections === {run} && handsim.statesApplied > 0"
+                    for _ in range(20):
+                        step = publisher.on_step
+                        loop.run(lambda i: None, 0, max_steps=10, realtime=True, on_step=step)
+                        if devtools.eval(ready):
+                            break
+                    assert devtools.eval(ready), devtools.eval(_PAGE_STATE)
+                    loaded.append(devtools.eval("handsim.scenesLoaded"))
+    finally:
+        browser.terminate()
+        browser.wait(timeout=30)
+        server.shutdown()
+        server.server_close()
+    assert loaded == [1, 2]

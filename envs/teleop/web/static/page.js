@@ -32,7 +32,7 @@ const GHOST_COLOR = 0x22d3ee;
 const state = {
   seq: 0, sent: 0, ws: null, config: null, done: false, mode: "browser",
   scenesLoaded: 0, statesReceived: 0, statesApplied: 0, framesRendered: 0, lastState: null,
-  errors: [], hold: false,
+  errors: [], hold: false, connections: 0,
 };
 window.handsim = state;  // read by tests
 window.addEventListener("error", (e) => state.errors.push(String(e.message)));
@@ -241,31 +241,46 @@ function send(doc) {
   return true;
 }
 
+// The loop may start after the page, or end and start again: the page keeps (re)connecting.
+function openSocket(url, onOpen) {
+  const ws = new WebSocket(url);
+  ws.binaryType = "arraybuffer";
+  ws.onopen = () => {
+    state.ws = ws;
+    state.connections += 1;
+    // A new loop numbers its scenes again: nothing is drawn from it before its own scene.
+    sceneHeader = null;
+    history.length = 0;
+    clockOffsetMs = null;
+    if (current) current.id = null;
+    ws.send(JSON.stringify({ type: "subscribe" }));
+    status(`connected to ${url}`);
+    if (onOpen) onOpen();
+  };
+  ws.onclose = () => {
+    if (state.ws === ws) state.ws = null;
+    status(`waiting for the loop at ${url} ('handsim teleop live --websocket ...')`);
+    setTimeout(() => openSocket(url), 1000);
+  };
+  ws.onmessage = (event) => {
+    if (event.data instanceof ArrayBuffer) {
+      if (sceneHeader) loadScene(sceneHeader, event.data);
+      sceneHeader = null;
+      return;
+    }
+    const doc = JSON.parse(event.data);
+    if (doc.type === "scene") sceneHeader = doc;
+    else if (doc.type === "state") receiveState(doc);
+  };
+}
+
 async function connect() {
   state.config = await (await fetch("config.json")).json();
   const port = params.get("ws") || state.config.ws_port;
   const url = `ws://${location.hostname}:${port}`;
   document.getElementById("target").textContent = url;
-  return new Promise((resolve, reject) => {
-    const ws = new WebSocket(url);
-    ws.binaryType = "arraybuffer";
-    ws.onopen = () => {
-      state.ws = ws;
-      ws.send(JSON.stringify({ type: "subscribe" }));
-      resolve(ws);
-    };
-    ws.onerror = () => reject(new Error(`cannot connect to ${url}`));
-    ws.onmessage = (event) => {
-      if (event.data instanceof ArrayBuffer) {
-        if (sceneHeader) loadScene(sceneHeader, event.data);
-        sceneHeader = null;
-        return;
-      }
-      const doc = JSON.parse(event.data);
-      if (doc.type === "scene") sceneHeader = doc;
-      else if (doc.type === "state") receiveState(doc);
-    };
-  });
+  status(`waiting for the loop at ${url}`);
+  return new Promise((resolve) => openSocket(url, resolve));
 }
 
 async function replay() {
@@ -333,7 +348,6 @@ renderer.setAnimationLoop((time, frame) => {
 
 (async () => {
   try { await connect(); } catch (e) { status(String(e)); return; }
-  status("connected");
   const replayButton = document.getElementById("replay");
   if (state.config.has_replay) {
     replayButton.disabled = false;
