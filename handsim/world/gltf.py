@@ -44,7 +44,8 @@ class SceneGlb:
     Attributes:
         glb: the binary glTF 2.0 file.
         body_ids: MuJoCo ids of the exported bodies, in the order of :func:`body_poses` rows.
-        body_names: their names (the glTF node names; ``body<id>`` for unnamed bodies).
+        body_names: their names (the glTF node names; ``body<id>`` for unnamed bodies and
+            for bodies named ``scene`` or ``y_up``, the glb's own nodes).
     """
 
     glb: bytes
@@ -101,8 +102,13 @@ def _transform(pos: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:
     return T
 
 
+_RESERVED_NODES = ("scene", "y_up")
+
+
 def _body_name(model: mujoco.MjModel, b: int) -> str:
-    return model.body(b).name or f"body{b}"
+    name = model.body(b).name
+    # Unnamed bodies, and bodies named like the glb's own root nodes, go by their id.
+    return f"body{b}" if not name or name in _RESERVED_NODES else name
 
 
 def export_glb(

@@ -102,3 +102,17 @@ def test_bad_input_is_refused(model_data, model, kwargs, match):
     """Wrong model types and groups are refused with what is valid."""
     with pytest.raises(InvalidExport, match=match):
         export_glb(model if model is not None else model_data[0], **kwargs)
+
+
+def test_unnamed_bodies_and_reserved_names_go_by_their_id():
+    """A body without a name, or named like the glb's root nodes, is the node ``body<id>``."""
+    model = mujoco.MjModel.from_xml_string(
+        """<mujoco><worldbody>
+        <body pos="0 0 1"><geom type="sphere" size="0.1"/></body>
+        <body name="y_up"><geom type="sphere" size="0.1"/></body>
+        </worldbody></mujoco>"""
+    )
+    export = export_glb(model)
+    assert export.body_names == ("body1", "body2")
+    scene = trimesh.load(io.BytesIO(export.glb), file_type="glb")
+    assert {"body1", "body2", "y_up"} <= set(scene.graph.nodes)
