@@ -340,8 +340,9 @@ class TeleopLoop:
             realtime: pace the steps at the control rate (live streams).
             stop_at_success: end the episode at the task's success (the env terminates).
             on_step: called after every physics step with the step number and
-                ``{"operator_world", "tracked_world", "success"}`` ((21, 3) keypoints, world
-                frame, m, or ``None``; bool): e.g. a
+                ``{"operator_world", "tracked_world", "anchor_offset_m", "success"}`` ((21, 3)
+                keypoints, world frame, m, or ``None``; what the anchor added to the stream,
+                (3,) m; bool): e.g. a
                 :class:`~handsim.envs.teleop.xr_state.StatePublisher` streaming to the page.
 
         Returns:
@@ -353,11 +354,14 @@ class TeleopLoop:
         dt = self.control_dt
         limit = (env.spec.max_episode_steps if env.spec is not None else None) or 1000
         frames: Callable[[int], tuple[np.ndarray | None, np.ndarray | None]]
+        # What anchor="start" adds to the stream, world frame, m (empty: nothing yet).
+        anchor_offset: list[np.ndarray] = []
         if isinstance(stream, OperatorStream):
             s = stream.resample(1.0 / dt)
             if cfg.anchor == "start":
                 start = base.scene.binding.keypoints(base.scene.data)[0]
-                s = s.translated(start - s.first_wrist_m())
+                anchor_offset = [start - s.first_wrist_m()]
+                s = s.translated(anchor_offset[0])
             n_frames = len(s)
             # After the stream's end the operator holds still (its last frame).
             steps = max_steps or max(limit, n_frames - 1)
@@ -369,7 +373,6 @@ class TeleopLoop:
             operator_length = s.hand_length_m
         else:
             steps = max_steps or limit
-            anchor_offset: list[np.ndarray] = []
 
             def frames(i: int) -> tuple[np.ndarray | None, np.ndarray | None]:
                 kp = stream(i)
@@ -524,6 +527,7 @@ class TeleopLoop:
                     {
                         "operator_world": operator_kp,
                         "tracked_world": tracked,
+                        "anchor_offset_m": anchor_offset[0] if anchor_offset else np.zeros(3),
                         "success": rec["success"][-1],
                     },
                 )

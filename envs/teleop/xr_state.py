@@ -92,7 +92,6 @@ class StatePublisher:
         """Why the scene could not be exported (``None``: it could, or was not asked)."""
         self._state: str | None = None
         self._state_id = 0
-        self._raw: np.ndarray | None = None
         self._seq = -1
         self._closed = False
         receiver.set_control_handler(self._on_control)
@@ -106,7 +105,7 @@ class StatePublisher:
         frame = self.receiver.latest()
         if frame is None:
             return None
-        self._raw, self._seq = frame.keypoints_world, frame.seq
+        self._seq = frame.seq
         return frame.keypoints_world
 
     def on_step(self, step: int, record: dict[str, Any]) -> None:
@@ -127,13 +126,7 @@ class StatePublisher:
                 return
         data = scene.data
         tracked = record.get("tracked_world")
-        operator = record.get("operator_world")
-        offset = np.zeros(3)
-        if operator is not None and self._raw is not None:
-            diff = np.asarray(operator) - self._raw
-            finite = np.all(np.isfinite(diff), axis=1)
-            if finite.any():
-                offset = diff[finite][0]
+        offset = np.asarray(record.get("anchor_offset_m", np.zeros(3)), dtype=np.float64)
         doc = {
             "type": "state",
             "scene_id": self._scene_id,

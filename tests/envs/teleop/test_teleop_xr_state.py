@@ -11,7 +11,13 @@ import time
 import numpy as np
 import pytest
 
-from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver, stream_from_expert
+from handsim.envs.teleop import (
+    TeleopConfig,
+    TeleopLoop,
+    UdpReceiver,
+    WebSocketReceiver,
+    stream_from_expert,
+)
 from handsim.envs.teleop.live import control_message
 from handsim.envs.teleop.streams import InvalidStream
 from handsim.envs.teleop.xr_state import StatePublisher
@@ -219,3 +225,26 @@ def test_a_reset_that_draws_another_object_sends_the_new_scene():
     assert {s["scene_id"] for s in states} == {1, 2}
     n_bodies = {s["scene_id"]: len(s["bodies"]) for s in scenes}
     assert all(len(s["poses"]) == 7 * n_bodies[s["scene_id"]] for s in states)
+
+
+def test_on_step_reports_what_the_anchor_added_for_live_and_file_streams():
+    """operator_world - anchor_offset_m is the stream as given, for live functions and files."""
+    stream = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
+    raw = stream.keypoints_world[0] + np.array([0.3, -0.2, 0.5])  # elsewhere in the room
+    with TeleopLoop(
+        "handsim/Press-v0", TeleopConfig(anchor="start"), env_kwargs={"task": "button"}
+    ) as loop:
+        live: list[dict] = []
+        loop.run(lambda i: raw, 0, max_steps=3, on_step=lambda i, r: live.append(r))
+        moved = stream_from_expert("handsim/Press-v0", 0, env_kwargs={"task": "button"})
+        from_file: list[dict] = []
+        loop.run(moved, 0, max_steps=3, on_step=lambda i, r: from_file.append(r))
+    assert len(live) == 3
+    for record in live:
+        np.testing.assert_allclose(record["operator_world"] - record["anchor_offset_m"], raw)
+    assert np.linalg.norm(live[0]["anchor_offset_m"]) > 0.1
+    resampled = moved.resample(1.0 / loop.control_dt).keypoints_world
+    for k, record in enumerate(from_file, 1):
+        np.testing.assert_allclose(
+            record["operator_world"] - record["anchor_offset_m"], resampled[k], atol=1e-12
+        )
