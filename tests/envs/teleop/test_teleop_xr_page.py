@@ -15,6 +15,7 @@ import pathlib
 import shutil
 import socket
 import subprocess
+import sys
 import threading
 import time
 import urllib.request
@@ -375,3 +376,87 @@ def test_the_page_waits_for_the_loop_and_follows_it_when_it_restarts(tmp_path):
         server.shutdown()
         server.server_close()
     assert loaded == [True, True]
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+@pytest.mark.xfail(
+    strict=True,
+    reason="`handsim teleop serve` crashes on this branch (serve() got an unexpected keyword "
+    "argument 'out'; fixed on the teleop branch): remove this mark when both are merged",
+)
+def test_the_two_commands_show_the_scene_in_headless_chromium(tmp_path):
+    """The two commands (subprocesses) and the emulated headset: the page draws the loop's scene.
+
+    `teleop live --websocket` runs the task, `teleop serve` the page; the screenshot shows the
+    hand and the object.
+    """
+    ws_port, http_port = _free_port(), _free_port()
+    cli = [sys.executable, "-m", "handsim.cli", "teleop"]
+    live = subprocess.Popen(
+        [*cli, "live", "--websocket", str(ws_port), "--duration", "20", "--wait", "120"]
+        + ["--out", str(tmp_path / "live")],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    serve = subprocess.Popen(
+        [*cli, "serve", "--port", str(http_port), "--websocket", str(ws_port)]
+        + ["--duration", "120"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    profile = tmp_path / "profile"
+    browser = None
+    try:
+        end = time.monotonic() + 60
+        while True:
+            assert serve.poll() is None, serve.stdout.read()
+            try:
+                urllib.request.urlopen(f"http://127.0.0.1:{http_port}/config.json", timeout=1)
+                break
+            except OSError:
+                assert time.monotonic() < end, "teleop serve never answered"
+                time.sleep(0.2)
+        browser = subprocess.Popen(
+            [
+                CHROMIUM,
+                "--headless=new",
+                "--no-sandbox",
+                "--enable-unsafe-swiftshader",
+                "--use-angle=swiftshader",
+                "--window-size=800,600",
+                "--remote-debugging-port=0",
+                f"--user-data-dir={profile}",
+                f"http://127.0.0.1:{http_port}/?xrtest=1&enter=immersive-vr",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        port_file = pathlib.Path(profile / "DevToolsActivePort")
+        while not port_file.exists() or not port_file.read_text().strip():
+            assert time.monotonic() < end + 60, "Chromium wrote no DevToolsActivePort"
+            time.sleep(0.1)
+        with _DevTools(int(port_file.read_text().split()[0])) as devtools:
+            ready = "window.handsim && handsim.mode === 'immersive-vr' && handsim.statesApplied > 9"
+            assert devtools.wait(ready, 120), devtools.eval(_PAGE_STATE)
+            devtools.eval("handsim.hold = true")
+            full = devtools.screenshot()
+            shots = {}
+            for part in ("hand", "objects", "ghost"):
+                devtools.eval(f"handsim.setVisible('{part}', false)")
+                shots[part] = devtools.screenshot()
+                devtools.eval(f"handsim.setVisible('{part}', true)")
+    finally:
+        for process in (browser, serve, live):
+            if process is not None and process.poll() is None:
+                process.terminate()
+                process.wait(timeout=30)
+    hand = np.abs(full.astype(int) - shots["hand"].astype(int)).sum(axis=2) > 30
+    objects = np.abs(full.astype(int) - shots["objects"].astype(int)).sum(axis=2) > 30
+    assert hand.sum() > 0.01 * hand.size and objects.sum() > 0.001 * objects.size
