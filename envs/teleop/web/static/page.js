@@ -99,7 +99,7 @@ world.add(ghost);
 // -- the scene and state from the loop ----------------------------------------------------
 const loader = new GLTFLoader();
 let sceneHeader = null;  // the header of the glb that arrives next
-let current = null;  // { id, root, nodes: [Object3D per body], groups }
+let current = null;  // { id, root, nodes: [Object3D per body], names: [body names] }
 
 function bodyGroup(name) {
   if (name === "world") return "table";
@@ -109,7 +109,14 @@ function bodyGroup(name) {
 
 function loadScene(header, buffer) {
   loader.parse(buffer, "", (gltf) => {
-    if (current) placement.remove(current.root);
+    if (current) {
+      // A new scene per reset would otherwise keep every old one on the GPU.
+      placement.remove(current.root);
+      current.root.traverse((o) => {
+        if (o.geometry) o.geometry.dispose();
+        if (o.material) o.material.dispose();
+      });
+    }
     const root = gltf.scene;  // its node y_up turns MuJoCo's world like `world` does
     const nodes = header.bodies.map((name) =>
       root.getObjectByName(THREE.PropertyBinding.sanitizeNodeName(name)) || null);
