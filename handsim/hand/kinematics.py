@@ -8,7 +8,6 @@ as MuJoCo does; keypoints agree with the model's sites to float precision (teste
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.hand.keypoints import EXTRA_POINT_NAMES
 from handsim.hand.model import HandParams, Skeleton, build_skeleton, extra_point_positions
@@ -43,6 +42,9 @@ class ForwardKinematics:
     """
 
     def __init__(self, hand: HandParams | Skeleton) -> None:
+        # scipy.spatial loads when kinematics are built, not on `import handsim`.
+        from scipy.spatial.transform import Rotation
+
         self.skeleton = hand if isinstance(hand, Skeleton) else build_skeleton(hand)
         bodies = self.skeleton.bodies
         self._offset_rot = np.stack(
@@ -66,6 +68,8 @@ class ForwardKinematics:
             ``(R, t)``: (..., B, 3, 3) rotations ``world_from_body`` and (..., B, 3) origins,
             metres, for the B bodies in skeleton order.
         """
+        from scipy.spatial.transform import Rotation
+
         batch = pose.batch_shape
         angles = pose.angles.reshape(-1, pose.angles.shape[-1])
         n = angles.shape[0]
