@@ -149,27 +149,13 @@ _SHADOW_LIGHT = "key"
 _INHERITED_GL: list[object] = []
 
 
-def _nearest_indices(src: int, dst: int) -> np.ndarray:
-    """Source pixel of each destination pixel for a centre-aligned nearest-neighbour resize."""
-    return np.minimum(((np.arange(dst) + 0.5) * (src / dst)).astype(np.intp), src - 1)
-
-
 def scaled_intrinsics(intrinsics: CameraIntrinsics, width: int, height: int) -> CameraIntrinsics:
-    """Intrinsics of an image resized from ``intrinsics``' resolution to ``width`` x ``height``.
+    """Intrinsics of the same camera with a ``width`` x ``height`` image.
 
-    Pixel centres are mapped to pixel centres (``u' = (u + 0.5) * width / W - 0.5``), the
-    mapping of :func:`_nearest_indices`.
+    :meth:`CameraIntrinsics.scaled <handsim.world.camera.CameraIntrinsics.scaled>`: pixel centres
+    at integers, ``fx' = fx * width / W``, ``cx' = (cx + 0.5) * width / W - 0.5``.
     """
-    sx, sy = width / intrinsics.width, height / intrinsics.height
-    return CameraIntrinsics(
-        width,
-        height,
-        intrinsics.fx * sx,
-        intrinsics.fy * sy,
-        (intrinsics.cx + 0.5) * sx - 0.5,
-        (intrinsics.cy + 0.5) * sy - 0.5,
-        intrinsics.name if (sx, sy) == (1.0, 1.0) else f"{intrinsics.name}@{width}x{height}",
-    )
+    return intrinsics.scaled(width, height)
 
 
 def depth_colormap(depth_m: np.ndarray, near_m: float, far_m: float) -> np.ndarray:
@@ -219,7 +205,8 @@ class HandSimEnv(gym.Env, abc.ABC):
     diverged step). The Frame itself (with its images) is :attr:`frame` (``None`` without
     labels or after a divergence); with ``labels`` off no label work is done, and in the state
     modes nothing is rendered. :attr:`obs_intrinsics` are the intrinsics of the observation
-    images (the frame's ``K`` is at the sensor resolution).
+    images: the camera renders at ``width`` x ``height`` (its ``K`` scaled), so they are the
+    frame's ``K`` too.
 
     Subclasses implement :meth:`_episode_objects`, :meth:`_reset_task`, :meth:`_task_reward`
     and may add task observation keys with :meth:`_task_observation_space` and
@@ -242,15 +229,12 @@ class HandSimEnv(gym.Env, abc.ABC):
                 "render_mode='human' needs a display (DISPLAY is not set); use 'rgb_array' or "
                 "'depth_array' headless"
             )
-        self.intrinsics = camera_preset(config.camera)
-        self.obs_intrinsics = scaled_intrinsics(self.intrinsics, config.width, config.height)
-        """Intrinsics of the observation images (``width`` x ``height``)."""
-        self._resize = None
-        if (config.width, config.height) != (self.intrinsics.width, self.intrinsics.height):
-            self._resize = (
-                _nearest_indices(self.intrinsics.height, config.height)[:, None],
-                _nearest_indices(self.intrinsics.width, config.width)[None, :],
-            )
+        # The camera renders at the requested size (its K scaled; no resize afterwards): a
+        # smaller image costs less, and the labels are those of the image.
+        self.intrinsics = camera_preset(config.camera).scaled(config.width, config.height)
+        """Intrinsics of the rendered images (``width`` x ``height``), the frame's ``K``."""
+        self.obs_intrinsics = self.intrinsics
+        """Intrinsics of the observation images (the same as :attr:`intrinsics`)."""
         self.sensor = sensor_model(config.sensor)
         self.control_dt = config.frame_skip * 0.002
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.control_dt))}
@@ -519,8 +503,6 @@ class HandSimEnv(gym.Env, abc.ABC):
         return obs, reward, terminated, False, self._info(terms, task)
 
     def _image(self, image: np.ndarray) -> np.ndarray:
-        if self._resize is not None:
-            image = image[self._resize]
         return image[None] if self.config.channel_axis else image
 
     def _observe(self) -> dict[str, np.ndarray]:

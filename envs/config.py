@@ -186,8 +186,8 @@ class EnvConfig:
         labels: render and label a :class:`~handsim.frame.Frame` every step (``info["labels"]``);
             default ``True`` for modes with images, ``False`` for ``"state"`` and
             ``"privileged_state"`` (nothing is rendered then).
-        width: observation image width, pixels (default: the camera preset's); images are
-            resized from the sensor resolution (nearest neighbour) and ``K`` scaled with them.
+        width: observation image width, pixels (default: the camera preset's); the camera
+            renders at this size with its ``K`` scaled (the same field of view; no resize).
         height: observation image height, pixels (default: the preset's, or ``width`` times the
             preset's aspect ratio when only ``width`` is given).
         depth_format: ``"float32_m"`` (metres) or ``"uint16_mm"`` (millimetres, rounded).

@@ -147,6 +147,45 @@ class CameraIntrinsics:
         """MuJoCo ``principal_pixel`` that puts the principal point at ``(cx, cy)``."""
         return ((self.width - 1) / 2.0 - self.cx, (self.height - 1) / 2.0 - self.cy)
 
+    def scaled(self, width: int, height: int) -> CameraIntrinsics:
+        """The same camera (same field of view and optical axis) with a ``width x height`` image.
+
+        Pixel centres are at integer coordinates, so the image's outer edges, at ``-0.5`` and
+        ``W - 0.5``, stay where they are: ``fx' = fx s``, ``cx' = (cx + 0.5) s - 0.5`` with
+        ``s = width / W`` (and the same along ``v`` with ``height / H``). A ray hits pixel
+        coordinate ``u`` in this image and ``(u + 0.5) s - 0.5`` in the scaled one. Rendering
+        with the result renders at that size (no resize); the working range is kept.
+
+        Args:
+            width: image width, pixels.
+            height: image height, pixels.
+
+        Returns:
+            The scaled intrinsics, named ``"<name>@<W>x<H>"`` (``self`` at the same size).
+
+        Raises:
+            InvalidCamera: for a size that is not an integer in ``[1, MAX_IMAGE_SIDE]``.
+        """
+        for field, value in (("width", width), ("height", height)):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+                raise InvalidCamera(
+                    f"scaled() needs integer width and height in pixels; received "
+                    f"{field}={show(value)} ({type(value).__name__})"
+                )
+        if (width, height) == (self.width, self.height):
+            return self
+        sx, sy = width / self.width, height / self.height
+        return dataclasses.replace(
+            self,
+            width=int(width),
+            height=int(height),
+            fx=self.fx * sx,
+            fy=self.fy * sy,
+            cx=(self.cx + 0.5) * sx - 0.5,
+            cy=(self.cy + 0.5) * sy - 0.5,
+            name=f"{self.name.split('@')[0]}@{int(width)}x{int(height)}",
+        )
+
     def project(self, points_cam: np.ndarray) -> np.ndarray:
         """Project points given in the camera frame to pixels.
 
