@@ -8,7 +8,6 @@ as MuJoCo does; keypoints agree with the model's sites to float precision (teste
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.errors import InvalidPose
 from handsim.hand.keypoints import EXTRA_POINT_NAMES
@@ -44,6 +43,9 @@ class ForwardKinematics:
     """
 
     def __init__(self, hand: HandParams | Skeleton) -> None:
+        # scipy.spatial loads when kinematics are built, not on `import handsim`.
+        from scipy.spatial.transform import Rotation
+
         self.skeleton = hand if isinstance(hand, Skeleton) else build_skeleton(hand)
         bodies = self.skeleton.bodies
         self._offset_rot = np.stack(
@@ -76,6 +78,8 @@ class ForwardKinematics:
                 f"{type(pose).__name__} {str(pose)[:40]!r}: make one with HandPose.from_vector, "
                 "gesture(name) or grasp_pose(name)"
             )
+        from scipy.spatial.transform import Rotation
+
         batch = pose.batch_shape
         angles = pose.angles.reshape(-1, pose.angles.shape[-1])
         n = angles.shape[0]

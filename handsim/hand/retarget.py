@@ -51,7 +51,6 @@ import dataclasses
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.errors import InvalidKeypoints, InvalidPose
 from handsim.hand.kinematics import ForwardKinematics
@@ -174,6 +173,9 @@ class _ChainKinematics:
     """
 
     def __init__(self, skeleton: Skeleton) -> None:
+        # scipy.spatial loads when a retargeter is built, not on `import handsim`.
+        from scipy.spatial.transform import Rotation
+
         bodies = skeleton.bodies
         chains = [[i for i, b in enumerate(bodies) if b.part == d] for d in DIGITS]
         if any(len(c) != 3 for c in chains) or bodies[0].parent != -1:

@@ -52,7 +52,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from handsim.metrics._common import (
     ADD_FRACTION,
@@ -189,6 +188,8 @@ def adi_error_mm(T_est: Any, T_gt: Any, model_points_m: Any) -> float:  # noqa: 
         InvalidMetricInput: on a bad transform or point array.
     """
     _, _, p_est, p_gt = _posed_pair(T_est, T_gt, model_points_m)
+    from scipy.spatial import cKDTree
+
     dist, _ = cKDTree(p_est).query(p_gt, k=1)
     return float(np.mean(dist) * MM_PER_M)
 
