@@ -321,6 +321,13 @@ def _closing(
     return _Closing(angles, spheres, contact_vec, gap, squeeze)
 
 
+# The index and little fingers of the span grasp: curled over the box's top face. Straight
+# (-20, 0, 20) they stuck out over the box; closing with the middle and ring fingers they pressed
+# on the top face and the box was not lifted; fully curled (0, 50, 40) they met the top face
+# on the way down and no plan was found.
+_SPAN_CURL_DEG = (-20.0, 35.0, 30.0)
+
+
 def _span_path() -> np.ndarray:
     # Boxes wider than _SPAN_WIDTH_M: the thumb at its widest (full palmar abduction and
     # extension at the CMC), its tip on the near wall; the middle and ring fingers hyperextended
@@ -343,8 +350,9 @@ def _span_path() -> np.ndarray:
         open_angles[joint_index(name)] = np.deg2rad(deg)
     delta[joint_index("thumb_ip_flex")] = np.deg2rad(50.0)
     for finger in ("index", "middle", "ring", "little"):
-        # (MCP, PIP, DIP) at closure 0, degrees; the index and little fingers straighter.
-        mcp, pip, dip = (-20.0, 0.0, 20.0) if finger in ("index", "little") else (-17.0, 20.0, 39.0)
+        # (MCP, PIP, DIP) at closure 0, degrees; the index and little fingers curled over the
+        # top face, clear of it (not straight out), and not closing.
+        mcp, pip, dip = (-17.0, 20.0, 39.0) if finger in ("middle", "ring") else _SPAN_CURL_DEG
         open_angles[joint_index(f"{finger}_mcp_flex")] = np.deg2rad(mcp)
         open_angles[joint_index(f"{finger}_pip_flex")] = np.deg2rad(pip)
         open_angles[joint_index(f"{finger}_dip_flex")] = np.deg2rad(dip)
