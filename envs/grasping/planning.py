@@ -398,6 +398,8 @@ def _side_candidates(
     top = float(points[:, 2].max())
     height = min(recipe.height_fraction * top, 0.14)
     band = points[np.abs(points[:, 2] - height) < 0.01]
+    if len(band) < 3:
+        return []  # no upright object there (it fell over, or off the table)
     centre = 0.5 * (band.max(axis=0) + band.min(axis=0))
 
     def builder(d: np.ndarray, span: float):
