@@ -208,7 +208,7 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
         path = anchors[lower] + frac * (anchors[lower + 1] - anchors[lower])
     if not recipe.hook and not recipe.straight_fingers:
         return path
-    fingers = {f: _STRAIGHT_FINGER_DEG for f in recipe.straight_fingers}
+    fingers = {f: recipe.straight_fingers_deg for f in recipe.straight_fingers}
     if recipe.hook:
         mcp_open, mcp_closed = _HOOK_MCP_DEG
         hooked = (mcp_open + _CLOSURES * (mcp_closed - mcp_open), *_HOOK_PIP_DIP_DEG)
@@ -227,7 +227,6 @@ def _closure_path(recipe: GraspRecipe) -> np.ndarray:
 # 1-11 mm into the far top edge.
 _HOOK_MCP_DEG = (-20.0, 90.0)
 _HOOK_PIP_DIP_DEG = (40.0, 40.0)
-_STRAIGHT_FINGER_DEG = (-20.0, 0.0, 20.0)  # MCP, PIP, DIP: the span path's index and little
 
 
 def _nominal_stiffness(obj: YCBObject, params: HandParams) -> np.ndarray:

@@ -183,6 +183,11 @@ def _raise_above_table(
     return None
 
 
+# A vessel's handle stays this far (horizontally) from the line of a pinch around its body:
+# the pinch axis at least 40 deg off the mug's handle.
+_HANDLE_CLEARANCE_M = 0.03
+
+
 def _top_candidates(
     obj: YCBObject,
     T: np.ndarray,
@@ -329,6 +334,13 @@ def _top_candidates(
         for (centre, offset), height in itertools.product(centres, variant_heights):
             near = np.abs(points[:, 2] - height) < 0.01
             rel = points[near] - centre
+            handle = None
+            if obj.cavity_point_m is not None and recipe.strategy == "top":
+                # A vessel held around its body: the points farther from the cavity's axis
+                # than its wall are the handle, which the pinch keeps away from.
+                axis = T[:3, :3] @ obj.cavity_point_m + T[:3, 3]
+                radial = np.linalg.norm(points[near, :2] - axis[:2], axis=1)
+                handle = radial > 1.1 * float(np.median(radial))
             for angle in axis_angles:
                 u = np.array([np.cos(angle), np.sin(angle), 0.0])
                 if recipe.across_long_axis:
@@ -353,6 +365,8 @@ def _top_candidates(
                 if recipe.strategy == "rim":
                     strip &= np.abs(rel @ u) < 0.03
                 if strip.sum() < 3:
+                    continue
+                if handle is not None and (handle & (np.abs(rel @ n) < _HANDLE_CLEARANCE_M)).any():
                     continue
                 s = rel[strip] @ u
                 if recipe.finger_holes:
