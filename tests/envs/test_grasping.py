@@ -1335,3 +1335,17 @@ def test_start_pose_rises_above_a_neighbour_under_the_palm():
     assert high.wrist_pos[2] > low.wrist_pos[2] + 0.05
     palm_height = high.wrist_pos[2]  # palm down: the palm centre is level with the wrist (+-2 cm)
     assert palm_height > top + 0.03
+
+
+def test_planning_still_exports_the_names_of_its_split_modules():
+    """The state, recipes and hand geometry moved out of planning; planning re-exports them."""
+    from handsim.envs.grasping import hand_geometry, planning, recipes, state
+
+    for name in planning.__all__:
+        assert getattr(planning, name) is not None
+    assert planning.GraspState is state.GraspState
+    assert planning.start_pose is state.start_pose
+    assert planning.GRASP_RECIPES is recipes.GRASP_RECIPES
+    assert planning.OBJECT_RECIPES is recipes.OBJECT_RECIPES
+    assert planning._hand_geometry is hand_geometry._hand_geometry
+    assert set(state.__all__) | set(recipes.__all__) <= set(planning.__all__)
