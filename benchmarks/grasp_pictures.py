@@ -1,9 +1,10 @@
 """Pictures of held grasps at maximum lift: ``docs/img/grasp_<object>.png`` (RGB, 480x480).
 
 Run: ``python benchmarks/grasp_pictures.py [NAME ...]`` (default: the objects below). For each
-object, a ``handsim/Grasp-v0`` episode (seed 0) with the grasp expert; the state of the highest lift during the hold is restored with
-``set_state`` and rendered from a free camera 0.4 m from the object (azimuth 20 deg, elevation
--15 deg). Prints the lift and the deepest hand-object penetration of that state.
+object, a ``handsim/Grasp-v0`` episode (seed 0) with the grasp expert; the state of the highest
+lift during the hold is restored with ``set_state`` and rendered from a free camera 0.4 m from
+the object (azimuth 20 deg, elevation -15 deg). Prints the lift and the deepest hand-object
+penetration of that state.
 """
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ tool        035 power drill                     prismatic 4 finger; from the top
                                                 grip
 vessel      019 pitcher base                    palmar pinch; thumb outside and index inside
                                                 the rim nearest the user
-            025 mug                             prismatic 4 finger; around its body from
+vessel      025 mug                             prismatic 4 finger; around its body from
                                                 above, as the boxes, the pinch away from the
                                                 handle (:data:`OBJECT_RECIPES`)
 bowl        024 bowl                            palmar pinch; as vessel

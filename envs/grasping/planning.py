@@ -2,8 +2,8 @@
 
 Plans come from the object's surface points and the hand's forward kinematics
 (:mod:`.hand_geometry`), for the recipe of the object (:mod:`.recipes`). The expert's state,
-start pose and timing (:mod:`.state`) and the recipes are re-exported here, where they were
-first defined.
+start pose and timing (:mod:`.state`) and the recipes stay importable from here, where they
+were first defined (they are documented in their own modules).
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from handsim.envs.grasping.hand_geometry import (
     _squeeze,
     _wide_open,  # noqa: F401 (re-exported for benchmarks/span_path_search.py)
 )
-from handsim.envs.grasping.recipes import (
+from handsim.envs.grasping.recipes import (  # noqa: F401 (re-exported)
     GRASP_RECIPES,
     OBJECT_RECIPES,
     OBJECT_SHAPE_CLASSES,
@@ -81,31 +81,7 @@ from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import GRASP_TYPES
 from handsim.world.objects import YCBObject
 
-__all__ = [
-    "FRAME_SKIP",
-    "CONTROL_DT_S",
-    "LIFT_HEIGHT_M",
-    "HOLD_DURATION_S",
-    "MAX_SLIP_M",
-    "MAX_TURN_RAD",
-    "MAX_WRIST_SPEED_M_S",
-    "EXPERT_WRIST_SPEED_M_S",
-    "InvalidGraspState",
-    "GraspPlanningError",
-    "GraspState",
-    "TOUCH_PARTS",
-    "touch_forces",
-    "start_pose",
-    "ShapeClass",
-    "OBJECT_SHAPE_CLASSES",
-    "GraspRecipe",
-    "GRASP_RECIPES",
-    "OBJECT_RECIPES",
-    "grasp_recipe",
-    "shape_class",
-    "GraspPlan",
-    "plan_grasp",
-]
+__all__ = ["GraspPlan", "plan_grasp"]
 
 
 # Plans ----------------------------------------------------------------------------------------
