@@ -33,7 +33,13 @@ from handsim.world.scene import CameraSpec, Scene, SceneSpec
 
 from ..deepprior.preprocess import CROP_SIZE, CUBE_M, crop_matrix, denormalize_keypoints
 
-__all__ = ["InvalidSynthesizerInput", "RendererSynthesizer", "crop_intrinsics"]
+__all__ = [
+    "InvalidSynthesizerInput",
+    "LearnedSynthesizerRunner",
+    "RendererSynthesizer",
+    "crop_intrinsics",
+    "make_synthesizer",
+]
 
 # MuJoCo camera looking along its -z with +y up, turned half a turn about x: the OpenCV axes.
 _OPENCV_QUAT_WXYZ = (0.0, 1.0, 0.0, 0.0)
@@ -241,3 +247,75 @@ class RendererSynthesizer:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+class LearnedSynthesizerRunner:
+    """The learned synthesizer behind the same call as :class:`RendererSynthesizer`.
+
+    Args:
+        checkpoint: a ``handsim train synthesizer`` run folder or ``.pt`` path.
+        device: torch device.
+
+    Raises:
+        InvalidCheckpoint: for a checkpoint that cannot be loaded or is not a synthesizer.
+    """
+
+    def __init__(self, checkpoint: str, device: str = "cpu") -> None:
+        from .checkpoint import load_feedback_model
+
+        self.model, config = load_feedback_model(checkpoint, "synthesizer", device)
+        self.cube_m = float(config["cube_m"])
+        self.size = int(config["model"]["size"])
+        self.device = device
+
+    def __call__(
+        self,
+        poses_norm: np.ndarray,
+        centers_cam: np.ndarray,
+        K: np.ndarray,  # noqa: N803
+        hand_length_m: np.ndarray,
+        is_left: np.ndarray | None = None,
+        initial: list | None = None,
+    ) -> tuple[np.ndarray, list[None]]:
+        """(B, S, S) float32 crops of (B, 63) normalized poses (the other inputs are unused)."""
+        import torch
+
+        p = np.asarray(poses_norm, dtype=np.float32).reshape(len(poses_norm), -1)
+        with torch.inference_mode():
+            crops = self.model(torch.from_numpy(p).to(self.device))[:, 0]
+        return crops.float().cpu().numpy(), [None] * len(p)
+
+    def close(self) -> None:
+        """Nothing to free (the same interface as :class:`RendererSynthesizer`)."""
+
+
+def make_synthesizer(
+    kind: str,
+    checkpoint: str | None = None,
+    *,
+    cube_m: float = CUBE_M,
+    size: int = CROP_SIZE,
+    device: str = "cpu",
+) -> RendererSynthesizer | LearnedSynthesizerRunner:
+    """``renderer`` (:class:`RendererSynthesizer`) or ``learned`` (``checkpoint`` needed).
+
+    Raises:
+        InvalidSynthesizerInput: for another kind, a missing checkpoint, or a learned
+            synthesizer of another cube or crop size.
+    """
+    if kind == "renderer":
+        return RendererSynthesizer(cube_m=cube_m, size=size)
+    if kind != "learned":
+        raise InvalidSynthesizerInput(f"synthesizer must be renderer or learned; received {kind!r}")
+    if not checkpoint:
+        raise InvalidSynthesizerInput(
+            "the learned synthesizer needs a checkpoint: the run folder of `handsim train "
+            "synthesizer`"
+        )
+    runner = LearnedSynthesizerRunner(checkpoint, device)
+    if runner.size != size or abs(runner.cube_m - cube_m) > 1e-9:
+        raise InvalidSynthesizerInput(
+            f"synthesizer {checkpoint} makes {runner.size} px crops of a {runner.cube_m} m cube; "
+            f"this loop needs {size} px and {cube_m} m"
+        )
+    return runner
