@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from handsim.errors import HandSimError, InvalidKeypoints
-from handsim.hand.model import HandParams
+from handsim.hand.model import HAND_LENGTH_RANGE_M, HandParams
 from handsim.hand.pose import HandPose
 from handsim.hand.retarget import Retargeter
 from handsim.world.camera import CameraIntrinsics
@@ -128,24 +128,37 @@ class RendererSynthesizer:
         hand_length_m: float,
         is_left: bool = False,
         initial: HandPose | None = None,
-    ) -> HandPose | None:
-        """The 27-DoF pose of a hand of this size and side fitted to (21, 3) keypoints, metres.
+    ) -> tuple[HandPose | None, float]:
+        """Fit a hand of this side to (21, 3) keypoints (metres, camera frame).
 
-        Returns ``None`` when the keypoints cannot be retargeted (coincident points).
+        Args:
+            keypoints_cam: the keypoints.
+            hand_length_m: the hand's length, metres, or NaN to fit it too (then clipped to
+                the valid range of :class:`~handsim.hand.model.HandParams`).
+            is_left: a left hand.
+            initial: warm start.
+
+        Returns:
+            ``(pose, hand_length_m)``; the pose is ``None`` when the keypoints cannot be
+            retargeted (coincident points).
         """
         side = self._side("left" if is_left else "right")
+        known = bool(np.isfinite(hand_length_m))
         try:
             result = side.retargeter(
                 keypoints_cam,
                 initial,
-                fit_scale=False,
-                initial_scale=float(hand_length_m) / _REFERENCE_LENGTH_M,
+                fit_scale=not known,
+                initial_scale=float(hand_length_m) / _REFERENCE_LENGTH_M if known else None,
                 check_side=False,
                 report_clamped=False,
             )
         except InvalidKeypoints:
-            return None
-        return result.pose
+            return None, float(hand_length_m) if known else _REFERENCE_LENGTH_M
+        if known:
+            return result.pose, float(hand_length_m)
+        lo, hi = HAND_LENGTH_RANGE_M
+        return result.pose, float(np.clip(result.scale * _REFERENCE_LENGTH_M, lo, hi))
 
     def render(
         self,
@@ -202,7 +215,7 @@ class RendererSynthesizer:
             poses_norm: (B, 63) or (B, 21, 3) normalized keypoints (``(p - c) / (cube / 2)``).
             centers_cam: (B, 3) crop centres, metres, camera frame.
             K: (B, 3, 3) or (3, 3) intrinsics of the full images.
-            hand_length_m: (B,) or scalar hand lengths, metres.
+            hand_length_m: (B,) or scalar hand lengths, metres; NaN: fit the size to the pose.
             is_left: (B,) bool, left hands (default: right hands).
             initial: B warm starts (e.g. the poses this returned at the previous iteration).
 
@@ -230,15 +243,16 @@ class RendererSynthesizer:
             raise InvalidSynthesizerInput(
                 f"initial must hold one pose (or None) per crop, {b}; received {len(initial)}"
             )
-        for name, arr in (("poses", p), ("centres", c), ("K", k), ("hand lengths", lengths)):
+        for name, arr in (("poses", p), ("centres", c), ("K", k)):
             if not np.all(np.isfinite(arr)):
                 raise InvalidSynthesizerInput(f"{name} must be finite; received NaN or Inf")
         keypoints = denormalize_keypoints(p, c, self.cube_m)
         crops = np.empty((b, self.size, self.size), np.float32)
         poses: list[HandPose | None] = []
         for i in range(b):
-            pose = self.fit(keypoints[i], lengths[i], bool(left[i]), initial and initial[i])
-            crops[i] = self.render(pose, c[i], k[i], lengths[i], bool(left[i]))
+            warm = None if initial is None else initial[i]
+            pose, length = self.fit(keypoints[i], lengths[i], bool(left[i]), warm)
+            crops[i] = self.render(pose, c[i], k[i], length, bool(left[i]))
             poses.append(pose)
         return crops, poses
 
