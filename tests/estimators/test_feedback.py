@@ -225,6 +225,11 @@ def test_feedback_estimator(clean_data, tmp_path):
     ours = est.predict(frames.depth(0), frames.K[0]).keypoints_cam
     theirs = DeepPriorEstimator().predict(frames.depth(0), frames.K[0]).keypoints_cam
     np.testing.assert_allclose(ours, theirs, atol=1e-5)
+    from handsim.estimators.feedback.evaluate import iteration_errors
+
+    report = iteration_errors(est, clean_data, split="all", max_frames=2, iterations=1)
+    assert report["frames"] == 2 and len(report["mean_error_mm"]) == 2
+    assert report["mean_error_mm"][1] == pytest.approx(report["mean_error_mm"][0], abs=1e-3)
     est.set_side(True)
     assert est.predict(np.zeros((48, 64), np.float32), frames.K[0]).valid is False
     est.close()
