@@ -3,7 +3,9 @@
 - :class:`LearnedSynthesizer`: normalized joints (B, 63) -> fully connected layers to a 2048-d
   latent reshaped to 32 maps of 8 x 8 -> four stages of 2x unpooling and a 5 x 5 convolution
   to the crop side (128 from 8) -> a 5 x 5 convolution to one map, ``tanh`` (the crop's
-  normalized depth is in [-1, 1]).
+  normalized depth is in [-1, 1]). Each stage's convolution is batch-normalized: without it
+  the last convolution's input grew to ~185 within the first epoch on handsim crops, ``tanh``
+  saturated at +1 (background) on every pixel and stopped learning.
 - :class:`Updater`: a Siamese CNN; one path with shared weights is applied to the input crop
   and to the synthesized crop (four convolutions with stride 2 instead of pooling), the two
   feature vectors are concatenated and fully connected layers give the pose update (B, 63),
@@ -68,7 +70,8 @@ class LearnedSynthesizer(nn.Module):
             # Unpooling: each value fills its 2 x 2 block, then a convolution smooths it.
             layers += [
                 nn.Upsample(scale_factor=2, mode="nearest"),
-                nn.Conv2d(cin, filters, 5, padding=2),
+                nn.Conv2d(cin, filters, 5, padding=2, bias=False),
+                nn.BatchNorm2d(filters),
                 nn.ReLU(inplace=True),
             ]
             cin = filters
