@@ -82,7 +82,8 @@ class FeedbackTrainConfig:
         perturb_sigma_m: standard deviation of the Gaussian perturbations, per coordinate,
             metres (updater).
         perturbations: perturbed copies of each of the truth and the prediction (updater).
-        iterations: updates applied in validation (updater; the estimator's default).
+        iterations: most updates applied in validation (updater); the number (0 to this) with
+            the lowest validation error is saved with ``best.pt``, the estimator's default.
         offset_sigma_m: standard deviation of the crop centre's offset from the middle MCP,
             metres (one draw per frame; as the localizer's error at inference).
         max_frames: use at most this many training frames (0: all).
@@ -470,7 +471,9 @@ def train_updater(
     """Train (or resume) the updater; returns the metrics (``out/metrics.json``).
 
     ``metrics.json`` has the validation error (mean over joints, mm) after each iteration:
-    ``val_error_mm_per_iteration[0]`` is the starting poses' (the predictor's) error.
+    ``val_error_mm_per_iteration[0]`` is the starting poses' (the predictor's) error. ``best.pt``
+    is the epoch and number of updates with the lowest validation error (its JSON's
+    ``iterations``).
 
     Raises:
         InvalidFeedbackConfig: for bad options or a folder that holds a different run.
@@ -604,9 +607,16 @@ def train_updater(
         )
         errors = [_pose_error_mm(p, val_img.truth, config.cube_m) for p in per_iter]
         entry["val_error_mm_per_iteration"] = errors
-        if errors[-1] < best:
-            best = errors[-1]
-            save_checkpoint(out / "best.pt", {"model": model.state_dict()}, ckpt_config)
+        # The estimator's default number of updates: the best on validation (0 to k).
+        chosen = int(np.argmin(errors))
+        entry["val_best_iterations"] = chosen
+        if errors[chosen] < best:
+            best = errors[chosen]
+            save_checkpoint(
+                out / "best.pt",
+                {"model": model.state_dict()},
+                {**ckpt_config, "iterations": chosen},
+            )
         elapsed += time.perf_counter() - t0
         entry["elapsed_s"] = elapsed
         history.append(entry)

@@ -215,6 +215,8 @@ def test_feedback_estimator(clean_data, tmp_path):
                                     "max_frames": 4})  # fmt: skip
     train_updater([clean_data], tmp_path / "u", config, progress=False, log=lambda s: None)
     frames = load_frames(clean_data, max_frames=1)
+    # No update gains anything (all zero): validation chose 0 updates as the default.
+    assert FeedbackEstimator(tmp_path / "u").iterations == 0
     est = FeedbackEstimator(tmp_path / "u", iterations=2)
     assert "iterations=2" in repr(est)
     center = est.first.localizer.localize(frames.depth(0), frames.K[0])
