@@ -1,7 +1,8 @@
 """Checkpoints of the feedback networks: DeepPrior's format (``NAME.pt`` + ``NAME.json``).
 
 The JSON's ``kind`` (``synthesizer`` or ``updater``) says which network it holds; weights are
-read with ``torch.load(weights_only=True)`` (:func:`~..deepprior.checkpoint.load_checkpoint`).
+read with ``torch.load(weights_only=True)``
+(:func:`~handsim.estimators.deepprior.checkpoint.load_checkpoint`).
 """
 
 from __future__ import annotations

@@ -1,12 +1,13 @@
 """The feedback estimator: localizer -> DeepPrior++ -> k updates ``P <- P + updater(D, synth(P))``.
 
-:class:`FeedbackEstimator` runs :class:`~handsim.estimators.deepprior.estimator.
-DeepPriorEstimator`'s pipeline (plane removal, refined localizer, crop, pose network) for the
-first pose, then applies the trained updater ``iterations`` times, each time comparing the input
-crop with the synthesizer's crop of the current pose: handsim's renderer (``renderer``, the
-exact hand model; the retargeting is warm-started from the previous iteration) or the learned
-synthesizer (``learned``). The hand's length (unknown: fitted to each pose) and side
-(:meth:`FeedbackEstimator.set_side`) tell the renderer which hand to draw.
+:class:`FeedbackEstimator` runs the pipeline of
+:class:`~handsim.estimators.deepprior.estimator.DeepPriorEstimator` (plane removal, refined
+localizer, crop, pose network) for the first pose, then applies the trained updater
+``iterations`` times, each time comparing the input crop with the synthesizer's crop of the
+current pose: handsim's renderer (``renderer``, the exact hand model; the retargeting is
+warm-started from the previous iteration) or the learned synthesizer (``learned``). The hand's
+length (unknown: fitted to each pose) and side (:meth:`FeedbackEstimator.set_side`) tell the
+renderer which hand to draw.
 """
 
 from __future__ import annotations

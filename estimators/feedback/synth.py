@@ -4,8 +4,9 @@
 hand in that pose would give: the keypoints are retargeted onto a handsim hand of the frame's
 size and side (:class:`~handsim.hand.retarget.Retargeter`, warm-started from the previous
 iteration's pose when given), the skinned hand is rendered alone (no table, no objects), and its
-depth goes through DeepPrior's normalization (:func:`~handsim.estimators.deepprior.preprocess.
-crop_depth`): ``(d - z_c) / (cube / 2)``, no depth and beyond the cube +1.
+depth goes through DeepPrior's normalization
+(:func:`~handsim.estimators.deepprior.preprocess.crop_depth`): ``(d - z_c) / (cube / 2)``, no
+depth and beyond the cube +1.
 
 The crop is rendered at its own size, not cut from a full image: the scene's camera sits at the
 world origin with the OpenCV axes (so a pose in the camera frame is a pose in the world), and

@@ -167,7 +167,10 @@ def frame_sides(
     *,
     max_frames: int | None = None,
 ) -> np.ndarray:
-    """(N,) bool ``is_left`` of the frames :func:`~..deepprior.data.load_frames` reads, in order."""
+    """(N,) bool ``is_left`` of the frames that ``load_frames`` reads, in the same order.
+
+    The sides of :func:`~handsim.estimators.deepprior.data.load_frames`' frames, same arguments.
+    """
     from handsim.data.manifest import Manifest
     from handsim.data.shards import ShardReader
     from handsim.data.splits import folder_splits, split_mask
