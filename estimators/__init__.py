@@ -8,6 +8,7 @@ from typing import Any
 __all__ = [
     "CenterOfMassLocalizer",
     "DeepPriorEstimator",
+    "FeedbackEstimator",
     "OracleEstimator",
     "PlaneRemovedLocalizer",
     "RefinedLocalizer",
@@ -19,6 +20,7 @@ _LAZY_NAMES = {
     "CenterOfMassLocalizer": "handsim.estimators.com",
     "OracleEstimator": "handsim.estimators.oracle",
     "DeepPriorEstimator": "handsim.estimators.deepprior.estimator",
+    "FeedbackEstimator": "handsim.estimators.feedback.estimator",
     "PlaneRemovedLocalizer": "handsim.estimators.deepprior.preprocess",
     "RefinedLocalizer": "handsim.estimators.deepprior.estimator",
 }

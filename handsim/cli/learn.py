@@ -2,6 +2,8 @@
 
 - ``handsim train deepprior|deepprior++|localizer --data DIR [DIR ...] --out RUN``: train (or
   resume: the same command again continues a killed run) and write ``RUN/metrics.json``.
+- ``handsim train synthesizer|updater --data DIR [DIR ...] --out RUN``: the feedback loop's
+  networks (:mod:`handsim.estimators.feedback.train`), with the same run rules.
 - ``handsim evaluate --estimator CKPT|deepprior|deepprior++ --data DIR --out OUT``: the whole
   pipeline on a split; ``OUT/metrics.json`` (``mean_error_mm`` at its top level) and plots.
 """
@@ -47,6 +49,74 @@ def _check_device(device: str) -> None:
         raise HandSimError("--device cuda: no CUDA device is available to torch; use cpu")
 
 
+_FEEDBACK_KINDS = ("synthesizer", "updater")
+# Options of the feedback networks only (None: not given), refused for the others.
+_FEEDBACK_OPTIONS = {
+    "--synthesizer": "synthesizer",
+    "--synthesizer-checkpoint": "synthesizer_checkpoint",
+    "--predictor": "predictor",
+    "--lam": "lam",
+    "--filters": "filters",
+    "--perturb-sigma-mm": "perturb_sigma_mm",
+    "--perturbations": "perturbations",
+    "--iterations": "iterations",
+}
+
+
+def _train_feedback(args: argparse.Namespace) -> int:
+    from handsim.estimators.feedback.train import (
+        FeedbackTrainConfig,
+        train_synthesizer,
+        train_updater,
+    )
+
+    for option, value in (("--localizer", args.localizer), ("--init", args.init)):
+        if value is not None:
+            args.parser.error(f"argument {option}: not allowed with {args.kind} (DeepPrior only)")
+    defaults = FeedbackTrainConfig()
+
+    def given(name: str, default):  # noqa: ANN001, ANN202
+        value = getattr(args, name)
+        return default if value is None else value
+
+    predictor = given("predictor", defaults.predictor)
+    config = FeedbackTrainConfig(
+        kind=args.kind,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        weight_decay=args.weight_decay,
+        cube_m=args.cube_mm / 1000.0,
+        size=args.size or 128,
+        fc=args.fc or 1024,
+        filters=given("filters", defaults.filters),
+        lam=given("lam", defaults.lam),
+        synthesizer=given("synthesizer", defaults.synthesizer),
+        synthesizer_checkpoint=args.synthesizer_checkpoint,
+        predictor=None if predictor == "none" else predictor,
+        perturb_sigma_m=given("perturb_sigma_mm", 1000 * defaults.perturb_sigma_m) / 1000.0,
+        perturbations=given("perturbations", defaults.perturbations),
+        iterations=given("iterations", defaults.iterations),
+        offset_sigma_m=given("offset_sigma_mm", 5.0) / 1000.0,
+        max_frames=args.max_frames,
+        seed=args.seed,
+    )
+    _check_device(args.device)
+    log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    if args.kind == "synthesizer":
+        metrics = train_synthesizer(args.data, args.out, config, progress=not args.quiet, log=log)
+        keys = ("kind", "epochs_done", "best_val_mean_px_error_mm", "train_time_s")
+    else:
+        metrics = train_updater(
+            args.data, args.out, config, device=args.device, progress=not args.quiet, log=log
+        )
+        keys = ("kind", "epochs_done", "best_val_mean_error_mm", "val_error_mm_per_iteration",
+                "train_time_s")  # fmt: skip
+    summary = {k: metrics[k] for k in (*keys, "train_frames", "val_frames")}
+    print(strict_json({**summary, "out": str(args.out)}))
+    return 0
+
+
 def _train(args: argparse.Namespace) -> int:
     import torch
 
@@ -54,6 +124,13 @@ def _train(args: argparse.Namespace) -> int:
 
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.kind in _FEEDBACK_KINDS:
+        return _train_feedback(args)
+    for option, name in _FEEDBACK_OPTIONS.items():
+        if getattr(args, name) is not None:
+            args.parser.error(
+                f"argument {option}: not allowed with {args.kind} (synthesizer and updater only)"
+            )
     size = args.size if args.size else (64 if args.kind == "localizer" else 128)
     fc = args.fc if args.fc else (256 if args.kind == "localizer" else 1024)
     offset = (
@@ -158,14 +235,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     from handsim.envs import ENV_IDS
     from handsim.estimators.deepprior.train import KINDS
 
+    kinds = (*KINDS, *_FEEDBACK_KINDS)
     tr = sub.add_parser(
         "train",
-        help="train DeepPrior, DeepPrior++ or the hand localizer on handsim datasets",
+        help="train DeepPrior, DeepPrior++, the hand localizer or the feedback loop's networks",
         description="Train a learned estimator on the train split of dataset folders (handsim "
         "generate), validating on their val split. Checkpoints (last.pt, best.pt + JSON "
         "configs) go to --out; the same command again resumes a killed run.",
     )
-    tr.add_argument("kind", choices=KINDS, help=f"what to train: {', '.join(KINDS)}")
+    tr.add_argument("kind", choices=kinds, help=f"what to train: {', '.join(kinds)}")
     tr.add_argument(
         "--data", nargs="+", required=True, type=Path, metavar="DIR", help="dataset folders"
     )
@@ -272,8 +350,52 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="with --device cuda: bfloat16 mixed precision for the forward pass",
     )
+    fb = tr.add_argument_group("feedback loop (synthesizer, updater)")
+    fb.add_argument(
+        "--synthesizer",
+        choices=("renderer", "learned"),
+        default=None,
+        help="updater: the synthesizer of the starting poses (default: renderer)",
+    )
+    fb.add_argument(
+        "--synthesizer-checkpoint",
+        default=None,
+        metavar="CKPT",
+        help="updater with --synthesizer learned: a `handsim train synthesizer` run folder",
+    )
+    fb.add_argument(
+        "--predictor",
+        default=None,
+        metavar="CKPT|none",
+        help="updater: DeepPrior network whose outputs are starting poses (default: deepprior++; "
+        "none: the truth and its perturbations only)",
+    )
+    fb.add_argument(
+        "--lam", type=number(0, 1), default=None, help="updater: the loss's lambda (default: 0.6)"
+    )
+    fb.add_argument(
+        "--filters", type=integer(1, 1024), default=None, help="conv filters (default: 32)"
+    )
+    fb.add_argument(
+        "--perturb-sigma-mm",
+        type=number(0, 500),
+        default=None,
+        help="updater: sigma of the starting poses' perturbations, mm per coordinate (default: 10)",
+    )
+    fb.add_argument(
+        "--perturbations",
+        type=integer(0, 100),
+        default=None,
+        help="updater: perturbed copies of the truth and of the prediction (default: 1)",
+    )
+    fb.add_argument(
+        "--iterations",
+        type=integer(1, 20),
+        default=None,
+        help="updater: updates in validation, the estimator's default (default: 2)",
+    )
     add_quiet(tr)
-    tr.set_defaults(func=_train)
+    tr.set_defaults(func=_train, parser=tr)
 
     ev = sub.add_parser(
         "evaluate",

@@ -1,0 +1,163 @@
+"""The feedback estimator: localizer -> DeepPrior++ -> k updates ``P <- P + updater(D, synth(P))``.
+
+:class:`FeedbackEstimator` runs the pipeline of
+:class:`~handsim.estimators.deepprior.estimator.DeepPriorEstimator` (plane removal, refined
+localizer, crop, pose network) for the first pose, then applies the trained updater
+``iterations`` times, each time comparing the input crop with the synthesizer's crop of the
+current pose: handsim's renderer (``renderer``, the exact hand model; the retargeting is
+warm-started from the previous iteration) or the learned synthesizer (``learned``). The hand's
+length (unknown: fitted to each pose) and side (:meth:`FeedbackEstimator.set_side`) tell the
+renderer which hand to draw.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
+
+from ..deepprior.preprocess import crop_depth, crop_matrix, denormalize_keypoints
+
+__all__ = ["FeedbackEstimator"]
+
+
+class FeedbackEstimator(EstimatorBase):
+    """DeepPrior++ refined by the feedback loop (Oberweger et al., ICCV 2015).
+
+    Args:
+        updater: the updater's checkpoint (a ``handsim train updater`` run folder or ``.pt``).
+        predictor: the first pose's network (``"deepprior++"``: shipped weights, or a path).
+        localizer: the refinement CNN's checkpoint, or ``None``.
+        synthesizer: ``"renderer"`` or ``"learned"``.
+        synthesizer_checkpoint: the learned synthesizer's checkpoint (with ``"learned"``).
+        iterations: updates; default: the updater's (chosen on validation when training).
+        hand_length_m: the hand's length, metres; default: fitted to each pose.
+        is_left: the hand's side (see :meth:`set_side`).
+        device: torch device.
+        detector: the localizer's first centre (``"plane"`` or ``"com"``).
+
+    Raises:
+        InvalidCheckpoint: for a checkpoint that cannot be loaded or does not fit the others.
+        InvalidSynthesizerInput: for an unknown synthesizer.
+    """
+
+    def __init__(
+        self,
+        updater: str | os.PathLike[str],
+        *,
+        predictor: str | os.PathLike[str] = "deepprior++",
+        localizer: str | os.PathLike[str] | None = "localizer",
+        synthesizer: str = "renderer",
+        synthesizer_checkpoint: str | None = None,
+        iterations: int | None = None,
+        hand_length_m: float | None = None,
+        is_left: bool = False,
+        device: str = "cpu",
+        detector: str = "plane",
+    ) -> None:
+        from ..deepprior.checkpoint import InvalidCheckpoint
+        from ..deepprior.estimator import DeepPriorEstimator
+        from .checkpoint import load_feedback_model
+        from .synth import make_synthesizer
+
+        self.first = DeepPriorEstimator(
+            predictor, localizer=localizer, device=device, detector=detector
+        )
+        self.updater, config = load_feedback_model(updater, "updater", device)
+        size = int(config["model"]["size"])
+        if size != self.first.size or abs(float(config["cube_m"]) - self.first.cube_m) > 1e-9:
+            raise InvalidCheckpoint(
+                f"updater {updater} works on {size} px crops of a {config['cube_m']} m cube, the "
+                f"predictor on {self.first.size} px of {self.first.cube_m} m; train them alike"
+            )
+        if iterations is not None and (not isinstance(iterations, int) or iterations < 0):
+            raise InvalidCheckpoint(f"iterations must be an int >= 0; received {iterations!r}")
+        self.iterations = int(config.get("iterations", 2)) if iterations is None else iterations
+        self.synthesizer_kind = synthesizer
+        self.synth = make_synthesizer(
+            synthesizer, synthesizer_checkpoint, cube_m=self.first.cube_m, size=size, device=device
+        )
+        self.hand_length_m = math.nan if hand_length_m is None else float(hand_length_m)
+        self.is_left = bool(is_left)
+        self.device = device
+        self.updater_checkpoint = str(updater)
+
+    def __repr__(self) -> str:
+        return (
+            f"FeedbackEstimator(updater={self.updater_checkpoint!r}, "
+            f"predictor={self.first.checkpoint!r}, synthesizer={self.synthesizer_kind!r}, "
+            f"iterations={self.iterations})"
+        )
+
+    def set_side(self, is_left: bool) -> None:
+        """The side of the hand in the next frames (the renderer draws that hand)."""
+        self.is_left = bool(is_left)
+
+    def predict_iterations(
+        self,
+        depth_m: np.ndarray,
+        K: np.ndarray,  # noqa: N803
+        center: np.ndarray,
+        iterations: int | None = None,
+    ) -> list[np.ndarray]:
+        """(21, 3) keypoints, metres, after 0 (the predictor), 1, ..., k updates.
+
+        Args:
+            depth_m: (H, W) float32 depth, metres (unchecked).
+            K: (3, 3) intrinsics.
+            center: (3,) crop centre, metres (e.g. the localizer's).
+            iterations: updates (default: :attr:`iterations`).
+        """
+        import torch
+
+        k = self.iterations if iterations is None else int(iterations)
+        cube, size = self.first.cube_m, self.first.size
+        x = crop_depth(depth_m, crop_matrix(center, K, cube, size), center[2], cube, size)
+        d = torch.from_numpy(x[None, None]).to(self.device)
+        with torch.inference_mode():
+            pose = self.first.model(d.contiguous(memory_format=torch.channels_last))
+        pose = pose.float().cpu().numpy()
+        out = [pose]
+        warm = None
+        for _ in range(k):
+            crops, warm = self.synth(
+                pose, center[None], K, self.hand_length_m, np.array([self.is_left]), warm
+            )
+            with torch.inference_mode():
+                y = torch.from_numpy(crops[:, None]).to(self.device)
+                pose = pose + self.updater(d, y).float().cpu().numpy()
+            out.append(pose)
+        return [denormalize_keypoints(p.reshape(21, 3), center, cube) for p in out]
+
+    def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
+        """Estimate one frame (``Estimate(valid=False)`` when no hand blob is found).
+
+        Args:
+            depth: (H, W) float32 depth, metres, 0 = no measurement.
+            K: (3, 3) intrinsics.
+
+        Returns:
+            ``Estimate(keypoints_cam=(21, 3) metres)`` after :attr:`iterations` updates.
+        """
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        center = self.first.localizer.localize(depth_m, K_cv)
+        if center is None:
+            return Estimate(valid=False)
+        return Estimate(keypoints_cam=self.predict_iterations(depth_m, K_cv, center)[-1])
+
+    def close(self) -> None:
+        """Free the synthesizer's renderers."""
+        self.synth.close()
+
+    def info(self) -> dict[str, Any]:
+        """What the estimator runs (for reports)."""
+        return {
+            **self.first.info(),
+            "updater": self.updater_checkpoint,
+            "synthesizer": self.synthesizer_kind,
+            "iterations": self.iterations,
+        }
