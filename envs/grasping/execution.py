@@ -82,6 +82,8 @@ REPLAN_DISTANCE_M = 0.004
 """The expert re-plans when its estimate of the object's position moves this far, metres."""
 REPLAN_ANGLE_RAD = float(np.deg2rad(4.0))
 """Or when its estimate of the object's orientation turns this far, radians."""
+_LIFTOFF_M = 0.03
+_LIFTOFF_PAUSE_S = 0.4
 _PALM_PRESS_M = 0.02  # the side wrap's wrist goes this far past palm contact, m
 _REPLAN_PERIOD_S = 0.1  # at most one re-plan per 0.1 s
 _FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
@@ -101,15 +103,18 @@ HOLD_SLIP_M = 0.0015
 five): a grip eased until the object starts to slip is held there, not eased further (people
 stop relaxing their grip at the first slip; Johansson & Westling 1984). With a noisy
 estimator the threshold is at least four times the noise of that difference (from the spread
-of the estimates before the grasp), so noise is not read as slip. (Going back three easing
-steps as well was tried and not kept: see the commit history.)"""
-HOLD_TURN_RAD = float(np.deg2rad(3.0))
+of the estimates before the grasp), so noise is not read as slip. The grip then tightens to
+:data:`GRIP_SAFETY_FACTOR` times the force it moved under (at most the lift's grip), as people
+raise their grip when an object starts to slip or turn in their fingers: the force at which it
+moved is its slip force under its actual load, a torque about the pinch included (Kinoshita,
+Backstrom, Flanagan & Johansson 1997, J. Neurophysiol. 78:1619-1630)."""
+HOLD_TURN_RAD = float(np.deg2rad(1.5))
 """Or once it has turned this far in the palm frame (the perceived orientation against that at
-the hold's first step): a pinch eased too far lets its object turn about the pinch before it
-slides (the large clamp at friction 0.5 turned 0.4 deg, then 3.4 deg within three control
-steps, while its origin had moved less than :data:`HOLD_SLIP_M`). 2 deg gave the same
-successes but stopped the easing of held objects early (the extra-large clamp held at 6.2 times
-its weight instead of 4.8 at the default friction)."""
+the hold's first step): a pinch above or off the centre of mass lets its object turn about the
+pinch before it slides, and once turning it speeds up (the banana went from 1 deg to 12 deg
+within 0.2 s as the grip eased). At 3 deg the grip reacted too late: the banana, medium left
+hand, seeds 0-19, 12/20 with the grip reflex (:data:`GRIP_SAFETY_FACTOR` over the force at which
+it moved), 20/20 at 1.5 deg."""
 _SLIP_WINDOW = 5
 MIN_GRIP_FORCE_N = 1.0
 """The least total grip force, newtons: for objects lighter than about 30 g people's
@@ -444,6 +449,7 @@ class GraspExpert(PoseActions):
         self._hold_turn_ref: np.ndarray | None = None  # object orientation in the palm frame
         self._eased: list[list[float]] = []  # grip scales of the last easing steps
         self._easing_stopped = False
+        self._reflex_n = 0.0
 
     @property
     def grasp_type(self) -> str:
@@ -479,6 +485,7 @@ class GraspExpert(PoseActions):
         self._hold_turn_ref = None
         self._eased = []
         self._easing_stopped = False
+        self._reflex_n = 0.0
         self._filter = _PoseFilter(self.obj)
         self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
@@ -535,6 +542,14 @@ class GraspExpert(PoseActions):
             _Segment("settle", _SETTLE_S, grasp_pos, quat, plan.closed),
             _Segment("lift", 0.0, lift_pos, quat, plan.closed),
         ]
+        if plan.strategy == "rim" and _LIFTOFF_PAUSE_S > 0:
+            # A vessel pinched at its rim hangs off the pinch and swings as it leaves the
+            # table: lift it clear, wait for the swing to die down, then lift on.
+            liftoff_pos = grasp_pos + np.array([0.0, 0.0, _LIFTOFF_M])
+            segments[-1:-1] = [
+                _Segment("lift", 0.0, liftoff_pos, quat, plan.closed),
+                _Segment("lift", _LIFTOFF_PAUSE_S, liftoff_pos, quat, plan.closed),
+            ]
         if first == "approach":
             segments = segments[1:]
         previous = start
@@ -711,8 +726,22 @@ class GraspExpert(PoseActions):
             force = float(touch.sum())
             # While the load grows (the lift) the grip only tightens; it eases in the hold,
             # until the object starts to slip.
-            if self.phase == "hold" and not self._easing_stopped and self._slipping(state):
+            # A rim pinch is watched from its last lift on (the object steady after the
+            # pause), the others from the hold's start.
+            watched = self.phase == "hold" or (
+                self.phase == "lift"
+                and self.plan.strategy == "rim"
+                and self._index == len(self._segments) - 1
+            )
+            if watched and not self._easing_stopped and self._slipping(state):
                 self._easing_stopped = True
+                # The force it began to move under is its slip force under the actual load
+                # (a torque about the pinch included): aim at the safety factor over it, but
+                # never above the lift's grip.
+                self._reflex_n = min(
+                    GRIP_SAFETY_FACTOR * force, self._grip_force_target(lifting=True)
+                )
+            wanted = max(wanted, self._reflex_n)
             ease = 1.0 if self.phase == "lift" or self._easing_stopped else _GRIP_EASE
             ratio = float(np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, ease, _GRIP_TIGHTEN))
             if ratio < 1.0:

@@ -1114,14 +1114,14 @@ def test_perception_noise_is_not_read_as_slip():
     assert expert._hold_slip_gate_m > 10 * HOLD_SLIP_M
 
 
-@pytest.mark.parametrize(("turn_deg", "stops"), [(2.0, False), (4.0, True)])
+@pytest.mark.parametrize(("turn_deg", "stops"), [(1.0, False), (2.0, True)])
 def test_hold_stops_easing_when_the_object_turns_in_the_palm(turn_deg, stops):
-    """A perceived turn beyond HOLD_TURN_RAD (3 deg) stops the easing at once; 2 deg does not."""
+    """A perceived turn beyond HOLD_TURN_RAD (1.5 deg) stops the easing at once; 1 deg does not."""
     from scipy.spatial.transform import Rotation
 
     from handsim.envs.grasping.execution import HOLD_TURN_RAD
 
-    assert np.isclose(np.rad2deg(HOLD_TURN_RAD), 3.0)
+    assert np.isclose(np.rad2deg(HOLD_TURN_RAD), 1.5)
     scene, rng = _scene("061_foam_brick")
     expert = GraspExpert(scene.objects[0][1], scene.hand.params)
     hold_steps = []
