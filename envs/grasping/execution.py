@@ -70,6 +70,10 @@ Res. 56:550-564); the expert aims at 1.6."""
 GRIP_FRICTION: float | None = None
 """Hand-object friction the expert assumes when sizing its grip force; ``None``: skin on the
 object's material (:func:`handsim.envs.base.skin_friction`), as a person judges a surface."""
+GRIP_REFLEX_FACTOR = GRIP_SAFETY_FACTOR
+"""Once the object has slipped or turned in the hold (:data:`HOLD_SLIP_M`,
+:data:`HOLD_TURN_RAD`), the grip aims at this multiple of the force it moved under (its slip
+force under the actual load, a torque about the pinch included), at most the lift's grip."""
 LIFT_ACCELERATION_M_S2 = 2.0
 """Upward acceleration the grip is sized for on top of gravity while lifting (the expert's
 minimum-jerk lift peaks near 1.5 m/s^2), m/s^2; the static hold is sized for gravity alone."""
@@ -739,7 +743,7 @@ class GraspExpert(PoseActions):
                 # (a torque about the pinch included): aim at the safety factor over it, but
                 # never above the lift's grip.
                 self._reflex_n = min(
-                    GRIP_SAFETY_FACTOR * force, self._grip_force_target(lifting=True)
+                    GRIP_REFLEX_FACTOR * force, self._grip_force_target(lifting=True)
                 )
             wanted = max(wanted, self._reflex_n)
             ease = 1.0 if self.phase == "lift" or self._easing_stopped else _GRIP_EASE

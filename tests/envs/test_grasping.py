@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import mujoco
 import numpy as np
@@ -250,14 +251,20 @@ def test_a_new_window_opens_only_after_the_object_is_lowered():
     assert outcome.success and outcome.slip_m == pytest.approx(0.0)
 
 
-def test_an_episode_whose_object_turns_in_the_hand_fails():
+def test_an_episode_whose_object_turns_in_the_hand_fails(monkeypatch):
     """The banana turns out of its tripod pinch in the hold and hangs on, turned: a failure.
 
-    Medium right hand, seed 0, skin friction: in the hold, as the grip eases, the banana turns
-    about the pinch from 3 to 33 deg within 0.35 s while its origin moves 9 mm in the palm
-    frame (under the slip limit: a test of slip alone passes it), and is then held still,
-    lifted, to the end. The live tracker and :func:`evaluate_lift` on the recorded poses agree.
+    Medium right hand, seed 0, skin friction, an expert without the grip reflex that stops
+    easing at a 3 deg turn (as the expert did before the reflex): in the hold, as the grip
+    eases, the banana turns about the pinch from 3 to 33 deg within 0.35 s while its origin
+    moves 9 mm in the palm frame (under the slip limit: a test of slip alone passes it), and is
+    then held still, lifted, to the end. The live tracker and :func:`evaluate_lift` on the
+    recorded poses agree.
     """
+    from handsim.envs.grasping import execution
+
+    monkeypatch.setattr(execution, "GRIP_REFLEX_FACTOR", 0.0)
+    monkeypatch.setattr(execution, "HOLD_TURN_RAD", math.radians(3.0))
     scene, rng = _scene("011_banana", seed=0)
     set_skin_friction(scene)
     obj = get_object("011_banana")
@@ -418,13 +425,11 @@ def test_the_clamps_are_pinched_5_mm_above_the_deepest_where_that_is_blocked():
     assert outcome.max_lift_m >= LIFT_HEIGHT_M and outcome.failure != "dropped", outcome
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known gap: the clamp turns 11.8 deg out of its tripod pinch as the hold eases "
-    "(docs/grasping.md, Limits); remove this mark when the tripod hold keeps it under 10 deg",
-)
 def test_the_large_clamps_raised_pinch_holds_it_without_turning():
-    """The large clamp, small right hand, seed 5 (the raised pinch above): held, not turned."""
+    """The large clamp, small right hand, seed 5 (the raised pinch above): held, not turned.
+
+    Without the grip reflex it turned 11.8 deg out of its tripod pinch as the hold eased.
+    """
     obj = get_object("051_large_clamp")
     params = hand_params("small")
     rng = np.random.default_rng(5)
