@@ -39,8 +39,8 @@ from handsim.envs.grasping import (
     start_pose,
     touch_forces,
 )
-from handsim.envs.grasping.execution import _rotation_angle_rad
 from handsim.envs.grasping.planning import _clear_of_obstacles, _hand_geometry, _nominal_stiffness
+from handsim.envs.grasping.success import _rotation_angle_rad
 from handsim.envs.physics import (
     OBJECT_MATERIALS,
     SKIN_FRICTION,
@@ -1147,6 +1147,58 @@ def test_hold_stops_easing_when_the_object_turns_in_the_palm(turn_deg, stops):
     assert any(hold_steps) == stops
     if stops:
         assert hold_steps.index(True) in (11, 12)  # the first turned estimate
+
+
+def test_the_grip_reflex_tightens_to_the_safety_factor_over_the_force_it_turned_under():
+    """A perceived 2 deg turn in the hold: the grip aims at 1.6 x the force of that step.
+
+    At most the lift's grip; the force then rises from the eased grip toward that aim.
+    """
+    from handsim.envs.grasping.execution import GRIP_REFLEX_FACTOR, GRIP_SAFETY_FACTOR
+
+    assert GRIP_REFLEX_FACTOR == GRIP_SAFETY_FACTOR
+    scene, rng = _scene("061_foam_brick")
+    set_skin_friction(scene)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    turn = Rotation.from_euler("x", 2.0, degrees=True).as_matrix()
+    hold: list[tuple[bool, float]] = []
+
+    def perceive(state):
+        if expert.phase == "hold" and len(hold) > 10:
+            T = state.T_world_from_obj.copy()  # noqa: N806
+            T[:3, :3] = T[:3, :3] @ turn
+            return dataclasses.replace(state, T_world_from_obj=T)
+        return state
+
+    def record(step, expert):
+        if expert.phase == "hold":
+            hold.append((expert._easing_stopped, expert._grip_force_n))
+
+    run_episode(scene, 0, expert, rng, stop_on_success=False, on_step=record, perceive=perceive)
+    first = next(k for k, (stopped, _) in enumerate(hold) if stopped)
+    force_n = hold[first][1]
+    lift_aim_n = expert._grip_force_target(lifting=True)
+    assert expert._reflex_n == pytest.approx(min(GRIP_REFLEX_FACTOR * force_n, lift_aim_n))
+    assert expert._reflex_n > expert._grip_force_target(lifting=False)
+    assert hold[-1][1] > 1.1 * force_n  # tightened, not just stopped easing
+    assert hold[-1][1] == pytest.approx(expert._reflex_n, rel=0.15)
+
+
+@pytest.mark.parametrize("name", ["024_bowl", "061_foam_brick"])
+def test_a_rim_pinch_lifts_clear_and_pauses_before_it_lifts_on(name):
+    """The bowl's lift: 3 cm up, 0.4 s still, then on to 15 cm; other grasps lift at once."""
+    scene, rng = _scene(name)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    scene.reset()
+    expert.reset(GraspState.from_sim(scene, 0, 0.0))
+    lifts = [segment for segment in expert._segments if segment.name == "lift"]
+    squeeze = next(segment for segment in expert._segments if segment.name == "squeeze")
+    rises_m = [float(segment.pos[2] - squeeze.pos[2]) for segment in lifts]
+    if expert.plan.strategy == "rim":
+        assert rises_m == pytest.approx([0.03, 0.03, 0.15])
+        assert lifts[1].duration_s == pytest.approx(0.4)
+    else:
+        assert rises_m == pytest.approx([0.15])
 
 
 # Closed loop: re-planning ---------------------------------------------------------------------
