@@ -93,6 +93,7 @@ minimum-jerk segments with a peak wrist speed of :data:`EXPERT_WRIST_SPEED_M_S` 
 Results: ``benchmarks/bench_grasp.py`` (20 seeds per object, medium right hand).
 """
 
+from handsim.envs.grasping.episode import ContactMetrics, contact_metrics, run_episode
 from handsim.envs.grasping.execution import (
     FALL_HEIGHT_M,
     GRIP_FRICTION,
@@ -102,14 +103,7 @@ from handsim.envs.grasping.execution import (
     MIN_GRIP_SCALE,
     REPLAN_ANGLE_RAD,
     REPLAN_DISTANCE_M,
-    ContactMetrics,
-    FailureReason,
     GraspExpert,
-    GraspOutcome,
-    LiftTracker,
-    contact_metrics,
-    evaluate_lift,
-    run_episode,
 )
 from handsim.envs.grasping.planning import (
     CONTROL_DT_S,
@@ -135,6 +129,12 @@ from handsim.envs.grasping.planning import (
     shape_class,
     start_pose,
     touch_forces,
+)
+from handsim.envs.grasping.success import (
+    FailureReason,
+    GraspOutcome,
+    LiftTracker,
+    evaluate_lift,
 )
 
 __all__ = [

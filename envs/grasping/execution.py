@@ -1,21 +1,26 @@
-"""Grasp execution: the expert that follows a plan, the success definition, episodes.
+"""Grasp execution: the expert that follows a plan and regulates its grip.
 
-:class:`GraspExpert` follows a plan, :class:`LiftTracker` scores it and :func:`run_episode` is the
-ground-truth episode loop.
+:class:`GraspExpert` follows a plan (its phases) and regulates the grip force from touch. Its
+score (:class:`LiftTracker`, :mod:`.success`) and the ground-truth episode loop
+(:func:`run_episode`, :mod:`.episode`) live apart and are importable from here too.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
-from typing import Literal
 
 import mujoco
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 from handsim.envs.experts import PoseActions
+from handsim.envs.grasping.perception import (
+    _PoseFilter,
+    _quat_angle,
+    _quat_from_matrix,
+    _quat_slerp,
+    _rotvec_from_quat,
+)
 from handsim.envs.grasping.planning import (
     _CLOSE_S,
     _EXPERT_ANGULAR_SPEED_RAD_S,
@@ -24,41 +29,35 @@ from handsim.envs.grasping.planning import (
     _SETTLE_S,
     _SLOW_SPEED_M_S,
     _SQUEEZE_S,
-    CONTROL_DT_S,
     EXPERT_WRIST_SPEED_M_S,
-    FRAME_SKIP,
-    HOLD_DURATION_S,
-    LIFT_HEIGHT_M,
-    MAX_SLIP_M,
-    MAX_TURN_RAD,
     TOUCH_PARTS,
     GraspPlan,
     GraspPlanningError,
     GraspState,
     InvalidGraspState,
-    _check_transform,
     _checker,
-    _object_body_id,
     grasp_recipe,
     plan_grasp,
-    start_pose,
 )
-from handsim.envs.physics import HandDriver, skin_friction
+from handsim.envs.grasping.success import (
+    FailureReason,
+    GraspOutcome,
+    LiftTracker,
+    evaluate_lift,
+)
+from handsim.envs.physics import skin_friction
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.model import HandParams
 from handsim.hand.pose import JOINT_LIMITS, JOINT_NAMES, HandPose
 from handsim.world.objects import YCBObject
-from handsim.world.scene import Scene
 
+# ContactMetrics, contact_metrics and run_episode resolve through __getattr__ (at the end).
 __all__ = [
     "GraspExpert",
-    "ContactMetrics",
-    "contact_metrics",
     "FailureReason",
     "GraspOutcome",
     "LiftTracker",
     "evaluate_lift",
-    "run_episode",
 ]
 
 # The expert -----------------------------------------------------------------------------------
@@ -70,6 +69,10 @@ Res. 56:550-564); the expert aims at 1.6."""
 GRIP_FRICTION: float | None = None
 """Hand-object friction the expert assumes when sizing its grip force; ``None``: skin on the
 object's material (:func:`handsim.envs.base.skin_friction`), as a person judges a surface."""
+GRIP_REFLEX_FACTOR = GRIP_SAFETY_FACTOR
+"""Once the object has slipped or turned in the hold (:data:`HOLD_SLIP_M`,
+:data:`HOLD_TURN_RAD`), the grip aims at this multiple of the force it moved under (its slip
+force under the actual load, a torque about the pinch included), at most the lift's grip."""
 LIFT_ACCELERATION_M_S2 = 2.0
 """Upward acceleration the grip is sized for on top of gravity while lifting (the expert's
 minimum-jerk lift peaks near 1.5 m/s^2), m/s^2; the static hold is sized for gravity alone."""
@@ -82,11 +85,10 @@ REPLAN_DISTANCE_M = 0.004
 """The expert re-plans when its estimate of the object's position moves this far, metres."""
 REPLAN_ANGLE_RAD = float(np.deg2rad(4.0))
 """Or when its estimate of the object's orientation turns this far, radians."""
+_LIFTOFF_M = 0.03  # a rim pinch lifts its vessel this far clear of the table, m...
+_LIFTOFF_PAUSE_S = 0.4  # ...and waits this long for the swing to die down, s
 _PALM_PRESS_M = 0.02  # the side wrap's wrist goes this far past palm contact, m
 _REPLAN_PERIOD_S = 0.1  # at most one re-plan per 0.1 s
-_FILTER_WINDOW = 100  # perceived poses averaged while the object is still (2 s)
-_MOTION_MIN_M = 0.01  # the object moved: the recent estimates left the filtered pose by this
-_SUPPORT_SNAP_M = 0.02  # estimates whose lowest point is this close to the table rest on it
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
 # The grip scale falls by at most 3 % per control step (a gradual relaxation, so that the slip
 # check stops it before an eased grip lets go of a pinch; at 10 % the scissors, seed 0, were
@@ -101,15 +103,18 @@ HOLD_SLIP_M = 0.0015
 five): a grip eased until the object starts to slip is held there, not eased further (people
 stop relaxing their grip at the first slip; Johansson & Westling 1984). With a noisy
 estimator the threshold is at least four times the noise of that difference (from the spread
-of the estimates before the grasp), so noise is not read as slip. (Going back three easing
-steps as well was tried and not kept: see the commit history.)"""
-HOLD_TURN_RAD = float(np.deg2rad(3.0))
+of the estimates before the grasp), so noise is not read as slip. The grip then tightens to
+:data:`GRIP_SAFETY_FACTOR` times the force it moved under (at most the lift's grip), as people
+raise their grip when an object starts to slip or turn in their fingers: the force at which it
+moved is its slip force under its actual load, a torque about the pinch included (Kinoshita,
+Backstrom, Flanagan & Johansson 1997, J. Neurophysiol. 78:1619-1630)."""
+HOLD_TURN_RAD = float(np.deg2rad(1.5))
 """Or once it has turned this far in the palm frame (the perceived orientation against that at
-the hold's first step): a pinch eased too far lets its object turn about the pinch before it
-slides (the large clamp at friction 0.5 turned 0.4 deg, then 3.4 deg within three control
-steps, while its origin had moved less than :data:`HOLD_SLIP_M`). 2 deg gave the same
-successes but stopped the easing of held objects early (the extra-large clamp held at 6.2 times
-its weight instead of 4.8 at the default friction)."""
+the hold's first step; a rim pinch's: at its last lift's): a pinch above or off the centre of
+mass lets its object turn about the pinch before it slides, and once turning it speeds up (the
+banana went from 1 deg to 12 deg within 0.2 s as the grip eased). At 3 deg the grip reacted
+too late: the banana, medium left hand, seeds 0-19, 12/20 with the grip reflex
+(:data:`GRIP_REFLEX_FACTOR`), 20/20 at 1.5 deg."""
 _SLIP_WINDOW = 5
 MIN_GRIP_FORCE_N = 1.0
 """The least total grip force, newtons: for objects lighter than about 30 g people's
@@ -142,56 +147,6 @@ _DIGIT_ALL_JOINTS = {
 }
 
 
-# Rotations of the per-step path as (w, x, y, z) quaternions through MuJoCo's C functions
-# (HandPose.quat_wxyz for a pose's): scipy's Rotation objects cost tens of microseconds each to
-# make and combine.
-def _rotvec_from_quat(quat: np.ndarray) -> np.ndarray:
-    """(3,) rotation vector (angle in [0, pi]) of a unit wxyz quaternion."""
-    rotvec = np.empty(3)
-    mujoco.mju_quat2Vel(rotvec, quat, 1.0)
-    return rotvec
-
-
-def _quat_angle(quat_a: np.ndarray, quat_b: np.ndarray) -> float:
-    """Angle of the rotation between two unit wxyz quaternions, radians in [0, pi]."""
-    rotvec = np.empty(3)
-    mujoco.mju_subQuat(rotvec, quat_a, quat_b)
-    return math.sqrt(float(rotvec @ rotvec))
-
-
-def _quat_slerp(quat_0: np.ndarray, quat_1: np.ndarray, s: float) -> np.ndarray:
-    """Spherical interpolation from ``quat_0`` (s = 0) to ``quat_1`` (s = 1), the short way."""
-    rotvec = np.empty(3)
-    mujoco.mju_subQuat(rotvec, quat_1, quat_0)  # quat_0 * exp(rotvec) = quat_1
-    quat = quat_0.copy()
-    mujoco.mju_quatIntegrate(quat, rotvec, s)
-    return quat
-
-
-def _quat_from_matrix(R: np.ndarray) -> np.ndarray:  # noqa: N803
-    """(4,) wxyz quaternion of a (3, 3) rotation matrix."""
-    quat = np.empty(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(R, dtype=np.float64).reshape(9))
-    return quat
-
-
-def _median_rows(values: np.ndarray) -> np.ndarray:
-    """Per-column median of an (n, k) array: ``np.median(values, axis=0)`` without its overhead."""
-    n = len(values)
-    ordered = np.sort(values, axis=0)
-    if n % 2:
-        return ordered[n // 2]
-    return (ordered[n // 2 - 1] + ordered[n // 2]) / 2.0
-
-
-def _robust_sigma(values: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """Per-column spread of an (n, k) array about ``centre``: 1.4826 x the MAD.
-
-    The standard deviation for Gaussian values, not moved by outliers.
-    """
-    return 1.4826 * _median_rows(np.abs(values - centre))
-
-
 @dataclasses.dataclass
 class _Segment:
     name: str
@@ -215,98 +170,6 @@ def _duration(
     return max(minimum_s, 1.875 * distance / speed_m_s, 1.875 * angle / _EXPERT_ANGULAR_SPEED_RAD_S)
 
 
-_HULLS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-
-
-def _hull_points(points: np.ndarray) -> np.ndarray:
-    """The points on the convex hull of ``points`` (all of them if the hull is degenerate).
-
-    The lowest point of a posed object is a hull vertex (a linear function's minimum over a
-    point set lies on its hull), so the filter's per-estimate test reads a few dozen points
-    rather than the model's thousands. Cached per points array.
-    """
-    cached = _HULLS.get(id(points))
-    if cached is not None and cached[0] is points:
-        return cached[1]
-    try:
-        hull = points[np.sort(ConvexHull(points).vertices)]
-    except (QhullError, ValueError):
-        hull = points
-    _HULLS[id(points)] = (points, hull)
-    return hull
-
-
-class _PoseFilter:
-    """The object's pose from a stream of perceived poses, assuming it stays still.
-
-    Position: the per-axis median of the estimates since the object last moved (at most
-    :data:`_FILTER_WINDOW`), orientation: their chordal mean, so one bad estimate shifts the
-    result by little. It has moved when the median of the last five estimates leaves the
-    filtered position by more than :data:`_MOTION_MIN_M` or four times the spread expected of
-    such a median; the window then restarts from those five. Estimates that put the object's
-    lowest point within :data:`_SUPPORT_SNAP_M` of the table are first lowered or raised onto
-    it (an object waiting to be grasped rests on the table).
-    """
-
-    def __init__(self, obj: YCBObject) -> None:
-        self.points = _hull_points(np.asarray(obj.model_points_m))
-        # The estimates since the object last moved: rows [start, end) of reused buffers.
-        self._pos = np.empty((2 * _FILTER_WINDOW, 3))
-        self._quat = np.empty((2 * _FILTER_WINDOW, 4))  # wxyz
-        self._start = self._end = 0
-
-    def __len__(self) -> int:
-        return self._end - self._start
-
-    def add(self, T: np.ndarray) -> None:
-        R = T[:3, :3]  # noqa: N806
-        pos = T[:3, 3].copy()
-        lowest = float((self.points @ R[2]).min() + pos[2])
-        if abs(lowest) < _SUPPORT_SNAP_M:
-            pos[2] -= lowest
-        if self._end == len(self._pos):  # full: move the window to the front
-            n = len(self)
-            self._pos[:n] = self._pos[self._start : self._end]
-            self._quat[:n] = self._quat[self._start : self._end]
-            self._start, self._end = 0, n
-        self._pos[self._end] = pos
-        self._quat[self._end] = _quat_from_matrix(R)
-        self._end += 1
-        if len(self) > _FILTER_WINDOW:
-            self._start += 1
-        if len(self) >= 10:
-            window = self._pos[self._start : self._end - 5]
-            centre = _median_rows(window)
-            # Robust per-axis spread of the estimates (MAD), and that of a median of five.
-            sigma = _robust_sigma(window, centre)
-            recent = _median_rows(self._pos[self._end - 5 : self._end])
-            gate = max(_MOTION_MIN_M, 4.0 * float(np.linalg.norm(sigma)) * 1.25 / np.sqrt(5))
-            if np.linalg.norm(recent - centre) > gate:
-                self._start = self._end - 5
-
-    def spread_m(self) -> float:
-        """Robust spread of the position estimates (norm of the per-axis MAD sigmas), metres.
-
-        0 until ten estimates have come since the object last moved.
-        """
-        if len(self) < 10:
-            return 0.0
-        window = self._pos[self._start : self._end]
-        return float(np.linalg.norm(_robust_sigma(window, _median_rows(window))))
-
-    def pose(self) -> np.ndarray:
-        T = np.eye(4)
-        T[:3, 3] = _median_rows(self._pos[self._start : self._end])
-        # The chordal mean of the orientations: the principal eigenvector of sum(q q^T)
-        # (Markley et al. 2007; scipy's Rotation.mean), whatever the quaternions' signs.
-        quat = self._quat[self._start : self._end]
-        _, vectors = np.linalg.eigh(quat.T @ quat)
-        mean = np.empty(9)
-        mujoco.mju_quat2Mat(mean, np.ascontiguousarray(vectors[:, -1]))
-        T[:3, :3] = mean.reshape(3, 3)
-        return T
-
-
 def _close(T: np.ndarray, reference: np.ndarray) -> bool:
     """Within :data:`REPLAN_DISTANCE_M` and :data:`REPLAN_ANGLE_RAD` of ``reference``."""
     moved = float(np.linalg.norm(T[:3, 3] - reference[:3, 3]))
@@ -326,7 +189,9 @@ class GraspExpert(PoseActions):
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
     actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),
     ``"lift"`` (0.15 m up, peak speed the recipe's ``lift_speed_m_s``, 0.25 m/s but for the
-    cracker box) and ``"hold"`` (until the episode ends).
+    cracker box; a rim pinch lifts its vessel 3 cm clear of the table, waits 0.4 s for the
+    swing that leaving the table starts to die down, then lifts on) and ``"hold"`` (until the
+    episode ends).
     :attr:`grasp_type` is the grasp taxonomy type and ``plan.strategy`` how it is applied
     (:class:`GraspRecipe`).
 
@@ -355,7 +220,10 @@ class GraspExpert(PoseActions):
     :data:`MAX_GRIP_SCALE`. A position actuator held off its target presses with ``kp *
     (target - angle)``, so the force follows the scale. The grip only tightens while lifting;
     in the hold it eases until the object has moved :data:`HOLD_SLIP_M` or turned
-    :data:`HOLD_TURN_RAD` in the palm frame, and never again after that. The recipe's margins
+    :data:`HOLD_TURN_RAD` in the palm frame (a rim pinch: since its last lift began), and
+    never again after that: it then tightens to :data:`GRIP_REFLEX_FACTOR` times the force
+    the object moved under, at most the lift's grip (a reflex, as people raise their grip
+    when an object starts to slip or turn in their fingers). The recipe's margins
     (:attr:`GraspRecipe.grip_margin`, :attr:`GraspRecipe.lift_grip_margin`) multiply the
     factor. Without touch (``touch_forces_n`` is ``None``) the scale comes once
     from a joint-torque force model (:meth:`grip_targets`).
@@ -444,6 +312,7 @@ class GraspExpert(PoseActions):
         self._hold_turn_ref: np.ndarray | None = None  # object orientation in the palm frame
         self._eased: list[list[float]] = []  # grip scales of the last easing steps
         self._easing_stopped = False
+        self._reflex_n = 0.0
 
     @property
     def grasp_type(self) -> str:
@@ -479,6 +348,7 @@ class GraspExpert(PoseActions):
         self._hold_turn_ref = None
         self._eased = []
         self._easing_stopped = False
+        self._reflex_n = 0.0
         self._filter = _PoseFilter(self.obj)
         self._filter.add(state.T_world_from_obj)
         self._obstacles = state.obstacles
@@ -535,6 +405,14 @@ class GraspExpert(PoseActions):
             _Segment("settle", _SETTLE_S, grasp_pos, quat, plan.closed),
             _Segment("lift", 0.0, lift_pos, quat, plan.closed),
         ]
+        if plan.strategy == "rim" and _LIFTOFF_PAUSE_S > 0:
+            # A vessel pinched at its rim hangs off the pinch and swings as it leaves the
+            # table: lift it clear, wait for the swing to die down, then lift on.
+            liftoff_pos = grasp_pos + np.array([0.0, 0.0, _LIFTOFF_M])
+            segments[-1:-1] = [
+                _Segment("lift", 0.0, liftoff_pos, quat, plan.closed),
+                _Segment("lift", _LIFTOFF_PAUSE_S, liftoff_pos, quat, plan.closed),
+            ]
         if first == "approach":
             segments = segments[1:]
         previous = start
@@ -711,8 +589,22 @@ class GraspExpert(PoseActions):
             force = float(touch.sum())
             # While the load grows (the lift) the grip only tightens; it eases in the hold,
             # until the object starts to slip.
-            if self.phase == "hold" and not self._easing_stopped and self._slipping(state):
+            # A rim pinch is watched from its last lift on (the object steady after the
+            # pause), the others from the hold's start.
+            watched = self.phase == "hold" or (
+                self.phase == "lift"
+                and self.plan.strategy == "rim"
+                and self._index == len(self._segments) - 1
+            )
+            if watched and not self._easing_stopped and self._slipping(state):
                 self._easing_stopped = True
+                # The force it began to move under is its slip force under the actual load
+                # (a torque about the pinch included): aim at the safety factor over it, but
+                # never above the lift's grip.
+                self._reflex_n = min(
+                    GRIP_REFLEX_FACTOR * force, self._grip_force_target(lifting=True)
+                )
+            wanted = max(wanted, self._reflex_n)
             ease = 1.0 if self.phase == "lift" or self._easing_stopped else _GRIP_EASE
             ratio = float(np.clip((wanted / max(force, 1e-3)) ** _GRIP_RATE, ease, _GRIP_TIGHTEN))
             if ratio < 1.0:
@@ -840,437 +732,10 @@ class GraspExpert(PoseActions):
         return HandPose(pos, _rotvec_from_quat(quat), angles)
 
 
-# Success --------------------------------------------------------------------------------------
+def __getattr__(name: str) -> object:
+    # The episode loop lives in .episode (it imports the expert): importable from here too.
+    if name in ("ContactMetrics", "contact_metrics", "run_episode"):
+        from handsim.envs.grasping import episode
 
-FailureReason = Literal["not_lifted", "dropped", "slipped", "turned", "hold_incomplete", "diverged"]
-
-
-@dataclasses.dataclass(frozen=True)
-class GraspOutcome:
-    """The result of a pick-and-lift episode.
-
-    Attributes:
-        success: lifted by :data:`LIFT_HEIGHT_M` and held :data:`HOLD_DURATION_S` with less
-            than :data:`MAX_SLIP_M` slip and :data:`MAX_TURN_RAD` turn in the palm frame.
-        failure: why it failed (``None`` on success): ``"not_lifted"`` (never reached the lift
-            height), ``"dropped"`` (lifted, but below the lift height at the end),
-            ``"slipped"`` / ``"turned"`` (still lifted at the end, but its hold window ended
-            when the object had moved :data:`MAX_SLIP_M` or turned :data:`MAX_TURN_RAD` or
-            more in the palm frame; slip is checked first), ``"hold_incomplete"`` (still lifted
-            and within both limits, held for less than the hold duration), ``"diverged"``
-            (physics).
-        max_lift_m: highest rise of the object origin above its rest height, metres.
-        slip_m: on success the largest slip of the successful window; otherwise the largest
-            slip of any window, metres.
-        turn_rad: the same for the turn (rotation angle of the object in the palm frame),
-            radians.
-        hold_s: duration of the last hold window, seconds.
-        success_time_s: episode time at which the hold completed (``None`` on failure).
-        steps: control steps run.
-    """
-
-    success: bool
-    failure: FailureReason | None
-    max_lift_m: float
-    slip_m: float
-    turn_rad: float
-    hold_s: float
-    success_time_s: float | None
-    steps: int
-
-    def to_dict(self) -> dict[str, object]:
-        """A JSON-serializable dict of the fields."""
-        return dataclasses.asdict(self)
-
-
-def _rotation_angle_rad(R: np.ndarray) -> float:  # noqa: N803
-    """The angle of a rotation matrix, radians in [0, pi].
-
-    ``atan2(sin, cos)`` from the skew part and the trace: accurate at small angles, where
-    ``arccos((trace - 1) / 2)`` loses half the digits.
-
-    Args:
-        R: (3, 3) rotation matrix.
-    """
-    sin = 0.5 * math.sqrt(
-        (R[2, 1] - R[1, 2]) ** 2 + (R[0, 2] - R[2, 0]) ** 2 + (R[1, 0] - R[0, 1]) ** 2
-    )
-    cos = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    return math.atan2(sin, cos)
-
-
-class LiftTracker:
-    """Per-step evaluation of the lift success definition (module docstring).
-
-    Feed every control step with :meth:`update`; :attr:`success` turns true once an object has
-    been held lifted for :data:`HOLD_DURATION_S` with slip below :data:`MAX_SLIP_M` and turn
-    below :data:`MAX_TURN_RAD`, and stays true. :meth:`outcome` summarizes the episode so far.
-
-    The hold window opens at the first step at which the object is lifted; the object's pose
-    in the palm frame at that step is the reference of the whole window. A window that reaches
-    either limit ends the hold: no new window opens until the object has been below the lift
-    height again (a reference taken while the object still slides would hide the slip).
-
-    Args:
-        rest_height_m: height of the object origin at rest (episode start), metres.
-        lift_height_m: the lift threshold (default :data:`LIFT_HEIGHT_M`).
-        hold_s: the hold duration (default :data:`HOLD_DURATION_S`).
-        max_slip_m: the slip threshold (default :data:`MAX_SLIP_M`).
-        max_turn_rad: the turn threshold (default :data:`MAX_TURN_RAD`).
-    """
-
-    def __init__(
-        self,
-        rest_height_m: float,
-        *,
-        lift_height_m: float = LIFT_HEIGHT_M,
-        hold_s: float = HOLD_DURATION_S,
-        max_slip_m: float = MAX_SLIP_M,
-        max_turn_rad: float = MAX_TURN_RAD,
-    ) -> None:
-        for name, value in (
-            ("rest_height_m", rest_height_m),
-            ("lift_height_m", lift_height_m),
-            ("hold_s", hold_s),
-            ("max_slip_m", max_slip_m),
-            ("max_turn_rad", max_turn_rad),
-        ):
-            if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value)):
-                raise InvalidGraspState(f"{name} must be a finite number; received {value!r}")
-        if lift_height_m <= 0 or hold_s <= 0 or max_slip_m <= 0 or max_turn_rad <= 0:
-            raise InvalidGraspState(
-                "lift_height_m, hold_s, max_slip_m and max_turn_rad must be > 0; received "
-                f"{lift_height_m}, {hold_s}, {max_slip_m}, {max_turn_rad}"
-            )
-        self.rest_height_m = float(rest_height_m)
-        self.lift_height_m = float(lift_height_m)
-        self.hold_s = float(hold_s)
-        self.max_slip_m = float(max_slip_m)
-        self.max_turn_rad = float(max_turn_rad)
-        self.success = False
-        self.success_time_s: float | None = None
-        self.max_lift_m = -math.inf
-        self.steps = 0
-        self._window_start_s: float | None = None
-        self._window_pos_palm: np.ndarray | None = None
-        self._window_R_palm: np.ndarray | None = None
-        self._window_slip_m = 0.0
-        self._window_turn_rad = 0.0
-        self._last_time_s = -math.inf
-        self._ever_lifted = False
-        self._broken: FailureReason | None = None
-        # Set when a window reached a limit; cleared once the object is below the lift height.
-        self._hold_ended = False
-        self._break_slip_m = 0.0
-        self._break_turn_rad = 0.0
-        self._window_duration_s = 0.0
-
-    def update(
-        self, time_s: float, T_world_from_obj: np.ndarray, T_world_from_palm: np.ndarray
-    ) -> bool:
-        """Add one step.
-
-        Args:
-            time_s: episode time, seconds (increasing).
-            T_world_from_obj: (4, 4) pose of the object body (its origin), world frame.
-            T_world_from_palm: (4, 4) pose of the palm (hand root) body, world frame.
-
-        Returns:
-            :attr:`success` after this step.
-
-        Raises:
-            InvalidGraspState: for non-increasing time or malformed arrays.
-        """
-        self._check_time(time_s)
-        obj = _check_transform(T_world_from_obj, "T_world_from_obj")
-        palm = _check_transform(T_world_from_palm, "T_world_from_palm")
-        return self._update(time_s, obj[:3, :3], obj[:3, 3], palm[:3, :3], palm[:3, 3])
-
-    def _check_time(self, time_s: float) -> None:
-        if not time_s > self._last_time_s:
-            raise InvalidGraspState(
-                f"time_s must increase from step to step; received {time_s} after "
-                f"{self._last_time_s}"
-            )
-
-    def _update(
-        self,
-        time_s: float,
-        R_world_from_obj: np.ndarray,  # noqa: N803
-        pos: np.ndarray,
-        R_world_from_palm: np.ndarray,  # noqa: N803
-        palm_pos: np.ndarray,
-    ) -> bool:
-        """:meth:`update` on checked arrays."""
-        self._last_time_s = float(time_s)
-        self.steps += 1
-        if self.success:
-            return True
-        lift = float(pos[2] - self.rest_height_m)
-        self.max_lift_m = max(self.max_lift_m, lift)
-        if lift < self.lift_height_m:
-            if self._window_start_s is not None:
-                self._broken = "dropped"
-            self._close_window()
-            self._hold_ended = False
-            return False
-        self._ever_lifted = True
-        if self._hold_ended:
-            return False
-        pos_palm = R_world_from_palm.T @ (pos - palm_pos)
-        R_palm_from_obj = R_world_from_palm.T @ R_world_from_obj  # noqa: N806
-        if self._window_start_s is None:
-            self._open_window(time_s, pos_palm, R_palm_from_obj)
-            return False
-        slip = float(np.linalg.norm(pos_palm - self._window_pos_palm))
-        turn = _rotation_angle_rad(self._window_R_palm.T @ R_palm_from_obj)
-        self._window_slip_m = max(self._window_slip_m, slip)
-        self._window_turn_rad = max(self._window_turn_rad, turn)
-        if slip >= self.max_slip_m or turn >= self.max_turn_rad:
-            self._broken = "slipped" if slip >= self.max_slip_m else "turned"
-            self._break_slip_m = max(self._break_slip_m, self._window_slip_m)
-            self._break_turn_rad = max(self._break_turn_rad, self._window_turn_rad)
-            self._window_duration_s = time_s - self._window_start_s
-            self._close_window()
-            self._hold_ended = True
-            return False
-        self._window_duration_s = time_s - self._window_start_s
-        # A small tolerance absorbs float round-off in time stamps (k * dt).
-        if self._window_duration_s >= self.hold_s - 1e-9:
-            self.success = True
-            self.success_time_s = float(time_s)
-        return self.success
-
-    def _open_window(self, time_s: float, pos_palm: np.ndarray, R_palm: np.ndarray) -> None:  # noqa: N803
-        self._window_start_s = float(time_s)
-        self._window_pos_palm = pos_palm
-        self._window_R_palm = R_palm
-        self._window_slip_m = 0.0
-        self._window_turn_rad = 0.0
-        self._window_duration_s = 0.0
-
-    def _close_window(self) -> None:
-        self._window_start_s = None
-        self._window_pos_palm = None
-        self._window_R_palm = None
-
-    def update_from_sim(self, scene: Scene, instance: int, time_s: float) -> bool:
-        """:meth:`update` with the ground truth of ``scene`` (object ``instance``)."""
-        body_id = _object_body_id(scene, instance)
-        palm_id = int(scene.model.body(scene.hand.root_body).id)
-        data = scene.data
-        self._check_time(time_s)
-        pos, palm_pos = data.xpos[body_id], data.xpos[palm_id]
-        R_obj = data.xmat[body_id].reshape(3, 3)  # noqa: N806
-        R = data.xmat[palm_id].reshape(3, 3)  # noqa: N806
-        # MuJoCo's xmat is a rotation; only a diverged state could be non-finite.
-        finite = np.isfinite(pos).all() and np.isfinite(palm_pos).all()
-        if not (finite and np.isfinite(R).all() and np.isfinite(R_obj).all()):
-            raise InvalidGraspState(
-                f"the scene's object or palm pose is not finite (object at {pos}); the physics "
-                "diverged"
-            )
-        return self._update(time_s, R_obj.copy(), pos.copy(), R.copy(), palm_pos.copy())
-
-    def outcome(self, diverged: bool = False) -> GraspOutcome:
-        """The outcome of the episode so far (call at its end).
-
-        Args:
-            diverged: the physics diverged (the episode was cut short).
-        """
-        failure: FailureReason | None
-        if self.success:
-            failure = None
-        elif diverged:
-            failure = "diverged"
-        elif not self._ever_lifted:
-            failure = "not_lifted"
-        elif self._hold_ended:
-            failure = self._broken  # still lifted after the window reached a limit
-        elif self._window_start_s is None:
-            failure = "dropped"
-        else:
-            failure = "hold_incomplete"
-        return GraspOutcome(
-            success=self.success,
-            failure=failure,
-            max_lift_m=float(self.max_lift_m) if self.steps else 0.0,
-            slip_m=float(
-                self._window_slip_m
-                if self.success
-                else max(self._window_slip_m, self._break_slip_m)
-            ),
-            turn_rad=float(
-                self._window_turn_rad
-                if self.success
-                else max(self._window_turn_rad, self._break_turn_rad)
-            ),
-            hold_s=float(self._window_duration_s),
-            success_time_s=self.success_time_s,
-            steps=self.steps,
-        )
-
-
-def evaluate_lift(
-    times_s: np.ndarray,
-    T_world_from_obj: np.ndarray,
-    T_world_from_palm: np.ndarray,
-    rest_height_m: float,
-) -> GraspOutcome:
-    """Evaluate a recorded trajectory against the success definition.
-
-    Args:
-        times_s: (T,) increasing episode times, seconds.
-        T_world_from_obj: (T, 4, 4) object poses (the body origin), world frame.
-        T_world_from_palm: (T, 4, 4) palm poses, world frame.
-        rest_height_m: height of the object origin at rest, metres.
-
-    Returns:
-        The outcome, as :class:`LiftTracker` would give after the last step.
-
-    Raises:
-        InvalidGraspState: for mismatched shapes or non-increasing times.
-    """
-    times = np.asarray(times_s, dtype=np.float64)
-    obj = np.asarray(T_world_from_obj, dtype=np.float64)
-    palm = np.asarray(T_world_from_palm, dtype=np.float64)
-    if times.ndim != 1 or obj.shape != (len(times), 4, 4) or palm.shape != (len(times), 4, 4):
-        raise InvalidGraspState(
-            "expected times_s (T,), T_world_from_obj (T, 4, 4) and T_world_from_palm "
-            f"(T, 4, 4); received {times.shape}, {obj.shape}, {palm.shape}"
-        )
-    tracker = LiftTracker(rest_height_m)
-    for t, T_obj, T_palm in zip(times, obj, palm, strict=True):
-        tracker.update(float(t), T_obj, T_palm)
-    return tracker.outcome()
-
-
-# Episodes -------------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class ContactMetrics:
-    """How the hand touches the target object and the table at one instant.
-
-    Attributes:
-        object_depth_m: deepest hand-object penetration (MuJoCo contact ``dist < 0``), metres;
-            0 without penetration.
-        table_depth_m: deepest hand-table penetration, metres.
-        normal_force_n: total normal force of the hand-object contacts, newtons.
-        deepest_geom: name of the hand geom of the deepest hand-object contact ("" if none).
-    """
-
-    object_depth_m: float
-    table_depth_m: float
-    normal_force_n: float
-    deepest_geom: str
-
-
-def contact_metrics(scene: Scene, instance: int) -> ContactMetrics:
-    """Penetration and grip force of the hand on object ``instance`` (after ``mj_forward``).
-
-    Raises:
-        InvalidGraspState: for a scene without a hand or a bad instance.
-    """
-    body_id = _object_body_id(scene, instance)
-    model, data = scene.model, scene.data
-    n = data.ncon
-    if n == 0:
-        return ContactMetrics(0.0, 0.0, 0.0, "")
-    root = model.body(scene.hand.root_body).id
-    hand = model.body_rootid == root
-    contact = data.contact
-    g1, g2 = contact.geom1[:n], contact.geom2[:n]
-    b1, b2 = model.geom_bodyid[g1], model.geom_bodyid[g2]
-    h1, h2 = hand[b1], hand[b2]
-    on_object = (h1 & (b2 == body_id)) | (h2 & (b1 == body_id))
-    table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")  # -1 without a table
-    on_table = (h1 & (g2 == table)) | (h2 & (g1 == table))
-    dist = contact.dist[:n]
-    object_depth = float(max(0.0, -dist[on_object].min())) if on_object.any() else 0.0
-    table_depth = float(max(0.0, -dist[on_table].min())) if on_table.any() else 0.0
-    force, wrench = 0.0, np.zeros(6)
-    for i in np.nonzero(on_object)[0]:
-        mujoco.mj_contactForce(model, data, int(i), wrench)
-        force += float(wrench[0])
-    deepest = ""
-    if on_object.any():
-        i = np.nonzero(on_object)[0][np.argmin(dist[on_object])]
-        deepest = model.geom(int(g1[i] if h1[i] else g2[i])).name
-    return ContactMetrics(object_depth, table_depth, force, deepest)
-
-
-def run_episode(
-    scene: Scene,
-    instance: int,
-    expert: GraspExpert,
-    rng: np.random.Generator,
-    max_steps: int = 400,
-    *,
-    stop_on_success: bool = True,
-    on_step: Callable[[int, GraspExpert], None] | None = None,
-    perceive: Callable[[GraspState], GraspState] | None = None,
-) -> GraspOutcome:
-    """Run one ground-truth pick-and-lift episode.
-
-    Resets ``scene`` (objects at their placements, the hand at :func:`start_pose`), then per
-    control step: state -> ``expert.act`` -> ``set_target`` -> :data:`FRAME_SKIP` physics steps
-    -> success tracking. As in ``handsim/Grasp-v0``, the episode ends when the object has
-    fallen off the table (its origin below :data:`FALL_HEIGHT_M`).
-
-    Args:
-        scene: a scene with a hand and the target object.
-        instance: index of the target in ``scene.objects``.
-        expert: a :class:`GraspExpert` for that object.
-        rng: random generator of the start pose.
-        max_steps: control steps at most (400 = 8 s).
-        stop_on_success: end the episode as soon as the hold succeeds.
-        on_step: called after every control step with its index and the expert (whose
-            ``phase`` says where the episode is); for measurements such as
-            :func:`contact_metrics`.
-        perceive: turns each ground-truth state into the one the expert acts on (e.g. a
-            noisy object pose, as an estimator would give); ``None``: the truth.
-
-    Returns:
-        The outcome.
-
-    Raises:
-        InvalidGraspState: for a bad instance, expert or ``max_steps``.
-        GraspPlanningError: if the expert finds no grasp at the start and does not re-plan.
-    """
-    body_id = _object_body_id(scene, instance)
-    if not isinstance(expert, GraspExpert):
-        raise InvalidGraspState(f"expert must be a GraspExpert; received {type(expert).__name__}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
-        raise InvalidGraspState(f"max_steps must be an int >= 1; received {max_steps!r}")
-    obj = scene.objects[instance][1]
-    if expert.obj.name != obj.name:
-        raise InvalidGraspState(
-            f"the expert grasps {expert.obj.name!r} but scene object {instance} is {obj.name!r}"
-        )
-    data = scene.data
-    scene.reset()
-    T0 = GraspState.from_sim(scene, instance, 0.0).T_world_from_obj
-    scene.reset(start_pose(rng, T0, scene.hand.params, obj=obj))
-    tracker = LiftTracker(float(data.xpos[body_id][2]))
-    perceived = perceive if perceive is not None else (lambda state: state)
-    state = perceived(GraspState.from_sim(scene, instance, 0.0))
-    expert.reset(state)
-    diverged = False
-    # The env's driver: same mocap tracking and stepping as handsim/Grasp-v0.
-    driver = HandDriver(scene)
-    for step in range(int(max_steps)):
-        driver.set_target(expert.act(state))
-        if driver.step(FRAME_SKIP):
-            diverged = True
-            break
-        time_s = (step + 1) * CONTROL_DT_S
-        success = tracker.update_from_sim(scene, instance, time_s)
-        if on_step is not None:
-            on_step(step, expert)
-        if success and stop_on_success:
-            break
-        if data.xpos[body_id][2] < FALL_HEIGHT_M:
-            break  # fallen off the table (falling on, it would pass the divergence speed)
-        state = perceived(GraspState.from_sim(scene, instance, time_s))
-    return tracker.outcome(diverged=diverged)
+        return getattr(episode, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
