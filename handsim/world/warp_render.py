@@ -19,6 +19,7 @@ The device model is a copy of the model when the renderer is made: a model chang
 from __future__ import annotations
 
 import importlib.util
+import time
 from collections.abc import Sequence
 
 import mujoco
@@ -147,6 +148,7 @@ class WarpDepthRenderer:
         datas: Sequence[mujoco.MjData],
         *,
         depth_range_m: tuple[float, float] | None = None,
+        timings_s: dict[str, float] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Render the worlds' current states (their ``qpos`` and mocap poses).
 
@@ -156,19 +158,27 @@ class WarpDepthRenderer:
             depth_range_m: ``(near, far)``: pixels whose depth is outside it are background
                 (depth 0, geom id -1), as with :meth:`DepthRenderer.render
                 <handsim.world.render.DepthRenderer.render>`.
+            timings_s: a dict to add each stage's seconds to (``upload``, ``kinematics``,
+                ``render``, ``readback``, ``labels``), for benchmarks; the device is
+                synchronized between stages then, which costs a little.
 
         Returns:
             ``(depth_m, geom_id)``: (N, H, W) float32 metres along the optical axis, 0 where no
             geom is seen; (N, H, W) int32 geom ids, -1 for background.
         """
         wp, mjw = self._wp, self._mjw
+        clock = _Stages(wp, timings_s)
         self._upload(datas)
+        clock("upload")
         with wp.ScopedDevice(self.device):
             mjw.kinematics(self._m, self._d)
+            clock("kinematics")
             mjw.refit_bvh(self._m, self._d, self._rc)
             mjw.render(self._m, self._d, self._rc)
+            clock("render")
             depth = self._rc.depth_data.numpy()
             seg = self._rc.seg_data.numpy()
+            clock("readback")
         h, w = self.intrinsics.height, self.intrinsics.width
         n = h * w
         depth_m = depth[:, self._offset : self._offset + n].reshape(-1, h, w).astype(np.float32)
@@ -180,4 +190,21 @@ class WarpDepthRenderer:
             background |= (depth_m < near) | (depth_m > far)
             ids[background] = -1
         depth_m[background] = 0.0
+        clock("labels")
         return depth_m, ids
+
+
+class _Stages:
+    """Adds the seconds since the last call to ``timings_s[stage]`` (nothing when it is None)."""
+
+    def __init__(self, wp: object, timings_s: dict[str, float] | None) -> None:
+        self._wp, self._timings = wp, timings_s
+        self._last = time.perf_counter()
+
+    def __call__(self, stage: str) -> None:
+        if self._timings is None:
+            return
+        self._wp.synchronize()
+        now = time.perf_counter()
+        self._timings[stage] = self._timings.get(stage, 0.0) + now - self._last
+        self._last = now
