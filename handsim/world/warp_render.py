@@ -13,7 +13,8 @@ imports them when a renderer is made, never on ``import handsim``. The first ren
 process compiles Warp's kernels (tens of seconds on the CPU; cached in ``WARP_CACHE_PATH``).
 
 The device model is a copy of the model when the renderer is made: a model changed later
-(e.g. a rescaled hand's mesh vertices) needs a new renderer.
+(e.g. a rescaled hand's mesh vertices) needs a new renderer; the camera's pose is read from
+each world's ``MjData`` at every render.
 """
 
 from __future__ import annotations
@@ -142,6 +143,8 @@ class WarpDepthRenderer:
             host = np.stack([getattr(data, field) for data in datas])
             if host.size:
                 getattr(d, field).assign(wp.array(host, dtype=getattr(d, field).dtype))
+        self._cam_xpos = np.stack([data.cam_xpos for data in datas])
+        self._cam_xmat = np.stack([data.cam_xmat.reshape(-1, 3, 3) for data in datas])
 
     def render(
         self,
@@ -153,8 +156,9 @@ class WarpDepthRenderer:
         """Render the worlds' current states (their ``qpos`` and mocap poses).
 
         Args:
-            datas: ``nworld`` simulation data; only ``qpos``, ``mocap_pos`` and ``mocap_quat``
-                are read (kinematics run on the device).
+            datas: ``nworld`` simulation data; only ``qpos``, ``mocap_pos``, ``mocap_quat``
+                and the camera poses (``cam_xpos``, ``cam_xmat``: each world its own camera
+                pose, e.g. after ``mj_camlight``) are read; kinematics run on the device.
             depth_range_m: ``(near, far)``: pixels whose depth is outside it are background
                 (depth 0, geom id -1), as with :meth:`DepthRenderer.render
                 <handsim.world.render.DepthRenderer.render>`.
@@ -172,6 +176,10 @@ class WarpDepthRenderer:
         clock("upload")
         with wp.ScopedDevice(self.device):
             mjw.kinematics(self._m, self._d)
+            # Each world's camera pose is its MjData's (the model's camera pose is per world
+            # in data generation: the host moves it and calls mj_camlight).
+            self._d.cam_xpos.assign(wp.array(self._cam_xpos, dtype=self._d.cam_xpos.dtype))
+            self._d.cam_xmat.assign(wp.array(self._cam_xmat, dtype=self._d.cam_xmat.dtype))
             clock("kinematics")
             mjw.refit_bvh(self._m, self._d, self._rc)
             mjw.render(self._m, self._d, self._rc)

@@ -11,7 +11,7 @@ import pytest
 from handsim.hand import hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.samplers import sample_uniform
-from handsim.world.camera import camera_preset
+from handsim.world.camera import camera_preset, look_at_quat_wxyz
 from handsim.world.registry import OBJECT_NAMES
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import CameraSpec, Scene, SceneSpec, sample_placements
@@ -105,6 +105,31 @@ def test_depth_and_segmentation_match_opengl(preset, objects):
     # The skinned hand and at least one object were in view, so they were compared.
     assert any(n.startswith(("rh_", "lh_")) and "_visual" in n for n in names)
     assert any(n.startswith("obj_") for n in names)
+
+
+@needs_warp
+def test_each_world_has_its_own_camera_pose():
+    """A camera moved per world (as data generation does) renders as OpenGL sees it."""
+    scene = _scene("sr300", ("025_mug",), seed=1)
+    intr = scene.spec.cameras[0].intrinsics
+    datas = _poses(scene, 2, seed=2)
+    model, cam = scene.model, scene.model.camera("camera").id
+    eyes = [(0.0, -0.6, 0.4), (0.3, -0.4, 0.5)]
+    images = []
+    with DepthRenderer(model, "camera", intr) as gl:
+        for data, eye in zip(datas, eyes, strict=True):
+            model.cam_pos[cam] = eye
+            model.cam_quat[cam] = look_at_quat_wxyz(np.array(eye), np.array((0.0, 0.0, 0.1)))
+            mujoco.mj_camlight(model, data)
+            images.append(gl.render(data))
+    warp = WarpDepthRenderer(model, "camera", intr, nworld=2, device="cpu")
+    depth_w, ids_w = warp.render(datas)
+    for k, (depth_g, ids_g) in enumerate(images):
+        assert (ids_w[k] == ids_g).mean() >= 0.99
+        both = (ids_w[k] >= 0) & (ids_g >= 0)
+        assert both.sum() > 100
+        assert (np.abs(depth_w[k] - depth_g)[both] < 5e-3).mean() >= 0.99
+    assert (ids_w[0] != ids_w[1]).mean() > 0.1  # the two views differ
 
 
 @needs_warp
