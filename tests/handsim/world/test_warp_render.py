@@ -143,6 +143,8 @@ def test_errors_name_what_is_valid():
         WarpDepthRenderer(scene.model, "camera", camera_preset("sr300"), nworld=1, device="cpu")
     with pytest.raises(KeyError, match="cameras: camera"):
         WarpDepthRenderer(scene.model, "nope", intr, nworld=1, device="cpu")
+    with pytest.raises(WarpRenderError, match="unknown Warp device 'tpu'; valid: 'cpu'"):
+        WarpDepthRenderer(scene.model, "camera", intr, nworld=1, device="tpu")
     warp = WarpDepthRenderer(scene.model, "camera", intr, nworld=2, device="cpu")
     with pytest.raises(WarpRenderError, match="one MjData per world, 2; received 1"):
         warp.render([mujoco.MjData(scene.model)])
