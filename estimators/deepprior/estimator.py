@@ -35,7 +35,7 @@ from .preprocess import (
     mirror_points,
 )
 
-__all__ = ["DETECTORS", "DeepPriorEstimator", "RefinedLocalizer"]
+__all__ = ["DETECTORS", "TRACK_MIN_FILL", "DeepPriorEstimator", "RefinedLocalizer"]
 
 
 def _as_input(x: np.ndarray, device: str) -> Any:
@@ -43,6 +43,19 @@ def _as_input(x: np.ndarray, device: str) -> Any:
     import torch
 
     return torch.from_numpy(x).to(device=device, memory_format=torch.channels_last)
+
+
+TRACK_MIN_FILL = 0.05
+"""Tracking keeps a centre while at least this fraction of a 32 x 32 crop of its cube holds
+depth inside the cube (a hand fills ~30 % of it; the cube on empty space or far behind, 0)."""
+
+
+def _fill(depth_m: np.ndarray, K: np.ndarray, center: np.ndarray, cube_m: float) -> float:  # noqa: N803
+    """Fraction of a 32 x 32 crop of the cube at ``center`` with depth inside the cube."""
+    if not (np.all(np.isfinite(center)) and center[2] > cube_m / 2):
+        return 0.0  # a centre behind or at the camera holds nothing
+    crop = crop_depth(depth_m, crop_matrix(center, K, cube_m, 32), center[2], cube_m, 32)
+    return float(np.count_nonzero(crop < 1.0)) / crop.size
 
 
 DETECTORS = ("plane", "com")
@@ -177,6 +190,11 @@ class DeepPriorEstimator(EstimatorBase):
             ``None`` (default): the checkpoint's ``canonical_side`` flag (``False`` when it has
             none: checkpoints trained before the flag saw both sides as they came).
         is_left: the side of the hands this estimator is given (:meth:`set_side` changes it).
+        track: start each frame's refinement from the previous frame's refined centre instead
+            of the detector, as a tracker does. The detector runs again after :meth:`reset`,
+            after a frame without an estimate, when the side changes, and when the tracked
+            centre has lost the hand (under :data:`TRACK_MIN_FILL` of its cube's crop holds
+            depth inside the cube).
 
     Raises:
         InvalidCheckpoint: for a checkpoint that cannot be loaded, or a ``canonical_side`` or
@@ -194,6 +212,7 @@ class DeepPriorEstimator(EstimatorBase):
         detector: str = "plane",
         canonical_side: bool | None = None,
         is_left: bool = False,
+        track: bool = False,
     ) -> None:
         import torch
 
@@ -217,8 +236,14 @@ class DeepPriorEstimator(EstimatorBase):
         self.localizer = RefinedLocalizer(
             localizer, iterations=refine_iterations, device=device, detector=detector
         )
+        self.track = bool(track)
+        self._tracked: np.ndarray | None = None
         self.is_left = False
         self.set_side(is_left)
+
+    def reset(self) -> None:
+        """Forget the tracked centre (a new episode starts with the detector)."""
+        self._tracked = None
 
     def set_side(self, is_left: bool) -> None:
         """The side of the next frames: ``True`` for a left hand.
@@ -230,6 +255,8 @@ class DeepPriorEstimator(EstimatorBase):
             raise InvalidEstimatorParams(
                 f"is_left must be a bool (True for a left hand); received {is_left!r}"
             )
+        if bool(is_left) != self.is_left:
+            self._tracked = None  # a centre of the other frame
         self.is_left = bool(is_left)
 
     def __repr__(self) -> str:
@@ -237,8 +264,17 @@ class DeepPriorEstimator(EstimatorBase):
             f"DeepPriorEstimator(checkpoint={self.checkpoint!r}, "
             f"localizer={self.localizer.checkpoint!r}, "
             f"refine_iterations={self.localizer.iterations}, "
-            f"detector={self.localizer.detector!r}, canonical_side={self.canonical_side})"
+            f"detector={self.localizer.detector!r}, canonical_side={self.canonical_side}, "
+            f"track={self.track})"
         )
+
+    def _center(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
+        """The crop centre: refined from the tracked centre while it holds the hand, else found."""
+        if self.track and self._tracked is not None:
+            center = self.localizer.refine(depth_m, K, self._tracked)
+            if _fill(depth_m, K, center, self.cube_m) >= TRACK_MIN_FILL:
+                return center
+        return self.localizer.localize(depth_m, K)
 
     def predict_at(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """(21, 3) keypoints, metres, from a crop at ``center`` (unchecked input)."""
@@ -266,7 +302,8 @@ class DeepPriorEstimator(EstimatorBase):
         mirror = self.canonical_side and self.is_left
         if mirror:  # the left hand as the right hand it mirrors
             depth_m, K_cv = mirror_depth(depth_m), mirror_intrinsics(K_cv, depth_m.shape[1])  # noqa: N806
-        center = self.localizer.localize(depth_m, K_cv)
+        center = self._center(depth_m, K_cv)
+        self._tracked = center
         if center is None:
             return Estimate(valid=False)
         keypoints = self.predict_at(depth_m, K_cv, center)
@@ -281,4 +318,5 @@ class DeepPriorEstimator(EstimatorBase):
             "cube_m": self.cube_m,
             "size": self.size,
             "canonical_side": self.canonical_side,
+            "track": self.track,
         }

@@ -6,8 +6,9 @@ generate`` made from a fixed seed) and ``benchmark.json`` naming the version
 changes, a new one gets a new name. Rerunning ``make`` into its own folder resumes it (complete
 shards are kept) and checks nothing changed.
 
-``run`` runs one estimator on every frame of every set (the side of the hand, ``is_left``, goes
-to an estimator's optional ``set_side``; oracles get the truth through ``observe_truth``) and
+``run`` runs one estimator on every frame of every set, each frame on its own (``reset()``
+before it; the side of the hand, ``is_left``, goes to an estimator's optional ``set_side``;
+oracles get the truth through ``observe_truth``) and
 then, unless ``--episodes 0``, ``handsim/Grasp-v0`` with the estimator in the loop, feedback
 off and on (:func:`~handsim.envs.closed_loop.evaluate_closed_loop`). It writes
 ``benchmark.json`` (strict JSON: ``null`` for a figure that does not exist, e.g. keypoint
@@ -244,11 +245,12 @@ def _run_set(folder: Path, estimator: Any) -> dict[str, np.ndarray]:
     """Per-frame errors of one set: joint errors (mm), centre error, occlusion, side, time."""
     from handsim.estimator import PrivilegedEstimator, hand_center
 
-    estimator.reset()
     privileged = isinstance(estimator, PrivilegedEstimator)
     set_side = getattr(estimator, "set_side", None)
     rows: dict[str, list[Any]] = {k: [] for k in ("joint", "center", "occ", "left", "time")}
     for arrays, frame in _frames(folder):
+        # Frames are independent draws: none may carry a tracker's state into the next.
+        estimator.reset()
         if privileged:
             estimator.observe_truth(frame)
         left = bool(arrays["is_left"])
