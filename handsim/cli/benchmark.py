@@ -43,7 +43,15 @@ from handsim.cli._args import (
 )
 from handsim.errors import HandSimError
 
-__all__ = ["VERSION", "SETS", "BenchmarkError", "make_benchmark", "run_benchmark", "add_parser"]
+__all__ = [
+    "VERSION",
+    "SETS",
+    "BenchmarkError",
+    "make_benchmark",
+    "run_benchmark",
+    "compare_runs",
+    "add_parser",
+]
 
 VERSION = "handsim-bench-v1"
 """The version ``make`` builds. Never change a set under it: a new set is a new version."""
@@ -401,9 +409,14 @@ def _table(result: dict[str, Any]) -> str:
             f"| {name} | {s['n_frames']} | {_fmt(s['mean_mm'])} | {_fmt(s['median_mm'])} | "
             f"{_fmt(s['auc_f_tau'], 3)} | {_fmt(s['center_mm'])} | {s['n_without_estimate']} |"
         )
-    for side, s in off["by_side"].items():
+    groups = [(f"side: {side}", s) for side, s in off["by_side"].items()]
+    groups += [
+        (f"occlusion {b['occlusion'][0]:.1f}-{b['occlusion'][1]:.1f}", b)
+        for b in off["by_occlusion"]
+    ]
+    for name, s in groups:
         lines.append(
-            f"| side: {side} | {s['n_frames']} | {_fmt(s['mean_mm'])} | {_fmt(s['median_mm'])} "
+            f"| {name} | {s['n_frames']} | {_fmt(s['mean_mm'])} | {_fmt(s['median_mm'])} "
             f"| {_fmt(s['auc_f_tau'], 3)} | {_fmt(s['center_mm'])} | {s['n_without_estimate']} |"
         )
     loop = result["closed_loop"]
@@ -413,9 +426,13 @@ def _table(result: dict[str, Any]) -> str:
             f"Closed loop, {loop['env_id']}, {loop['episodes']} seeds: success "
             f"{100 * loop['success_rate_feedback_on']:.0f} % with feedback on "
             f"({100 * loop['success_rate_feedback_off']:.0f} % acting on the truth); "
-            f"in-loop keypoint error {_fmt(_finite(loop['kp_mean_mm_feedback_on']))} mm.",
+            f"in-loop keypoint error {_mm(_finite(loop['kp_mean_mm_feedback_on']))}.",
         ]
     return "\n".join(lines) + "\n"
+
+
+def _mm(value: Any) -> str:
+    return "n/a (no keypoints)" if value is None else f"{value:.1f} mm"
 
 
 def _finite(x: Any) -> Any:
@@ -509,6 +526,101 @@ def run_benchmark(
     return result
 
 
+def compare_runs(runs: list[str | Path], out: str | Path) -> str:
+    """One table of several ``run`` results, and closed-loop success against offline error.
+
+    Args:
+        runs: ``run`` output folders (or their ``benchmark.json``), all of one version.
+        out: output folder for ``compare.md`` and ``success_vs_error.png``.
+
+    Returns:
+        The table (Markdown).
+
+    Raises:
+        BenchmarkError: for a folder without a result, or results of different versions.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    results = []
+    for run in runs:
+        path = Path(run)
+        path = path / "benchmark.json" if path.is_dir() else path
+        try:
+            result = json.loads(path.read_text())
+            result["offline"]["sets"]
+        except (OSError, json.JSONDecodeError, KeyError, TypeError):
+            raise BenchmarkError(
+                f"{run} holds no result of `handsim benchmark run` (benchmark.json)"
+            ) from None
+        results.append(result)
+    versions = sorted({r["benchmark"] for r in results})
+    if len(versions) != 1:
+        raise BenchmarkError(
+            f"results of one benchmark version compare; received {', '.join(versions)}"
+        )
+    sets = list(results[0]["offline"]["sets"])
+    head = ["estimator", *sets, "all", "AUC", "centre mm", "loop success (on/off)"]
+    lines = [
+        f"{versions[0]}: mean keypoint error, mm (centre error where there are no keypoints)",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|---|" + "---:|" * (len(head) - 1),
+    ]
+    points = []
+    for r in results:
+        name = _name(r["estimator"])
+        off = r["offline"]
+        cells = [_cell(off["sets"][k]) for k in sets] + [_cell(off["all"])]
+        loop = r.get("closed_loop")
+        success = "n/a"
+        if loop is not None:
+            on, no = loop["success_rate_feedback_on"], loop["success_rate_feedback_off"]
+            success = f"{100 * on:.0f} / {100 * no:.0f} % ({loop['episodes']})"
+            error = off["all"]["mean_mm"] or off["all"]["center_mm"]
+            if error is not None:
+                points.append((name, error, 100 * on, off["all"]["mean_mm"] is None))
+        lines.append(
+            f"| {name} | "
+            + " | ".join(cells)
+            + f" | {_fmt(off['all']['auc_f_tau'], 3)} | {_fmt(off['all']['center_mm'])} | "
+            + f"{success} |"
+        )
+    table = "\n".join(lines) + "\n"
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "compare.md").write_text(table)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, error, success, centre_only in points:
+        ax.scatter(error, success, marker="s" if centre_only else "o")
+        ax.annotate(name, (error, success), fontsize=7, xytext=(4, 4), textcoords="offset points")
+    ax.set(
+        xlabel="offline mean keypoint error / mm (squares: centre error, no keypoints)",
+        ylabel=f"{CLOSED_LOOP_ENV} success, feedback on / %",
+        ylim=(-5, 105),
+    )
+    ax.set_title(versions[0], fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "success_vs_error.png", dpi=100)
+    plt.close(fig)
+    return table
+
+
+def _name(estimator: dict[str, Any]) -> str:
+    name = str(estimator.get("spec", estimator.get("name", "?")))
+    if "noise_mm" in estimator:
+        name += f" {estimator['noise_mm']:g} mm"
+    return name
+
+
+def _cell(stats: dict[str, Any]) -> str:
+    if stats["mean_mm"] is not None:
+        return _fmt(stats["mean_mm"])
+    return "n/a" if stats["center_mm"] is None else f"({_fmt(stats['center_mm'])})"
+
+
 # Command line ----------------------------------------------------------------------------------
 
 
@@ -554,8 +666,14 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _compare(args: argparse.Namespace) -> int:
+    print(compare_runs(args.runs, args.out), end="")
+    print(f"written: {Path(args.out) / 'compare.md'}, success_vs_error.png")
+    return 0
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``handsim benchmark make`` and ``handsim benchmark run``."""
+    """Add ``handsim benchmark make``, ``run`` and ``compare``."""
     from handsim.cli.closed_loop import ESTIMATORS
 
     bench = sub.add_parser(
@@ -627,3 +745,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     add_quiet(run)
     run.set_defaults(func=_run)
+
+    compare = actions.add_parser(
+        "compare",
+        help="one table of several runs, and closed-loop success against offline error",
+        description="Read the benchmark.json of several `handsim benchmark run` folders (one "
+        "benchmark version) and write OUT/compare.md (mean error per set, AUC, centre error, "
+        "closed-loop success) and OUT/success_vs_error.png.",
+    )
+    compare.add_argument("runs", nargs="+", metavar="RUN", help="run output folders")
+    compare.add_argument(
+        "--out", default="handsim-benchmark-compare", help="output folder (default: %(default)s)"
+    )
+    compare.set_defaults(func=_compare)

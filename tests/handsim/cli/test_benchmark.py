@@ -8,7 +8,13 @@ import h5py
 import numpy as np
 import pytest
 
-from handsim.cli.benchmark import SETS, BenchmarkError, make_benchmark, run_benchmark
+from handsim.cli.benchmark import (
+    SETS,
+    BenchmarkError,
+    compare_runs,
+    make_benchmark,
+    run_benchmark,
+)
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
 
@@ -139,3 +145,26 @@ def test_run_a_user_file_and_refuse_a_non_benchmark(bench, tmp_path):
     result = _cli("benchmark", "run", "--estimator", "com", "--bench", str(tmp_path), "-q")
     assert result.returncode == 2
     assert "is not a benchmark folder (no readable benchmark.json)" in result.stderr
+
+
+def test_compare_puts_runs_in_one_table(bench, tmp_path):
+    """compare: one row per run (a localizer's centre error in brackets); versions must match."""
+    from handsim.estimators import CenterOfMassLocalizer, OracleEstimator
+
+    run_benchmark(
+        bench, lambda: OracleEstimator(noise_mm=0.0, rng=0), {"name": "oracle", "noise_mm": 0.0},
+        tmp_path / "a", episodes=0,
+    )  # fmt: skip
+    run_benchmark(bench, CenterOfMassLocalizer, {"name": "com"}, tmp_path / "b", episodes=0)
+    result = _cli("benchmark", "compare", str(tmp_path / "a"), str(tmp_path / "b"),
+                  "--out", str(tmp_path / "c"))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| oracle")]
+    assert rows == ["| oracle 0 mm | " + "0.0 | " * 7 + "1.000 | 0.0 | n/a |"]
+    assert "| com | (" in result.stdout
+    assert (tmp_path / "c" / "success_vs_error.png").stat().st_size > 0
+    other = json.loads((tmp_path / "b" / "benchmark.json").read_text())
+    other["benchmark"] = "handsim-bench-v2"
+    (tmp_path / "b" / "benchmark.json").write_text(json.dumps(other))
+    with pytest.raises(BenchmarkError, match="results of one benchmark version compare"):
+        compare_runs([tmp_path / "a", tmp_path / "b"], tmp_path / "d")
