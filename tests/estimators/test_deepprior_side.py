@@ -175,3 +175,33 @@ def test_training_records_the_side_convention(sided_data, tmp_path):
         train([sided_data], out, TrainConfig(**tiny, canonical_side=flag), **quiet)
         assert json.loads((out / "best.json").read_text())["canonical_side"] is flag
         assert DeepPriorEstimator(out, localizer=None).canonical_side is flag
+
+
+def test_train_and_evaluate_cli_no_canonical_side_subprocess(sided_data, tmp_path):
+    """--no-canonical-side: the run records False; evaluate reports the side and per side."""
+    import subprocess
+    import sys
+
+    run = tmp_path / "run"
+    train_args = [
+        "train", "deepprior++", "--data", str(sided_data), "--out", str(run), "--epochs", "1",
+        "--batch-size", "4", "--size", "32", "--fc", "16", "--width", "0.125",
+        "--prior-dim", "4", "--threads", "1", "--no-canonical-side", "-q",
+    ]  # fmt: skip
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", *train_args], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    assert json.loads((run / "best.json").read_text())["canonical_side"] is False
+    out = tmp_path / "eval"
+    eval_args = [
+        "evaluate", "--estimator", str(run), "--data", str(sided_data), "--split", "all",
+        "--localizer", "none", "--out", str(out), "--threads", "1", "-q",
+    ]  # fmt: skip
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", *eval_args], capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stderr
+    report = json.loads((out / "metrics.json").read_text())
+    assert report["canonical_side"] is False
+    assert report["by_side"]["left"]["n"] + report["by_side"]["right"]["n"] == 12
