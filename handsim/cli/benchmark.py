@@ -757,4 +757,5 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     compare.add_argument(
         "--out", default="handsim-benchmark-compare", help="output folder (default: %(default)s)"
     )
+    add_quiet(compare, "accepted by every command; compare shows no progress bars")
     compare.set_defaults(func=_compare)
