@@ -91,7 +91,10 @@ class EstimatorLoop(gym.Wrapper):
     to ``estimator.predict``. It wraps a bare env or one made by ``gym.make`` (it reaches the
     handsim env through ``env.unwrapped``). An estimator that implements
     :class:`~handsim.estimator.PrivilegedEstimator` (an oracle) first gets the step's
-    ground-truth frame through ``observe_truth``. ``info`` then holds:
+    ground-truth frame through ``observe_truth``. An estimator with a ``set_side(is_left)``
+    method (optional, beside the protocol: learned estimators that mirror left hands into a
+    right-hand frame) is told the side of the episode's hand at every reset, as a real system
+    knows which hand it tracks. ``info`` then holds:
 
     - ``"frame"``: the :class:`~handsim.frame.Frame` the estimate is scored against, without its
       images (``None`` on a diverged step);
@@ -201,6 +204,9 @@ class EstimatorLoop(gym.Wrapper):
         """Reset the env and the estimator, then estimate the first observation."""
         obs, info = self.env.reset(**kwargs)
         self.estimator.reset()
+        set_side = getattr(self.estimator, "set_side", None)
+        if callable(set_side):
+            set_side(self.unwrapped.scene.hand.params.side == "left")
         # Only feedback turns estimates into poses (the hand may differ per episode).
         if self.feedback:
             self._retargeter = Retargeter(self.unwrapped.scene.hand.params)

@@ -3,6 +3,11 @@
 :func:`load_frames` reads the depth images (as stored, uint16) and the labels of a split of one
 or more dataset folders (``handsim generate``) into a :class:`FrameSet`; :class:`CropDataset`
 turns it into augmented crops for torch (:func:`~handsim.estimators.deepprior.preprocess.augment`).
+
+With ``canonical_side=True`` the left hands' frames are stored mirrored into the right-hand
+frame (depth columns flipped, ``cx' = W - 1 - cx``, ``x -> -x`` on the keypoints, their order
+kept): training, the PCA prior and the crop centres then see right hands only. Errors are
+distances, so they are the same in either frame.
 """
 
 from __future__ import annotations
@@ -20,9 +25,26 @@ from handsim.data.shards import ShardReader
 from handsim.data.splits import folder_splits, split_mask
 from handsim.errors import HandSimError
 
-from .preprocess import CROP_SIZE, CUBE_M, MIDDLE_MCP, AugmentParams, augment, sample_augmentation
+from .preprocess import (
+    CROP_SIZE,
+    CUBE_M,
+    MIDDLE_MCP,
+    AugmentParams,
+    augment,
+    mirror_depth,
+    mirror_intrinsics,
+    mirror_points,
+    sample_augmentation,
+)
 
-__all__ = ["FrameSet", "load_frames", "env_frames", "CropDataset", "InvalidTrainingData"]
+__all__ = [
+    "FrameSet",
+    "load_frames",
+    "env_frames",
+    "side_frame",
+    "CropDataset",
+    "InvalidTrainingData",
+]
 
 
 class InvalidTrainingData(HandSimError, ValueError):
@@ -41,6 +63,8 @@ class FrameSet:
         occlusion: (N,) hand occlusion ratio (NaN where not computed).
         hand_length_m: (N,) hand length, metres.
         sensor: (N,) sensor model name of each frame's folder.
+        is_left: (N,) bool, the frame shows a left hand.
+        mirrored: (N,) bool, the frame is stored mirrored into the right-hand frame.
     """
 
     depth_units: np.ndarray
@@ -50,6 +74,8 @@ class FrameSet:
     occlusion: np.ndarray
     hand_length_m: np.ndarray
     sensor: np.ndarray
+    is_left: np.ndarray
+    mirrored: np.ndarray
 
     def __len__(self) -> int:
         return len(self.K)
@@ -64,11 +90,14 @@ def load_frames(
     split: str = "all",
     *,
     max_frames: int | None = None,
+    canonical_side: bool = False,
 ) -> FrameSet:
     """Read every frame of a split (``train``/``val``/``test``/``all``, by episode).
 
     Splits are those of :class:`~handsim.data.torch_dataset.HandSimDataset`
     (:mod:`handsim.data.splits`: 10 % of a folder's episodes each for val and test).
+    ``canonical_side=True`` stores the left hands' frames mirrored into the right-hand frame
+    (``mirrored`` says which).
 
     Raises:
         InvalidTrainingData: if a folder is not a dataset or the split is empty.
@@ -78,7 +107,7 @@ def load_frames(
 
     if isinstance(folders, (str, os.PathLike)):
         folders = [folders]
-    keys = ("depth", "scale", "K", "kp", "occ", "length", "sensor")
+    keys = ("depth", "scale", "K", "kp", "occ", "length", "sensor", "left")
     parts: dict[str, list[Any]] = {k: [] for k in keys}
     total = 0
     for folder in folders:
@@ -100,10 +129,18 @@ def load_frames(
                 continue
             with h5py.File(reader.path, "r") as f:
                 depth = f["depth"][:]
-            parts["depth"].append(depth[keep])
+            depth, K = depth[keep], reader.labels("K")[keep]  # noqa: N806
+            kp = reader.labels("keypoints_cam")[keep]
+            left = reader.labels("is_left")[keep].astype(bool)
+            if canonical_side and left.any():
+                depth[left] = mirror_depth(depth[left])
+                K[left] = mirror_intrinsics(K[left], depth.shape[-1])
+                kp[left] = mirror_points(kp[left])
+            parts["depth"].append(depth)
             parts["scale"].append(np.full(keep.sum(), reader.depth_scale_mm / 1000.0))
-            parts["K"].append(reader.labels("K")[keep])
-            parts["kp"].append(reader.labels("keypoints_cam")[keep])
+            parts["K"].append(K)
+            parts["kp"].append(kp)
+            parts["left"].append(left)
             parts["occ"].append(reader.labels("hand_occlusion_ratio")[keep])
             parts["length"].append(reader.labels("hand_length_m")[keep])
             parts["sensor"].append(np.array([sensor] * int(keep.sum())))
@@ -124,6 +161,32 @@ def load_frames(
         occlusion=cat["occ"][:n],
         hand_length_m=cat["length"][:n],
         sensor=cat["sensor"][:n],
+        is_left=cat["left"][:n],
+        mirrored=cat["left"][:n] & bool(canonical_side),
+    )
+
+
+def side_frame(frames: FrameSet, canonical_side: bool) -> FrameSet:
+    """``frames`` with its left hands mirrored (``canonical_side``) or as seen (not).
+
+    Frames already in the asked frame are shared, not copied; the others are mirrored copies.
+
+    Args:
+        frames: the frames (any mix of mirrored and unmirrored).
+        canonical_side: ``True``: left hands in the right-hand frame; ``False``: as rendered.
+
+    Returns:
+        A :class:`FrameSet` (``frames`` itself when nothing changes).
+    """
+    flip = frames.mirrored != (frames.is_left & bool(canonical_side))
+    if not flip.any():
+        return frames
+    depth, K, kp = frames.depth_units.copy(), frames.K.copy(), frames.keypoints_cam.copy()  # noqa: N806
+    depth[flip] = mirror_depth(depth[flip])
+    K[flip] = mirror_intrinsics(K[flip], depth.shape[-1])
+    kp[flip] = mirror_points(kp[flip])
+    return dataclasses.replace(
+        frames, depth_units=depth, K=K, keypoints_cam=kp, mirrored=frames.mirrored ^ flip
     )
 
 
@@ -224,6 +287,7 @@ def env_frames(
     every: int = 5,
     seed: int = 0,
     sensor: str = "structured_light",
+    canonical_side: bool = False,
 ) -> FrameSet:
     """Frames of an env's scripted expert (acting on the truth), every ``every``-th step.
 
@@ -237,6 +301,7 @@ def env_frames(
         every: keep every this many steps.
         seed: first seed.
         sensor: depth sensor model.
+        canonical_side: store left hands' frames mirrored into the right-hand frame.
 
     Returns:
         The frames (depth stored in 0.1 mm units). ``occlusion`` is the frame's hand occlusion
@@ -256,7 +321,7 @@ def env_frames(
         )
 
     scale_m = 1e-4
-    parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length")}
+    parts: dict[str, list[Any]] = {k: [] for k in ("depth", "K", "kp", "occ", "length", "left")}
     env = gym.make(env_id, obs_mode="depth", sensor=sensor)
     try:
         for episode in range(episodes):
@@ -267,9 +332,17 @@ def env_frames(
                 frame = env.unwrapped.frame
                 if frame is not None and step % every == 0:
                     depth = np.rint(np.asarray(obs["depth"], np.float64) / scale_m)
-                    parts["depth"].append(np.clip(depth, 0, 65535).astype(np.uint16))
-                    parts["K"].append(np.asarray(frame.K, np.float64))
-                    parts["kp"].append(np.asarray(frame.keypoints_cam, np.float64))
+                    depth = np.clip(depth, 0, 65535).astype(np.uint16)
+                    K = np.asarray(frame.K, np.float64)  # noqa: N806
+                    kp = np.asarray(frame.keypoints_cam, np.float64)
+                    left = frame.handedness == "left"
+                    if canonical_side and left:
+                        depth = mirror_depth(depth)
+                        K, kp = mirror_intrinsics(K, depth.shape[1]), mirror_points(kp)  # noqa: N806
+                    parts["depth"].append(depth)
+                    parts["K"].append(K)
+                    parts["kp"].append(kp)
+                    parts["left"].append(left)
                     ratio = frame.hand_occlusion_ratio
                     if ratio is None or not np.isfinite(ratio):  # not computed: keypoints
                         ratio = 1.0 - float(np.mean(frame.visible))
@@ -290,4 +363,6 @@ def env_frames(
         occlusion=np.asarray(parts["occ"]),
         hand_length_m=np.asarray(parts["length"]),
         sensor=np.array([sensor] * n),
+        is_left=np.asarray(parts["left"], dtype=bool),
+        mirrored=np.asarray(parts["left"], dtype=bool) & bool(canonical_side),
     )

@@ -4,6 +4,14 @@
 the nearest blob's centre of mass (:class:`~.preprocess.PlaneRemovedLocalizer`), the refinement
 CNN applied ``refine_iterations`` times (it moves the centre to the predicted middle-finger
 MCP), the 3D cube crop, the pose network and the exact inverse of the label normalization.
+
+Side: a pose checkpoint trained in the canonical right-hand frame (its config's
+``canonical_side``, written by ``handsim train``) gets a left hand's frame mirrored
+(:func:`~.preprocess.mirror_depth`, :func:`~.preprocess.mirror_intrinsics`) before the whole
+pipeline and its keypoints mirrored back. The side is the estimator's state: ``is_left`` at
+construction or :meth:`DeepPriorEstimator.set_side` (which
+:class:`~handsim.envs.wrappers.EstimatorLoop` calls at every reset with the env's hand).
+Checkpoints without the flag (trained on both sides as they come) are run unmirrored.
 """
 
 from __future__ import annotations
@@ -13,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from handsim.errors import InvalidEstimatorParams
 from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
 
 from .preprocess import (
@@ -21,9 +30,12 @@ from .preprocess import (
     crop_depth,
     crop_matrix,
     denormalize_keypoints,
+    mirror_depth,
+    mirror_intrinsics,
+    mirror_points,
 )
 
-__all__ = ["DETECTORS", "DeepPriorEstimator", "RefinedLocalizer"]
+__all__ = ["DETECTORS", "TRACK_MIN_FILL", "DeepPriorEstimator", "RefinedLocalizer"]
 
 
 def _as_input(x: np.ndarray, device: str) -> Any:
@@ -31,6 +43,19 @@ def _as_input(x: np.ndarray, device: str) -> Any:
     import torch
 
     return torch.from_numpy(x).to(device=device, memory_format=torch.channels_last)
+
+
+TRACK_MIN_FILL = 0.05
+"""Tracking keeps a centre while at least this fraction of a 32 x 32 crop of its cube holds
+depth inside the cube (a hand fills ~30 % of it; the cube on empty space or far behind, 0)."""
+
+
+def _fill(depth_m: np.ndarray, K: np.ndarray, center: np.ndarray, cube_m: float) -> float:  # noqa: N803
+    """Fraction of a 32 x 32 crop of the cube at ``center`` with depth inside the cube."""
+    if not (np.all(np.isfinite(center)) and center[2] > cube_m / 2):
+        return 0.0  # a centre behind or at the camera holds nothing
+    crop = crop_depth(depth_m, crop_matrix(center, K, cube_m, 32), center[2], cube_m, 32)
+    return float(np.count_nonzero(crop < 1.0)) / crop.size
 
 
 DETECTORS = ("plane", "com")
@@ -161,9 +186,19 @@ class DeepPriorEstimator(EstimatorBase):
             works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
             to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
         threads: torch CPU threads (``None``: leave torch's setting).
+        canonical_side: mirror left hands into the right-hand frame the network works in;
+            ``None`` (default): the checkpoint's ``canonical_side`` flag (``False`` when it has
+            none: checkpoints trained before the flag saw both sides as they came).
+        is_left: the side of the hands this estimator is given (:meth:`set_side` changes it).
+        track: start each frame's refinement from the previous frame's refined centre instead
+            of the detector, as a tracker does. The detector runs again after :meth:`reset`,
+            after a frame without an estimate, when the side changes, and when the tracked
+            centre has lost the hand (under :data:`TRACK_MIN_FILL` of its cube's crop holds
+            depth inside the cube).
 
     Raises:
-        InvalidCheckpoint: for a checkpoint that cannot be loaded.
+        InvalidCheckpoint: for a checkpoint that cannot be loaded, or a ``canonical_side`` or
+            ``is_left`` that is not a bool.
     """
 
     def __init__(
@@ -175,10 +210,19 @@ class DeepPriorEstimator(EstimatorBase):
         device: str = "cpu",
         threads: int | None = None,
         detector: str = "plane",
+        canonical_side: bool | None = None,
+        is_left: bool = False,
+        track: bool = False,
     ) -> None:
         import torch
 
-        from .checkpoint import load_model
+        from .checkpoint import InvalidCheckpoint, load_model
+
+        if canonical_side is not None and not isinstance(canonical_side, bool):
+            raise InvalidCheckpoint(
+                f"canonical_side must be True, False or None (the checkpoint's flag); received "
+                f"{canonical_side!r}"
+            )
 
         if threads is not None:
             torch.set_num_threads(int(threads))
@@ -187,17 +231,50 @@ class DeepPriorEstimator(EstimatorBase):
         self.model, config = load_model(checkpoint, device)
         self.cube_m = float(config["cube_m"])
         self.size = int(config["model"]["size"])
+        stored = config.get("canonical_side", False)
+        self.canonical_side = bool(stored) if canonical_side is None else canonical_side
         self.localizer = RefinedLocalizer(
             localizer, iterations=refine_iterations, device=device, detector=detector
         )
+        self.track = bool(track)
+        self._tracked: np.ndarray | None = None
+        self.is_left = False
+        self.set_side(is_left)
+
+    def reset(self) -> None:
+        """Forget the tracked centre (a new episode starts with the detector)."""
+        self._tracked = None
+
+    def set_side(self, is_left: bool) -> None:
+        """The side of the next frames: ``True`` for a left hand.
+
+        Raises:
+            InvalidEstimatorParams: if ``is_left`` is not a bool.
+        """
+        if not isinstance(is_left, bool | np.bool_):
+            raise InvalidEstimatorParams(
+                f"is_left must be a bool (True for a left hand); received {is_left!r}"
+            )
+        if bool(is_left) != self.is_left:
+            self._tracked = None  # a centre of the other frame
+        self.is_left = bool(is_left)
 
     def __repr__(self) -> str:
         return (
             f"DeepPriorEstimator(checkpoint={self.checkpoint!r}, "
             f"localizer={self.localizer.checkpoint!r}, "
             f"refine_iterations={self.localizer.iterations}, "
-            f"detector={self.localizer.detector!r})"
+            f"detector={self.localizer.detector!r}, canonical_side={self.canonical_side}, "
+            f"track={self.track})"
         )
+
+    def _center(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
+        """The crop centre: refined from the tracked centre while it holds the hand, else found."""
+        if self.track and self._tracked is not None:
+            center = self.localizer.refine(depth_m, K, self._tracked)
+            if _fill(depth_m, K, center, self.cube_m) >= TRACK_MIN_FILL:
+                return center
+        return self.localizer.localize(depth_m, K)
 
     def predict_at(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """(21, 3) keypoints, metres, from a crop at ``center`` (unchecked input)."""
@@ -222,10 +299,15 @@ class DeepPriorEstimator(EstimatorBase):
             ``Estimate(keypoints_cam=(21, 3) metres)``.
         """
         depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
-        center = self.localizer.localize(depth_m, K_cv)
+        mirror = self.canonical_side and self.is_left
+        if mirror:  # the left hand as the right hand it mirrors
+            depth_m, K_cv = mirror_depth(depth_m), mirror_intrinsics(K_cv, depth_m.shape[1])  # noqa: N806
+        center = self._center(depth_m, K_cv)
+        self._tracked = center
         if center is None:
             return Estimate(valid=False)
-        return Estimate(keypoints_cam=self.predict_at(depth_m, K_cv, center))
+        keypoints = self.predict_at(depth_m, K_cv, center)
+        return Estimate(keypoints_cam=mirror_points(keypoints) if mirror else keypoints)
 
     def info(self) -> dict[str, Any]:
         """What the estimator runs (for reports)."""
@@ -235,4 +317,6 @@ class DeepPriorEstimator(EstimatorBase):
             "detector": self.localizer.detector,
             "cube_m": self.cube_m,
             "size": self.size,
+            "canonical_side": self.canonical_side,
+            "track": self.track,
         }

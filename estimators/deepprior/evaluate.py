@@ -8,6 +8,10 @@ occlusion bucket and per sensor, the localization error of every stage (centre o
 plane-removed centre of mass, refined, each against the true middle-finger MCP), the pose
 error when the crop is centred by each of them and by the truth, and the inference time; and
 the plots ``f_tau.png``, ``pck.png``, ``error_by_occlusion.png``, ``error_by_joint.png``.
+
+A checkpoint that works in the canonical right-hand frame gets the left hands' frames mirrored
+(as its estimator does); errors are distances, the same in either frame. The report has the
+errors per side too.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import numpy as np
 from handsim import metrics
 from handsim.hand.keypoints import KEYPOINT_NAMES
 
-from .data import FrameSet, load_frames
+from .data import FrameSet, load_frames, side_frame
 from .preprocess import MIDDLE_MCP, PlaneRemovedLocalizer
 
 __all__ = ["OCCLUSION_EDGES", "evaluate"]
@@ -55,6 +59,7 @@ def evaluate(
     threads: int = 0,
     with_centres: bool = True,
     device: str = "cpu",
+    canonical_side: bool | None = None,
 ) -> dict[str, Any]:
     """Evaluate a pose checkpoint (or shipped name) on a split; write the report and plots.
 
@@ -70,6 +75,9 @@ def evaluate(
         with_centres: also run the network on crops centred by the plain centre of mass, the
             plane-removed one and the true middle MCP (``mean_error_mm_by_crop_centre``).
         device: torch device of the networks.
+        canonical_side: mirror left hands into the right-hand frame (``None``: the
+            checkpoint's flag; ``False`` runs a canonical network on left hands as they are,
+            for the side study).
 
     Returns:
         The report (also ``out/metrics.json``).
@@ -84,13 +92,21 @@ def evaluate(
 
     from .estimator import DeepPriorEstimator
 
-    est = DeepPriorEstimator(estimator, localizer=localizer, threads=threads or None, device=device)
+    est = DeepPriorEstimator(
+        estimator,
+        localizer=localizer,
+        threads=threads or None,
+        device=device,
+        canonical_side=canonical_side,
+    )
     if isinstance(data, FrameSet):
         frames = data
         data_names = ["(frames in memory)"]
     else:
         frames = load_frames(data, split, max_frames=max_frames or None)
         data_names = [str(d) for d in data]
+    # The pipeline below runs on the frames as stored: put them in the network's frame.
+    frames = side_frame(frames, est.canonical_side)
     n = len(frames)
     pred = np.full((n, 21, 3), np.nan)
     loc_err = {
@@ -140,6 +156,10 @@ def evaluate(
         for b in metrics.errors_by_occlusion(frame_mean[known], occ[known], OCCLUSION_EDGES):
             by_occ.append(b.to_dict())
     by_sensor = {str(s): _stats(frame_mean[frames.sensor == s]) for s in np.unique(frames.sensor)}
+    by_side = {
+        side: _stats(frame_mean[frames.is_left == left])
+        for side, left in (("right", False), ("left", True))
+    }
     result: dict[str, Any] = {
         "estimator": repr(est),
         "data": data_names,
@@ -155,6 +175,8 @@ def evaluate(
         "by_occlusion": by_occ,
         "occlusion_unknown_frames": int((~known).sum()),
         "by_sensor": by_sensor,
+        "by_side": by_side,
+        "canonical_side": est.canonical_side,
         "localization_mm": {k: _stats(v) for k, v in loc_err.items()},
         "mean_error_mm_by_crop_centre": (
             {

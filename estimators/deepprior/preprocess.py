@@ -27,6 +27,12 @@ a cube scale and a 3D offset of the centre. Labels follow exactly: the keypoints
 with the image about the same pixel, their depth is kept, and they are back-projected; the
 offset and the scale change the centre and the cube the labels are normalized with.
 
+**Side.** The networks work in a canonical right-hand frame: a left hand's frame is mirrored
+(:func:`mirror_depth`, :func:`mirror_intrinsics`, :func:`mirror_points`) into the right hand it
+is the exact mirror of, and the prediction mirrored back. Mirroring the image columns
+(``u' = W - 1 - u``) with ``cx' = W - 1 - cx`` is exactly ``x -> -x`` in the camera frame; the
+keypoint order is kept (joint ``j`` of the left hand becomes joint ``j`` of the right).
+
 **Prior.** :func:`fit_pca` is a PCA (not whitened) of normalized poses; the learned models
 initialize their prior bottleneck from it.
 """
@@ -61,6 +67,9 @@ __all__ = [
     "sample_augmentation",
     "augment",
     "fit_pca",
+    "mirror_depth",
+    "mirror_intrinsics",
+    "mirror_points",
 ]
 
 CUBE_M = 0.250
@@ -453,6 +462,37 @@ def augment(
     crop = crop_depth(depth_m, M, center[2], cube, size)
     rotated = rotate_keypoints(keypoints_cam, K, center, params.angle_rad)
     return crop, normalize_keypoints(rotated, center, cube), center, cube
+
+
+# Side ------------------------------------------------------------------------------------------
+
+
+def mirror_depth(depth: np.ndarray) -> np.ndarray:
+    """Image columns flipped (a contiguous copy): (..., H, W) -> (..., H, W), same dtype."""
+    return np.ascontiguousarray(np.asarray(depth)[..., ::-1])
+
+
+def mirror_intrinsics(K: np.ndarray, width: int) -> np.ndarray:  # noqa: N803
+    """Intrinsics of the column-flipped image: ``cx' = W - 1 - cx`` and the skew negated.
+
+    Args:
+        K: (..., 3, 3) intrinsics of an image ``width`` pixels wide.
+        width: image width ``W``, pixels.
+
+    Returns:
+        (..., 3, 3) float64 intrinsics under which ``x -> -x`` projects to ``u' = W - 1 - u``.
+    """
+    out = np.array(K, dtype=np.float64)
+    out[..., 0, 2] = (width - 1) - out[..., 0, 2]
+    out[..., 0, 1] = -out[..., 0, 1]
+    return out
+
+
+def mirror_points(points_cam: np.ndarray) -> np.ndarray:
+    """``x -> -x`` of (..., 3) camera-frame points (keypoints keep their order)."""
+    out = np.array(points_cam, dtype=np.float64)
+    out[..., 0] = -out[..., 0]
+    return out
 
 
 # Prior -----------------------------------------------------------------------------------------

@@ -14,6 +14,11 @@ Pose networks crop at the true middle-finger MCP unless ``localizer`` names a lo
 checkpoint: then at its refined centre, as at inference. The prior is the PCA of the normalized,
 augmented training poses (``pca.npz``; its explained-variance curve goes into ``metrics.json``).
 
+Side: with ``canonical_side`` (the default) left hands' frames are mirrored into the right-hand
+frame as they are read (:func:`~.data.load_frames`), so the network learns one chirality; the
+checkpoint's config records ``canonical_side`` and the estimator mirrors left inputs likewise.
+One network fitted on both chiralities as they come averages them and folds the palm.
+
 Batch normalization: after every epoch the running statistics are recomputed as plain averages
 over :data:`PRECISE_BN_BATCHES` training batches ("precise BN"). The momentum-averaged
 statistics that training leaves lag the weights and follow the last few batches; with them the
@@ -95,6 +100,8 @@ class TrainConfig:
             shipped name), e.g. to fine-tune shipped weights; its network must be this run's.
         max_frames: use at most this many training frames (0: all).
         seed: random seed.
+        canonical_side: mirror left hands into the right-hand frame (training and inference);
+            ``False`` trains on both sides as they come (for the side study).
     """
 
     kind: str = "deepprior++"
@@ -118,6 +125,7 @@ class TrainConfig:
     init: str | None = None
     max_frames: int = 0
     seed: int = 0
+    canonical_side: bool = True
 
     def model_config(self) -> dict[str, Any]:
         """The :func:`~.models.build_model` config of this run."""
@@ -384,13 +392,22 @@ def train(
         torch.backends.cudnn.allow_tf32 = True
 
     max_frames = config.max_frames or None
-    train_frames = load_frames(data, "train", max_frames=max_frames)
+    canonical = config.canonical_side
+    train_frames = load_frames(data, "train", max_frames=max_frames, canonical_side=canonical)
     val_frames = load_frames(
-        data, "val", max_frames=None if max_frames is None else max(8, max_frames // 8)
+        data,
+        "val",
+        max_frames=None if max_frames is None else max(8, max_frames // 8),
+        canonical_side=canonical,
     )
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
     model_config = config.model_config()
-    ckpt_config = {"model": model_config, "cube_m": config.cube_m, "kind": config.kind}
+    ckpt_config = {
+        "model": model_config,
+        "cube_m": config.cube_m,
+        "kind": config.kind,
+        "canonical_side": config.canonical_side,
+    }
     flags = {"rotation": config.rotation, "scale": config.scale, "translation": config.translation}
 
     def cached_centers(frames: FrameSet, split: str, checkpoint: str | None) -> np.ndarray:

@@ -158,6 +158,7 @@ def _train(args: argparse.Namespace) -> int:
         init=args.init,
         max_frames=args.max_frames,
         seed=args.seed,
+        canonical_side=not args.no_canonical_side,
     )
     _check_device(args.device)
     metrics = train(
@@ -220,6 +221,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         threads=args.threads,
         device=args.device,
+        canonical_side=False if args.no_canonical_side else None,
     )
     keys = ("estimator", "n_frames", "n_missed", "mean_error_mm", "auc_f_tau", "localization_mm")
     report = {
@@ -331,6 +333,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--val-every", type=positive_int, default=1, help="validate every N epochs (default: 1)"
     )
     tr.add_argument("--seed", type=seed, default=0, help="seed (default: 0)")
+    tr.add_argument(
+        "--no-canonical-side",
+        action="store_true",
+        help="train on left and right hands as they come (default: left hands are mirrored "
+        "into the right-hand frame, in training and at inference)",
+    )
     tr.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
     )
@@ -452,6 +460,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     ev.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="torch device (default: cpu)"
+    )
+    ev.add_argument(
+        "--no-canonical-side",
+        action="store_true",
+        help="give a canonical (right-hand frame) network left hands unmirrored (default: the "
+        "checkpoint's canonical_side flag decides)",
     )
     add_quiet(ev)
     ev.set_defaults(func=_evaluate, parser=ev)

@@ -13,7 +13,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from handsim.cli import closed_loop, data, demo, info, learn, teleop, view
+from handsim.cli import benchmark, closed_loop, data, demo, info, learn, teleop, view
 from handsim.errors import HandSimError
 
 __all__ = ["main", "build_parser"]
@@ -35,7 +35,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="show the traceback of an error (also: environment variable HANDSIM_DEBUG=1)",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for command in (demo, closed_loop, data, info, teleop, view, learn):
+    for command in (demo, closed_loop, benchmark, data, info, teleop, view, learn):
         command.add_parser(sub)
     return parser
 

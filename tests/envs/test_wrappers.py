@@ -145,3 +145,20 @@ def test_closed_loop_cli(tmp_path, capsys):
     assert status == 0
     assert "feedback_on" in capsys.readouterr().out
     assert (tmp_path / "closed_loop.json").exists() and (tmp_path / "success.png").exists()
+
+
+def test_loop_tells_an_estimator_with_set_side_the_hand_it_sees():
+    """At every reset an estimator's optional set_side gets the episode's side."""
+
+    class SideAware(CenterOfMassLocalizer):
+        sides: list = []
+
+        def set_side(self, is_left):
+            self.sides.append(is_left)
+
+    est = SideAware()
+    for side in ("left", "right"):
+        env = _loop(est, handedness=side)
+        env.reset(seed=0)
+        env.close()
+    assert est.sides == [True, False]

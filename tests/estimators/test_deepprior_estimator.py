@@ -1,0 +1,64 @@
+"""DeepPriorEstimator's tracking: the detector runs once per track, and again when it is lost."""
+
+import numpy as np
+import torch
+
+from handsim.estimators.deepprior import checkpoint as C
+from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+from handsim.estimators.deepprior.models import build_model
+
+K_CV = np.array([[60.0, 0.0, 31.5], [0.0, 60.0, 23.5], [0.0, 0.0, 1.0]])
+
+
+def _estimator(tmp_path, **kwargs):
+    config = {
+        "model": {"arch": "resnet", "size": 32, "fc": 16, "width": 0.125, "prior_dim": 4},
+        "cube_m": 0.25,
+        "kind": "deepprior++",
+    }
+    torch.manual_seed(0)
+    C.save_checkpoint(
+        tmp_path / "n.pt", {"model": build_model(config["model"]).state_dict()}, config
+    )
+    est = DeepPriorEstimator(tmp_path / "n.pt", localizer=None, detector="com", **kwargs)
+    calls = []
+    detect = est.localizer.base.localize
+    est.localizer.base.localize = lambda d, k: calls.append(1) or detect(d, k)
+    return est, calls
+
+
+def _hand(u0=22):
+    v, u = np.mgrid[0:48, 0:64]
+    depth = np.zeros((48, 64), np.float32)
+    depth[((u - u0) / 9.0) ** 2 + ((v - 20) / 12.0) ** 2 < 1] = 0.45
+    return depth
+
+
+def test_tracking_skips_the_detector_until_the_hand_is_lost(tmp_path):
+    """track=True: one detection per track; reset, a lost hand and a side change detect again."""
+    est, calls = _estimator(tmp_path, track=True)
+    for _ in range(3):
+        assert est.predict(_hand(), K_CV).valid
+    assert len(calls) == 1
+    est.reset()
+    est.predict(_hand(), K_CV)
+    assert len(calls) == 2
+    # Nothing in view: the tracked cube is empty, the detector finds nothing either.
+    assert not est.predict(np.zeros((48, 64), np.float32), K_CV).valid
+    assert len(calls) == 3
+    est.predict(_hand(), K_CV)  # after a miss: detect
+    assert len(calls) == 4
+    est.set_side(True)
+    est.predict(_hand(), K_CV)
+    assert len(calls) == 5
+    assert "track=True" in repr(est)
+
+
+def test_without_tracking_every_frame_is_detected(tmp_path):
+    """The default detects in every frame, and the first tracked frame equals it."""
+    est, calls = _estimator(tmp_path)
+    first = est.predict(_hand(), K_CV).keypoints_cam
+    est.predict(_hand(), K_CV)
+    assert len(calls) == 2
+    tracker, _ = _estimator(tmp_path, track=True)
+    np.testing.assert_array_equal(tracker.predict(_hand(), K_CV).keypoints_cam, first)

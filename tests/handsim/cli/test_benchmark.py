@@ -1,0 +1,170 @@
+"""`handsim benchmark make / run`: versioned, bit-identical sets; one table, strict JSON."""
+
+import json
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from handsim.cli.benchmark import (
+    SETS,
+    BenchmarkError,
+    compare_runs,
+    make_benchmark,
+    run_benchmark,
+)
+from handsim.data.manifest import Manifest
+from handsim.data.shards import ShardReader
+
+N = 2  # frames per set of the tiny benchmark
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-m", "handsim.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=cwd,
+    )
+
+
+def _strict(text):
+    def refuse(constant):
+        raise AssertionError(f"non-strict JSON constant {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    """A tiny benchmark, made by the CLI."""
+    out = tmp_path_factory.mktemp("bench") / "b"
+    result = _cli("benchmark", "make", "--out", str(out), "--frames-per-set", str(N), "-q")
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    summary = _strict(result.stdout)
+    assert summary["version"] == f"handsim-bench-v1-n{N}"
+    assert summary["sets"] == {s.name: N for s in SETS}
+    return out
+
+
+def test_make_is_bit_identical_on_repeat(bench, tmp_path):
+    """The same make elsewhere gives the same shards, byte for byte."""
+    make_benchmark(tmp_path / "again", frames_per_set=N)
+    for s in SETS:
+        a, b = Manifest.read(bench / s.name), Manifest.read(tmp_path / "again" / s.name)
+        assert {k: v.sha256 for k, v in a.shards.items()} == {
+            k: v.sha256 for k, v in b.shards.items()
+        }
+        for record in a.shards.values():
+            with h5py.File(bench / s.name / record.name) as fa:
+                with h5py.File(tmp_path / "again" / s.name / record.name) as fb:
+                    np.testing.assert_array_equal(fa["depth"][:], fb["depth"][:])
+    # Both sides are in the benchmark (even this tiny one, by its fixed seeds).
+    sides = np.concatenate(
+        [
+            ShardReader(bench / s.name / record.name).labels("is_left")
+            for s in SETS
+            for record in Manifest.read(bench / s.name).shards.values()
+        ]
+    )
+    assert sides.any() and not sides.all()
+
+
+def test_make_refuses_another_version_and_foreign_folders(bench, tmp_path):
+    """A folder of another version (or not a benchmark) is never overwritten."""
+    result = _cli("benchmark", "make", "--out", str(bench), "--frames-per-set", "3", "-q")
+    assert result.returncode == 2
+    assert "holds 'handsim-bench-v1-n2', not 'handsim-bench-v1-n3'" in result.stderr
+    assert "a versioned set is never changed" in result.stderr
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("mine")
+    with pytest.raises(BenchmarkError, match="not empty and holds no benchmark.json"):
+        make_benchmark(tmp_path / "other", frames_per_set=N)
+    with pytest.raises(BenchmarkError, match="holds 'handsim-bench-v1-n2', not 'handsim-bench-v1'"):
+        make_benchmark(bench)
+
+
+def test_run_exact_oracle_cli_table_json_plots_and_closed_loop(bench, tmp_path):
+    """A noise-free oracle: 0 mm everywhere, AUC 1; the closed-loop part is in the JSON."""
+    out = tmp_path / "oracle"
+    result = _cli(
+        "benchmark", "run", "--estimator", "oracle", "--noise-mm", "0", "--bench", str(bench),
+        "--out", str(out), "--episodes", "1", "-q",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "| **all** | 12 | 0.0 | 0.0 | 1.000 | 0.0 | 0 |" in result.stdout
+    report = _strict((out / "benchmark.json").read_text())
+    assert report["benchmark"] == "handsim-bench-v1-n2"
+    assert set(report["offline"]["sets"]) == {s.name for s in SETS}
+    for s in report["offline"]["sets"].values():
+        assert s["n_frames"] == N and s["mean_mm"] == 0.0 and s["auc_f_tau"] == 1.0
+    sides = report["offline"]["by_side"]
+    assert sides["left"]["n_frames"] + sides["right"]["n_frames"] == 6 * N
+    loop = report["closed_loop"]
+    assert loop["episodes"] == 1 and 0.0 <= loop["success_rate_feedback_on"] <= 1.0
+    assert (out / "closed_loop" / "closed_loop.json").is_file()
+    for name in ("f_tau.png", "error_by_set.png", "table.md"):
+        assert (out / name).stat().st_size > 0
+
+
+def test_run_localizer_writes_null_keypoint_figures(bench, tmp_path):
+    """No keypoints: mean, median and AUC are null (not 0); the centre error exists."""
+    from handsim.estimators import CenterOfMassLocalizer
+
+    result = run_benchmark(bench, CenterOfMassLocalizer, {"name": "com"}, tmp_path, episodes=0)
+    text = (tmp_path / "benchmark.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    every = result["offline"]["all"]
+    assert every["mean_mm"] is None and every["auc_f_tau"] is None and every["f_tau"] is None
+    assert every["center_mm"] > 0 and result["closed_loop"] is None
+    assert result["estimator"]["describe"].startswith("CenterOfMassLocalizer(")
+
+
+def test_run_a_user_file_and_refuse_a_non_benchmark(bench, tmp_path):
+    """file.py:Class runs like a built-in; a folder that is not a benchmark is refused."""
+    (tmp_path / "my_est.py").write_text(
+        "import numpy as np\n"
+        "from handsim.estimator import Estimate, EstimatorBase\n\n\n"
+        "class Still(EstimatorBase):\n"
+        "    def predict(self, depth, K):\n"
+        "        return Estimate(keypoints_cam=np.tile([0.0, 0.0, 0.5], (21, 1)))\n"
+    )
+    out = tmp_path / "user"
+    result = _cli(
+        "benchmark", "run", "--estimator", "my_est.py:Still", "--bench", str(bench),
+        "--out", str(out), "--episodes", "0", "-q", cwd=tmp_path,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    report = _strict((out / "benchmark.json").read_text())
+    assert report["estimator"]["spec"] == "my_est.py:Still"
+    assert report["offline"]["all"]["mean_mm"] > 50
+    result = _cli("benchmark", "run", "--estimator", "com", "--bench", str(tmp_path), "-q")
+    assert result.returncode == 2
+    assert "is not a benchmark folder (no readable benchmark.json)" in result.stderr
+
+
+def test_compare_puts_runs_in_one_table(bench, tmp_path):
+    """compare: one row per run (a localizer's centre error in brackets); versions must match."""
+    from handsim.estimators import CenterOfMassLocalizer, OracleEstimator
+
+    run_benchmark(
+        bench, lambda: OracleEstimator(noise_mm=0.0, rng=0), {"name": "oracle", "noise_mm": 0.0},
+        tmp_path / "a", episodes=0,
+    )  # fmt: skip
+    run_benchmark(bench, CenterOfMassLocalizer, {"name": "com"}, tmp_path / "b", episodes=0)
+    result = _cli("benchmark", "compare", str(tmp_path / "a"), str(tmp_path / "b"),
+                  "--out", str(tmp_path / "c"))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    rows = [line for line in result.stdout.splitlines() if line.startswith("| oracle")]
+    assert rows == ["| oracle 0 mm | " + "0.0 | " * 7 + "1.000 | 0.0 | n/a |"]
+    assert "| com | (" in result.stdout
+    assert (tmp_path / "c" / "success_vs_error.png").stat().st_size > 0
+    other = json.loads((tmp_path / "b" / "benchmark.json").read_text())
+    other["benchmark"] = "handsim-bench-v2"
+    (tmp_path / "b" / "benchmark.json").write_text(json.dumps(other))
+    with pytest.raises(BenchmarkError, match="results of one benchmark version compare"):
+        compare_runs([tmp_path / "a", tmp_path / "b"], tmp_path / "d")
