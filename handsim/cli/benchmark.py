@@ -36,7 +36,7 @@ import numpy as np
 from handsim.cli._args import (
     add_quiet,
     integer,
-    non_negative_float,
+    number,
     probability,
     progress_bar,
     strict_json,
@@ -730,7 +730,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     run.add_argument(
         "--noise-mm",
-        type=non_negative_float,
+        type=number(0, 1000),
         default=10.0,
         help="oracle noise per axis, mm (default: %(default)s)",
     )

@@ -24,10 +24,8 @@ from handsim.cli._args import (
     add_quiet,
     choice_help,
     integer,
-    non_negative_float,
     number,
     port,
-    positive_float,
     positive_int,
     probability,
     progress_bar,
@@ -50,6 +48,15 @@ _DEFAULT_LIVE_RATE_HZ = 90.0  # a headset's rate, when the stream cannot be meas
 
 # Delays in frames: the range FaultConfig accepts.
 _frames = integer(0, 10_000, "frames of delay")
+# Upper bounds: past them a value is a typo, not a setting (a tracker 1 m off tracks nothing,
+# a session longer than a day or a filter cutoff above 1 kHz controls nothing at <= 120 Hz).
+_noise_mm = number(0, 1000)
+_bias_mm = number(-1000, 1000)
+_cutoff_hz = number(0, 1000, lo_open=True)
+_beta = number(0, 10_000)
+_session_s = number(0, 86_400)
+_wait_s = number(0, 3600)
+_speed = number(0, 1000, lo_open=True)
 
 
 def _task(text: str) -> str:
@@ -125,7 +132,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     if not grid:
         p.add_argument(
             "--noise-mm",
-            type=non_negative_float,
+            type=_noise_mm,
             default=0.0,
             help="Gaussian keypoint noise, std per axis, mm (default: 0)",
         )
@@ -149,7 +156,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         )
     p.add_argument(
         "--bias-mm",
-        type=number(),
+        type=_bias_mm,
         nargs=3,
         default=(0.0, 0.0, 0.0),
         metavar=("X", "Y", "Z"),
@@ -176,13 +183,13 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     p.add_argument(
         "--min-cutoff-hz",
         # 0 Hz would freeze the filtered stream at its first sample.
-        type=positive_float,
+        type=_cutoff_hz,
         default=1.0,
-        help="One Euro filter: cutoff at rest, Hz (default: 1.0)",
+        help="One Euro filter: cutoff at rest, Hz, (0, 1000] (default: 1.0)",
     )
     p.add_argument(
         "--beta",
-        type=non_negative_float,
+        type=_beta,
         default=10.0,
         help="One Euro filter: cutoff increase per m/s of speed (default: 10)",
     )
@@ -590,12 +597,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
             "move the stream so its first wrist is at the hand's start", _ANCHORS, "start"
         ),
     )
-    p.add_argument(
-        "--duration", type=non_negative_float, default=10.0, help="seconds to run (default: 10)"
-    )
+    p.add_argument("--duration", type=_session_s, default=10.0, help="seconds to run (default: 10)")
     p.add_argument(
         "--wait",
-        type=non_negative_float,
+        type=_wait_s,
         default=30.0,
         help="seconds to wait for the first valid packet (0: do not wait; default: 30)",
     )
@@ -644,7 +649,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     _add_loop_options(p, grid=True)
     p.add_argument(
         "--noise-mm",
-        type=_list(non_negative_float, "--noise-mm"),
+        type=_list(_noise_mm, "--noise-mm"),
         default=[0.0, 5.0, 10.0],
         help="noise levels, mm, comma-separated (default: 0,5,10)",
     )
@@ -698,7 +703,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("file", type=Path, help="stream file (.json or .npz)")
     _port_group(p)
     p.add_argument(
-        "--speed", type=positive_float, default=1.0, help="playback speed factor, > 0 (default: 1)"
+        "--speed", type=_speed, default=1.0, help="playback speed factor, > 0 (default: 1)"
     )
     add_quiet(p, "accepted by every command; send shows no progress bars")
     p.set_defaults(func=_send)
@@ -732,7 +737,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--duration",
-        type=non_negative_float,
+        type=_session_s,
         default=0.0,
         help="stop after this many seconds (0: until Ctrl-C)",
     )
