@@ -7,6 +7,11 @@ Measured in one run, on this machine:
   part), and their frames per CPU-second (the workers' start-up included): on a loaded machine
   the wall-clock ratio says how many free cores there were, the CPU ratio what 2 workers cost
   per frame;
+- a small job as users run it (``--only job``): ``hand-only`` with ``--job-frames`` (600)
+  frames and the default shard size, 1 and 2 workers, each run in a fresh process: the
+  ``generate()`` call alone (after the imports) and the whole ``handsim generate`` command;
+  the ratio 2 / 1 worker in each of ``--job-rounds`` (3) interleaved rounds (median, max), and
+  the free cores measured after each round (two spinning processes over one);
 - Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - MuJoCo's plain depth render rate (``mujoco.Renderer`` with depth on) of the same scenes: the
   generated frames replayed from their labels (hand side, length and pose, camera pose; checked
@@ -29,8 +34,8 @@ The machine may be shared: compare the ratios, each measured in one run; the loa
 recorded with them.
 
 Usage: ``python benchmarks/bench_data.py [--frames 800] [--rollout-frames 120] [--memory]
-[--memory-frames 1000] [--worker-frames 10000] [--rounds 5]
-[--only all|read|memory|workers|ratio]``; writes
+[--memory-frames 1000] [--worker-frames 10000] [--rounds 5] [--job-frames 600]
+[--job-rounds 3] [--only all|read|memory|workers|job|ratio]``; writes
 ``benchmarks/results/bench_data.json`` (``bench_data_<part>.json`` for one part).
 """
 
@@ -281,6 +286,100 @@ def _peak_rss_mib(frames: int, out: Path) -> float:
     return float(out_text.strip().splitlines()[-1])
 
 
+_JOB_CHILD = """
+import json, sys, time
+from handsim.data.generation import PRESETS, GenerationConfig, generate
+config = GenerationConfig.from_mapping(PRESETS["hand-only"], frames=int(sys.argv[1]))
+start = time.perf_counter()
+generate(config, sys.argv[3], workers=int(sys.argv[2]))
+print(json.dumps({"s": time.perf_counter() - start}))
+"""
+
+
+def _children_cpu_s() -> float:
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return children.ru_utime + children.ru_stime
+
+
+def _job_s(frames: int, workers: int, out: Path, cli: bool) -> tuple[float, float]:
+    """Wall seconds of one ``hand-only`` job of ``frames`` frames in a fresh process.
+
+    ``cli``: the whole ``handsim generate`` command (interpreter, imports, writing); else the
+    ``generate()`` call alone, after the imports (a program that already imported handsim).
+    Also the CPU seconds of the whole process and its workers (imports included).
+    """
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    cpu = _children_cpu_s()
+    if cli:
+        command = [sys.executable, "-m", "handsim.cli", "generate", "--preset", "hand-only"]
+        command += ["--frames", str(frames), "--workers", str(workers), "--out", str(out)]
+        start = time.perf_counter()
+        subprocess.run(command + ["--quiet"], check=True, env=env, capture_output=True)
+        return time.perf_counter() - start, _children_cpu_s() - cpu
+    command = [sys.executable, "-c", _JOB_CHILD, str(frames), str(workers), str(out)]
+    done = subprocess.run(command, check=True, env=env, capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])["s"], _children_cpu_s() - cpu
+
+
+def _spin_rate(seconds: float = 0.5) -> float:
+    """Iterations per second of a pure-Python loop (one core's speed just now)."""
+    n, end = 0, time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        n += 1
+    return n / seconds
+
+
+def _free_cores() -> float:
+    """Speed-up of two processes spinning at once over one: how many cores were free."""
+    import multiprocessing as mp
+
+    one = _spin_rate()
+    with mp.get_context("spawn").Pool(2) as pool:
+        two = sum(pool.map(_spin_rate, [0.5, 0.5]))
+    return two / one
+
+
+def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
+    """2 workers against 1 on a ``frames``-frame job, interleaved in ``rounds`` rounds.
+
+    Each round runs, each in a fresh process: the ``generate()`` call with 1 then 2 workers,
+    and the ``handsim generate`` command with 1 then 2 workers; its ratios are taken in the
+    round (the machine's load changes from minute to minute). Also the free cores measured at
+    the end of each round.
+    """
+    ratios: dict[str, list[float]] = {"api": [], "cli": []}
+    seconds: dict[str, list[float]] = {f"{k}_{w}": [] for k in ratios for w in (1, 2)}
+    cpu_ratios: list[float] = []
+    free = []
+    for r in range(rounds):
+        for kind in ("api", "cli"):
+            one, cpu_one = _job_s(frames, 1, tmp / f"job{r}{kind}1", cli=kind == "cli")
+            two, cpu_two = _job_s(frames, 2, tmp / f"job{r}{kind}2", cli=kind == "cli")
+            seconds[f"{kind}_1"].append(one)
+            seconds[f"{kind}_2"].append(two)
+            ratios[kind].append(one / two)
+            if kind == "cli":
+                cpu_ratios.append(cpu_two / cpu_one)
+        free.append(_free_cores())
+        print(
+            f"round {r}: generate() 1 / 2 workers {ratios['api'][-1]:.2f}, "
+            f"handsim generate {ratios['cli'][-1]:.2f} (CPU 2 / 1 worker "
+            f"{cpu_ratios[-1]:.2f}); free cores {free[-1]:.2f}; "
+            f"load {os.getloadavg()[0]:.1f}"
+        )
+    out: dict = {"job_frames": frames, "job_rounds": rounds}
+    for kind, values in ratios.items():
+        out[f"job_{kind}_2_over_1_median"] = float(np.median(values))
+        out[f"job_{kind}_2_over_1_max"] = max(values)
+        out[f"job_{kind}_2_over_1_rounds"] = values
+    for key, values in seconds.items():
+        out[f"job_{key}_workers_s_median"] = float(np.median(values))
+    # CPU of the whole command, 2 workers over 1: the work's cost, whatever the load.
+    out["job_cli_cpu_2_over_1_median"] = float(np.median(cpu_ratios))
+    out["job_free_cores_rounds"] = free
+    return out
+
+
 def main() -> None:
     """Run the benchmark and write its JSON."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -291,7 +390,7 @@ def main() -> None:
     parser.add_argument("--memory", action="store_true", help="also compare peak RSS (slow)")
     parser.add_argument(
         "--only",
-        choices=("all", "read", "memory", "workers", "ratio"),
+        choices=("all", "read", "memory", "workers", "job", "ratio"),
         default="all",
         help="run one part only",
     )
@@ -306,6 +405,12 @@ def main() -> None:
     )
     parser.add_argument(
         "--worker-frames", type=int, default=10000, help="frames per 1- and 2-worker run"
+    )
+    parser.add_argument(
+        "--job-frames", type=int, default=600, help="frames of the 1- against 2-worker job"
+    )
+    parser.add_argument(
+        "--job-rounds", type=int, default=3, help="interleaved rounds of the job runs"
     )
     args = parser.parse_args()
     from handsim.data.generation import PRESETS, GenerationConfig
@@ -332,6 +437,9 @@ def main() -> None:
             # CPU per frame of 2 workers (start-up included) against 1: with two free cores,
             # 2 workers would run at about 2x this of 1 worker's rate.
             results["workers_2_cpu_efficiency"] = n / _CPU_S["last"] / one_cpu
+        if part in ("all", "job"):
+            # A small job as a user runs it: 2 workers against 1, each run in a fresh process.
+            results.update(_job_ratios(args.job_frames, args.job_rounds, tmp))
         if part in ("all", "ratio"):
             # The target's unit: MuJoCo's plain render of the very frames generated.
             results["replayed_plain_render_fps"] = _replay_plain_render_fps(tmp / "w1")
@@ -413,7 +521,8 @@ def main() -> None:
     results["parent_peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     results["load_average_1min_end"] = os.getloadavg()[0]
     for key, value in results.items():
-        print(f"{key:<32} {value:12.3f}")
+        if isinstance(value, (int, float)):
+            print(f"{key:<32} {value:12.3f}")
     name = "bench_data.json" if part == "all" else f"bench_data_{part}.json"
     out = Path(__file__).parent / "results" / name
     out.parent.mkdir(exist_ok=True)

@@ -1,7 +1,7 @@
 """Benchmark: env step rates, vector-env scaling, the closed loop, and memory over 10^4 steps.
 
 Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--repeats 2]
-[--only {all,vector,obs_modes,rgb_array}] [--limit] [--out FILE.json]``.
+[--only {all,vector,obs_modes,rgb_array,resolution}] [--limit] [--out FILE.json]``.
 
 ``--limit`` runs only the ratios of "the step at the limit" (also printed at the end of a full
 run), each measured interleaved step by step in this run and timed in process CPU time (on a
@@ -45,6 +45,11 @@ control, no sensor noise unless stated):
 - ``rgb_array``: renders/s of ``render()`` alone at 320 x 240 (viewer camera, shadows on) and
   steps/s of step + render in ``rgb_array`` and ``depth_rgb_array`` modes, against the depth
   step rate;
+- ``resolution`` (``--only resolution``): Grasp-v0 depth steps with labels, per process
+  CPU-second, with the same random pose actions at 160 x 120, 320 x 240 and 640 x 480 (ICVL
+  camera) and 160 x 120 and 640 x 480 (SR300), and MuJoCo's plain depth render of the same
+  states at the same sizes: each one's cost relative to the same camera at its native size,
+  and the step's cost over the plain render's (``--repeats`` interleaved rounds);
 - ``closed_loop``: Grasp-v0 steps/s inside ``EstimatorLoop`` with the oracle (10 mm noise),
   feedback off (estimate measured only) and on (estimate retargeted and handed to the expert);
 - ``memory``: resident memory after a warm-up of 1000 steps and after ``--memory-steps``
@@ -135,22 +140,27 @@ def _make_vec_rate(n: int, steps: int, vector_kwargs: dict | None = None) -> flo
     return n * steps / elapsed
 
 
-def _fixed_actions_rate(env: gym.Env, steps: int, render: bool = False) -> float:
-    """Steps/s (with ``render()`` after each step when asked) on seeded random actions."""
+def _fixed_actions_rate(
+    env: gym.Env, steps: int, render: bool = False, clock=time.perf_counter
+) -> float:
+    """Steps/s (with ``render()`` after each step when asked) on seeded random actions.
+
+    ``clock``: ``time.perf_counter`` (wall) or ``time.process_time`` (this process's CPU time).
+    """
     env.reset(seed=0)
     env.action_space.seed(0)
     actions = [env.action_space.sample() for _ in range(steps)]
     env.step(actions[0])
     if render:
         env.render()
-    start = time.perf_counter()
+    start = clock()
     for action in actions:
         _, _, terminated, truncated, _ = env.step(action)
         if render:
             env.render()
         if terminated or truncated:
             env.reset()
-    return steps / (time.perf_counter() - start)
+    return steps / (clock() - start)
 
 
 def _best_of(repeats: int, runs: dict) -> dict:
@@ -177,6 +187,68 @@ def _obs_modes(steps: int, repeats: int) -> dict:
         env.close()
     rates["ratio_state_vs_depth"] = rates["state"] / rates["depth"]
     return rates
+
+
+_RESOLUTIONS = {
+    "icvl 160x120": ("icvl", 160, 120),
+    "icvl 320x240 (native)": ("icvl", 320, 240),
+    "icvl 640x480": ("icvl", 640, 480),
+    "sr300 160x120": ("sr300", 160, 120),
+    "sr300 640x480 (native)": ("sr300", 640, 480),
+}
+
+
+def _resolution(steps: int, repeats: int) -> dict:
+    """Grasp-v0 depth steps (labels on) per image size, against MuJoCo's plain depth render.
+
+    For each size, the same seeded random pose actions; after each step, MuJoCo's plain depth
+    render (``mujoco.Renderer``) of the same state at the same size, timed apart. Process CPU
+    time, summed over ``repeats`` interleaved rounds. Costs are relative to the same camera at
+    its native size.
+    """
+    envs = {
+        name: gym.make(
+            "handsim/Grasp-v0", objects="005_tomato_soup_can", camera=cam, width=w, height=h
+        )
+        for name, (cam, w, h) in _RESOLUTIONS.items()
+    }
+    clocks = {name: (_Clock(), _Clock()) for name in envs}
+    raws = {name: _Raw() for name in envs}
+    for _ in range(repeats):
+        for name, env in envs.items():
+            env.reset(seed=0)
+            env.action_space.seed(0)
+            raws[name].bind(env)
+            step_clock, render_clock = clocks[name]
+            for _ in range(steps):
+                action = env.action_space.sample()
+                with step_clock.time():
+                    _, _, terminated, truncated, _ = env.step(action)
+                raws[name].render(render_clock)
+                if terminated or truncated:
+                    env.reset()
+                    raws[name].bind(env)
+    for name, env in envs.items():
+        raws[name].close()
+        env.close()
+    out: dict = {}
+    for name, (cam, _, _) in _RESOLUTIONS.items():
+        native = next(n for n, v in _RESOLUTIONS.items() if v[0] == cam and "native" in n)
+        step, render = clocks[name]
+        out[name] = {
+            "steps_per_cpu_s": step.rates()["per_cpu_s"],
+            "plain_depth_renders_per_cpu_s": render.rates()["per_cpu_s"],
+            "step_cost_vs_native": _ratio(clocks[native][0], step),
+            "plain_render_cost_vs_native": _ratio(clocks[native][1], render),
+            "step_over_plain_render": _ratio(render, step),
+        }
+        row = out[name]
+        print(
+            f"{name:<24} step cost {row['step_cost_vs_native']:.2f} x native, plain render "
+            f"{row['plain_render_cost_vs_native']:.2f} x native; step / plain render "
+            f"{row['step_over_plain_render']:.2f}"
+        )
+    return out
 
 
 def _rgb_array(steps: int, repeats: int) -> dict:
@@ -604,7 +676,7 @@ def main() -> None:
     )
     parser.add_argument(
         "--only",
-        choices=["all", "vector", "obs_modes", "rgb_array"],
+        choices=["all", "vector", "obs_modes", "rgb_array", "resolution"],
         default="all",
         help="run one group of measurements",
     )
@@ -623,6 +695,7 @@ def main() -> None:
             "vector": lambda: {"make_vec_fork_2_vs_1": _make_vec_2_vs_1(args)},
             "obs_modes": lambda: {"obs_modes": _obs_modes(args.steps, args.repeats)},
             "rgb_array": lambda: {"rgb_array": _rgb_array(args.steps, args.repeats)},
+            "resolution": lambda: {"resolution": _resolution(args.steps, args.repeats)},
         }
         results.update(runs[args.only]())
         _write(results, args.out)

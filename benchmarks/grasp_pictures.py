@@ -1,12 +1,15 @@
 """Pictures of held grasps at maximum lift: ``docs/img/grasp_<object>.png`` (RGB, 480x480).
 
-Run: ``python benchmarks/grasp_pictures.py``. For each object, a ``handsim/Grasp-v0`` episode
-(seed 0) with the grasp expert; the state of the highest lift during the hold is restored with
-``set_state`` and rendered from a free camera 0.4 m from the object (azimuth 20 deg, elevation
--15 deg). Prints the lift and the deepest hand-object penetration of that state.
+Run: ``python benchmarks/grasp_pictures.py [NAME ...]`` (default: the objects below). For each
+object, a ``handsim/Grasp-v0`` episode (seed 0) with the grasp expert; the state of the highest
+lift during the hold is restored with ``set_state`` and rendered from a free camera 0.4 m from
+the object (azimuth 20 deg, elevation -15 deg). Prints the lift and the deepest hand-object
+penetration of that state.
 """
 
 from __future__ import annotations
+
+import sys
 
 import cv2
 import gymnasium as gym
@@ -18,6 +21,8 @@ from handsim.envs.grasping import contact_metrics
 OBJECTS = (
     "005_tomato_soup_can",
     "061_foam_brick",
+    "003_cracker_box",
+    "004_sugar_box",
     "025_mug",
     "011_banana",
     "035_power_drill",
@@ -26,8 +31,8 @@ OBJECTS = (
 
 
 def main() -> None:
-    """Render one picture per object."""
-    for name in OBJECTS:
+    """Render one picture per object (those named on the command line, else all of OBJECTS)."""
+    for name in sys.argv[1:] or OBJECTS:
         env = gym.make("handsim/Grasp-v0", objects=name)
         env.reset(seed=0)
         base = env.unwrapped

@@ -47,7 +47,7 @@ import abc
 import contextlib
 import dataclasses
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import cv2
@@ -594,21 +594,47 @@ class HandSimEnv(gym.Env, abc.ABC):
         """Restore a state of the same scene; returns the observation of that state.
 
         Raises:
-            InvalidEnvConfig: if the state does not fit this episode's scene.
+            InvalidEnvConfig: if the state is not a mapping of :meth:`get_state`'s keys to
+                finite arrays that fit this episode's scene (checked before anything changes).
         """
         data = self.scene.data
-        for key in ("qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart"):
-            if np.shape(state[key]) != getattr(data, key).shape:
+        arrays = ("qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat", "qacc_warmstart")
+        keys = ("time", *arrays, "target")
+        if not isinstance(state, Mapping):
+            raise InvalidEnvConfig(
+                f"state must be a dict from get_state() with keys {', '.join(keys)}; received "
+                f"{type(state).__name__}"
+            )
+        missing = [k for k in keys if k not in state]
+        if missing:
+            raise InvalidEnvConfig(
+                f"state lacks {', '.join(missing)}; a state from get_state() has {', '.join(keys)}"
+            )
+        values = {}
+        for key in keys:
+            try:
+                value = np.asarray(state[key])
+            except (TypeError, ValueError):
+                value = np.asarray(None)
+            shape = () if key == "time" else (27,) if key == "target" else getattr(data, key).shape
+            if value.dtype.kind not in "iuf" or not np.all(np.isfinite(value)):
                 raise InvalidEnvConfig(
-                    f"state[{key!r}] has shape {np.shape(state[key])}, this scene needs "
-                    f"{getattr(data, key).shape}; states only transfer within one scene"
+                    f"state[{key!r}] must be finite real numbers; received {str(state[key])[:60]!r}"
                 )
-            getattr(data, key)[:] = state[key]
-        data.time = float(state["time"])
+            if value.shape != shape:
+                raise InvalidEnvConfig(
+                    f"state[{key!r}] has shape {value.shape}, this scene needs {shape}; states "
+                    "only transfer within one scene"
+                )
+            values[key] = value
+        target = HandPose.from_vector(values["target"])
+        for key in arrays:
+            getattr(data, key)[:] = values[key]
+        data.time = float(values["time"])
         mujoco.mj_forward(self.scene.model, data)
         # A fresh driver: the restored state may follow a divergence.
         self.driver = HandDriver(self.scene, forwarded=True)
-        self.driver.set_target(HandPose.from_vector(state["target"]))
+        self.driver.set_target(target)
         return self._observe()
 
     # Rendering -----------------------------------------------------------------------------

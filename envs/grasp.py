@@ -340,6 +340,14 @@ class GraspClutterEnv(GraspEnv):
             )
         self.num_objects = (lo, hi)
         super().__init__(objects=objects, **kwargs)
+        repeated = sorted({n for n in self.config.objects if self.config.objects.count(n) > 1})
+        if repeated:
+            # The pool is drawn without replacement: a repeated name would put copies of one
+            # object in the scene, which is documented to hold distinct objects.
+            raise InvalidEnvConfig(
+                f"objects must name distinct objects (a clutter scene holds distinct ones); "
+                f"{', '.join(repeated)} is given more than once in {list(self.config.objects)}"
+            )
         if len(self.config.objects) < hi:
             raise InvalidEnvConfig(
                 f"num_objects up to {hi} needs at least {hi} object names; received "

@@ -29,6 +29,8 @@ __all__ = [
     "divergence_speed_bounds",
     "DIVERGENCE_SPEED_M_S",
     "DIVERGENCE_LEVER_RATIO",
+    "DIVERGENCE_OBJECT_FACTOR",
+    "FREE_FALL_FROM_M",
     "WRIST_TRACKING_SPEED",
     "WRIST_TRACKING_ANGULAR_SPEED",
 ]
@@ -43,6 +45,13 @@ and about twice the fastest human finger and hand motions (pitching, finger flic
 DIVERGENCE_LEVER_RATIO = 0.1
 """Lever arm, as a fraction of the hand length (about a middle phalanx), that turns
 :data:`DIVERGENCE_SPEED_M_S` into the angular-velocity bound of rotational DoFs."""
+DIVERGENCE_OBJECT_FACTOR = 2.0
+"""Objects' speed bounds are this many times the hand's: a light object struck by the hand
+leaves at up to twice the hand's speed (an elastic collision with a heavier body)."""
+FREE_FALL_FROM_M = 1.0
+"""Height above the table top (``z = 0``) from which an object may be falling: its free-fall
+speed at height ``z``, ``sqrt(2 g (1 m - z))``, is added to its linear bound, so an object
+knocked off the table (there is no floor) is not read as diverged as it falls on."""
 _DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQACC,
     mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -55,17 +64,22 @@ class PhysicsDiverged(HandSimError, RuntimeError):
     """The physics diverged and the episode was truncated; it cannot be stepped further."""
 
 
-def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.ndarray:
+def divergence_speed_bounds(
+    model: mujoco.MjModel, hand_length_m: float, hand_root_body: int | None = None
+) -> np.ndarray:
     """Per-DoF speed bound above which a state counts as diverged.
 
     Linear DoFs (free-joint translations, slides) are bounded by :data:`DIVERGENCE_SPEED_M_S`;
     rotational DoFs (hinges, free and ball rotations) by that speed at a lever of
     :data:`DIVERGENCE_LEVER_RATIO` times the hand length (a phalanx), so a smaller hand, whose
-    fingers legitimately turn faster, gets a higher angular bound.
+    fingers legitimately turn faster, gets a higher angular bound. With ``hand_root_body``,
+    the DoFs of every other body tree (the objects) get :data:`DIVERGENCE_OBJECT_FACTOR` times
+    these bounds (:class:`HandDriver` also adds a falling object's free-fall speed).
 
     Args:
         model: the compiled model.
         hand_length_m: the hand's length, metres.
+        hand_root_body: the body id of the hand's root, to tell its DoFs from the objects'.
 
     Returns:
         (nv,) bound per DoF: m/s for linear DoFs, rad/s for rotational ones.
@@ -78,6 +92,9 @@ def divergence_speed_bounds(model: mujoco.MjModel, hand_length_m: float) -> np.n
             bounds[adr : adr + 3] = DIVERGENCE_SPEED_M_S
         elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
             bounds[adr] = DIVERGENCE_SPEED_M_S
+    if hand_root_body is not None:
+        objects = model.body_rootid[model.dof_bodyid] != hand_root_body
+        bounds[objects] *= DIVERGENCE_OBJECT_FACTOR
     return bounds
 
 
@@ -234,7 +251,7 @@ class HandDriver:
 
     Divergence is checked once per :meth:`step`, on the state it ends in: a MuJoCo
     instability warning raised during any of its sub-steps (MuJoCo then resets the state), a
-    non-finite position or velocity, or a velocity above :func:`divergence_speed_bounds` (a
+    non-finite position or velocity, or a velocity above :meth:`speed_bounds` (a
     blow-up grows by orders of magnitude within a few sub-steps, long before MuJoCo warns about
     a huge acceleration). A diverged driver refuses to step again (:class:`PhysicsDiverged`).
     Envs and scripted-episode loops share it, so both run the same physics.
@@ -255,7 +272,20 @@ class HandDriver:
         self.target = scene.binding.pose(scene.data)
         self._target_quat_wxyz = self.target.quat_wxyz
         self._warnings = self._divergence_count()
-        self._speed_bounds = divergence_speed_bounds(scene.model, scene.hand.params.hand_length)
+        model = scene.model
+        root = model.body(scene.hand.root_body).id
+        self._static_bounds = divergence_speed_bounds(model, scene.hand.params.hand_length, root)
+        self._speed_bounds = self._static_bounds.copy()
+        # The objects' free joints: linear DoFs and the qpos index of their height.
+        free = [
+            j
+            for j in range(model.njnt)
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+            and model.body_rootid[model.jnt_bodyid[j]] != root
+        ]
+        self._fall_dofs = np.array([model.jnt_dofadr[j] + k for j in free for k in range(3)], int)
+        self._fall_z = np.repeat(np.array([model.jnt_qposadr[j] + 2 for j in free], int), 3)
+        self._gravity = float(np.linalg.norm(model.opt.gravity))
         stiffen_hand_contacts(scene)
         self.diverged = False
         """``True`` once a :meth:`step` diverged."""
@@ -274,6 +304,25 @@ class HandDriver:
         self._target_quat_wxyz = self.target.quat_wxyz
         binding = self.scene.binding
         self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
+
+    def speed_bounds(self) -> np.ndarray:
+        """The (nv,) speed bounds of the current state, m/s or rad/s.
+
+        :func:`divergence_speed_bounds` (objects at :data:`DIVERGENCE_OBJECT_FACTOR` times the
+        hand's), plus, on an object's linear DoFs, the speed of a fall from
+        :data:`FREE_FALL_FROM_M` to its height.
+        """
+        if len(self._fall_dofs):
+            drop_m = np.maximum(FREE_FALL_FROM_M - self.scene.data.qpos[self._fall_z], 0.0)
+            self._speed_bounds[self._fall_dofs] = self._static_bounds[self._fall_dofs] + np.sqrt(
+                2.0 * self._gravity * drop_m
+            )
+        return self._speed_bounds
+
+    def _within_bounds(self) -> bool:
+        # NaN fails the comparison, so the bound also catches non-finite velocities; positions
+        # integrate bounded velocities (MuJoCo itself warns on bad positions).
+        return bool(np.all(np.abs(self.scene.data.qvel) <= self.speed_bounds()))
 
     def _divergence_count(self) -> int:
         data = self.scene.data
@@ -341,9 +390,7 @@ class HandDriver:
             mujoco.mj_step(model, data, nstep=n)
         self._forwarded = False
         warnings = self._divergence_count()
-        # NaN fails the comparison, so the bound also catches non-finite velocities; positions
-        # integrate bounded velocities (MuJoCo itself warns on bad positions).
-        if warnings != self._warnings or not np.all(np.abs(data.qvel) <= self._speed_bounds):
+        if warnings != self._warnings or not self._within_bounds():
             self._warnings = warnings
             self.diverged = True
             return True

@@ -64,15 +64,29 @@ def _non_negative(name: str, value: Any) -> float:
     return v
 
 
+MAX_NOISE_MM = 1000.0
+"""Largest noise (std) accepted, mm: a metre per axis already puts the estimate off any hand
+and object (1e300 mm overflowed into a NaN wrist)."""
+
+
+def _noise_mm(name: str, value: Any) -> float:
+    v = _non_negative(name, value)
+    if v > MAX_NOISE_MM:
+        raise InvalidEstimatorParams(
+            f"{name} must be at most {MAX_NOISE_MM:g} mm (a std per axis); received {value!r}"
+        )
+    return v
+
+
 class OracleEstimator(EstimatorBase):
     """The ground truth of the last observed frame, perturbed (see the module docstring).
 
     Args:
-        noise_mm: std of the Gaussian keypoint noise per axis, mm (>= 0).
+        noise_mm: std of the Gaussian keypoint noise per axis, mm (0 to 1000).
         bias_mm: (3,) constant offset added to every keypoint, camera frame, mm.
         dropout: probability of ``Estimate(valid=False)`` per ``predict``, in [0, 1].
         latency_steps: delay of the returned truth, in ``observe_truth`` calls (int >= 0).
-        object_noise_mm: object translation noise, mm (>= 0): the std per camera axis
+        object_noise_mm: object translation noise, mm (0 to 1000): the std per camera axis
             (``object_noise_kind="axis"``) or the exact 3-D error (``"3d"``).
         object_noise_deg: std of each rotation-vector component of the object rotation noise,
             degrees (>= 0).
@@ -98,7 +112,7 @@ class OracleEstimator(EstimatorBase):
         rng: np.random.Generator | int | None = None,
         object_noise_kind: str = "axis",
     ) -> None:
-        self.noise_mm = _non_negative("noise_mm", noise_mm)
+        self.noise_mm = _noise_mm("noise_mm", noise_mm)
         try:
             bias = np.array(bias_mm)
             bias = bias.astype(np.float64) if bias.dtype.kind in "iuf" else np.full(0, np.nan)
@@ -129,7 +143,7 @@ class OracleEstimator(EstimatorBase):
                 f"latency_steps must be at most 10000 steps; received {latency_steps!r}"
             )
         self.latency_steps = int(latency_steps)
-        self.object_noise_mm = _non_negative("object_noise_mm", object_noise_mm)
+        self.object_noise_mm = _noise_mm("object_noise_mm", object_noise_mm)
         self.object_noise_deg = _non_negative("object_noise_deg", object_noise_deg)
         if object_noise_kind not in OBJECT_NOISE_KINDS:
             raise InvalidEstimatorParams(

@@ -29,7 +29,6 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from handsim._validate import show, to_real_array
 from handsim.errors import (
@@ -44,6 +43,8 @@ from handsim.world.objects import YCBObject
 from handsim.world.registry import get_object
 
 if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
+
     from handsim.frame import Frame
 
 __all__ = [
@@ -302,6 +303,16 @@ def validate_depth_input(depth: Any, K: Any) -> tuple[np.ndarray, np.ndarray]:  
             is not a pinhole matrix with positive focal lengths.
     """
     try:
+        dtype = np.asarray(depth).dtype
+    except (TypeError, ValueError):
+        dtype = None  # ragged: refused below
+    if dtype is not None and dtype.kind not in "fiu":
+        # A bool mask would read as 1 m everywhere, a complex image lose its imaginary part.
+        raise InvalidEstimatorInput(
+            f"depth must be real numbers (float metres); received {type(depth).__name__} of "
+            f"dtype {dtype}"
+        )
+    try:
         depth_m = np.asarray(depth, dtype=np.float32)
         K_cv = np.asarray(K, dtype=np.float64)  # noqa: N806
     except (TypeError, ValueError) as err:
@@ -437,6 +448,8 @@ def _model_tree(model: YCBObject) -> tuple[np.ndarray, cKDTree]:
     if cached is not None and np.array_equal(cached[0], points):
         _TREE_CACHE.move_to_end(key)
         return cached
+    from scipy.spatial import cKDTree
+
     entry = (points.copy(), cKDTree(points))
     _TREE_CACHE[key] = entry
     if len(_TREE_CACHE) > _TREE_CACHE_SIZE:

@@ -64,14 +64,12 @@ import dataclasses
 import math
 from typing import NamedTuple
 
-import cv2
 import mujoco
 import numpy as np
 
 from handsim.errors import UnknownName
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import HandPose
-from handsim.world import _kernels
 from handsim.world.camera import T_cam_from_world
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, InvalidScene, Scene
@@ -537,6 +535,8 @@ class FrameRenderer:
         BOP's canvas (the image and one image size beyond it on every side); an object whose
         box misses the image altogether gets an empty silhouette (nothing of it is visible).
         """
+        import cv2
+
         h, w = labels.shape
         masks: list[_Mask | None] = [None] * len(boxes)
         kernel = _KERNEL_3X3
@@ -614,6 +614,9 @@ class FrameRenderer:
         sensor_depth_m: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per-keypoint ``visible``, ``occluder`` and ``visible_sensor`` (module docstring)."""
+        # numba loads on the first frame, not on `import handsim`.
+        from handsim.world import _kernels
+
         visible = np.zeros(21, dtype=bool)
         occluder = np.full(21, OCCLUDER_NONE, dtype=np.int32)
         visible_sensor = np.zeros(21, dtype=bool)

@@ -44,18 +44,24 @@ can         002 master chef can, 005 tomato     large diameter; side wrap, palm 
             soup can                            can, thumb up
 bottle      006 mustard, 021 bleach cleanser    large diameter; side wrap, palm on the broad
                                                 face
-box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; from the top, thumb and
-                                                finger pads across the narrowest side; boxes
+box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; the whole hand from the
+                                                top, thumb and finger pads across the
+                                                narrowest side, no finger straight out; boxes
                                                 wider than 0.13 m (003) with the widest span:
                                                 the thumb tip and the middle and ring pads on
-                                                the side walls just under the top edges; the
+                                                the side walls just under the top edges, the
+                                                index and little curled over the top; the
                                                 sugar box (004) with the middle and ring
-                                                fingers hooked over its far wall
+                                                fingers hooked over its far wall, the index
+                                                and little curled over the top
 disk        007 tuna fish can                   prismatic 4 finger; from the top
 tool        035 power drill                     prismatic 4 finger; from the top, across the
                                                 grip
-vessel      019 pitcher base, 025 mug           palmar pinch; thumb outside and index inside
+vessel      019 pitcher base                    palmar pinch; thumb outside and index inside
                                                 the rim nearest the user
+vessel      025 mug                             prismatic 4 finger; around its body from
+                                                above, as the boxes, the pinch away from the
+                                                handle (:data:`OBJECT_RECIPES`)
 bowl        024 bowl                            palmar pinch; as vessel
 flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
                                                 the material between them

@@ -1,22 +1,22 @@
 """Interaction events, as VR SDKs report them, detected every control step of the teleop loop.
 
-=================  =========================================================================
-kind               when (``target``, ``value``)
-=================  =========================================================================
-``pinch_start``    the *tracked* thumb and index tips come closer than
-                   :data:`PINCH_START_M` (what a headset's pinch gesture reads; ``value``:
-                   their distance, metres)
-``pinch_end``      they part beyond :data:`PINCH_END_M` (hysteresis: no chatter near the
-                   threshold)
-``grab``           the *physical* thumb and another finger both touch an object (opposition;
-                   ``target``: the object's body name)
-``release``        that opposition is lost for :data:`RELEASE_S` (``target``: the object)
-``button_press``   a push button passes its press depth (``Press-v0``; ``target``:
-                   ``"button_<i>"``)
-``button_release`` it comes back above its release depth
-``slider``         the slider's knob moved :data:`SLIDER_STEP_M` or more since the last
-                   event (``target``: ``"slider"``; ``value``: its position, metres)
-=================  =========================================================================
+==================  =========================================================================
+kind                when (``target``, ``value``)
+==================  =========================================================================
+``pinch_start``     the *tracked* thumb and index tips come closer than
+                    :data:`PINCH_START_M` (what a headset's pinch gesture reads; ``value``:
+                    their distance, metres)
+``pinch_end``       they part beyond :data:`PINCH_END_M` (hysteresis: no chatter near the
+                    threshold)
+``grab``            the *physical* thumb and another finger both touch an object (opposition;
+                    ``target``: the object's body name)
+``release``         that opposition is lost for :data:`RELEASE_S` (``target``: the object)
+``button_press``    a push button passes its press depth (``Press-v0``; ``target``:
+                    ``"button_<i>"``)
+``button_release``  it comes back above its release depth
+``slider``          the slider's knob moved :data:`SLIDER_STEP_M` or more since the last
+                    event (``target``: ``"slider"``; ``value``: its position, metres)
+==================  =========================================================================
 
 Each :class:`InteractionEvent` has the step, the episode time (``t_s``: step times the control
 period), the wall-clock Unix time (``unix_s``, to line up with a live sender's timestamps) and

@@ -24,6 +24,10 @@ key             meaning
 ``radii``       optional, one radius per joint (OpenXR / WebXR); checked, then ignored.
 ==============  ========================================================================
 
+A WebSocket message that is a JSON object with a ``type`` (under 256 bytes) is a control
+message, not a packet (:func:`control_message`): ``{"type": "subscribe"}`` asks for the
+simulation's state back on that connection (:mod:`~handsim.envs.teleop.xr_state`).
+
 A packet larger than ``max_packet_bytes`` (default 65536), not UTF-8 JSON, or not matching the
 schema (wrong shape, non-finite or absurd values, fewer than 4 tracked points) is dropped and
 counted by reason in :attr:`LiveReceiver.counters`; nothing a sender sends stops the loop.
@@ -55,6 +59,7 @@ import sys
 import threading
 import time
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -111,6 +116,7 @@ UDP_BUFFER_BYTES = 1 << 20
 _HANDSHAKE_TIMEOUT_S = 2.0
 # Linux's socket option that attaches the count of datagrams dropped for a full buffer.
 _SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
+_MAX_CONTROL_BYTES = 256
 
 
 class InvalidPacket(HandSimError, ValueError):
@@ -217,6 +223,22 @@ def parse_packet(data: bytes | str, max_packet_bytes: int = MAX_PACKET_BYTES) ->
     if np.count_nonzero(np.all(np.isfinite(kp), axis=1)) < 4:
         raise InvalidPacket("fewer than 4 tracked keypoints")
     return LiveFrame(seq, float(t), time.time(), kp, side)
+
+
+def control_message(message: bytes | str) -> dict[str, Any] | None:
+    """A page's control message (a JSON object with a ``type``, under 256 bytes), else ``None``.
+
+    Control messages (``{"type": "subscribe"}``: the state back, see
+    :mod:`~handsim.envs.teleop.xr_state`) are not hand packets: they are neither counted nor
+    parsed as keypoints.
+    """
+    if len(message) > _MAX_CONTROL_BYTES:
+        return None
+    try:
+        doc = json.loads(message)
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        return None
+    return doc if isinstance(doc, dict) and isinstance(doc.get("type"), str) else None
 
 
 class LiveReceiver(abc.ABC):
@@ -461,6 +483,30 @@ class WebSocketReceiver(LiveReceiver):
         self.max_connections = max_connections
         self._server: Any = None
         self._open = 0
+        self._control_handler: Callable[[Any, dict[str, Any]], None] | None = None
+        self._early_controls: list[tuple[Any, dict[str, Any]]] = []
+
+    def set_control_handler(self, handler: Callable[[Any, dict[str, Any]], None] | None) -> None:
+        """Send the control messages to ``handler``, those that came before it too.
+
+        ``handler(connection, doc)`` gets each :func:`control_message` (a page's subscription
+        to the state: :class:`~handsim.envs.teleop.xr_state.StatePublisher`). Without a handler
+        the latest 64 are kept for the next one.
+        """
+        with self.lock:
+            self._control_handler = handler
+            early, self._early_controls = self._early_controls, []
+        if handler is not None:
+            for connection, doc in early:
+                handler(connection, doc)
+
+    def _control(self, connection: Any, doc: dict[str, Any]) -> None:
+        with self.lock:
+            handler = self._control_handler
+            if handler is None:
+                self._early_controls = [*self._early_controls[-63:], (connection, doc)]
+                return
+        handler(connection, doc)
 
     def start(self) -> None:
         """Start the server in a background thread."""
@@ -476,7 +522,11 @@ class WebSocketReceiver(LiveReceiver):
         def handler(connection: Any) -> None:
             try:
                 for message in connection:
-                    self.handle(message)
+                    control = control_message(message)
+                    if control is None:
+                        self.handle(message)
+                    else:
+                        self._control(connection, control)
             except ConnectionClosed as closed:
                 if closed.sent is not None and closed.sent.code == 1009:
                     self.count("received")

@@ -302,6 +302,7 @@ class TeleopLoop:
         max_steps: int | None = None,
         realtime: bool = False,
         stop_at_success: bool = True,
+        on_step: Callable[[int, dict[str, Any]], None] | None = None,
     ) -> TeleopEpisode:
         """Run one episode driven by ``stream``.
 
@@ -318,6 +319,11 @@ class TeleopLoop:
             realtime: pace the steps at the control rate (live streams); a loop slower
                 than 90 % of real time over a second warns once (:class:`BehindRealTime`).
             stop_at_success: end the episode at the task's success (the env terminates).
+            on_step: called after every physics step with the step number and
+                ``{"operator_world", "tracked_world", "anchor_offset_m", "success"}`` ((21, 3)
+                keypoints, world frame, m, or ``None``; what the anchor added to the stream,
+                (3,) m; bool): e.g. a
+                :class:`~handsim.envs.teleop.xr_state.StatePublisher` streaming to the page.
 
         Returns:
             The episode's metrics (and arrays with ``config.record``).
@@ -334,6 +340,8 @@ class TeleopLoop:
         limit = (env.spec.max_episode_steps if env.spec is not None else None) or 1000
         frames: Callable[[int], tuple[np.ndarray | None, np.ndarray | None]]
         side = base.scene.hand.params.side
+        # What anchor="start" adds to the stream, world frame, m (empty: nothing yet).
+        anchor_offset: list[np.ndarray] = []
         if isinstance(stream, OperatorStream):
             name = stream.source or "the stream"
             if stream.side != side:
@@ -347,7 +355,8 @@ class TeleopLoop:
             s = stream.resample(1.0 / dt)
             if cfg.anchor == "start":
                 start = base.scene.binding.keypoints(base.scene.data)[0]
-                s = s.translated(start - s.first_wrist_m())
+                anchor_offset = [start - s.first_wrist_m()]
+                s = s.translated(anchor_offset[0])
             n_frames = len(s)
             # After the stream's end the operator holds still (its last frame).
             steps = max_steps or max(limit, n_frames - 1)
@@ -359,7 +368,6 @@ class TeleopLoop:
             operator_length = s.hand_length_m
         else:
             steps = max_steps or limit
-            anchor_offset: list[np.ndarray] = []
             if isinstance(stream, LiveSampler) and stream.side != side:
                 raise InvalidTeleopConfig(
                     f"the live sampler follows the {stream.side} hand, but the task's hand is "
@@ -528,6 +536,16 @@ class TeleopLoop:
                 unintended = float(info["unintended_presses"])
             if first_success is None and rec["success"][-1]:
                 first_success = i
+            if on_step is not None:
+                on_step(
+                    i,
+                    {
+                        "operator_world": operator_kp,
+                        "tracked_world": tracked,
+                        "anchor_offset_m": anchor_offset[0] if anchor_offset else np.zeros(3),
+                        "success": rec["success"][-1],
+                    },
+                )
             if realtime:
                 now = time.perf_counter()
                 wait = start_wall + i * dt - now

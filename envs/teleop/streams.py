@@ -24,7 +24,9 @@ key                 meaning
                     near the hand centre, ``y`` down) or ``pose27`` (27-DoF
                     ``[wrist_pos 3, wrist_rotvec 3, angles 21]`` vectors of
                     :class:`~handsim.hand.pose.HandPose`). Default ``handsim21``.
-``units``           ``"m"`` (default) or ``"mm"`` for positions and radii.
+``units``           ``"m"`` (default) or ``"mm"`` for positions and radii. Keypoints whose
+                    hand is not 80-400 mm long (:data:`HAND_LENGTH_PLAUSIBLE_M`) are refused,
+                    naming the likely unit.
 ``up_axis``         axes of the source frame: ``"z"`` (handsim world: ``x`` right, ``y``
                     away from the user, ``z`` up), ``"y"`` (OpenXR / WebXR: ``y`` up,
                     ``-z`` forward) or ``"-y"`` (camera-like: ``y`` down, ``z`` forward).
@@ -32,7 +34,7 @@ key                 meaning
                     ``mediapipe_world``, else ``"z"``. Poses (``pose27``) must be ``"z"``.
 ``hand``            ``"right"`` (default) or ``"left"``.
 ``hand_length_m``   the operator's hand length (``pose27`` only; default 0.189 m).
-``fps``             frame rate, when frames carry no ``t``.
+``fps``             frame rate, when frames carry no ``t`` (0.01 to 10 000).
 ``frames``          JSON: a list of ``{"t": seconds, "keypoints": [[x, y, z], ...],
                     "radii": [...]}`` (a ``null`` row, or three ``null``, for an
                     untracked joint, as in live packets; ``radii`` optional, one per
@@ -95,6 +97,12 @@ UP_AXES: tuple[str, ...] = ("z", "y", "-y")
 MAX_STREAM_FRAMES = 1_000_000
 """Longest stream accepted, frames (about 3 hours at 90 Hz)."""
 _MAX_ABS_M = 100.0  # positions farther than this from the origin are a unit mistake
+STREAM_FPS_RANGE = (0.01, 10_000.0)
+"""Frame rates a stream file may give with ``fps``, frames per second."""
+HAND_LENGTH_PLAUSIBLE_M = (0.08, 0.40)
+"""Hand lengths a keypoint stream may show, metres (wrist to middle fingertip along its bones):
+adult hands measure 0.16-0.22 m; the range leaves room for children and tracker offsets, and
+refuses a unit mistake (a factor of 1000)."""
 
 # Source axes -> handsim world (x right, y away from the user, z up); all proper rotations.
 _TO_WORLD: dict[str, np.ndarray] = {
@@ -422,6 +430,13 @@ def parse_stream(doc: dict[str, Any], source: str = "<dict>") -> OperatorStream:
         fps = float(_array(where, "fps", fps))
         if not (math.isfinite(fps) and fps > 0):
             raise InvalidStream(f"{where}fps must be a number > 0; received {fps}")
+        low, high = STREAM_FPS_RANGE
+        if not low <= fps <= high:
+            # fps 1e-300 spread two frames 1e300 s apart without a word.
+            raise InvalidStream(
+                f"{where}fps must be in [{low:g}, {high:g}] frames per second (a tracker's "
+                f"rate); received {fps:g}"
+            )
         times_arr = np.arange(n) / fps
     if times_arr.shape != (n,):
         raise InvalidStream(f"{where}t has shape {times_arr.shape}; needs ({n},), one per frame")
@@ -465,6 +480,7 @@ def parse_stream(doc: dict[str, Any], source: str = "<dict>") -> OperatorStream:
         if fmt == "webxr25":
             r = np.concatenate([np.full((n, 1), np.nan), r], axis=1)
         radii_world = from_format(r[..., None], base)[..., 0]
+    _check_hand_size(where, kp, units)
     return OperatorStream(times_arr, kp, None, side, length, radii_world, source)
 
 
@@ -476,6 +492,34 @@ def _check_magnitude(where: str, values: np.ndarray, field: str) -> None:
             f"{where}frame {idx[0]}: {field} value {values[idx]} is beyond {_MAX_ABS_M} m; "
             "are the units right ('units': 'm' or 'mm')?"
         )
+
+
+# Wrist, middle MCP, PIP, DIP and tip: their bone lengths add up to the hand length whatever
+# the pose.
+_MIDDLE_CHAIN = [0, 9, 10, 11, 12]
+
+
+def _check_hand_size(where: str, kp_m: np.ndarray, units: str) -> None:
+    """Refuse keypoints whose hand is not of a human size (a metre/millimetre mistake)."""
+    chain = kp_m[:, _MIDDLE_CHAIN]
+    tracked = np.isfinite(chain).all(axis=(1, 2))
+    if not tracked.any():
+        return  # no frame shows the whole middle finger: nothing to measure
+    bones = np.linalg.norm(np.diff(chain[tracked], axis=1), axis=-1).sum(axis=1)
+    length_m = float(np.median(bones))
+    low, high = HAND_LENGTH_PLAUSIBLE_M
+    if low <= length_m <= high:
+        return
+    hint = "check the keypoint format and the units"
+    if low <= length_m * 1000 <= high and units == "mm":
+        hint = "the values look like metres: set 'units': 'm'"
+    elif low <= length_m / 1000 <= high and units == "m":
+        hint = "the values look like millimetres: set 'units': 'mm'"
+    raise InvalidStream(
+        f"{where}the keypoints show a hand {length_m * 1000:.4g} mm long (wrist to middle "
+        f"fingertip, median of {int(tracked.sum())} frames, read with 'units': {units!r}); a "
+        f"human hand is {low * 1000:.0f}-{high * 1000:.0f} mm: {hint}"
+    )
 
 
 def _str(value: Any) -> Any:

@@ -1,20 +1,33 @@
-"""The WebXR bridge of ``handsim teleop serve``: one static page that streams a tracked hand.
+"""The WebXR page of ``handsim teleop serve``: streams a tracked hand, draws the simulation.
 
-The page (``web/index.html``, no external scripts) opens a WebSocket to the teleop loop
-(``handsim teleop live --websocket PORT``) and
+The page (``web/index.html`` and ``web/static/page.js``, with three.js r185 vendored in
+``web/static/three/``: no CDN, it works offline on a LAN) opens a WebSocket to the teleop loop
+(``handsim teleop live --websocket PORT``), subscribes to the simulation's state
+(:mod:`~handsim.envs.teleop.xr_state`: the scene as a glb, then body poses every control step)
+and draws the table, the objects, the buttons and the physical hand, with the tracked hand as a
+cyan ghost. Then
 
-- in a headset's browser, after "Enter VR", reads the 25 WebXR Hand Input joints of the chosen
-  hand (``?hand=right``, default) every XR frame and sends them as ``webxr25`` packets
-  (``up_axis`` ``"y"``, metres, with joint radii);
-- without a headset (or with the "Replay recording" button) replays the file given to
-  ``serve --replay`` at its own rate, as ``handsim21`` packets.
+- in a headset's browser, after "Enter VR" (``immersive-vr``) or "Enter AR" (``immersive-ar``,
+  passthrough), it reads the 25 WebXR Hand Input joints of the chosen hand (``?hand=right``,
+  default) every XR frame and sends them as ``webxr25`` packets (``up_axis`` ``"y"``, metres,
+  with joint radii), and draws the scene where the operator's hand is;
+- without a headset it shows the scene with an orbit camera and replays the file given to
+  ``serve --replay`` at its own rate, as ``handsim21`` packets (also the "Replay recording"
+  button).
 
-:func:`make_server` serves ``/`` (the page), ``/config.json`` (``{"ws_port", "has_replay"}``)
-and ``/replay.json`` (the recording: ``{"fps", "hand", "frames": [{"t", "keypoints"}]}``,
-world frame). The page connects to ``ws://<the page's host>:<ws_port>`` (``?ws=PORT``
-overrides). WebXR needs a secure context: on a Quest over USB, ``adb reverse tcp:8000
-tcp:8000`` and ``adb reverse tcp:8765 tcp:8765`` make both ports the headset's localhost, so
-nothing is exposed to the network.
+:func:`make_server` serves ``/`` (the page), ``/static/...`` (the page's scripts and three.js),
+``/config.json`` (``{"ws_port", "has_replay"}``) and ``/replay.json`` (the recording:
+``{"fps", "hand", "frames": [{"t", "keypoints"}]}``, world frame). The page connects to
+``ws://<the page's host>:<ws_port>`` (``?ws=PORT`` overrides).
+
+Test hook: ``?xrtest=1`` loads ``static/xr_emulation.js`` first, an emulated headset (a
+``navigator.xr`` with one scripted right hand, rendering into the page's canvas), and
+``?enter=immersive-vr`` (or ``immersive-ar``) enters a session without a click; the page's
+counters are ``window.handsim``. Neither is loaded without its flag.
+
+WebXR needs a secure context: on a Quest over USB, ``adb reverse tcp:8000 tcp:8000`` and
+``adb reverse tcp:8765 tcp:8765`` make both ports the headset's localhost, so nothing is
+exposed to the network.
 """
 
 from __future__ import annotations
@@ -32,12 +45,34 @@ from typing import Any
 from handsim.envs.teleop.live import LOCAL_HOSTS
 from handsim.envs.teleop.streams import InvalidStream, load_stream
 
-__all__ = ["make_server", "serve", "page_html"]
+__all__ = ["make_server", "serve", "page_html", "static_files"]
+
+
+_CONTENT_TYPES = {
+    ".js": "text/javascript; charset=utf-8",
+    ".md": "text/markdown; charset=utf-8",
+    "": "text/plain; charset=utf-8",  # LICENSE
+}
 
 
 def page_html() -> bytes:
     """The page's HTML."""
     return importlib.resources.files("handsim.envs.teleop").joinpath("web/index.html").read_bytes()
+
+
+def static_files() -> dict[str, bytes]:
+    """The page's static files by URL path (``/static/page.js``, ``/static/three/...``)."""
+    files: dict[str, bytes] = {}
+
+    def walk(folder: Any, prefix: str) -> None:
+        for entry in folder.iterdir():
+            if entry.is_dir():
+                walk(entry, f"{prefix}{entry.name}/")
+            elif pathlib.PurePosixPath(entry.name).suffix in _CONTENT_TYPES:
+                files[f"{prefix}{entry.name}"] = entry.read_bytes()
+
+    walk(importlib.resources.files("handsim.envs.teleop").joinpath("web/static"), "/static/")
+    return files
 
 
 def _replay_doc(path: pathlib.Path) -> dict[str, Any]:
@@ -81,6 +116,7 @@ def make_server(
             stacklevel=2,
         )
     page = page_html()
+    static = static_files()  # a fixed set: no path from a request reaches the file system
     replay_bytes = json.dumps(_replay_doc(pathlib.Path(replay))).encode() if replay else None
     config = json.dumps({"ws_port": int(ws_port), "has_replay": replay is not None}).encode()
 
@@ -94,6 +130,9 @@ def make_server(
             }
             if replay_bytes is not None:
                 routes["/replay.json"] = (replay_bytes, "application/json")
+            if path in static:
+                kind = _CONTENT_TYPES[pathlib.PurePosixPath(path).suffix]
+                routes[path] = (static[path], kind)
             if path not in routes:
                 self.send_error(404, "not found")
                 return

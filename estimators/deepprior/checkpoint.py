@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ __all__ = [
     "resolve_checkpoint",
     "save_checkpoint",
     "load_checkpoint",
+    "load_resume_state",
     "load_model",
     "ship_weights",
 ]
@@ -119,6 +121,75 @@ def load_checkpoint(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any
             f"network's configuration); received {type(config).__name__}"
         )
     return state, config
+
+
+_RESUME_KEYS = ("model", "optimizer", "epoch", "best_val_mm", "history", "elapsed_s", "torch_rng")
+
+
+def load_resume_state(
+    path: str | os.PathLike[str], model: Any, optimizer: Any, device: str = "cpu"
+) -> dict[str, Any]:
+    """Load a run folder's ``last.pt`` into ``model``, ``optimizer`` and torch's generator.
+
+    Returns:
+        The rest of the state, checked: ``epoch`` (epochs done), ``best_val_mm``, ``history``
+        (a list) and ``elapsed_s``.
+
+    Raises:
+        InvalidCheckpoint: naming the file and what to do, for a file that is not a whole
+            training state of this network (garbage, truncated, another run's, non-finite).
+    """
+    import torch
+
+    path = Path(path)
+    fix = f"delete {path} to train this run from its start (best.pt is kept), or give another --out"
+    # torch.save writes a zip archive; torch's own error on other bytes suggests loading
+    # without weights_only, which must not be followed for a file of unknown origin.
+    if not zipfile.is_zipfile(path):
+        raise InvalidCheckpoint(
+            f"cannot resume from {path}: it is not a readable checkpoint (not the zip archive "
+            f"torch.save writes: garbage or truncated); {fix}"
+        )
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)
+    except Exception as err:  # torch raises many types on a damaged file; name the file
+        raise InvalidCheckpoint(
+            f"cannot resume from {path}: it is not a readable checkpoint "
+            f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); {fix}"
+        ) from None
+    missing = [k for k in _RESUME_KEYS if not isinstance(state, dict) or k not in state]
+    if missing:
+        raise InvalidCheckpoint(
+            f"cannot resume from {path}: it lacks {', '.join(missing)} (a training state holds "
+            f"{', '.join(_RESUME_KEYS)}); {fix}"
+        )
+    weights = state["model"]
+    if isinstance(weights, dict) and any(
+        isinstance(v, torch.Tensor) and v.is_floating_point() and not bool(v.isfinite().all())
+        for v in weights.values()
+    ):
+        raise InvalidCheckpoint(
+            f"cannot resume from {path}: its weights are not finite (NaN or inf; the run "
+            f"diverged); {fix}"
+        )
+    try:
+        model.load_state_dict(weights)
+        optimizer.load_state_dict(state["optimizer"])
+        rest = {
+            "epoch": int(state["epoch"]),
+            "best_val_mm": float(state["best_val_mm"]),
+            "history": json.loads(str(state["history"])),
+            "elapsed_s": float(state["elapsed_s"]),
+        }
+        if rest["epoch"] < 0 or not isinstance(rest["history"], list):
+            raise ValueError("epoch must be >= 0 and history a JSON list")
+        torch.set_rng_state(state["torch_rng"])
+    except (KeyError, TypeError, ValueError, RuntimeError) as err:
+        raise InvalidCheckpoint(
+            f"cannot resume from {path}: it does not fit this run's network and optimizer "
+            f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); {fix}"
+        ) from None
+    return rest
 
 
 def load_model(name_or_path: str | os.PathLike[str], device: str = "cpu") -> tuple[Any, dict]:

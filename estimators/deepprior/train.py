@@ -39,7 +39,12 @@ import numpy as np
 
 from handsim.errors import HandSimError
 
-from .checkpoint import load_checkpoint, resolve_checkpoint, save_checkpoint
+from .checkpoint import (
+    load_checkpoint,
+    load_resume_state,
+    resolve_checkpoint,
+    save_checkpoint,
+)
 from .data import CropDataset, FrameSet, load_frames
 from .preprocess import CUBE_M, MIDDLE_MCP, PlaneRemovedLocalizer, fit_pca
 from .preprocess import sample_augmentation as _sample
@@ -449,14 +454,9 @@ def train(
 
     start_epoch, best, history, elapsed = 0, math.inf, [], 0.0
     if last.is_file():
-        state = torch.load(last, map_location=device, weights_only=True)
-        model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
-        start_epoch = int(state["epoch"])
-        best = float(state["best_val_mm"])
-        history = json.loads(str(state["history"]))
-        elapsed = float(state["elapsed_s"])
-        torch.set_rng_state(state["torch_rng"])
+        state = load_resume_state(last, model, optimizer, device)
+        start_epoch, best = state["epoch"], state["best_val_mm"]
+        history, elapsed = state["history"], state["elapsed_s"]
         log(f"resuming {out} after epoch {start_epoch}")
     loss_fn = torch.nn.HuberLoss(delta=config.huber_delta)
     use_amp = bool(amp) and device.startswith("cuda")

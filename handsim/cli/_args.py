@@ -195,6 +195,9 @@ def progress_bar(total: int, desc: str, unit: str, *, enabled: bool = True) -> A
     """A tqdm bar on stderr with rate and ETA (``enabled=False``: a silent stand-in)."""
     from tqdm import tqdm
 
+    # No monitor thread (it only adjusts stalled bars): `generate` forks its workers only from
+    # a process with one thread.
+    tqdm.monitor_interval = 0
     return tqdm(
         total=total,
         desc=desc,

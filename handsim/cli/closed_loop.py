@@ -8,7 +8,6 @@ from typing import Any
 from handsim.cli._args import (
     add_quiet,
     choice_help,
-    non_negative_float,
     non_negative_int,
     number,
     object_name,
@@ -20,6 +19,7 @@ from handsim.cli._args import (
 )
 from handsim.cli.estimators import BUILTIN_ESTIMATORS, EstimatorSpec, parse_estimator_spec
 from handsim.errors import HandSimError
+from handsim.estimators.oracle import MAX_NOISE_MM
 
 __all__ = ["ESTIMATORS", "add_parser", "estimator_arg"]
 
@@ -174,13 +174,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     loop.add_argument(
         "--noise-mm",
-        type=non_negative_float,
+        type=number(0, MAX_NOISE_MM),
         default=10.0,
         help="oracle noise per axis, mm (default: %(default)s)",
     )
     loop.add_argument(
         "--object-noise-mm",
-        type=non_negative_float,
+        type=number(0, MAX_NOISE_MM),
         default=None,
         help="oracle object translation noise per axis, mm (default: --noise-mm)",
     )

@@ -364,6 +364,7 @@ def _live(args: argparse.Namespace) -> int:
     for w in caught:
         print(f"handsim: warning: {w.message}", file=sys.stderr)
     proto = "udp" if args.udp is not None else "websocket"
+    publisher = None
     try:
         print(
             f"listening on {proto}://{args.host}:{receiver.port} for {args.duration:g} s "
@@ -415,17 +416,36 @@ def _live(args: argparse.Namespace) -> int:
             def show(message: Any, *_: Any, **__: Any) -> None:
                 print(f"handsim: warning: {message}", file=sys.stderr)
 
+            on_step = None
+            if isinstance(receiver, WebSocketReceiver):
+                # The page ('teleop serve') draws the simulation from this state stream.
+                from handsim.envs.teleop.xr_state import StatePublisher
+
+                publisher = StatePublisher(receiver, loop.env)
+                on_step = publisher.on_step
             with warnings.catch_warnings():
                 warnings.simplefilter("always", BehindRealTime)
                 warnings.showwarning = show
                 episode = loop.run(
-                    sampler, args.seed, max_steps=steps, realtime=True, stop_at_success=False
+                    sampler,
+                    args.seed,
+                    max_steps=steps,
+                    realtime=True,
+                    stop_at_success=False,
+                    on_step=on_step,
                 )
             packets = dict(receiver.counters)
             accepted = max(packets["accepted"], 1)
-            extra = {"packets": packets, "packets_used_fraction": sampler.packets_used / accepted}
+            extra: dict[str, Any] = {
+                "packets": packets,
+                "packets_used_fraction": sampler.packets_used / accepted,
+            }
+            if publisher is not None:
+                extra["state_stream"] = dict(publisher.counters)
             return _finish(args, loop, episode, extra)
     finally:
+        if publisher is not None:
+            publisher.close()
         receiver.close()
         print(f"packets: {receiver.counters}", file=sys.stderr)
 

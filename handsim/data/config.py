@@ -48,6 +48,9 @@ __all__ = [
     "CannotDraw",
     "REDRAW_REASONS",
     "GenerationConfig",
+    "auto_frames_per_shard",
+    "MAX_AUTO_SHARD_FRAMES",
+    "MIN_AUTO_SHARDS",
 ]
 
 POSE_SOURCES = ("gesture", "grasp", "synergy", "motion", "uniform")
@@ -248,13 +251,37 @@ def _choice(name: str, value: object, valid: Sequence[str]) -> str:
     return str(value)
 
 
+MAX_AUTO_SHARD_FRAMES = 250
+"""Largest shard :func:`auto_frames_per_shard` makes (and the size of one-shard jobs)."""
+MIN_AUTO_SHARDS = 4
+"""Fewest shards :func:`auto_frames_per_shard` splits a job of more than 250 frames into."""
+
+
+def auto_frames_per_shard(frames: int) -> int:
+    """The shard size of a job of ``frames`` frames when none is given.
+
+    Up to :data:`MAX_AUTO_SHARD_FRAMES` (250) frames a job is one shard; a larger one is split
+    into at least :data:`MIN_AUTO_SHARDS` (4) shards of at most 250 frames
+    (``min(250, ceil(frames / 4))``), so that two or four workers share even a small job
+    (600 frames: 4 shards of 150). From 1000 frames on, shards have 250 frames. The size
+    depends on the job alone, never on the worker count: the same config gives the same
+    dataset with any number of workers.
+    """
+    if frames <= MAX_AUTO_SHARD_FRAMES:
+        return max(int(frames), 1)
+    return min(MAX_AUTO_SHARD_FRAMES, -(-int(frames) // MIN_AUTO_SHARDS))
+
+
 @dataclasses.dataclass(frozen=True)
 class GenerationConfig:
     """What to generate. Every field is validated on construction (errors name the field).
 
     Attributes:
         frames: total frames of the dataset.
-        frames_per_shard: frames per shard (the unit of work, resume and checksums).
+        frames_per_shard: frames per shard (the unit of work, resume and checksums);
+            ``None`` (default): sized to the job, :func:`auto_frames_per_shard` (one shard up
+            to 250 frames, else at least 4 shards of at most 250). A resumed run keeps the
+            size recorded in the dataset's manifest.
         frames_per_episode: frames drawn per episode (one hand and one object set).
         seed: base seed; shard ``i`` uses ``default_rng([seed, i])``.
         camera: camera preset (intrinsics), e.g. ``"icvl"`` (320 x 240).
@@ -298,7 +325,7 @@ class GenerationConfig:
     """
 
     frames: int = 1000
-    frames_per_shard: int = 250
+    frames_per_shard: int | None = None
     frames_per_episode: int = 25
     seed: int = 0
     camera: str = "icvl"
@@ -353,7 +380,8 @@ class GenerationConfig:
                 f"env_id must be an env id such as 'handsim/Grasp-v0'; received {self.env_id!r}"
             )
         _int("frames", self.frames, 1, 10**9)
-        _int("frames_per_shard", self.frames_per_shard, 1, 100_000)
+        if self.frames_per_shard is not None:
+            _int("frames_per_shard", self.frames_per_shard, 1, 100_000)
         _int("frames_per_episode", self.frames_per_episode, 1, 10_000)
         _int("seed", self.seed, 0, 2**63 - 1)
         _choice("camera", self.camera, tuple(CAMERA_PRESETS))
@@ -438,13 +466,20 @@ class GenerationConfig:
             ) from err
 
     @property
+    def shard_size(self) -> int:
+        """Frames per shard: ``frames_per_shard``, or the job's size when that is ``None``."""
+        if self.frames_per_shard is not None:
+            return self.frames_per_shard
+        return auto_frames_per_shard(self.frames)
+
+    @property
     def num_shards(self) -> int:
         """Number of shards (the last one may be shorter)."""
-        return -(-self.frames // self.frames_per_shard)
+        return -(-self.frames // self.shard_size)
 
     def shard_frames(self, index: int) -> int:
         """Frames of shard ``index``."""
-        return min(self.frames_per_shard, self.frames - index * self.frames_per_shard)
+        return min(self.shard_size, self.frames - index * self.shard_size)
 
     def to_json(self) -> dict[str, Any]:
         """The config as JSON (lists for tuples)."""

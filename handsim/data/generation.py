@@ -11,8 +11,11 @@ Reproducibility: shard ``i`` is made from ``numpy.random.default_rng([seed, i])`
 shard is the same whichever worker makes it and whenever; a rerun of the same command skips
 the complete shards listed in the manifest, deletes partial files and writes the missing
 shards identically. A run killed at any moment (even SIGKILL) loses only shards in progress.
-Shards are made in this process, in spawned worker processes (``workers``) or as Ray tasks
-(``ray``), one shard per task, with the same result.
+Shards are made in this process, in worker processes (``workers``: forked where that is safe,
+else spawned) or as Ray tasks (``ray``), one shard per task, with the same result. The shard
+size is the config's (by default sized to the job:
+:func:`~handsim.data.config.auto_frames_per_shard`), never the worker count's, so any number
+of workers makes the same dataset.
 
 Occlusion control: ``occlusion_range`` keeps frames whose hand occlusion ratio lies in the
 range; ``occlusion_buckets`` fills buckets of the ratio to fractions of every shard;
@@ -39,8 +42,9 @@ import json
 import os
 import signal
 import sys
+import threading
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from multiprocessing import get_context
 from pathlib import Path
@@ -235,10 +239,64 @@ def generate_shard(
     return dataclasses.replace(writer.info, redraws=dict(sorted(redraws.items())))
 
 
+_FRAMES_WRITTEN = None
+"""In a pool worker: the run's shared count of frames written (``multiprocessing.Value``)."""
+_INHERITED: list[object] = []
+"""Kept sources inherited through fork: referenced, never closed (their OpenGL objects are the
+parent's)."""
+
+
+def _count_frame() -> None:
+    with _FRAMES_WRITTEN.get_lock():
+        _FRAMES_WRITTEN.value += 1
+
+
 def _worker(args: tuple[dict, int, str]) -> tuple[int, ShardInfo]:
     config_json, index, folder = args
     config = GenerationConfig.from_mapping(config_json)
-    return index, generate_shard(config, index, folder)
+    on_frame = _count_frame if _FRAMES_WRITTEN is not None else None
+    return index, generate_shard(config, index, folder, on_frame)
+
+
+def _start_worker(parent_pid: int, frames_written: object) -> None:
+    """Pool worker initializer: die with the parent, count frames, drop inherited sources."""
+    global _FRAMES_WRITTEN
+    _die_with_parent(parent_pid)
+    _FRAMES_WRITTEN = frames_written
+    # A forked worker must not use (or free) its parent's scenes and OpenGL contexts.
+    _INHERITED.extend(_KEPT_SOURCE.values())
+    _KEPT_SOURCE.clear()
+
+
+def _start_method() -> str:
+    """``"fork"`` where a forked worker is safe and starts at once; else ``"spawn"``.
+
+    A forked worker inherits this process's imports (about 1 s of a spawned worker's start)
+    and numba's compiler set-up. Fork only on Linux, from a process with one thread (a fork
+    copies locks other threads may hold) that has made no OpenGL display (MuJoCo's EGL or
+    OSMesa backends; a GPU driver's EGL state does not survive a fork); else spawn, which
+    starts fresh.
+    """
+    if not sys.platform.startswith("linux") or threading.active_count() != 1:
+        return "spawn"
+    backend = os.environ.get("MUJOCO_GL", "")
+    if backend == "osmesa":
+        return "fork"
+    egl = sys.modules.get("mujoco.egl")
+    if backend == "egl" and (egl is None or getattr(egl, "EGL_DISPLAY", None) is None):
+        return "fork"
+    return "spawn"
+
+
+def _warm_up_for_fork() -> None:
+    """What every forked worker would do again: numba's compiler set-up (~0.35 s a process).
+
+    Loading one compiled loop from numba's cache sets it up; forked workers inherit it and
+    load the other loops in milliseconds.
+    """
+    from handsim.data import _kernels
+
+    _kernels.depth_units_into(np.zeros(1, dtype=np.float32), 1.0, np.zeros(1, dtype=np.uint16))
 
 
 RAY_MAX_RETRIES = 3
@@ -288,6 +346,19 @@ def _ray_results(
             ray.cancel(ref, force=True)
 
 
+def _as_completed(
+    futures: list[Future], tick: Callable[[], None] | None, period_s: float = 0.1
+) -> Iterator[tuple[int, ShardInfo]]:
+    """Results of ``futures`` as they complete; ``tick()`` every ``period_s`` meanwhile."""
+    pending = set(futures)
+    while pending:
+        done, pending = wait(pending, timeout=period_s, return_when=FIRST_COMPLETED)
+        if tick is not None:
+            tick()
+        for future in done:
+            yield future.result()
+
+
 def _histogram(folder: Path, manifest: Manifest, edges: Sequence[float]) -> dict[str, list]:
     from handsim.data.shards import ShardReader
 
@@ -313,8 +384,11 @@ def generate(
     Args:
         config: what to generate.
         out: the dataset folder (created; an existing one must hold the same config).
-        workers: worker processes (spawned; each makes whole shards). Ignored with ``ray``.
-        progress: called with (frames done, frames total) after every completed shard.
+        workers: worker processes, each making whole shards (forked from this process where
+            that is safe, else spawned: :func:`_start_method`). Ignored with ``ray``. The
+            shards are the same whatever the number of workers.
+        progress: called with (frames done, frames total) as frames are written (at most
+            every 0.1 s with workers; per shard with ``ray``).
         ray: run one Ray task per shard instead (needs ``pip install handsim[ray]``):
             ``"local"`` starts a local Ray instance (or uses the one this process already
             joined), any other value is the address of a running cluster (``"auto"``,
@@ -392,6 +466,10 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
 def _generate_in(
     folder: Path,
     config: GenerationConfig,
@@ -410,6 +488,14 @@ def _generate_in(
             raise InvalidGenerationConfig(
                 f"{folder} holds shards but no readable manifest.json; use an empty folder"
             ) from None
+        manifest = None
+    if config.frames_per_shard is None:
+        # The manifest records the size (the shards depend on it): a resumed run keeps the
+        # recorded one, a new run takes the job's.
+        recorded = None if manifest is None else manifest.config.get("frames_per_shard")
+        size = recorded if _is_int(recorded) else config.shard_size
+        config = dataclasses.replace(config, frames_per_shard=int(size))
+    if manifest is None:
         manifest = Manifest(
             config=config.to_json(),
             seeds=[],
@@ -454,21 +540,35 @@ def _generate_in(
 
         results = ((i, generate_shard(config, i, folder, on_frame)) for _, i, folder in jobs)
     else:
-        # Spawned workers get fresh GL contexts; a worker that dies breaks the pool (an
-        # error), where multiprocessing.Pool would replace it and wait forever.
+        # Workers make their own GL contexts; a worker that dies breaks the pool (an error),
+        # where multiprocessing.Pool would replace it and wait forever.
+        method = _start_method()
+        if method == "fork":
+            _warm_up_for_fork()
+        context = get_context(method)
+        # Frames written by the workers, shards in progress included (progress per frame).
+        written = context.Value("q", 0)
         pool = ProcessPoolExecutor(
             min(workers, len(jobs)),
-            mp_context=get_context("spawn"),
-            initializer=_die_with_parent,
-            initargs=(os.getpid(),),
+            mp_context=context,
+            initializer=_start_worker,
+            initargs=(os.getpid(), written),
         )
-        results = (f.result() for f in as_completed([pool.submit(_worker, j) for j in jobs]))
+        futures = [pool.submit(_worker, j) for j in jobs]
+        tick = None
+        if progress is not None:
+            start = done
+
+            def tick() -> None:
+                progress(start + written.value, config.frames)
+
+        results = _as_completed(futures, tick)
     try:
         for index, info in results:
             manifest.shards[index] = info
             manifest.write(folder)
             done += info.frames
-            if progress is not None:
+            if progress is not None and pool is None:
                 progress(done, config.frames)
     except BrokenProcessPool as err:
         raise GenerationError(

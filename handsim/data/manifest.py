@@ -27,6 +27,7 @@ from handsim.data.shards import (
     SHARD_SUFFIX,
     ShardInfo,
     check_shard,
+    write_error,
 )
 from handsim.errors import HandSimError
 
@@ -159,8 +160,13 @@ class Manifest:
         """Write ``manifest.json`` atomically into ``folder``; returns its path."""
         path = Path(folder) / MANIFEST_NAME
         tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.to_json(), indent=2, allow_nan=False) + "\n")
-        os.replace(tmp, path)
+        text = json.dumps(self.to_json(), indent=2, allow_nan=False) + "\n"
+        try:
+            tmp.write_text(text)
+            os.replace(tmp, path)
+        except OSError as err:
+            tmp.unlink(missing_ok=True)  # the manifest before stays whole
+            raise write_error(err, path, MANIFEST_NAME) from err
         return path
 
     @classmethod

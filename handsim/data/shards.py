@@ -27,9 +27,12 @@ stored as 0 (no measurement). File attributes: ``format`` (:data:`SHARD_FORMAT`)
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import errno
 import functools
 import hashlib
+import io
 import os
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -54,6 +57,7 @@ __all__ = [
     "PARTIAL_SUFFIX",
     "DEFAULT_DEPTH_SCALE_MM",
     "InvalidShard",
+    "DatasetWriteError",
     "ShardInfo",
     "ShardWriter",
     "ShardReader",
@@ -110,6 +114,75 @@ def depth_units(
 
 class InvalidShard(HandSimError, ValueError):
     """A shard is missing, truncated, corrupt or not a handsim shard; the message names it."""
+
+
+class DatasetWriteError(HandSimError, OSError):
+    """A dataset file could not be written (a full disk, a quota); the message names the folder."""
+
+
+def write_error(err: OSError, path: Path, what: str) -> DatasetWriteError:
+    """The :class:`DatasetWriteError` of a failed write of ``what`` at ``path``."""
+    if err.errno in (errno.ENOSPC, errno.EDQUOT):
+        cause = "the disk is full (no space left on device)"
+        if err.errno == errno.EDQUOT:
+            cause = "the disk quota is exceeded"
+    else:
+        cause = f"{err.strerror or err}"
+    return DatasetWriteError(
+        f"{what} could not be written in {path.parent}: {cause}. Nothing half-written is kept "
+        "and the complete shards stay: free space (or choose another --out) and rerun the "
+        "same command to resume"
+    )
+
+
+class _GuardedFile(io.FileIO):
+    """The file HDF5 writes a shard through: its first failed write is kept, not retried.
+
+    After a failed write (a full disk) HDF5's close flushes its metadata again, fails again and
+    leaves the file open in the library, which then crashes at exit (a segfault, measured on a
+    full tmpfs). Once ``discard`` is set, writes are dropped so the close completes; the partial
+    file is deleted after.
+    """
+
+    error: OSError | None = None
+    discard = False
+
+    def readinto(self, buffer: Any) -> int:
+        # HDF5 reads blocks it has allocated but not yet written; h5py's file-object driver
+        # leaves the part past the end of the file as it was (uninitialized memory, which
+        # HDF5 could write back into the shard). Zeros, as HDF5's own driver gives.
+        view = memoryview(buffer).cast("B")
+        n = super().readinto(view) or 0
+        if n < len(view):
+            view[n:] = bytes(len(view) - n)
+        return len(view)
+
+    def write(self, data: Any) -> int:
+        view = memoryview(data).cast("B")
+        if self.discard:
+            return len(view)
+        # h5py's file-object driver ignores a short write's count: finish it here, as HDF5's
+        # own driver does (the rest of a short write on a nearly full disk raises ENOSPC).
+        done = 0
+        try:
+            while done < len(view):
+                wrote = super().write(view[done:])
+                if not wrote:
+                    raise OSError(errno.EIO, f"no byte of a write reached {self.name}")
+                done += wrote
+        except OSError as err:
+            self.error = self.error or err
+            raise
+        return done
+
+    def truncate(self, size: int | None = None) -> int:
+        if self.discard:
+            return self.tell() if size is None else size
+        try:
+            return super().truncate(size)
+        except OSError as err:
+            self.error = self.error or err
+            raise
 
 
 @dataclasses.dataclass(frozen=True)
@@ -203,7 +276,18 @@ class ShardWriter:
         self._pending: dict[str, np.ndarray] = {}
         self._pending_chunks: dict[str, list[bytes]] = {}
         self._datasets: dict[str, h5py.Dataset] = {}
-        self._file = h5py.File(self.partial_path, "w")
+        self._file = None
+        try:
+            self._io = _GuardedFile(self.partial_path, "w+")
+        except OSError as err:
+            raise write_error(err, self.path, self.path.name) from err
+        try:
+            self._file = h5py.File(self._io, "w")
+            self._create()
+        except Exception as err:
+            raise self._failed(err) from err
+
+    def _create(self) -> None:
         f, (h, w) = self._file, self.image_shape
         f.attrs.update(
             format=SHARD_FORMAT, depth_scale_mm=self.depth_scale_mm, image_shape=(h, w), frames=0
@@ -302,7 +386,21 @@ class ShardWriter:
         if self.frames - self._written == _LABEL_CHUNK:
             self._flush()
 
+    def _failed(self, err: Exception) -> Exception:
+        """Drop the partial shard after ``err``; the error to raise (a failed write named)."""
+        written = self._io.error
+        self.abort()
+        if written is not None:
+            return write_error(written, self.path, self.path.name)
+        return err
+
     def _flush(self) -> None:
+        try:
+            self._write_pending()
+        except Exception as err:
+            raise self._failed(err) from err
+
+    def _write_pending(self) -> None:
         # One resize and one write per dataset per block of frames: h5py's per-call overhead
         # (tens of calls per frame) was most of the writing time.
         n = self.frames - self._written
@@ -325,10 +423,14 @@ class ShardWriter:
         if self._file is None:
             raise InvalidShard(f"shard {self.path.name} is already closed")
         self._flush()
-        self._file.attrs["frames"] = self.frames
-        self._file.close()
-        self._file = None
-        os.replace(self.partial_path, self.path)
+        try:
+            self._file.attrs["frames"] = self.frames
+            self._file.close()
+            self._file = None
+            self._io.close()
+            os.replace(self.partial_path, self.path)
+        except Exception as err:
+            raise self._failed(err) from err
         return ShardInfo(
             name=self.path.name,
             frames=self.frames,
@@ -338,9 +440,15 @@ class ShardWriter:
 
     def abort(self) -> None:
         """Drop the shard: close and delete the partial file (the final name is never made)."""
+        # Nothing more reaches the disk: HDF5's close after a failed write would fail again.
+        self._io.discard = True
+        self._datasets.clear()
         if self._file is not None:
-            self._file.close()
-            self._file = None
+            file, self._file = self._file, None
+            with contextlib.suppress(Exception):
+                file.close()
+        with contextlib.suppress(OSError):
+            self._io.close()
         self.partial_path.unlink(missing_ok=True)
 
     def __enter__(self) -> ShardWriter:

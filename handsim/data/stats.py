@@ -190,7 +190,7 @@ def dataset_stats(folder: str | os.PathLike[str]) -> dict[str, Any]:
         InvalidShard: for an unreadable shard (named).
     """
     from handsim.data.manifest import Manifest
-    from handsim.data.shards import ShardReader
+    from handsim.data.shards import InvalidShard, ShardReader
 
     folder = Path(folder)
     manifest = Manifest.read(folder)
@@ -200,6 +200,12 @@ def dataset_stats(folder: str | os.PathLike[str]) -> dict[str, Any]:
     for record in sorted(manifest.shards.values(), key=lambda r: r.name):
         reader = ShardReader(folder / record.name)
         try:
+            if len(reader) != record.frames:
+                raise InvalidShard(
+                    f"{folder / record.name} holds {len(reader)} frames but the manifest says "
+                    f"{record.frames}: the folder was changed after it was made; run `handsim "
+                    "dataset check` on it"
+                )
             for key in keys:
                 parts[key].append(reader.labels(key))
         finally:

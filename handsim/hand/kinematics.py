@@ -8,8 +8,8 @@ as MuJoCo does; keypoints agree with the model's sites to float precision (teste
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from handsim.errors import InvalidPose
 from handsim.hand.keypoints import EXTRA_POINT_NAMES
 from handsim.hand.model import HandParams, Skeleton, build_skeleton, extra_point_positions
 from handsim.hand.pose import HandPose
@@ -43,6 +43,9 @@ class ForwardKinematics:
     """
 
     def __init__(self, hand: HandParams | Skeleton) -> None:
+        # scipy.spatial loads when kinematics are built, not on `import handsim`.
+        from scipy.spatial.transform import Rotation
+
         self.skeleton = hand if isinstance(hand, Skeleton) else build_skeleton(hand)
         bodies = self.skeleton.bodies
         self._offset_rot = np.stack(
@@ -65,7 +68,18 @@ class ForwardKinematics:
         Returns:
             ``(R, t)``: (..., B, 3, 3) rotations ``world_from_body`` and (..., B, 3) origins,
             metres, for the B bodies in skeleton order.
+
+        Raises:
+            InvalidPose: if ``pose`` is not a :class:`HandPose`.
         """
+        if not isinstance(pose, HandPose):
+            raise InvalidPose(
+                f"pose must be a HandPose (a single pose or a batch); received "
+                f"{type(pose).__name__} {str(pose)[:40]!r}: make one with HandPose.from_vector, "
+                "gesture(name) or grasp_pose(name)"
+            )
+        from scipy.spatial.transform import Rotation
+
         batch = pose.batch_shape
         angles = pose.angles.reshape(-1, pose.angles.shape[-1])
         n = angles.shape[0]

@@ -69,11 +69,10 @@ import dataclasses
 import os
 import pathlib
 from collections.abc import Sequence
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim._validate import is_real, show
 from handsim.errors import InvalidHandParams, UnknownName
@@ -86,6 +85,10 @@ from handsim.hand.skin import (
     build_skin,
     forearm_extension,
 )
+
+if TYPE_CHECKING:
+    # scipy.spatial loads when a skeleton is built, not on `import handsim`.
+    from scipy.spatial.transform import Rotation
 
 __all__ = [
     "HandParams",
@@ -494,6 +497,8 @@ def _right_skeleton(params: HandParams) -> Skeleton:
 
     # Thumb.
     rad_dev, palmar_tilt, pronation = _THUMB_REST_DEG
+    from scipy.spatial.transform import Rotation
+
     thumb_rest = Rotation.from_euler("ZXY", [-rad_dev, palmar_tilt, pronation], degrees=True)
     cmc = np.array([_THUMB_CMC[0] * breadth, _THUMB_CMC[1] * hl, _THUMB_CMC[2] * hl * thick])
     mc, pp, _, dp = _BUCHHOLZ["thumb"]

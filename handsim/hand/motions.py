@@ -23,7 +23,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from handsim._validate import show, to_real_array
 from handsim.errors import InvalidPose, UnknownName
@@ -128,6 +127,9 @@ def _speed_limits(
 def _segment_durations(
     frames: list[HandPose], joint: np.ndarray, wrist: float, angular: float
 ) -> np.ndarray:
+    # scipy.spatial loads when a motion is made, not on `import handsim`.
+    from scipy.spatial.transform import Rotation
+
     out = np.zeros(len(frames) - 1)
     for i, (a, b) in enumerate(zip(frames[:-1], frames[1:], strict=True)):
         rel = Rotation.from_rotvec(a.wrist_rotvec).inv() * Rotation.from_rotvec(b.wrist_rotvec)
@@ -169,6 +171,8 @@ def _assemble(
     frames: list[HandPose], durations: np.ndarray, holds: np.ndarray, dt: float
 ) -> HandPose:
     """Sample the minimum-jerk path; each segment and hold is rounded up to whole ``dt``."""
+    from scipy.spatial.transform import Rotation, Slerp
+
     pos, rot, ang = [], [], []
 
     def hold(frame: HandPose, seconds: float) -> None:

@@ -51,9 +51,8 @@ import dataclasses
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from handsim.errors import InvalidKeypoints
+from handsim.errors import InvalidKeypoints, InvalidPose
 from handsim.hand.kinematics import ForwardKinematics
 from handsim.hand.model import HandParams, Skeleton
 from handsim.hand.pose import (
@@ -174,6 +173,9 @@ class _ChainKinematics:
     """
 
     def __init__(self, skeleton: Skeleton) -> None:
+        # scipy.spatial loads when a retargeter is built, not on `import handsim`.
+        from scipy.spatial.transform import Rotation
+
         bodies = skeleton.bodies
         chains = [[i for i, b in enumerate(bodies) if b.part == d] for d in DIGITS]
         if any(len(c) != 3 for c in chains) or bodies[0].parent != -1:
@@ -308,7 +310,16 @@ class Retargeter:
     # Input -------------------------------------------------------------------------------
 
     def _validate(self, keypoints: object, mask: object) -> tuple[np.ndarray, np.ndarray]:
-        kp = np.asarray(keypoints, dtype=np.float64)
+        try:
+            kp = np.asarray(keypoints)
+        except (TypeError, ValueError):  # ragged
+            kp = np.asarray(None)
+        if kp.dtype.kind not in "iuf":
+            raise InvalidKeypoints(
+                f"retargeting expects a (21, 3) array of real numbers (metres); received "
+                f"{type(keypoints).__name__} {str(keypoints)[:40]!r}"
+            )
+        kp = kp.astype(np.float64)
         if kp.shape != (21, 3):
             raise InvalidKeypoints(
                 f"retargeting expects keypoints of shape (21, 3) in KEYPOINT_NAMES order, metres; "
@@ -569,8 +580,17 @@ class Retargeter:
             InvalidKeypoints: wrong shape, a present keypoint that is not finite, fewer than 4
                 present keypoints, coincident keypoints, no wrist keypoint with
                 ``fit_wrist=False``, or keypoints of the other hand side (with ``check_side``).
+            InvalidPose: if ``initial`` is not one :class:`HandPose` or None.
         """
         kp, present = self._validate(keypoints, mask)
+        if initial is not None and not (
+            isinstance(initial, HandPose) and initial.batch_shape == ()
+        ):
+            raise InvalidPose(
+                f"initial must be one HandPose (e.g. the previous frame's result.pose) or None; "
+                f"received {type(initial).__name__} {str(initial)[:40]!r}: for a named posture "
+                "pass gesture(name)"
+            )
         if not fit_wrist and not present[0]:
             raise InvalidKeypoints(
                 "fit_wrist=False pins the wrist at the wrist keypoint, but keypoint 0 (wrist) "

@@ -108,12 +108,24 @@ def _first_bad(bad: np.ndarray) -> str:
     return f"index {idx}"
 
 
+MAX_COORDINATE_M = 1e6
+"""Largest keypoint coordinate a metric accepts, metres: beyond, the errors in mm overflow
+(1e300 m gave an infinite mean) and the value is a unit mistake anyway."""
+
+
 def _check_finite_at(name: str, arr: np.ndarray, mask: np.ndarray) -> None:
     bad = ~np.all(np.isfinite(arr), axis=-1) & mask
     if np.any(bad):
         raise InvalidMetricInput(
             f"{name} has a non-finite value at {_first_bad(bad)}; expected finite metres at "
             "every evaluated joint (mark joints without a label False in `visible`)"
+        )
+    with np.errstate(invalid="ignore"):
+        huge = np.any(np.abs(arr) > MAX_COORDINATE_M, axis=-1) & mask
+    if np.any(huge):
+        raise InvalidMetricInput(
+            f"{name} has a value beyond {MAX_COORDINATE_M:g} m at {_first_bad(huge)}; expected "
+            "keypoints in metres (a unit mistake?)"
         )
 
 

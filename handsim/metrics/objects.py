@@ -52,7 +52,6 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from handsim.metrics._common import (
     ADD_FRACTION,
@@ -73,6 +72,10 @@ from handsim.world.objects import SYMMETRY_MODALITIES, Symmetry, SymmetryModalit
 # Object pose -----------------------------------------------------------------------------------
 
 
+RIGID_TOL = 1e-4
+"""Largest entry of ``R^T R - I`` accepted in a pose's rotation block."""
+
+
 def _pose(name: str, T: Any) -> np.ndarray:  # noqa: N803 (the standard name of a transform)
     if T is None:
         raise InvalidMetricInput(
@@ -90,6 +93,14 @@ def _pose(name: str, T: Any) -> np.ndarray:  # noqa: N803 (the standard name of 
     if not np.allclose(arr[3], (0.0, 0.0, 0.0, 1.0), atol=1e-9):
         raise InvalidMetricInput(
             f"{name} must have the last row (0, 0, 0, 1); received {arr[3].tolist()}"
+        )
+    rot = arr[:3, :3]
+    # Float32 poses are rotations to ~1e-7; a scale or shear would move the model points.
+    if not np.allclose(rot.T @ rot, np.eye(3), atol=RIGID_TOL) or np.linalg.det(rot) <= 0:
+        raise InvalidMetricInput(
+            f"{name} must be a rigid transform: its 3x3 block a rotation (R^T R = I within "
+            f"{RIGID_TOL:g}, det R = +1); received R^T R =\n{np.round(rot.T @ rot, 6)}\nand det "
+            f"R = {np.linalg.det(rot):.6g} (a scale, shear or reflection)"
         )
     return arr
 
@@ -177,6 +188,8 @@ def adi_error_mm(T_est: Any, T_gt: Any, model_points_m: Any) -> float:  # noqa: 
         InvalidMetricInput: on a bad transform or point array.
     """
     _, _, p_est, p_gt = _posed_pair(T_est, T_gt, model_points_m)
+    from scipy.spatial import cKDTree
+
     dist, _ = cKDTree(p_est).query(p_gt, k=1)
     return float(np.mean(dist) * MM_PER_M)
 

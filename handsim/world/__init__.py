@@ -13,6 +13,7 @@ module                   holds
 :mod:`.render`           the one-pass depth + segmentation renderer
 :mod:`.sensors`          seeded depth noise: structured light, time of flight
 :mod:`.mjcf`             MJCF out: full-precision XML of any ``MjSpec``, meshes as OBJ files
+:mod:`.gltf`             glTF out: a model's visible geoms as a ``.glb``, one node per body
 =======================  ==========================================================================
 """
 

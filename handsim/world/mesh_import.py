@@ -13,10 +13,9 @@ import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-import trimesh
 
 from handsim._validate import boolean, choice, integer, real_array, real_scalar, show
 from handsim.world.meshing import _hull
@@ -35,6 +34,10 @@ from handsim.world.objects import (
     _check_sampling,
     _finalize,
 )
+
+if TYPE_CHECKING:
+    # trimesh loads when a mesh is read, not on `import handsim`.
+    import trimesh
 
 __all__ = [
     "COACD_MAX_FACES",
@@ -162,6 +165,8 @@ def load_object(
 
     solid = mesh
     if not (mesh.is_watertight and mesh.is_winding_consistent):
+        import trimesh
+
         repaired = mesh.copy()
         trimesh.repair.fill_holes(repaired)
         trimesh.repair.fix_winding(repaired)
@@ -219,6 +224,8 @@ def _decimate(
             f"install fast-simplification (pip install 'handsim[mesh]') to decimate it "
             f"automatically, decimate it yourself, or pass a larger {what}"
         ) from None
+    import trimesh
+
     n = len(mesh.faces)
     reduced = mesh.simplify_quadric_decimation(face_count=max_faces)
     reduced = trimesh.Trimesh(
@@ -268,6 +275,8 @@ def _read_mesh(path: Path, max_faces: int = MAX_FACES) -> trimesh.Trimesh:
                 f"{path}: not a valid {fmt} file (the file is not text; is it corrupt or of "
                 f"another format?)"
             )
+    import trimesh
+
     try:
         loaded = trimesh.load(str(path), force="mesh", process=False)
     except Exception as err:  # noqa: BLE001 - trimesh raises many types on bad files

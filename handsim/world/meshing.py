@@ -15,15 +15,19 @@ stay hollow to the fingers. Building all 21 objects takes ~6 s; :func:`get_objec
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-import trimesh
 
 from handsim.hand.lofting import loft_faces
 from handsim.world.objects import _MM
+
+if TYPE_CHECKING:
+    # trimesh and scipy.sparse load when a mesh is built, not on `import handsim`.
+    import trimesh
 
 __all__ = []
 
@@ -50,6 +54,8 @@ def _loft(centers: np.ndarray, u: np.ndarray, v: np.ndarray, n_around: int) -> t
     )
     n_rings = len(centers) - 2
     vertices = np.concatenate([centers[:1], rings.reshape(-1, 3), centers[-1:]])
+    import trimesh
+
     mesh = trimesh.Trimesh(vertices, loft_faces(n_rings, n_around), process=False)
     if mesh.volume < 0:
         mesh.invert()
@@ -89,19 +95,25 @@ def _ring_points(rows: np.ndarray, angles: np.ndarray) -> np.ndarray:
 
 
 def _hull(points: np.ndarray) -> trimesh.Trimesh:
+    import trimesh
+
     hull = trimesh.convex.convex_hull(np.asarray(points, dtype=np.float64))
     if hull.volume < 0:
         hull.invert()
     return hull
 
 
-_SPHERE_DIRS = np.asarray(trimesh.creation.icosphere(subdivisions=2).vertices)
+@functools.cache
+def _sphere_dirs() -> np.ndarray:
+    import trimesh
+
+    return np.asarray(trimesh.creation.icosphere(subdivisions=2).vertices)
 
 
 def _spheres(centers: np.ndarray, radii: np.ndarray | float) -> np.ndarray:
     centers = np.atleast_2d(np.asarray(centers, dtype=np.float64))
     radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), (len(centers),))
-    return (centers[:, None, :] + radii[:, None, None] * _SPHERE_DIRS[None]).reshape(-1, 3)
+    return (centers[:, None, :] + radii[:, None, None] * _sphere_dirs()[None]).reshape(-1, 3)
 
 
 def _disc_points(center: np.ndarray, normal_axis: int, radius: float, n: int = 32) -> np.ndarray:
@@ -334,6 +346,8 @@ def _mesh_sdf(
     outward = np.concatenate(ref_out) - np.concatenate(ref_in)
     flip = np.einsum("ij,ij->i", normal, outward) < 0
     faces[flip] = faces[flip][:, ::-1]
+    import trimesh
+
     return trimesh.Trimesh(vertices, faces, process=False)
 
 
@@ -365,6 +379,9 @@ def _decimate(
     the centroid of a neighbouring face more than ``tolerance`` (metres) off the surface (so
     curved regions keep small triangles and flat ones get large ones).
     """
+    import scipy.sparse as sp
+    import trimesh
+
     rng = np.random.default_rng(seed)
     # Marching-tetrahedra vertices interpolate the distance linearly; start from the surface.
     vertices = _project(sdf, np.asarray(mesh.vertices, dtype=np.float64), steps=2)

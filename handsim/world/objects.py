@@ -57,16 +57,18 @@ import itertools
 import math
 import re
 from collections.abc import Callable, Sequence
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import mujoco
 import numpy as np
-import trimesh
-from scipy.spatial import ConvexHull
-from scipy.spatial.transform import Rotation
 
 from handsim._validate import real_array, show, to_real_array
 from handsim.errors import HandSimError
+
+if TYPE_CHECKING:
+    # trimesh and scipy.spatial load where objects are built, not on `import handsim`.
+    import trimesh
+    from scipy.spatial.transform import Rotation
 
 __all__ = [
     "InvalidMesh",
@@ -239,6 +241,8 @@ class Symmetry:
             axis = np.asarray(self.axis)
             offset = np.asarray(self.offset_m)
             out = np.tile(np.eye(4), (n_continuous, 1, 1))
+            from scipy.spatial.transform import Rotation
+
             for i in range(n_continuous):
                 r = Rotation.from_rotvec(axis * (2.0 * np.pi * i / n_continuous)).as_matrix()
                 out[i, :3, :3] = r
@@ -303,6 +307,8 @@ def _close_group(generators: list[np.ndarray]) -> list[np.ndarray]:
 
 
 def _rot(axis: str, deg: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_euler(axis, deg, degrees=True).as_matrix()
 
 
@@ -508,6 +514,8 @@ def _finalize(
     else:
         shift = np.zeros(3)
 
+    import trimesh
+
     # Uniform density scaled to the mass: trimesh's unit-density inertia times mass / volume.
     solid = visual if mass_mesh is None else mass_mesh.copy()
     if mass_mesh is not None:
@@ -574,6 +582,8 @@ def _stable_up(
     skipped. Among the others, take the face whose inward normal is closest to ``hint`` (if
     none qualifies, the face with the largest margin).
     """
+    import trimesh
+
     hint = hint / np.linalg.norm(hint)
     hull = trimesh.convex.convex_hull(points)
     normals = np.asarray(hull.face_normals)
@@ -640,6 +650,8 @@ def _stable_up(
 
 def _rotation_to_z(up: np.ndarray) -> Rotation:
     """The smallest rotation taking the unit vector ``up`` to +z."""
+    from scipy.spatial.transform import Rotation
+
     z = np.array([0.0, 0.0, 1.0])
     axis = np.cross(up, z)
     s = np.linalg.norm(axis)
@@ -732,6 +744,8 @@ def _max_cross_distance(a: np.ndarray, b: np.ndarray) -> float:
 
 def _hull_vertices(points: np.ndarray) -> np.ndarray:
     """Vertices of the convex hull of (N, 3) points (all points if the hull is degenerate)."""
+    from scipy.spatial import ConvexHull
+
     try:
         return points[ConvexHull(points).vertices]
     except Exception:  # noqa: BLE001 - qhull fails on flat or tiny point sets

@@ -18,14 +18,12 @@ import os
 import threading
 from collections.abc import Iterator, Sequence
 
-import cv2
 import mujoco
 import numpy as np
 from mujoco import gl_context
 
 from handsim._validate import is_real
 from handsim.errors import HandSimError, UnknownName
-from handsim.world import _kernels
 from handsim.world.camera import CameraIntrinsics
 
 __all__ = ["DepthRenderer", "RENDERED_GEOM_GROUPS", "RenderError", "shared_render_context"]
@@ -334,6 +332,8 @@ class DepthRenderer:
             lut = values[lut]  # geom id -1 -> the appended fill value
         index = self._colour_index(rgb_bottom_up)
         if index.dtype == np.uint8:
+            import cv2
+
             # A 256-entry table in OpenCV: a third of the cost of numpy's take.
             table = np.full(256, fill, dtype=lut.dtype)
             table[: len(lut)] = lut
@@ -381,12 +381,17 @@ class DepthRenderer:
         if self._scene.ngeom < 255:
             # Colour index = segid + 1 in the red byte: one compiled pass does it all.
             table = self._index_table(geom_values, fill, ids.dtype)
+            # numba loads on the first render, not on `import handsim`.
+            from handsim.world import _kernels
+
             _kernels.depth_and_labels(
                 self._rgb, self._zbuffer, self._c, self._d, table,
                 np.float32(near_m), np.float32(far_m), depth_m, ids,
             )  # fmt: skip
             return depth_m, ids
         self._geom_ids(self._rgb, out=ids, geom_values=geom_values, fill=fill)
+        import cv2
+
         # float32 is enough: the relative rounding error is ~1e-7 (0.2 um at 1.5 m). Flipping
         # first keeps every pass on contiguous rows.
         cv2.flip(self._zbuffer, 0, dst=depth_m)

@@ -60,12 +60,10 @@ import threading
 from collections.abc import Sequence
 from typing import Protocol
 
-import cv2
 import numpy as np
 
 from handsim._validate import boolean, real_scalar, show
 from handsim.errors import HandSimError, UnknownName
-from handsim.world import _kernels
 from handsim.world.camera import CameraIntrinsics
 
 __all__ = [
@@ -258,6 +256,8 @@ def _secant2_incidence(
 
 def _divide_scaled(numerator: np.ndarray, denominator: np.ndarray, scale: float) -> np.ndarray:
     """``scale * numerator / denominator`` into ``numerator`` (1-D), in one pass (cv2.divide)."""
+    import cv2
+
     column = (-1, 1)  # OpenCV would read a short 1-D array as a scalar
     result = cv2.divide(
         numerator.reshape(column),
@@ -465,6 +465,8 @@ def _jitter_offsets(
         np.clip(np.rint(normal, out=normal), -reach, reach, out=normal)
         np.copyto(out.reshape(-1), normal, casting="unsafe")
         return out
+    from handsim.world import _kernels
+
     table, fine_table, cdf, pairs = tables
     cells = _random_bytes(rng, h * w)
     flat = out.view(np.int32).reshape(-1)
@@ -564,6 +566,11 @@ class StructuredLight:
         Returns:
             (H, W) float32 noisy depth, metres, 0 = no measurement.
         """
+        # cv2 and numba load on the first noisy frame, not on `import handsim`.
+        import cv2
+
+        from handsim.world import _kernels
+
         clean = _check_depth(depth_m, intrinsics, rng)
         # Only the box around the pixels with depth is processed (a hand alone covers a few
         # percent of the image): grown by the farthest jitter, every pixel that can get depth,
@@ -613,7 +620,8 @@ class StructuredLight:
         return out
 
 
-_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+# cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)), without importing cv2 here.
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -649,6 +657,8 @@ class TimeOfFlight:
         self, depth_m: np.ndarray, intrinsics: CameraIntrinsics, rng: np.random.Generator
     ) -> np.ndarray:
         """Noisy copy of a clean depth image (same arguments as :meth:`StructuredLight.apply`)."""
+        import cv2
+
         clean = _check_depth(depth_m, intrinsics, rng)
         h, w = clean.shape
         scratch = _scratch(h * w)

@@ -36,10 +36,9 @@ import functools
 import itertools
 import math
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-import trimesh
-from scipy.spatial.transform import Rotation
 
 from handsim.world.meshing import (
     _circle_2d,
@@ -64,6 +63,9 @@ from handsim.world.meshing import (
     _spheres,
 )
 from handsim.world.objects import _MM, NO_SYMMETRY, Symmetry, _Geometry, _rot
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = []
 
@@ -120,6 +122,8 @@ def _box(name: str, four_fold_axis: int | None = None) -> _Geometry:
     """
     dims, rotvec_deg, rounding = _BOXES[name]
     half = np.asarray(dims) * _MM / 2
+    from scipy.spatial.transform import Rotation
+
     rot = Rotation.from_rotvec(np.radians(rotvec_deg)).as_matrix()
     signs = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
     if rounding > 0:
@@ -453,6 +457,8 @@ def _vessel(
     Collision: the floor disc, 16 wall sectors per band of ``y_edges_mm``, and hulls of groups
     of handle rings (``handle_groups``: inclusive index ranges into ``handle_mm``).
     """
+    import trimesh
+
     outer = np.asarray(outer_mm, dtype=np.float64) * _MM
     wall, bottom, r_h = wall_mm * _MM, bottom_mm * _MM, handle_radius_mm * _MM
     y_lo = outer[0, 1]

@@ -14,9 +14,7 @@ import handsim.envs
 from handsim.envs.base import (
     DEPTH_MAX_M,
     InvalidAction,
-    _nearest_indices,
     depth_colormap,
-    scaled_intrinsics,
 )
 from handsim.envs.config import InvalidEnvConfig
 from handsim.envs.hand_pose import HandPoseEnv
@@ -124,25 +122,44 @@ def test_privileged_state_without_objects_is_state():
 # Image options -------------------------------------------------------------------------------
 
 
-def test_resized_depth_is_nearest_of_the_sensor_image_with_scaled_k():
-    """width/height pick centre-aligned nearest sensor pixels; K is scaled with the image."""
+def test_width_height_render_at_that_size_and_the_labels_follow():
+    """width/height render at that size with the scaled K; the labels are the image's.
+
+    The same seed gives the same scene: keypoints in the camera frame are equal, their pixels
+    are the full image's mapped by ``(u + 0.5) s - 0.5``, and a keypoint visible in both images
+    lands on the same hand part in both segmentations.
+    """
     kwargs = {"objects": "mustard_bottle", "obs_mode": "depth+segmentation"}
     full = _make("handsim/Grasp-v0", **kwargs)
-    small = _make("handsim/Grasp-v0", width=84, height=84, **kwargs)
-    obs_full, _ = full.reset(seed=2)
-    obs_small, _ = small.reset(seed=2)
-    rows, cols = _nearest_indices(240, 84), _nearest_indices(320, 84)
-    for key in ("depth", "segmentation"):
-        assert obs_small[key].shape == (84, 84)
-        np.testing.assert_array_equal(obs_small[key], obs_full[key][np.ix_(rows, cols)])
-    K = small.unwrapped.obs_intrinsics.K  # noqa: N806
+    small = _make("handsim/Grasp-v0", width=160, height=120, **kwargs)
+    obs_full, info_full = full.reset(seed=2)
+    obs_small, info_small = small.reset(seed=2)
     sensor = camera_preset("icvl")
-    np.testing.assert_allclose(K[0], [sensor.fx * 84 / 320, 0, (sensor.cx + 0.5) * 84 / 320 - 0.5])
-    np.testing.assert_allclose(K[1], [0, sensor.fy * 84 / 240, (sensor.cy + 0.5) * 84 / 240 - 0.5])
-    # Pixel centres map to pixel centres: the image corners stay the image corners.
-    half = scaled_intrinsics(sensor, 160, 120)
-    corner = np.array([[-0.5 - sensor.cx, -0.5 - sensor.cy, sensor.fx]]) / sensor.fx
-    np.testing.assert_allclose(half.project(corner), [[-0.5, -0.5]], atol=1e-12)
+    assert small.unwrapped.obs_intrinsics == sensor.scaled(160, 120)
+    a, b = full.unwrapped.frame, small.unwrapped.frame
+    np.testing.assert_array_equal(b.K, sensor.scaled(160, 120).K)
+    for key in ("depth", "segmentation"):
+        assert obs_small[key].shape == (120, 160)
+    assert b.depth.shape == b.segmentation.shape == (120, 160)
+    np.testing.assert_array_equal(obs_small["segmentation"], b.segmentation)
+    np.testing.assert_allclose(b.keypoints_cam, a.keypoints_cam, atol=1e-12)
+    np.testing.assert_allclose(b.keypoints_px, (a.keypoints_px + 0.5) * 0.5 - 0.5, atol=1e-9)
+    np.testing.assert_allclose(info_small["labels"]["keypoints_px"], b.keypoints_px)
+    # Away from part boundaries (a uniform 3 x 3 patch in the small image), a keypoint's pixel
+    # shows the same label in both images; visibility agrees for every keypoint here.
+    np.testing.assert_array_equal(a.visible, b.visible)
+    checked = 0
+    for k in np.flatnonzero(a.in_frame & b.in_frame):
+        (ua, va), (ub, vb) = np.rint(a.keypoints_px[k]).astype(int), np.rint(b.keypoints_px[k])
+        patch = b.segmentation[int(vb) - 1 : int(vb) + 2, int(ub) - 1 : int(ub) + 2]
+        if np.all(patch == patch[1, 1]):
+            assert a.segmentation[va, ua] == patch[1, 1]
+            checked += 1
+    assert checked >= 6
+    # Masks: the object covers a quarter of the pixels (to its boundary), the same fraction.
+    (oa,), (ob,) = a.objects, b.objects
+    assert ob.px_count_visib == pytest.approx(oa.px_count_visib / 4, rel=0.1)
+    assert ob.visib_fract == pytest.approx(oa.visib_fract, abs=0.05)
     full.close()
     small.close()
 

@@ -604,14 +604,82 @@ def test_state_from_sim_and_errors():
     "name", ["005_tomato_soup_can", "025_mug", "040_large_marker"], ids=["can", "mug", "marker"]
 )
 def test_expert_lifts_representative_objects(name):
-    """A can (side wrap), the mug (rim pinch) and the marker (tripod) are lifted and held."""
+    """A can (side wrap), the mug (around its body) and the marker (tripod) are held."""
     scene, rng = _scene(name, seed=1)
     expert = GraspExpert(scene.objects[0][1], scene.hand.params)
     outcome = run_episode(scene, 0, expert, rng, max_steps=400)
     assert outcome.success, outcome
     assert outcome.slip_m < MAX_SLIP_M
     assert expert.phase == "hold"
-    assert expert.grasp_type == GRASP_RECIPES[shape_class(scene.objects[0][1])].grasp_type
+    assert expert.grasp_type == grasp_recipe(scene.objects[0][1]).grasp_type
+
+
+def _mug_pose(yaw_deg: float) -> np.ndarray:
+    """The mug upright on the table, turned by ``yaw_deg`` about +z (its handle on -x at 0)."""
+    mug = get_object("025_mug")
+    T = np.eye(4)
+    rest = Rotation.from_quat(np.roll(mug.rest_quat_wxyz, -1))
+    T[:3, :3] = (Rotation.from_euler("z", yaw_deg, degrees=True) * rest).as_matrix()
+    T[:3, 3] = [0.0, 0.0, 0.0405]
+    return T
+
+
+@pytest.mark.parametrize("size", ["small", "large"])
+@pytest.mark.parametrize("yaw_deg", [0.0, 90.0, 180.0, 270.0])
+def test_the_mug_is_held_around_its_body_not_at_the_rim(yaw_deg, size):
+    """The mug's plan puts the thumb and finger pads on the outer wall, well below the rim.
+
+    Whatever way the handle points: the pads at 0.6 of the height (32 mm under the 81 mm
+    rim), outside the 47 mm radius of the body and away from the handle.
+    """
+    mug = get_object("025_mug")
+    T = _mug_pose(yaw_deg)
+    params = hand_params(size)
+    plan = plan_grasp(mug, T, params)
+    assert (plan.strategy, plan.grasp_type) == ("top", "prismatic_4_finger")
+    digits = ("thumb", "middle")
+    spheres = _hand_geometry(params).contacts(plan.contact, digits, 0.75)
+    world = plan.rotation.apply(spheres) + plan.wrist_pos
+    axis = T[:3, :3] @ mug.cavity_point_m + T[:3, 3]
+    rim_z = 0.081
+    assert (world[:, 2] < rim_z - 0.02).all(), world
+    radius = np.linalg.norm(world[:, :2] - axis[:2], axis=1)
+    assert (radius > 0.047).all(), radius
+    # The pinch axis passes through the body, not the handle (which is on the object's -x).
+    handle_dir = T[:3, :3] @ np.array([-1.0, 0.0, 0.0])
+    pinch = (world[1] - world[0])[:2] / np.linalg.norm((world[1] - world[0])[:2])
+    assert abs(pinch @ handle_dir[:2]) < np.cos(np.deg2rad(30.0))
+
+
+def test_the_held_mug_is_pinched_below_its_rim():
+    """In the hold, the thumb's and fingers' distal pads press on the mug's wall under the rim.
+
+    (The palm may rest on the rim, as a hand holding a mug from above does; the pads that
+    carry the grip touch the outer wall 1 cm or more below the rim.)
+    """
+    scene, rng = _scene("025_mug", seed=1)
+    set_skin_friction(scene)
+    expert = GraspExpert(scene.objects[0][1], scene.hand.params)
+    model, data = scene.model, scene.data
+    body = model.body(scene.objects[0][0]).id
+    distal = {
+        int(model.body(b).id) for b in range(model.nbody) if model.body(b).name.endswith("_distal")
+    }
+    heights = []
+
+    def record(step, expert):
+        if expert.phase != "hold":
+            return
+        # The mug's local +y is up (its rest pose); the rim is 40.5 mm above its origin.
+        top = data.xpos[body] + data.xmat[body].reshape(3, 3) @ np.array([0.0, 0.0405, 0.0])
+        for k in range(data.ncon):
+            bodies = {int(model.geom_bodyid[g]) for g in data.contact.geom[k]}
+            if body in bodies and bodies & distal:
+                heights.append(top[2] - data.contact.pos[k][2])
+
+    outcome = run_episode(scene, 0, expert, rng, max_steps=400, on_step=record)
+    assert outcome.success, outcome
+    assert heights and min(heights) > 0.01, min(heights, default=None)
 
 
 def test_grasp_is_physical_only():
@@ -720,7 +788,10 @@ def _measured_episode(
         # the bounds leave room for the loop's error but stay under the 4x median aimed at.
         ("061_foam_brick", "medium", "right", 4.5),  # box, the lightest but one (28 g)
         ("005_tomato_soup_can", "medium", "right", 4.0),  # can, side wrap
-        ("025_mug", "small", "left", 4.0),  # vessel, rim pinch
+        # The mug, around its body: 1.5 x the boxes' aim (4.5 x its weight); at friction 1.0
+        # the hold still eases from the lift's grip for part of the window (medians 4.5-5.6,
+        # seeds 0-5).
+        ("025_mug", "small", "left", 6.0),
         # Elongated, tripod at the table: its aim is exactly 4.0 x (1.25 x 1.6 / 0.5) and the
         # loop settles within 0.1 % of it either side (seeds 0-3: 3.99998-4.0004 before the
         # banana's lower pads, 4.0001-4.005 with them), so the bound is the aim plus that.
@@ -737,11 +808,6 @@ def test_held_grasps_do_not_sink_in_and_grip_like_people(
 
     The expert sizes its grip for skin friction at either physics friction.
     """
-    if friction == "skin" and name == "025_mug":
-        # At skin friction the rim pinch's slip check stops the easing above the aim: the mug
-        # is held at 4.1-4.8 x its weight (median over seeds 0-19 for each preset hand, at
-        # most 5.3 in one episode), under the 8 x allowed for an object.
-        max_force_over_weight = 6.0
     outcome, records, obj = _measured_episode(name, hand, side, friction=friction)
     assert outcome.success and outcome.slip_m < 0.01
     hold = [m for phase, m in records if phase == "hold"]
@@ -928,6 +994,11 @@ def test_the_wide_box_is_held_by_pads_on_its_side_walls():
     assert expert.plan.span
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
+    # No finger sticks straight out: the index and little fingers, outside the span, are
+    # curled over the top (PIP 30 deg) from the approach to the squeeze.
+    for angles in (expert.plan.preshape, expert.plan.contact, expert.plan.closed):
+        for finger in ("index", "little"):
+            assert angles[joint_index(f"{finger}_pip_flex")] >= np.deg2rad(30.0)
 
 
 def test_the_small_hand_lifts_the_cracker_box_slowly_at_skin_friction():
@@ -969,6 +1040,11 @@ def test_the_small_hand_hooks_its_fingers_over_the_sugar_box(side):
     assert outcome.success, outcome
     pressing = [elevation for force, elevation in hold if force > 0.5]
     assert pressing and max(pressing) < 25.0
+    # No finger sticks straight out: the index and little fingers, outside the pinch, are
+    # curled over the top (PIP 45 deg) from the approach to the squeeze.
+    for angles in (expert.plan.preshape, expert.plan.contact, expert.plan.closed):
+        for finger in ("index", "little"):
+            assert angles[joint_index(f"{finger}_pip_flex")] >= np.deg2rad(30.0)
 
 
 def test_the_small_hand_lifts_the_extra_large_clamp_with_the_ring_and_little_fingers_straight():
@@ -1259,3 +1335,18 @@ def test_start_pose_rises_above_a_neighbour_under_the_palm():
     assert high.wrist_pos[2] > low.wrist_pos[2] + 0.05
     palm_height = high.wrist_pos[2]  # palm down: the palm centre is level with the wrist (+-2 cm)
     assert palm_height > top + 0.03
+
+
+def test_planning_still_exports_the_names_of_its_split_modules():
+    """The state, recipes and hand geometry moved out of planning; planning re-exports them."""
+    from handsim.envs.grasping import hand_geometry, planning, recipes, state
+
+    for name in (*planning.__all__, *state.__all__, *recipes.__all__):
+        assert getattr(planning, name) is not None
+    assert planning.GraspState is state.GraspState
+    assert planning.start_pose is state.start_pose
+    assert planning.GRASP_RECIPES is recipes.GRASP_RECIPES
+    assert planning.OBJECT_RECIPES is recipes.OBJECT_RECIPES
+    assert planning._hand_geometry is hand_geometry._hand_geometry
+    # Documented once, where defined.
+    assert not set(planning.__all__) & (set(state.__all__) | set(recipes.__all__))

@@ -1,6 +1,8 @@
 """`handsim train` (resume after a kill is exact) and `handsim evaluate` on a tiny dataset."""
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -252,3 +254,54 @@ def test_env_frames_refuse_an_unknown_env_id():
 
     with pytest.raises(InvalidTrainingData, match=r"one of handsim/HandPose-v0, .*'handsim/Nope"):
         env_frames("handsim/Nope-v0")
+
+
+def test_resuming_from_a_damaged_last_pt_names_the_file_and_the_fix(tiny_data, tmp_path):
+    """Garbage, a truncated file, missing keys: InvalidCheckpoint naming the file, not torch's."""
+    from handsim.estimators.deepprior.checkpoint import InvalidCheckpoint
+
+    config = TrainConfig(**{**TINY, "epochs": 1})
+    run = tmp_path / "run"
+    train([tiny_data], run, config, progress=False, log=lambda s: None)
+    last = run / "last.pt"
+    whole = last.read_bytes()
+    state = torch.load(last, weights_only=True)
+    damaged = {
+        "garbage": (b"not a checkpoint", r"it is not a readable checkpoint"),
+        "truncated": (whole[: len(whole) // 2], r"it is not a readable checkpoint"),
+    }
+    for data, match in damaged.values():
+        last.write_bytes(data)
+        with pytest.raises(
+            InvalidCheckpoint,
+            match=rf"cannot resume from {last}: {match}.*delete {last} to train this run from "
+            "its start",
+        ):
+            train([tiny_data], run, config, progress=False, log=lambda s: None)
+    torch.save({k: v for k, v in state.items() if k != "optimizer"}, last)
+    with pytest.raises(InvalidCheckpoint, match=r"it lacks optimizer \(a training state holds"):
+        train([tiny_data], run, config, progress=False, log=lambda s: None)
+    torch.save({**state, "model": {"w": torch.zeros(2)}}, last)
+    with pytest.raises(InvalidCheckpoint, match=r"does not fit this run's network and optimizer"):
+        train([tiny_data], run, config, progress=False, log=lambda s: None)
+    nan = {k: v.clone() for k, v in state["model"].items()}
+    next(v for v in nan.values() if v.is_floating_point()).fill_(float("nan"))
+    torch.save({**state, "model": nan}, last)
+    with pytest.raises(InvalidCheckpoint, match=r"its weights are not finite"):
+        train([tiny_data], run, config, progress=False, log=lambda s: None)
+
+    # The CLI, on a run it made: one error line, exit 2.
+    run = tmp_path / "cli"
+    last = run / "last.pt"
+    args = ["train", "deepprior++", "--data", str(tiny_data), "--out", str(run), "--epochs", "1",
+            "--size", "32", "--fc", "16", "--width", "0.125", "--prior-dim", "4",
+            "--batch-size", "8", "--max-frames", "16", "-q", "--threads", "1"]  # fmt: skip
+    assert main(args) == 0
+    last.write_bytes(b"not a checkpoint")
+    done = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", *args], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 2, done.stderr
+    error = f"handsim: error: cannot resume from {last}: it is not a readable checkpoint (not"
+    assert error in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr

@@ -249,18 +249,20 @@ def test_stream_arrays_are_checked():
 
 
 def test_a_stream_too_long_to_resample_is_refused_before_it_is_allocated(tmp_path):
-    """Timestamps 1e6 s apart at 500 Hz, or fps 1e-300: a message, not 108 GiB asked for."""
+    """Timestamps 1e6 s apart at 500 Hz: a message, not 108 GiB asked for; fps 1e-300 is no rate."""
     kp, _ = _keypoints(3)
     spread = {
         "format": "handsim21",
         "frames": [{"t": 1e6 * i, "keypoints": k.tolist()} for i, k in enumerate(kp)],
     }
     slow = {"format": "handsim21", "fps": 1e-300, "frames": [{"keypoints": k.tolist()} for k in kp]}
-    for doc, span in ((spread, "2e\\+06 s"), (slow, "2e\\+300 s")):
-        path = tmp_path / "long.json"
-        path.write_text(json.dumps(doc))
-        with pytest.raises(InvalidStream, match=rf"the stream spans {span} .*more than 2000000"):
-            load_stream(path, rate_hz=500.0)
+    path = tmp_path / "long.json"
+    path.write_text(json.dumps(spread))
+    with pytest.raises(InvalidStream, match=r"the stream spans 2e\+06 s .*more than 2000000"):
+        load_stream(path, rate_hz=500.0)
+    path.write_text(json.dumps(slow))
+    with pytest.raises(InvalidStream, match=r"fps must be in \[0\.01, 10000\].*received 1e-300"):
+        load_stream(path, rate_hz=500.0)
 
 
 def test_a_deeply_nested_json_stream_or_config_is_refused(tmp_path):
@@ -295,3 +297,42 @@ def test_a_null_joint_row_is_an_untracked_joint_in_files_as_in_packets(tmp_path)
     frame = parse_packet(packet(0, 0.0, live))
     np.testing.assert_allclose(frame.keypoints_world, stream.keypoints_world[0], atol=1e-6)
     assert stream.rate_hz() == pytest.approx(90.0)
+
+
+@pytest.mark.parametrize(
+    ("factor", "units", "match"),
+    [
+        # Metre values labelled millimetres: a 0.19 mm hand.
+        (1.0, "mm", r"a hand 0\.\d+ mm long .*'units': 'mm'.*the values look like metres: set "),
+        # Millimetre values of a child's 95 mm hand labelled metres (a 95 m hand, within the
+        # 100 m position bound).
+        (5e2, "m", r"a hand 9\.\d+e\+04 mm long.*look like millimetres: set 'units': 'mm'"),
+        # Neither: a hand 10x too big.
+        (1e1, "m", r"a hand 189\d mm long.*check the keypoint format and the units"),
+    ],
+)
+def test_a_hand_of_no_human_size_names_the_likely_unit(tmp_path, factor, units, match):
+    """Keypoints read at the wrong unit are refused (a 0.2 mm operator hand was driven)."""
+    kp, _ = _keypoints()
+    kp = kp - kp.mean(axis=1, keepdims=True)  # hands at the origin: 500x stays < 100 m
+    doc = {
+        "units": units,
+        "fps": 30,
+        "frames": [{"keypoints": (k * factor).tolist()} for k in kp],
+    }
+    with pytest.raises(InvalidStream, match=match):
+        load_stream(_write(tmp_path, doc))
+    if factor == 1.0:  # the same values with the right unit are accepted
+        doc["units"] = "m"
+        assert load_stream(_write(tmp_path, doc)).keypoints_world.shape == (5, 21, 3)
+
+
+def test_the_hand_size_check_skips_frames_without_the_middle_finger(tmp_path):
+    """A stream that never tracks the whole middle finger is not measured (nothing to tell)."""
+    kp, _ = _keypoints()
+    kp[:, 12] = np.nan
+    doc = {
+        "fps": 30,
+        "frames": [{"keypoints": np.where(np.isnan(k), None, k).tolist()} for k in kp],
+    }
+    assert load_stream(_write(tmp_path, doc)).keypoints_world.shape == (5, 21, 3)

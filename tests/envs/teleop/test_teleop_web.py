@@ -35,7 +35,9 @@ def test_the_page_config_and_recording_are_served(recording):
     base = f"http://127.0.0.1:{server.server_address[1]}"
     try:
         page = _get(base + "/").decode()
-        assert "XRHandJoint" in page and "getJointPose" in page and "<script" in page
+        assert '<script type="module" src="static/page.js">' in page
+        script = _get(base + "/static/page.js").decode()  # the page's code, with its WebXR
+        assert "XRHandJoint" in script and "getJointPose" in script
         assert json.loads(_get(base + "/config.json")) == {"ws_port": 9999, "has_replay": True}
         replay = json.loads(_get(base + "/replay.json"))
         assert len(replay["frames"]) == len(stream) and replay["fps"] == pytest.approx(50.0)

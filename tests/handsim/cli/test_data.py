@@ -308,3 +308,23 @@ def test_an_output_folder_that_cannot_be_written_is_refused(tmp_path, capsys):
         assert "is not writable by this user" in capsys.readouterr().err
     finally:
         locked.chmod(0o700)
+
+
+def test_generate_with_workers_shows_progress_per_frame_subprocess(tmp_path):
+    """`handsim generate --workers 2`: the bar moves with frames, not only at whole shards."""
+    values = dict(CONFIG, frames=40, frames_per_shard=20, frames_per_episode=10)
+    (tmp_path / "c.json").write_text(json.dumps(values))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    run = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "generate", "--config", str(tmp_path / "c.json")]
+        + ["--workers", "2", "--out", str(tmp_path / "d")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["frames"] == 40
+    counts = {int(n) for n in re.findall(r"(\d+)/40 ", run.stderr)}
+    assert 40 in counts and counts - {0, 20, 40}, run.stderr

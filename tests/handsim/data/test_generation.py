@@ -325,7 +325,7 @@ def test_a_failed_shard_keeps_no_scene(tmp_path, monkeypatch):
 
 
 def test_two_workers_make_the_shards_one_worker_makes(tmp_path):
-    """From the CLI with 2 spawned workers: the same shards as in-process, a clean exit."""
+    """From the CLI with 2 workers (forked): the same shards as in-process, a clean exit."""
     config = {**PRESETS["hand-only"], "frames": 8, "frames_per_shard": 2, "frames_per_episode": 2}
     (tmp_path / "c.json").write_text(json.dumps(config))
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
@@ -639,7 +639,7 @@ def _alive(pid):
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="parent-death signal is Linux's")
 def test_killing_the_generating_process_ends_its_workers(tmp_path):
-    """SIGKILL of `generate` alone (not its group): its spawned workers end with it."""
+    """SIGKILL of `generate` alone (not its group): its workers end with it."""
     values = dict(TINY, frames=40, frames_per_shard=10)
     code = (
         "import sys; from handsim.data.generation import GenerationConfig, generate\n"
@@ -660,3 +660,87 @@ def test_killing_the_generating_process_ends_its_workers(tmp_path):
     while time.monotonic() < deadline and any(_alive(p) for p in workers):
         time.sleep(0.05)
     assert not [p for p in workers if _alive(p)]  # the shard workers and the resource tracker
+
+
+# Shards sized to the job, workers that pay off ----------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("frames", "size", "shards"),
+    [
+        (1, 1, 1),
+        (250, 250, 1),
+        (251, 63, 4),
+        (600, 150, 4),
+        (999, 250, 4),
+        (1000, 250, 4),
+        (10**6, 250, 4000),
+    ],  # fmt: skip
+)
+def test_the_default_shard_size_is_sized_to_the_job(frames, size, shards):
+    """One shard up to 250 frames, else at least 4 of at most 250: the frames alone decide."""
+    from handsim.data.config import auto_frames_per_shard
+
+    config = GenerationConfig(frames=frames)
+    assert config.frames_per_shard is None and auto_frames_per_shard(frames) == size
+    assert config.shard_size == size and config.num_shards == shards
+    assert sum(config.shard_frames(i) for i in range(shards)) == frames
+    assert GenerationConfig(frames=frames, frames_per_shard=7).shard_size == 7
+
+
+def test_the_manifest_records_the_shard_size_and_a_resumed_run_keeps_it(tmp_path):
+    """A run records its shard size; rerun without one, it keeps the recorded size.
+
+    Another explicit size would make other shards (another dataset): refused.
+    """
+    values = dict(TINY, frames=5, frames_per_shard=2)
+    made = generate(GenerationConfig.from_mapping(values), tmp_path / "d")
+    assert made.config["frames_per_shard"] == 2 and len(made.shards) == 3
+    auto = dict(values, frames_per_shard=None)
+    assert GenerationConfig.from_mapping(auto).shard_size == 5  # the job's size: one shard
+    again = generate(GenerationConfig.from_mapping(auto), tmp_path / "d")
+    assert again.shards == made.shards and again.config["frames_per_shard"] == 2
+    fresh = generate(GenerationConfig.from_mapping(auto), tmp_path / "fresh")
+    assert fresh.config["frames_per_shard"] == 5 and len(fresh.shards) == 1
+    with pytest.raises(InvalidGenerationConfig, match=r"fields differ: frames_per_shard"):
+        generate(GenerationConfig.from_mapping(dict(values, frames_per_shard=3)), tmp_path / "d")
+
+
+def test_two_workers_report_progress_per_frame(tmp_path):
+    """With workers, progress counts frames as they are written, not whole shards."""
+    values = dict(TINY, frames=80, frames_per_shard=40, frames_per_episode=10)
+    seen = []
+    made = generate(
+        GenerationConfig.from_mapping(values),
+        tmp_path / "d",
+        workers=2,
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    assert made.frames == 80
+    done = [d for d, _ in seen]
+    assert {t for _, t in seen} == {80} and done == sorted(done) and done[-1] == 80
+    # Values between the shards' boundaries: frames of shards still in progress.
+    assert set(done) - {0, 40, 80}, done
+
+
+def test_workers_fork_only_when_it_is_safe():
+    """Forked workers (imports inherited) from a one-thread process without OpenGL; else spawn.
+
+    Checked in a fresh process: before anything renders; with a second thread running; after
+    MuJoCo's EGL display exists (a GPU driver's EGL state does not survive a fork).
+    """
+    code = (
+        "import os, threading, time\n"
+        "import handsim.data.generation as g\n"
+        "print(g._start_method())\n"
+        "t = threading.Thread(target=time.sleep, args=(0.5,)); t.start()\n"
+        "print(g._start_method()); t.join()\n"
+        "import mujoco.egl\n"
+        "mujoco.egl.EGL_DISPLAY = object()  # as after a first render\n"
+        "print(g._start_method())\n"
+    )
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert out.stdout.split() == ["fork", "spawn", "spawn"]

@@ -25,10 +25,24 @@ def _scene(intrinsics, eye=(0.0, -1.0, 0.5), target=(0.0, 0.0, 0.5)):
     return spec
 
 
-@pytest.mark.parametrize("preset", list(CAMERA_PRESETS))
-def test_points_render_where_opencv_projects_them(preset):
-    """Small spheres land within 0.5 px of K's projection, principal point included."""
+# Every preset at its own size, and scaled sizes (smaller, non-square pixels, larger).
+_RENDER_SIZES = [(name, None) for name in CAMERA_PRESETS] + [
+    ("icvl", (160, 120)),
+    ("sr300", (160, 120)),
+    ("icvl", (84, 84)),
+    ("sr300", (800, 600)),
+]
+
+
+@pytest.mark.parametrize(("preset", "size"), _RENDER_SIZES)
+def test_points_render_where_opencv_projects_them(preset, size):
+    """Small spheres land within 0.5 px of K's projection, principal point included.
+
+    At a scaled size too: the image is rendered at that size with the scaled K.
+    """
     intrinsics = camera_preset(preset)
+    if size is not None:
+        intrinsics = intrinsics.scaled(*size)
     rng = np.random.default_rng(0)
     eye = np.array([0.2, -0.8, 0.6])
     spec = _scene(intrinsics, eye=eye, target=(0.0, 0.0, 0.4))
@@ -158,6 +172,47 @@ def test_backproject_inverts_project():
     points = intrinsics.backproject(depth)
     v, u = np.indices(depth.shape)
     np.testing.assert_allclose(intrinsics.project(points), np.stack([u, v], -1), atol=1e-9)
+
+
+@pytest.mark.parametrize("size", [(160, 120), (84, 84), (1280, 960), (641, 479)])
+def test_scaled_intrinsics_are_exact(size):
+    """scaled(): fx' = fx s, cx' = (cx + 0.5) s - 0.5 (pixel centres at integers), exactly.
+
+    A ray through pixel coordinate u lands at (u + 0.5) s - 0.5: the image's outer edges (-0.5
+    and W - 0.5) stay the outer edges; the field of view and working range are kept.
+    """
+    sensor = camera_preset("sr300")
+    w, h = size
+    sx, sy = w / sensor.width, h / sensor.height
+    scaled = sensor.scaled(w, h)
+    assert (scaled.width, scaled.height) == size
+    assert (scaled.fx, scaled.fy) == (sensor.fx * sx, sensor.fy * sy)
+    assert (scaled.cx, scaled.cy) == ((sensor.cx + 0.5) * sx - 0.5, (sensor.cy + 0.5) * sy - 0.5)
+    assert scaled.range_m == sensor.range_m and scaled.name == f"sr300@{w}x{h}"
+    rng = np.random.default_rng(0)
+    rays = np.column_stack([rng.uniform(-0.6, 0.6, (50, 2)), np.ones(50)]) * rng.uniform(
+        0.2, 2.0, (50, 1)
+    )
+    np.testing.assert_allclose(
+        scaled.project(rays), (sensor.project(rays) + 0.5) * [sx, sy] - 0.5, atol=1e-9
+    )
+    edges = np.array([[-0.5 - sensor.cx, -0.5 - sensor.cy, sensor.fx]]) / sensor.fx
+    edges[0, 1] *= sensor.fx / sensor.fy
+    np.testing.assert_allclose(scaled.project(edges), [[-0.5, -0.5]], atol=1e-9)
+    assert scaled.fovy_deg == pytest.approx(sensor.fovy_deg, rel=1e-12)
+    back = scaled.scaled(sensor.width, sensor.height)
+    np.testing.assert_allclose(back.K, sensor.K, rtol=1e-12, atol=1e-9)
+    assert back.name == "sr300@640x480"
+    assert sensor.scaled(640, 480) is sensor
+
+
+def test_scaled_refuses_bad_sizes():
+    """scaled() says what a size must be."""
+    icvl = camera_preset("icvl")
+    with pytest.raises(InvalidCamera, match=r"scaled\(\) needs integer width and height"):
+        icvl.scaled(160.0, 120)
+    with pytest.raises(InvalidCamera, match=r"width and height must be in \[1, 8192\] pixels"):
+        icvl.scaled(0, 120)
 
 
 def test_K_and_field_of_view():
