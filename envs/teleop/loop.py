@@ -46,6 +46,7 @@ from handsim.envs.teleop.capture import Capture, world_from_cam
 from handsim.envs.teleop.events import EventDetector, InteractionEvent
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
+from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
@@ -131,6 +132,9 @@ class TeleopConfig:
         sensor: the capture camera's sensor model (``camera`` mode): ``none``,
             ``structured_light`` or ``tof``.
         camera: the capture camera preset (``camera`` mode).
+        grip_hold: stabilise grips (:class:`~handsim.envs.teleop.grip.GripStabiliser`: a
+            digit touching an object keeps its target while tracking changes within noise).
+            Nothing is attached; the time it holds is ``grip_hold_s`` in the metrics.
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -142,6 +146,7 @@ class TeleopConfig:
     anchor: str = "none"
     sensor: str = "none"
     camera: str = "icvl"
+    grip_hold: bool = True
     record: bool = False
     seed: int = 0
 
@@ -179,7 +184,8 @@ class TeleopEpisode:
         metrics: the figures of :mod:`handsim.envs.teleop.metrics` (``success``,
             ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
             ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
-            ``unintended_presses``, ``tracking_error_mm``, ``steps``, ``dropped_frames``,
+            ``unintended_presses``, ``tracking_error_mm``, ``grip_hold_s`` (seconds with a
+            digit's target held by the grip stabiliser), ``steps``, ``dropped_frames``,
             ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean milliseconds per
             stage), ``events`` (count per kind) and, for a
             :class:`~handsim.envs.teleop.sampling.LiveSampler` stream, its latency summary
@@ -412,6 +418,7 @@ class TeleopLoop:
         )
         times = dict.fromkeys(STAGES, 0.0)
         detector = EventDetector(base, dt)
+        grip = GripStabiliser(base, dt) if cfg.grip_hold else None
         previous: HandPose | None = None
         scale: float | None = None
         rec: dict[str, list[Any]] = {
@@ -501,7 +508,9 @@ class TeleopLoop:
                             rec["retarget_error"].append(result.keypoint_error_m)
                 times["retarget"] += time.perf_counter() - t4
             t5 = time.perf_counter()
-            _, _, terminated, truncated, info = env.step(target)
+            _, _, terminated, truncated, info = env.step(
+                grip(target, data) if grip is not None else target
+            )
             times["physics"] += time.perf_counter() - t5
             if sampler is not None:
                 sampler.applied()
@@ -592,6 +601,7 @@ class TeleopLoop:
             "tracking_error_mm": (
                 float(np.nanmean(dists) * 1e3) if np.isfinite(dists).any() else math.nan
             ),
+            "grip_hold_s": grip.held_steps * dt if grip is not None else 0.0,
             "steps": n_done,
             "control_dt_s": dt,
             "dropped_frames": int(np.sum(rec["dropped"])),

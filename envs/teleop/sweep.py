@@ -1,10 +1,13 @@
 """Degradation sweeps: the task under a grid of tracking faults and filters.
 
-:func:`run_sweep` replays the same operator streams (one per seed: the task's scripted
-expert, :func:`~handsim.envs.teleop.streams.stream_from_expert`, unless streams are given)
-through :class:`~handsim.envs.teleop.loop.TeleopLoop` for every combination of noise level,
-latency, dropout rate and filter, and returns one row per grid point with the mean metrics
-over the episodes. :func:`write_sweep` saves the table as CSV and JSON and plots success and
+:func:`run_sweep` runs :class:`~handsim.envs.teleop.loop.TeleopLoop` for every combination
+of noise level, latency, dropout rate and filter, one episode per seed, and returns one row
+per grid point with the mean metrics over the episodes. The operator is, by default, the
+:class:`~handsim.envs.teleop.operator.ReactiveOperator` (the task's expert planning from the
+displayed state, seeing it as late as the grid point's latency plus its reaction delay), so
+latency and filtering act on what it does; ``operator="replay"`` replays the expert's
+recorded streams (:func:`~handsim.envs.teleop.streams.stream_from_expert`) instead, which
+cannot react. :func:`write_sweep` saves the table as CSV and JSON and plots success and
 fingertip jitter against each degradation.
 """
 
@@ -23,6 +26,7 @@ import numpy as np
 
 from handsim.envs.teleop.faults import FaultConfig
 from handsim.envs.teleop.loop import InvalidTeleopConfig, TeleopConfig, TeleopLoop
+from handsim.envs.teleop.operator import OPERATORS, ReactiveOperator
 from handsim.envs.teleop.streams import OperatorStream, stream_from_expert
 from handsim.estimator import Estimator
 
@@ -43,6 +47,7 @@ SWEEP_COLUMNS: tuple[str, ...] = (
     "lag_s",
     "unintended_presses",
     "tracking_error_mm",
+    "grip_hold_s",
     "steps_per_s",
 )
 """Columns of the sweep table (means over the episodes of a grid point; NaN-aware)."""
@@ -64,6 +69,9 @@ def run_sweep(
     base_faults: FaultConfig | None = None,
     env_kwargs: dict[str, Any] | None = None,
     streams: Sequence[OperatorStream] | None = None,
+    operator: str | None = None,
+    grip_hold: bool = True,
+    filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
     """Run the grid and return the table.
@@ -80,7 +88,12 @@ def run_sweep(
         estimator_factory: builds the estimator of ``camera`` mode.
         base_faults: the other fault settings (bias, jitter, occlusion, dropout mode).
         env_kwargs: keyword arguments of ``gym.make``.
-        streams: one operator stream per episode (default: the expert's, per seed).
+        streams: one recorded operator stream per episode (``operator="replay"``; default:
+            the expert's, per seed).
+        operator: one of :data:`~handsim.envs.teleop.operator.OPERATORS` (default:
+            ``replay`` with ``streams``, else ``reactive``).
+        grip_hold: the loop's grip stabiliser (:attr:`TeleopConfig.grip_hold`).
+        filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
     Returns:
@@ -93,16 +106,31 @@ def run_sweep(
         raise InvalidTeleopConfig(
             f"streams must hold one stream per episode ({episodes}); received {len(streams)}"
         )
+    if operator is None:
+        operator = "replay" if streams is not None else "reactive"
+    if operator not in OPERATORS:
+        raise InvalidTeleopConfig(
+            f"operator={operator!r} is not valid; choose one of {', '.join(OPERATORS)}"
+        )
+    if streams is not None and operator != "replay":
+        raise InvalidTeleopConfig("streams are replayed: pass operator='replay' with them")
     base = base_faults or FaultConfig()
     seeds = [seed + k for k in range(episodes)]
-    if streams is None:
+    if streams is None and operator == "replay":
         streams = [stream_from_expert(env_id, s, env_kwargs=env_kwargs) for s in seeds]
     rows = []
     loops: dict[str, TeleopLoop] = {}
     try:
         for n, lat, p, filt in itertools.product(noise_mm, latency_frames, dropout, filters):
             faults = dataclasses.replace(base, noise_mm=n, latency_frames=lat, dropout=p)
-            config = TeleopConfig(mode=mode, faults=faults, filter=filt, seed=seed)
+            config = TeleopConfig(
+                mode=mode,
+                faults=faults,
+                filter=filt,
+                filter_params=dict((filter_params or {}).get(filt, {})),
+                grip_hold=grip_hold,
+                seed=seed,
+            )
             if filt not in loops:
                 loops[filt] = TeleopLoop(
                     env_id,
@@ -113,8 +141,13 @@ def run_sweep(
             loop = loops[filt]
             loop.config = config
             details = []
-            for s, stream in zip(seeds, streams, strict=True):
-                details.append(loop.run(stream, s).metrics)
+            for k, s in enumerate(seeds):
+                if streams is not None:
+                    details.append(loop.run(streams[k], s).metrics)
+                    continue
+                # The display is as late as the tracking (a symmetric round trip).
+                op = ReactiveOperator(loop.env, s, display_latency_s=lat * loop.control_dt)
+                details.append({**loop.run(op, s).metrics, "reaction_s": op.reaction_s})
                 if progress is not None:
                     progress(1)
             row: dict[str, Any] = {
@@ -136,6 +169,9 @@ def run_sweep(
     return {
         "env_id": env_id,
         "mode": mode,
+        "operator": operator,
+        "grip_hold": bool(grip_hold),
+        "filter_params": filter_params or {},
         "episodes": episodes,
         "seed": seed,
         "grid": {
@@ -176,7 +212,10 @@ def write_sweep(report: dict[str, Any], out_dir: str | pathlib.Path) -> dict[str
             writer.writerow({k: row[k] for k in SWEEP_COLUMNS})
     paths["json"].write_text(json.dumps(to_strict_json(report), indent=2, allow_nan=False))
     rows = report["rows"]
-    title = f"{report['env_id']}, {report['mode']} mode, {report['episodes']} episode(s) per point"
+    title = (
+        f"{report['env_id']}, {report['mode']} mode, {report.get('operator', 'replay')} "
+        f"operator, {report['episodes']} episode(s) per point"
+    )
 
     def lines(
         ax: Any, x_key: str, y_key: str, group: tuple[str, ...], scale: float = 1.0, data=None

@@ -201,6 +201,13 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         help="ema filter: weight of the new sample, (0, 1] (default: 0.5)",
     )
     p.add_argument(
+        "--grip-hold",
+        choices=("on", "off"),
+        default="on",
+        help="grip stabiliser: a digit touching an object keeps its target while tracking "
+        "changes within noise; nothing is attached (default: on)",
+    )
+    p.add_argument(
         "--seed",
         type=seed,
         default=0,
@@ -257,6 +264,7 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         filter_params=_filter_params(args.filter, args),
         anchor=args.anchor,
         sensor=args.sensor,
+        grip_hold=args.grip_hold == "on",
         record=record,
         seed=args.seed,
     )
@@ -469,18 +477,21 @@ def _sweep(args: argparse.Namespace) -> int:
             mode=args.mode,
             estimator_factory=factory,
             base_faults=base if isinstance(base, FaultConfig) else None,
+            operator=args.operator,
+            grip_hold=args.grip_hold == "on",
+            filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )
     paths = write_sweep(report, args.out)
     print(
         f"{'noise_mm':>8} {'latency':>7} {'dropout':>7} {'filter':>9} {'success':>7} "
-        f"{'jitter_mm':>9} {'lag_s':>6} {'pen_max_mm':>10}"
+        f"{'jitter_mm':>9} {'lag_s':>6} {'pen_max_mm':>10} {'grip_hold_s':>11}"
     )
     for r in report["rows"]:
         print(
             f"{r['noise_mm']:8.1f} {r['latency_frames']:7d} {r['dropout']:7.2f} "
             f"{r['filter']:>9} {100 * r['success_rate']:6.0f}% {r['jitter_mm']:9.2f} "
-            f"{r['lag_s']:6.2f} {r['penetration_max_mm']:10.2f}"
+            f"{r['lag_s']:6.2f} {r['penetration_max_mm']:10.2f} {r['grip_hold_s']:11.2f}"
         )
     for kind, path in paths.items():
         print(f"{kind}: {path}")
@@ -642,11 +653,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = cmds.add_parser(
         "sweep",
         help="degradation grid -> CSV, JSON and plots",
-        description="Replay the task's scripted-expert streams under every "
-        "combination of noise, latency, dropout and filter; write "
-        "sweep.csv, sweep.json and plots of success and jitter.",
+        description="Run the task under every combination of noise, latency, dropout and "
+        "filter, operated by the reactive operator (the task's expert planning from the "
+        "displayed state, late by the latency plus a 150-250 ms reaction delay) or by the "
+        "expert's replayed streams; write sweep.csv, sweep.json and plots of success and jitter.",
     )
     _add_loop_options(p, grid=True)
+    p.add_argument(
+        "--operator",
+        choices=("reactive", "replay"),
+        default="reactive",
+        help=choice_help(
+            "reactive: plans from the displayed state; replay: the expert's recorded stream",
+            ("reactive", "replay"),
+            "reactive",
+        ),
+    )
     p.add_argument(
         "--noise-mm",
         type=_list(_noise_mm, "--noise-mm"),
