@@ -55,8 +55,10 @@ box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; the whole ha
                                                 fingers hooked over its far wall, the index
                                                 and little curled over the top
 disk        007 tuna fish can                   prismatic 4 finger; from the top
-tool        035 power drill                     prismatic 4 finger; from the top, across the
-                                                grip
+tool        035 power drill                     small diameter; upright, the grip wrapped
+                                                from behind, the index under the barrel
+                                                (:data:`OBJECT_RECIPES`); facing the user,
+                                                prismatic 4 finger from the top
 vessel      019 pitcher base                    palmar pinch; thumb outside and index inside
                                                 the rim nearest the user
 vessel      025 mug                             prismatic 4 finger; around its body from

@@ -366,6 +366,16 @@ def _top_candidates(
     return candidates
 
 
+def _approach_dir(recipe: GraspRecipe, T: np.ndarray, default: np.ndarray) -> np.ndarray:
+    """The horizontal direction a side wrap prefers: the recipe's, in the world, or ``default``."""
+    if recipe.approach_obj is None:
+        return default
+    d = T[:3, :3] @ np.asarray(recipe.approach_obj, dtype=np.float64)
+    d[2] = 0.0
+    norm = float(np.linalg.norm(d))
+    return default if norm < 1e-6 else d / norm
+
+
 def _side_candidates(
     obj: YCBObject,
     T: np.ndarray,
@@ -432,8 +442,10 @@ def _side_candidates(
     candidates = []
     for angle in np.deg2rad(np.arange(0.0, 360.0, 10.0)):
         d = np.array([np.cos(angle), np.sin(angle), 0.0])
-        if d @ preferred_dir < np.cos(np.deg2rad(75.0)):
+        if d @ preferred_dir < np.cos(np.deg2rad(recipe.approach_cone_deg)):
             continue
+        if d[1] < np.cos(np.deg2rad(recipe.max_from_user_deg)):
+            continue  # the user is at -y
         span = float(np.ptp((band - centre) @ np.cross(d, [0.0, 0.0, 1.0])))
         # The palm on the broad face: the digits wrap around the object's thin dimension.
         depth = float(np.ptp((band - centre) @ d))
@@ -538,7 +550,7 @@ def plan_grasp(
     # grasps, the same with the pads at the half steps.
     recipes = dict.fromkeys([recipe, GRASP_RECIPES.get(OBJECT_SHAPE_CLASSES.get(obj.name), recipe)])
     candidate_sets = [
-        functools.partial(_side_candidates, obj, T, params, r, preferred)
+        functools.partial(_side_candidates, obj, T, params, r, _approach_dir(r, T, preferred))
         if r.strategy == "side"
         else functools.partial(_top_candidates, obj, T, params, r, preferred, fallback)
         for fallback in (False, True)

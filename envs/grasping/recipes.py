@@ -113,6 +113,13 @@ class GraspRecipe:
             stiffness over its actuator's (at most 1), so that actuators stiffened for their
             bandwidth press with the nominal torque past contact.
         lift_speed_m_s: peak wrist speed of the lift, m/s.
+        approach_obj: side wraps: the palm approaches along this direction of the object's
+            frame (levelled), not away from the user; ``None``: away from the user.
+        approach_cone_deg: side wraps: approach directions at most this far from the
+            preferred one, degrees.
+        max_from_user_deg: side wraps: and at most this far from pointing away from the
+            user, degrees (past it, the reach from the user's side around the object is too
+            long for the episode: the shape class's recipe is used instead).
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -139,6 +146,9 @@ class GraspRecipe:
     pad_raises_m: tuple[float, ...] = (0.0, 0.01, 0.02)
     nominal_squeeze: bool = False
     lift_speed_m_s: float = _LIFT_SPEED_M_S
+    approach_obj: tuple[float, float, float] | None = None
+    approach_cone_deg: float = 75.0
+    max_from_user_deg: float = 180.0
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -189,7 +199,9 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
         max_depth_m=0.02,
         squeeze_rad=float(np.deg2rad(25.0)),
     ),
-    # The pads at 0.3 of the height, not 0.5: with skin friction the drill turned out of a
+    # The drill's fallback where its wrap is not planned (its own recipe below); measured with
+    # the drill lying on its side: the pads at 0.3 of the height, not 0.5: with skin friction
+    # the drill turned out of a
     # pinch higher on its body (seeds 0-1 not lifted or dropped; held with 0.3, seeds 0-9).
     # Squeezed with the nominal stiffnesses: the large hands' thumb CMC (4.9 N m/rad, not 3)
     # pressed 33 N against the index's 13 N, rolled the drill 15 deg in the squeeze and it
@@ -238,6 +250,22 @@ GRASP_RECIPES: dict[ShapeClass, GraspRecipe] = {
 """The grasp of each shape class."""
 
 OBJECT_RECIPES: dict[str, GraspRecipe] = {
+    # The drill upright on its battery, held as people hold it: the palm on the back of the
+    # grip (approaching along the barrel, +x, toward the chuck), the digits wrapped around the
+    # 34 x 38 mm grip, the thumb up toward the barrel and the index the highest finger, across
+    # the grip's front under the barrel (the trigger). At 0.4 of the height the index's middle
+    # phalanx lay on the grip's side 30 mm under the barrel (seeds 2-3, medium right hand); at
+    # 0.46 across its front, 20 mm under it. Higher, the index meets the barrel, which
+    # overhangs the back of the grip by 45 mm. Not facing the user (max_from_user_deg): the
+    # reach around the drill to the back of its grip left too little of the 8 s episode.
+    "035_power_drill": GraspRecipe(
+        "side",
+        "small_diameter",
+        height_fraction=0.46,
+        approach_obj=(1.0, 0.0, 0.0),
+        approach_cone_deg=20.0,
+        max_from_user_deg=100.0,
+    ),
     # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
     # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg
     # downward) and the pinch let go as the hold eased (seeds 9, 15, 19 at skin friction). The

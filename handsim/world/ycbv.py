@@ -645,7 +645,12 @@ def _pitcher() -> _Geometry:
 
 
 def _power_drill() -> _Geometry:
-    """Cordless drill lying on its side: barrel (x), chuck at +x, grip and battery below."""
+    """Cordless drill: barrel (x), chuck at +x, grip and battery below (-y).
+
+    It rests upright on its battery (``rest_up`` +y), as it stands on a bench: its centre of
+    mass lies 22-37 mm inside the edges of the 80 x 58 mm battery footprint, and only upright
+    is its grip clear of the table for a hand to wrap (lying on its side, 10 mm above it).
+    """
     mm = _MM
     barrel = (np.array([-62.0, 65.0, 0.0]) * mm, np.array([25.0, 65.0, 0.0]) * mm, 29.0 * mm)
     nose = (np.array([25.0, 65.0, 0.0]) * mm, np.array([55.0, 65.0, 0.0]) * mm, 24.0 * mm)
@@ -684,7 +689,7 @@ def _power_drill() -> _Geometry:
         _hull(round_box_points(*grip, grip_rot)),
         _hull(round_box_points(*battery)),
     ]
-    return _Geometry(mesh, pieces, rest_up=np.array([0.0, 0.0, 1.0]))
+    return _Geometry(mesh, pieces, rest_up=np.array([0.0, 1.0, 0.0]))
 
 
 def _thick_polyline_pieces(points_2d: np.ndarray, width: float, z0: float, z1: float):

@@ -79,6 +79,22 @@ def test_grasp_frames_touch_the_object_without_entering_it():
         assert set(arrays["contact_instance"][:n].tolist()) <= {0, 1}
 
 
+def test_the_upright_drill_is_grasped_without_entering_it():
+    """The upright drill's grasp frames touch it and enter nothing by more than the limit.
+
+    Upright on its battery it is wrapped by its grip, or pinched from the top facing the user.
+    """
+    config = GenerationConfig.from_mapping(TINY, objects=("035_power_drill",))
+    source = GraspSource(config)
+    try:
+        frames = _frames(source, seed=0, episodes=4, frames=1)
+    finally:
+        source.close()
+    assert len(frames) == 4
+    assert all(int(a["contact_count"]) > 0 for a, _ in frames)
+    assert max(d for _, d in frames) <= MAX_GRASP_PENETRATION_M
+
+
 def test_close_onto_stops_each_digit_at_its_touch():
     """Closed digits overlap what they touch by about TOUCH_DEPTH_M.
 

@@ -476,6 +476,26 @@ def test_object_rests_stably_on_a_plane(name):
     _assert_rests(get_object(name))
 
 
+def test_power_drill_rests_upright_on_its_battery():
+    """The drill stands on its battery (object -y down), its grip clear of the table for a wrap.
+
+    Lying on its side its grip was 10 mm above the table; upright the grip's lowest point is
+    above the battery (58 mm thick along the barrel's height) and the chuck points along +x.
+    """
+    obj = get_object("035_power_drill")
+    rest = Rotation.from_quat(np.roll(np.array(obj.rest_quat_wxyz), -1))
+    np.testing.assert_allclose(rest.apply(np.array([0.0, 1.0, 0.0])), [0.0, 0.0, 1.0], atol=1e-9)
+    points = rest.apply(np.array(obj.model_points_m))
+    bottom = points[:, 2].min()
+    assert bottom == pytest.approx(-obj.rest_height_m, abs=1e-3)
+    # Over 3 cm above the table, the rested drill's width across the barrel is the grip's (at
+    # most 45 mm) between the battery and the barrel.
+    band = points[np.abs(points[:, 2] - bottom - 0.085) < 0.005]
+    assert np.ptp(band[:, 1]) < 0.045
+    assert np.all(band[:, 0] < 0.0)  # behind the chuck's side: the barrel ends at +93 mm
+    _assert_rests(obj)
+
+
 @pytest.mark.parametrize("name", OBJECT_NAMES)
 def test_mujoco_body_names_groups_and_inertia(name):
     """The body, joint and geoms have the documented names, groups, mass and inertia."""
