@@ -31,6 +31,7 @@ episodes.
 from __future__ import annotations
 
 import copy
+import time
 from collections.abc import Callable, Iterator
 
 import mujoco
@@ -50,6 +51,7 @@ from handsim.data.kinematic import (
     near_geoms,
 )
 from handsim.hand.pose import HandPose
+from handsim.world.sensors import NoNoise
 
 __all__ = ["WarpKinematicSource", "check_warp_config", "DEFAULT_BATCH"]
 
@@ -107,6 +109,21 @@ class _Prerendered:
         self.real.close()
 
 
+class _TimedSensor:
+    """A sensor model whose ``apply`` adds its seconds to ``noise`` (and ``_noise``)."""
+
+    def __init__(self, sensor: object, timings: dict[str, float]) -> None:
+        self.sensor, self.timings = sensor, timings
+
+    def apply(self, depth_m: np.ndarray, intrinsics: object, rng: np.random.Generator):  # noqa: ANN201
+        start = time.perf_counter()
+        out = self.sensor.apply(depth_m, intrinsics, rng)
+        spent = time.perf_counter() - start
+        for key in ("noise", "_noise"):
+            self.timings[key] = self.timings.get(key, 0.0) + spent
+        return out
+
+
 class _Candidate:
     """One drawn frame: its generator, view, and the scene's state (data, geom sizes)."""
 
@@ -132,7 +149,14 @@ class WarpKinematicSource(KinematicSource):
         super().__init__(config)
         self.device, self.batch = device, int(batch)
         self._warp = None  # (scene, hand geometry version, renderer)
-        self.timings_s: dict[str, float] = {}
+
+    timings_s: dict[str, float] | None = None
+    """Set to a dict (on the class, for benchmarks) to add each stage's seconds to it.
+
+    ``device_model`` (a new one per episode), ``draws`` (pose, view, camera and host
+    kinematics), the renderer's stages, ``labels``, ``noise``. The device is synchronized
+    between stages then.
+    """
 
     def _warp_renderer(self, scene: object) -> object:
         from handsim.world.warp_render import WarpDepthRenderer
@@ -140,12 +164,16 @@ class WarpKinematicSource(KinematicSource):
         key = (id(scene), scene.hand_geometry_version)
         if self._warp is None or self._warp[0] != key:
             self._warp = None
+            start = time.perf_counter()
             self._warp = (
                 key,
                 WarpDepthRenderer(
                     scene.model, "camera", self.intrinsics, self.batch, device=self.device
                 ),
             )
+            if self.timings_s is not None:
+                spent = time.perf_counter() - start
+                self.timings_s["device_model"] = self.timings_s.get("device_model", 0.0) + spent
         return self._warp[1]
 
     def close(self) -> None:
@@ -177,15 +205,22 @@ class WarpKinematicSource(KinematicSource):
         self, scene, renderer, candidate: _Candidate, image: tuple[np.ndarray, np.ndarray]
     ) -> object:  # noqa: ANN001
         """The :class:`~handsim.frame.Frame` of a candidate from its rendered image."""
-        real = renderer.renderer
+        real, sensor = renderer.renderer, renderer.sensor
         stand_in = _Prerendered(real)
         stand_in.image = image
         saved = scene.data
         renderer.renderer, scene.data = stand_in, candidate.data
+        timings = self.timings_s
+        if timings is not None and type(sensor) is not NoNoise:
+            renderer.sensor = _TimedSensor(sensor, timings)
+        start = time.perf_counter()
         try:
             return renderer.render(candidate.rng, keep_clean=self.config.paired_clean)
         finally:
-            renderer.renderer, scene.data = real, saved
+            renderer.renderer, renderer.sensor, scene.data = real, sensor, saved
+            if timings is not None:
+                spent = time.perf_counter() - start - timings.pop("_noise", 0.0)
+                timings["labels"] = timings.get("labels", 0.0) + spent
 
     def episode(
         self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
@@ -203,10 +238,15 @@ class WarpKinematicSource(KinematicSource):
         warp = self._warp_renderer(scene)
         k, done, tries = 0, 0, 0
         while True:
+            start = time.perf_counter()
             candidates = []
             for _ in range(self.batch):
                 candidates.append(self._candidate(scene, seed, k, postures, source))
                 k += 1
+            if self.timings_s is not None:
+                self.timings_s["draws"] = (
+                    self.timings_s.get("draws", 0.0) + time.perf_counter() - start
+                )
             drawn = [c for c in candidates if c is not None]
             if drawn:
                 # Worlds past the drawn ones repeat the last (their images are not used).
@@ -216,7 +256,7 @@ class WarpKinematicSource(KinematicSource):
                     depth_range_m=self.intrinsics.range_m,
                     host_geom_poses=True,
                     geom_size=np.stack([c.geom_size for c in worlds]),
-                    timings_s=self.timings_s if self.timings_s is not None else None,
+                    timings_s=self.timings_s,
                 )
             i = 0
             for candidate in candidates:

@@ -168,7 +168,7 @@ class WarpDepthRenderer:
                 (depth 0, geom id -1), as with :meth:`DepthRenderer.render
                 <handsim.world.render.DepthRenderer.render>`.
             timings_s: a dict to add each stage's seconds to (``upload``, ``kinematics``,
-                ``render``, ``readback``, ``labels``), for benchmarks; the device is
+                ``render``, ``readback``, ``postprocess``), for benchmarks; the device is
                 synchronized between stages then, which costs a little.
             host_geom_poses: take every geom's pose from the worlds' ``geom_xpos`` and
                 ``geom_xmat`` (computed on the host) instead of running kinematics on the
@@ -227,7 +227,7 @@ class WarpDepthRenderer:
             background |= (depth_m < near) | (depth_m > far)
             ids[background] = -1
         depth_m[background] = 0.0
-        clock("labels")
+        clock("postprocess")
         return depth_m, ids
 
 
