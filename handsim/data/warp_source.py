@@ -190,7 +190,8 @@ class WarpKinematicSource(KinematicSource):
         view = viewpoints[int(rng.integers(len(viewpoints)))]
         is_left = scene.spec.hand.side == "left"
         wrist, rotvec, palm, eye, quat = self._hand_alone(rng, view, is_left)
-        posture = postures[k] if k < len(postures) else self._postures(rng, source, 1)[0]
+        # Past the episode's postures, a candidate draws its own (two: a motion needs length).
+        posture = postures[k] if k < len(postures) else self._postures(rng, source, 2)[0]
         scene.binding.set_pose(scene.data, HandPose(wrist, rotvec, posture), kinematics_only=True)
         eye = beyond_near(scene, near_geoms(scene), eye, palm, self._near_m)
         if eye is None:

@@ -80,8 +80,9 @@ def test_labels_agree_with_the_opengl_path_on_the_same_draws():
         kp_equal = visible_equal = total = 0
         for _ in range(2):  # two episodes: two hand lengths
             scene, renderer = source._scene(rng)
-            postures = source._postures(rng, "grasp", 4)
-            candidates = [source._candidate(scene, 7, k, postures, "grasp") for k in range(4)]
+            # Candidates 2 and 3 are past the episode's postures: they draw their own motion.
+            postures = source._postures(rng, "motion", 2)
+            candidates = [source._candidate(scene, 7, k, postures, "motion") for k in range(4)]
             candidates = [c for c in candidates if c is not None]
             assert candidates
             warp = source._warp_renderer(scene)
