@@ -7,13 +7,19 @@ readback to the host, geom-id/depth post-processing) after the kernels are compi
 compile time is reported on its own), and the OpenGL :class:`~handsim.world.render.DepthRenderer`
 rate of the same frames one at a time, with their ratio.
 
-What it does not measure yet: the labels (keypoints, visibility, occlusion), sensor noise and
-shard writing of a Warp-backed ``handsim generate`` (not built yet). Without a CUDA device the
-Warp figure is the CPU device's, and the output says so: no GPU figure is ever estimated.
+With ``--generate N``: end to end to shards on disk instead, ``handsim generate --backend
+warp`` of the ``hand-only`` preset at ``--gen-camera`` (N frames, ``--batch`` per launch),
+after a first run that compiles the kernels, with the breakdown per frame (draws: pose, view,
+camera and host kinematics; the renderer's stages; labels; noise; the rest: shard writing,
+the manifest and the loop), and the OpenGL backend's rate on the same config in the same run.
+
+Without a CUDA device the Warp figure is the CPU device's, and the output says so: no GPU
+figure is ever estimated.
 
 Usage: ``WARP_CACHE_PATH=/tmp/warp_cache python benchmarks/bench_warp.py [--batch 16]
-[--rounds 5] [--device cpu|cuda] [--camera sr300] [--width 320] [--height 240] [--objects 3]``;
-writes ``benchmarks/results/bench_warp.json``.
+[--rounds 5] [--device cpu|cuda] [--camera sr300] [--width 320] [--height 240] [--objects 3]
+[--generate FRAMES [--gen-camera icvl]]``; writes ``benchmarks/results/bench_warp.json``
+(``bench_warp_generate.json`` with ``--generate``).
 """
 
 from __future__ import annotations
@@ -51,6 +57,61 @@ def _datas(scene: Scene, n: int, rng: np.random.Generator) -> list[mujoco.MjData
     return datas
 
 
+def _end_to_end(args: argparse.Namespace) -> dict:
+    """Frames/s of ``generate`` to shards, warp (with its breakdown) and OpenGL, one run."""
+    import shutil
+    import tempfile
+
+    import warp as wp
+
+    from handsim.data.config import PRESETS, GenerationConfig
+    from handsim.data.generation import generate
+    from handsim.data.warp_source import WarpKinematicSource
+
+    config = GenerationConfig.from_mapping(
+        PRESETS["hand-only"], frames=args.generate, camera=args.gen_camera, seed=1
+    )
+    root = Path(tempfile.mkdtemp(prefix="bench_warp_"))
+    try:
+        t0 = time.perf_counter()
+        small = GenerationConfig.from_mapping(PRESETS["hand-only"], frames=args.batch, seed=2)
+        generate(small, root / "warm", backend="warp", device=args.device, batch=args.batch)
+        first_s = time.perf_counter() - t0
+        WarpKinematicSource.timings_s = stages = {}
+        t0 = time.perf_counter()
+        generate(config, root / "warp", backend="warp", device=args.device, batch=args.batch)
+        warp_s = time.perf_counter() - t0
+        WarpKinematicSource.timings_s = None
+        generate(small, root / "gl-warm")  # the OpenGL path's one-off set-up (numba, skin)
+        t0 = time.perf_counter()
+        generate(config, root / "opengl")
+        gl_s = time.perf_counter() - t0
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+    device = str(wp.get_device(args.device))
+    gpu = device.startswith("cuda")
+    n = args.generate
+    per_frame = {k: round(1e3 * v / n, 3) for k, v in stages.items()}
+    per_frame["rest_writing_manifest_loop"] = round(1e3 * (warp_s - sum(stages.values())) / n, 3)
+    return {
+        "mode": "end to end to shards (handsim generate, preset hand-only)",
+        "device": device,
+        "gpu": gpu,
+        "note": "" if gpu else "no CUDA device: the Warp figure is the CPU device's",
+        "batch": args.batch,
+        "camera": args.gen_camera,
+        "sensor": config.sensor,
+        "frames": n,
+        "warm_up_s_incl_compile_or_cache_load": round(first_s, 2),
+        "warp_frames_per_s": round(n / warp_s, 1),
+        "warp_breakdown_ms_per_frame": per_frame,
+        "opengl_frames_per_s": round(n / gl_s, 1),
+        "warp_over_opengl": round(gl_s / warp_s, 3),
+        "load_average": os.getloadavg(),
+        "versions": {"mujoco": mujoco.__version__, "warp": wp.config.version},
+    }
+
+
 def main() -> None:
     """Measure both renderers on the same frames and write the JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -61,10 +122,20 @@ def main() -> None:
     parser.add_argument("--width", type=int, default=320)
     parser.add_argument("--height", type=int, default=240)
     parser.add_argument("--objects", type=int, default=3)
-    parser.add_argument("--out", default="benchmarks/results/bench_warp.json")
+    parser.add_argument("--generate", type=int, default=0, metavar="FRAMES")
+    parser.add_argument("--gen-camera", default="icvl")
+    parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if not warp_available():
         raise SystemExit("mujoco-warp is not installed: pip install 'handsim[gpu]'")
+    if args.generate:
+        result = _end_to_end(args)
+        out = Path(args.out or "benchmarks/results/bench_warp_generate.json")
+        print(json.dumps(result, indent=2))
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(result, indent=2) + "\n")
+        return
+    args.out = args.out or "benchmarks/results/bench_warp.json"
     import warp as wp
 
     rng = np.random.default_rng(0)

@@ -1,8 +1,8 @@
 """``handsim generate``, ``handsim dataset check|info`` and ``handsim export``: datasets.
 
 - ``handsim generate --preset NAME | --config FILE [--frames N] [--workers N | --ray ADDRESS]
-  [--seed S] --out DIR``: make (or resume) a dataset; the same command again resumes a killed
-  run.
+  [--seed S] [--backend opengl|warp [--device cpu|cuda] [--batch N]] --out DIR``: make (or
+  resume) a dataset; the same command again resumes a killed run.
 - ``handsim dataset check DIR``: name every truncated, corrupt or missing shard (exit 1 if any).
 - ``handsim dataset info DIR [--plot]``: frames, shards, sizes, episodes redrawn by cause,
   occlusion histogram, and the distribution of hands and views
@@ -61,7 +61,16 @@ def _generate(args: argparse.Namespace) -> int:
         last[0] = done
 
     try:
-        manifest = generate(config, args.out, workers=args.workers, progress=progress, ray=args.ray)
+        manifest = generate(
+            config,
+            args.out,
+            workers=args.workers,
+            progress=progress,
+            ray=args.ray,
+            backend=args.backend,
+            device=args.device,
+            batch=args.batch,
+        )
     finally:
         bar.close()
     hist = manifest.occlusion_histogram or {}
@@ -210,6 +219,7 @@ def _export_minari(args: argparse.Namespace) -> int:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim generate``, ``handsim dataset`` and ``handsim export``."""
+    from handsim.data.config import BACKENDS
     from handsim.data.generation import PRESETS
 
     presets = tuple(PRESETS)
@@ -238,6 +248,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="run one Ray task per shard: 'local' (a local Ray instance) or the address of a "
         "running cluster ('auto', 'ray://HOST:10001'), instead of --workers; needs pip install "
         "'handsim[ray]'",
+    )
+    gen.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        help="renderer (overrides the config; default: opengl): 'warp' renders --batch frames "
+        "per launch on MuJoCo Warp (hand-only presets; needs pip install 'handsim[gpu]')",
+    )
+    gen.add_argument(
+        "--device", metavar="DEV", help="warp backend: 'cpu', 'cuda' or 'cuda:N' (default: Warp's)"
+    )
+    gen.add_argument(
+        "--batch", type=integer(1, 65536), help="warp backend: frames per launch (default: 16)"
     )
     gen.add_argument(
         "--out", type=output_folder, required=True, metavar="DIR", help="dataset folder"

@@ -31,6 +31,7 @@ __all__ = [
     "DEFAULT_VIEWPOINTS",
     "MOTION_FRAME_PERIOD_S",
     "SENSORS",
+    "BACKENDS",
     "BACKGROUNDS",
     "PRESETS",
     "OCCLUDING_OBJECTS",
@@ -68,6 +69,9 @@ DEFAULT_VIEWPOINTS = ("third_person", "egocentric")
 """The views people and their sensors have: ``random`` and ``through_object`` on request."""
 MOTION_FRAME_PERIOD_S = 0.1
 """Pose source ``motion``: the frames of an episode sample its motion every this many s."""
+BACKENDS = ("opengl", "warp")
+"""Renderers of :func:`~handsim.data.generation.generate`: MuJoCo's OpenGL (the reference) or
+MuJoCo Warp's batched ray caster (``handsim[gpu]``)."""
 SENSORS = ("none", "structured_light", "tof")
 """Depth sensor models."""
 MAX_PENETRATION_M = 0.004
@@ -322,6 +326,10 @@ class GenerationConfig:
             env's scene, which has none.
         approach_fraction: grasp source: fraction of frames drawn along the approach to the
             grasp (the open hand, not yet in contact) instead of at the grasp.
+        backend: the renderer (:data:`BACKENDS`): ``"opengl"`` (default, the reference) or
+            ``"warp"`` (MuJoCo Warp, N frames per launch: :mod:`handsim.data.warp_source`; the
+            kinematic source's hand-alone configs). Recorded with the dataset: a resume with
+            the other backend is refused (their shards differ).
     """
 
     frames: int = 1000
@@ -348,6 +356,7 @@ class GenerationConfig:
     frame_stride: int = 1
     background: str = "none"
     approach_fraction: float = 0.0
+    backend: str = "opengl"
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
@@ -389,6 +398,7 @@ class GenerationConfig:
         _pair("distance_range_m", self.distance_range_m, 0.15, 3.0)
         _choice("sensor", self.sensor, SENSORS)
         _choice("background", self.background, BACKGROUNDS)
+        _choice("backend", self.backend, BACKENDS)
         if not isinstance(self.paired_clean, bool):
             raise InvalidGenerationConfig(
                 f"paired_clean must be true or false; received {self.paired_clean!r}"

@@ -137,6 +137,19 @@ def close_kept_source() -> None:
         _KEPT_SOURCE.popitem()[1].close()
 
 
+_WARP_OPTIONS: dict[str, object] = {"device": None, "batch": None}
+"""This process's warp backend options (device, batch): they change no frame."""
+
+
+def _make_source(config: GenerationConfig) -> FrameSource:
+    if config.backend == "warp":
+        from handsim.data.warp_source import DEFAULT_BATCH, WarpKinematicSource
+
+        batch = _WARP_OPTIONS["batch"] or DEFAULT_BATCH
+        return WarpKinematicSource(config, device=_WARP_OPTIONS["device"], batch=batch)
+    return make_source(config)
+
+
 @contextlib.contextmanager
 def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
     """The source of one shard: a kinematic source is kept for the next shard of its config.
@@ -146,10 +159,10 @@ def _shard_source(config: GenerationConfig) -> Iterator[FrameSource]:
     for the same objects at the same placements.
     """
     global _kept_source_freed_at_exit
-    key = json.dumps(config.to_json(), sort_keys=True)
+    key = json.dumps([config.to_json(), sorted(_WARP_OPTIONS.items())], sort_keys=True)
     source = _KEPT_SOURCE.get(key)
     if source is None:
-        source = make_source(config)
+        source = _make_source(config)
         if isinstance(source, KinematicSource):
             close_kept_source()
             _KEPT_SOURCE[key] = source
@@ -378,6 +391,9 @@ def generate(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
     ray: str | None = None,
+    backend: str | None = None,
+    device: str | None = None,
+    batch: int | None = None,
 ) -> Manifest:
     """Generate (or resume) a dataset in ``out``.
 
@@ -394,6 +410,15 @@ def generate(
             joined), any other value is the address of a running cluster (``"auto"``,
             ``"ray://host:10001"``, ...). ``out`` must be a folder every node sees. A task
             that dies is retried (:data:`RAY_MAX_RETRIES` times) and writes the same shard.
+        backend: the renderer, ``"opengl"`` or ``"warp"`` (default: the config's
+            ``backend``); the warp backend (:mod:`handsim.data.warp_source`) makes a hand
+            alone, in this process (``workers`` 1, no ``ray``).
+        device: the warp backend's device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default:
+            Warp's default device). The shards are the same on any device, up to the ray
+            caster's floating point.
+        batch: the warp backend's frames per launch (default
+            :data:`~handsim.data.warp_source.DEFAULT_BATCH`). The shards are the same
+            whatever the batch.
 
     Returns:
         The final manifest (also written to ``out/manifest.json``).
@@ -419,9 +444,42 @@ def generate(
         )
     folder = Path(out)
     _int("workers", workers, 1, 256)
+    if backend is not None:
+        config = dataclasses.replace(config, backend=backend)  # validated by the config
+    _check_backend(config, workers, ray, device, batch)
     folder.mkdir(parents=True, exist_ok=True)
     with _folder_lock(folder):
         return _generate_in(folder, config, workers, progress, ray)
+
+
+def _check_backend(
+    config: GenerationConfig, workers: int, ray: str | None, device: object, batch: object
+) -> None:
+    """Refuse options the config's backend cannot do; set this process's warp options."""
+    if config.backend != "warp":
+        given = [name for name, value in (("device", device), ("batch", batch)) if value]
+        if given:
+            raise InvalidGenerationConfig(
+                f"{' and '.join(given)} are options of the warp backend; add backend='warp' "
+                f"(--backend warp) or leave them out (backend {config.backend!r})"
+            )
+        _WARP_OPTIONS.update(device=None, batch=None)
+        return
+    from handsim.data.warp_source import check_warp_config
+
+    check_warp_config(config)
+    if workers != 1 or ray is not None:
+        raise InvalidGenerationConfig(
+            "the warp backend renders in this process (one device, many worlds per launch): "
+            f"workers must be 1 and ray None; received workers={workers}, ray={ray!r}"
+        )
+    if batch is not None:
+        _int("batch", batch, 1, 65_536)
+    if device is not None and not isinstance(device, str):
+        raise InvalidGenerationConfig(
+            f"device must be a Warp device name ('cpu', 'cuda', 'cuda:0'); received {device!r}"
+        )
+    _WARP_OPTIONS.update(device=device, batch=batch)
 
 
 LOCK_NAME = ".handsim-generate.lock"

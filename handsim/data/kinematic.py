@@ -32,7 +32,7 @@ from handsim.data.config import (
     GenerationConfig,
 )
 from handsim.data.views import hand_rotation_in_camera
-from handsim.frame import FrameRenderer
+from handsim.frame import Frame, FrameRenderer
 from handsim.hand.model import FOREARM_GEOM, hand_params
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_sources import (
@@ -68,6 +68,7 @@ __all__ = [
     "alone_shoulder_m",
     "near_geoms",
     "beyond_near",
+    "accepted_arrays",
 ]
 
 KEPT_SCENES = 2
@@ -239,6 +240,31 @@ def beyond_near(
         return eye
     eye = eye - forward * (near_m - nearest)
     return eye if eye[2] >= MIN_EYE_HEIGHT_M else None
+
+
+def accepted_arrays(
+    frame: Frame, accept: Callable[[float, int], bool], source: str, view: str
+) -> dict[str, np.ndarray] | None:
+    """A labelled frame's arrays, or None when it is refused.
+
+    ``pose_source`` and ``viewpoint`` are labelled; a frame is refused when fewer than
+    :data:`MIN_KEYPOINTS_IN_FRAME` keypoints are in the image or ``accept`` (called with the
+    hand occlusion ratio and the visible keypoints) refuses it.
+    """
+    ratio = frame.hand_occlusion_ratio or 0.0
+    visible = int(frame.visible.sum())
+    if frame.in_frame.sum() < MIN_KEYPOINTS_IN_FRAME or not accept(ratio, visible):
+        return None
+    arrays = frame_to_arrays(frame)
+    arrays["hand_occlusion_ratio"][()] = ratio
+    arrays["pose_source"] = np.int8(POSE_SOURCE_CODES.index(source))
+    arrays["viewpoint"] = np.int8(VIEWPOINT_CODES.index(view))
+    # The frame's own images, not copies: the writer only reads them, and before the
+    # next frame is rendered.
+    arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
+    if frame.depth_clean is not None:
+        arrays["depth_clean"] = frame.depth_clean
+    return arrays
 
 
 class KinematicSource:
@@ -510,20 +536,7 @@ class KinematicSource:
         frame = renderer.render(
             rng, keep_clean=self.config.paired_clean, hand_occlusion=bool(scene.objects)
         )
-        ratio = frame.hand_occlusion_ratio or 0.0
-        visible = int(frame.visible.sum())
-        if frame.in_frame.sum() < MIN_KEYPOINTS_IN_FRAME or not accept(ratio, visible):
-            return None
-        arrays = frame_to_arrays(frame)
-        arrays["hand_occlusion_ratio"][()] = ratio
-        arrays["pose_source"] = np.int8(POSE_SOURCE_CODES.index(source))
-        arrays["viewpoint"] = np.int8(VIEWPOINT_CODES.index(view))
-        # The frame's own images, not copies: the writer only reads them, and before the
-        # next frame is rendered.
-        arrays["depth"], arrays["segmentation"] = frame.depth, frame.segmentation
-        if frame.depth_clean is not None:
-            arrays["depth_clean"] = frame.depth_clean
-        return arrays
+        return accepted_arrays(frame, accept, source, view)
 
     def episode(
         self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int

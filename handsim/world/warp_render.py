@@ -46,8 +46,11 @@ def warp_available() -> bool:
 
 def _import_warp() -> tuple[object, object]:
     try:
-        import mujoco_warp as mjw
         import warp as wp
+
+        # Warp prints its set-up and each kernel load on stdout, where the CLI writes JSON.
+        wp.config.log_level = wp.LOG_WARNING
+        import mujoco_warp as mjw
     except ImportError as err:
         raise WarpRenderError(
             "the warp backend needs MuJoCo Warp: pip install 'handsim[gpu]' "
@@ -152,6 +155,8 @@ class WarpDepthRenderer:
         *,
         depth_range_m: tuple[float, float] | None = None,
         timings_s: dict[str, float] | None = None,
+        host_geom_poses: bool = False,
+        geom_size: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Render the worlds' current states (their ``qpos`` and mocap poses).
 
@@ -163,8 +168,14 @@ class WarpDepthRenderer:
                 (depth 0, geom id -1), as with :meth:`DepthRenderer.render
                 <handsim.world.render.DepthRenderer.render>`.
             timings_s: a dict to add each stage's seconds to (``upload``, ``kinematics``,
-                ``render``, ``readback``, ``labels``), for benchmarks; the device is
+                ``render``, ``readback``, ``postprocess``), for benchmarks; the device is
                 synchronized between stages then, which costs a little.
+            host_geom_poses: take every geom's pose from the worlds' ``geom_xpos`` and
+                ``geom_xmat`` (computed on the host) instead of running kinematics on the
+                device: for geoms the host moves outside the kinematic tree (the hand's upper
+                arm, :meth:`~handsim.hand.model.HandBinding.point_upper_arm`).
+            geom_size: (N, ngeom, 3) each world's geom sizes (the upper arm's length differs
+                per world); default: the model's when the renderer was made.
 
         Returns:
             ``(depth_m, geom_id)``: (N, H, W) float32 metres along the optical axis, 0 where no
@@ -174,8 +185,26 @@ class WarpDepthRenderer:
         clock = _Stages(wp, timings_s)
         self._upload(datas)
         clock("upload")
+        if geom_size is not None:
+            geom_size = np.asarray(geom_size, dtype=np.float32)
+            if geom_size.shape != (self.nworld, self.model.ngeom, 3):
+                raise WarpRenderError(
+                    f"geom_size must be ({self.nworld}, {self.model.ngeom}, 3), one row per "
+                    f"world and geom; received shape {geom_size.shape}"
+                )
         with wp.ScopedDevice(self.device):
-            mjw.kinematics(self._m, self._d)
+            if geom_size is not None:
+                self._m.geom_size = wp.array(geom_size, dtype=wp.vec3)
+            if host_geom_poses:
+                for field in ("geom_xpos", "geom_xmat"):
+                    host = np.stack([getattr(data, field) for data in datas])
+                    host = host.reshape(self.nworld, self.model.ngeom, -1)
+                    if field == "geom_xmat":
+                        host = host.reshape(self.nworld, self.model.ngeom, 3, 3)
+                    target = getattr(self._d, field)
+                    target.assign(wp.array(host.astype(np.float32), dtype=target.dtype))
+            else:
+                mjw.kinematics(self._m, self._d)
             # Each world's camera pose is its MjData's (the model's camera pose is per world
             # in data generation: the host moves it and calls mj_camlight).
             self._d.cam_xpos.assign(wp.array(self._cam_xpos, dtype=self._d.cam_xpos.dtype))
@@ -198,7 +227,7 @@ class WarpDepthRenderer:
             background |= (depth_m < near) | (depth_m > far)
             ids[background] = -1
         depth_m[background] = 0.0
-        clock("labels")
+        clock("postprocess")
         return depth_m, ids
 
 

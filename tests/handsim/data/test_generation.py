@@ -73,7 +73,8 @@ def test_every_preset_is_a_valid_config():
         ),
         (
             {"colour": "red"},
-            r"unknown config field\(s\) colour; valid fields: approach_fraction, background",
+            r"unknown config field\(s\) colour; valid fields: approach_fraction, backend, "
+            r"background",
         ),
         ({"background": "sky"}, r"background must be one of none, wall, torso, clutter; received"),
     ],

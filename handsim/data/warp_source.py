@@ -1,0 +1,280 @@
+"""The kinematic source rendered N frames at a time on MuJoCo Warp (``backend="warp"``).
+
+:class:`WarpKinematicSource` makes the frames of :class:`~handsim.data.kinematic.KinematicSource`
+for a hand alone (the ``hand-only`` presets: no objects, no table, no backdrop), but renders
+them in batches of ``batch`` worlds with :class:`~handsim.world.warp_render.WarpDepthRenderer`
+instead of one at a time with OpenGL.
+
+Draws. A frame's draws cannot wait for the previous frame's render (which decides whether it is
+kept) when frames are rendered together, so every *candidate* frame ``k`` of an episode draws
+its view, hand rotation, camera distance and sensor noise from its own generator,
+``default_rng([episode seed, k])``; the episode's scene (hand length, side), pose source, its
+postures (candidate ``k`` takes posture ``k``; the ones past the first ``frames + 8`` draw their
+own) and the episode seed are drawn from the shard's generator as the OpenGL path draws them.
+Candidates are accepted in order, so a shard is a function of ``(seed, index)`` alone and the
+same whatever the batch size or device; it is not the OpenGL backend's shard.
+
+Labels. Each rendered image goes through the OpenGL path's own labelling
+(:meth:`~handsim.frame.FrameRenderer.render` with the image handed in instead of drawn),
+on the host: keypoint projection, visibility and occluder, sensor noise. A hand alone has no
+objects, so no object silhouettes and no hand occlusion ratio (0) are needed: the second render
+without occluders the OpenGL path makes for them does not arise here. What would move to the
+device for speed: the noise models and the keypoint visibility kernel (per-pixel, per-world).
+
+Geometry per world. The upper arm is turned per frame toward a shoulder placed from the eye
+(:func:`~handsim.data.kinematic.alone_shoulder_m`): the host computes every geom's pose and the
+arm's length, and the renderer takes them per world. The hand's length changes per episode
+(its skin's vertices): a new device model is made per episode, so a batch never spans two
+episodes.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable, Iterator
+
+import mujoco
+import numpy as np
+
+from handsim.data.config import (
+    MAX_TRIES_PER_FRAME,
+    CannotDraw,
+    GenerationConfig,
+    InvalidGenerationConfig,
+)
+from handsim.data.kinematic import (
+    KinematicSource,
+    accepted_arrays,
+    alone_shoulder_m,
+    beyond_near,
+    near_geoms,
+)
+from handsim.hand.pose import HandPose
+from handsim.world.sensors import NoNoise
+
+__all__ = ["WarpKinematicSource", "check_warp_config", "DEFAULT_BATCH"]
+
+DEFAULT_BATCH = 16
+"""Candidate frames rendered per launch by default."""
+
+
+def check_warp_config(config: GenerationConfig) -> None:
+    """Refuse what the warp backend cannot make yet, naming the options.
+
+    Raises:
+        InvalidGenerationConfig: for a source other than ``kinematic``, objects, or a
+            backdrop.
+    """
+    bad = []
+    if config.source != "kinematic":
+        bad.append(f"source {config.source!r} (only 'kinematic')")
+    if tuple(config.num_objects_range) != (0, 0):
+        bad.append(f"num_objects_range {tuple(config.num_objects_range)} (only (0, 0))")
+    if config.background != "none":
+        bad.append(f"background {config.background!r} (only 'none')")
+    if bad:
+        raise InvalidGenerationConfig(
+            "the warp backend makes a hand alone (the 'hand-only' presets) so far; it cannot "
+            f"do: {'; '.join(bad)}. Use backend 'opengl' for these"
+        )
+
+
+class _Prerendered:
+    """Stands in for a :class:`DepthRenderer` and hands out an image rendered elsewhere."""
+
+    def __init__(self, renderer: object) -> None:
+        self.real = renderer
+        self.camera_id = renderer.camera_id
+        self.image: tuple[np.ndarray, np.ndarray] | None = None
+
+    def scale_geoms(self, *args: object) -> None:
+        """The device model is made from the rescaled hand (a new one per episode)."""
+
+    def render(
+        self,
+        data: mujoco.MjData,
+        *,
+        out: tuple[np.ndarray, np.ndarray],
+        geom_values: np.ndarray,
+        fill: int,
+        depth_range_m: tuple[float, float],
+    ) -> tuple[np.ndarray, np.ndarray]:
+        depth_m, ids = self.image
+        out[0][...] = depth_m
+        out[1][...] = np.where(ids >= 0, geom_values[np.maximum(ids, 0)], fill)
+        return out
+
+    def close(self) -> None:
+        self.real.close()
+
+
+class _TimedSensor:
+    """A sensor model whose ``apply`` adds its seconds to ``noise`` (and ``_noise``)."""
+
+    def __init__(self, sensor: object, timings: dict[str, float]) -> None:
+        self.sensor, self.timings = sensor, timings
+
+    def apply(self, depth_m: np.ndarray, intrinsics: object, rng: np.random.Generator):  # noqa: ANN201
+        start = time.perf_counter()
+        out = self.sensor.apply(depth_m, intrinsics, rng)
+        spent = time.perf_counter() - start
+        for key in ("noise", "_noise"):
+            self.timings[key] = self.timings.get(key, 0.0) + spent
+        return out
+
+
+class _Candidate:
+    """One drawn frame: its generator, view, and the scene's state (data, geom sizes)."""
+
+    def __init__(self, rng, view, data, geom_size):  # noqa: ANN001
+        self.rng, self.view, self.data, self.geom_size = rng, view, data, geom_size
+
+
+class WarpKinematicSource(KinematicSource):
+    """The kinematic source for a hand alone, rendered ``batch`` frames per Warp launch.
+
+    Args:
+        config: the generation config (:func:`check_warp_config`).
+        device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default: Warp's).
+        batch: candidate frames rendered per launch, >= 1.
+    """
+
+    def __init__(
+        self, config: GenerationConfig, device: str | None = None, batch: int = DEFAULT_BATCH
+    ) -> None:
+        check_warp_config(config)
+        if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+            raise InvalidGenerationConfig(f"batch must be an integer >= 1; received {batch!r}")
+        super().__init__(config)
+        self.device, self.batch = device, int(batch)
+        self._warp = None  # (scene, hand geometry version, renderer)
+
+    timings_s: dict[str, float] | None = None
+    """Set to a dict (on the class, for benchmarks) to add each stage's seconds to it.
+
+    ``device_model`` (a new one per episode), ``draws`` (pose, view, camera and host
+    kinematics), the renderer's stages, ``labels``, ``noise``. The device is synchronized
+    between stages then.
+    """
+
+    def _warp_renderer(self, scene: object) -> object:
+        from handsim.world.warp_render import WarpDepthRenderer
+
+        key = (id(scene), scene.hand_geometry_version)
+        if self._warp is None or self._warp[0] != key:
+            self._warp = None
+            start = time.perf_counter()
+            self._warp = (
+                key,
+                WarpDepthRenderer(
+                    scene.model, "camera", self.intrinsics, self.batch, device=self.device
+                ),
+            )
+            if self.timings_s is not None:
+                spent = time.perf_counter() - start
+                self.timings_s["device_model"] = self.timings_s.get("device_model", 0.0) + spent
+        return self._warp[1]
+
+    def close(self) -> None:
+        """Free the device model and the kept scenes."""
+        self._warp = None
+        super().close()
+
+    def _candidate(
+        self, scene, seed: int, k: int, postures: np.ndarray, source: str
+    ) -> _Candidate | None:  # noqa: ANN001
+        """Draw candidate ``k`` and pose the scene for it; None when the camera cannot see."""
+        rng = np.random.default_rng([seed, k])
+        viewpoints = self.config.viewpoints
+        view = viewpoints[int(rng.integers(len(viewpoints)))]
+        is_left = scene.spec.hand.side == "left"
+        wrist, rotvec, palm, eye, quat = self._hand_alone(rng, view, is_left)
+        # Past the episode's postures, a candidate draws its own (two: a motion needs length).
+        posture = postures[k] if k < len(postures) else self._postures(rng, source, 2)[0]
+        scene.binding.set_pose(scene.data, HandPose(wrist, rotvec, posture), kinematics_only=True)
+        eye = beyond_near(scene, near_geoms(scene), eye, palm, self._near_m)
+        if eye is None:
+            return None
+        scene.binding.point_upper_arm(scene.data, alone_shoulder_m(view, is_left, eye))
+        cam = scene.model.camera("camera").id
+        scene.model.cam_pos[cam], scene.model.cam_quat[cam] = eye, quat
+        mujoco.mj_camlight(scene.model, scene.data)
+        return _Candidate(rng, view, copy.copy(scene.data), scene.model.geom_size.copy())
+
+    def label(
+        self, scene, renderer, candidate: _Candidate, image: tuple[np.ndarray, np.ndarray]
+    ) -> object:  # noqa: ANN001
+        """The :class:`~handsim.frame.Frame` of a candidate from its rendered image."""
+        real, sensor = renderer.renderer, renderer.sensor
+        stand_in = _Prerendered(real)
+        stand_in.image = image
+        saved = scene.data
+        renderer.renderer, scene.data = stand_in, candidate.data
+        timings = self.timings_s
+        if timings is not None and type(sensor) is not NoNoise:
+            renderer.sensor = _TimedSensor(sensor, timings)
+        start = time.perf_counter()
+        try:
+            return renderer.render(candidate.rng, keep_clean=self.config.paired_clean)
+        finally:
+            renderer.renderer, renderer.sensor, scene.data = real, sensor, saved
+            if timings is not None:
+                spent = time.perf_counter() - start - timings.pop("_noise", 0.0)
+                timings["labels"] = timings.get("labels", 0.0) + spent
+
+    def episode(
+        self, rng: np.random.Generator, accept: Callable[[float, int], bool], frames: int
+    ) -> Iterator[dict[str, np.ndarray]]:
+        """Yield the arrays of ``frames`` accepted frames of one episode (module docstring).
+
+        Raises:
+            CannotDraw: ``"frame"`` when :data:`MAX_TRIES_PER_FRAME` candidates in a row give
+                no accepted frame.
+        """
+        scene, renderer = self._scene(rng)
+        source = str(rng.choice(self.config.pose_sources))
+        postures = self._postures(rng, source, frames + 8)
+        seed = int(rng.integers(2**63))
+        warp = self._warp_renderer(scene)
+        k, done, tries = 0, 0, 0
+        while True:
+            start = time.perf_counter()
+            candidates = []
+            for _ in range(self.batch):
+                candidates.append(self._candidate(scene, seed, k, postures, source))
+                k += 1
+            if self.timings_s is not None:
+                self.timings_s["draws"] = (
+                    self.timings_s.get("draws", 0.0) + time.perf_counter() - start
+                )
+            drawn = [c for c in candidates if c is not None]
+            if drawn:
+                # Worlds past the drawn ones repeat the last (their images are not used).
+                worlds = drawn + [drawn[-1]] * (self.batch - len(drawn))
+                depth_m, ids = warp.render(
+                    [c.data for c in worlds],
+                    depth_range_m=self.intrinsics.range_m,
+                    host_geom_poses=True,
+                    geom_size=np.stack([c.geom_size for c in worlds]),
+                    timings_s=self.timings_s,
+                )
+            i = 0
+            for candidate in candidates:
+                arrays = None
+                if candidate is not None:
+                    frame = self.label(scene, renderer, candidate, (depth_m[i], ids[i]))
+                    i += 1
+                    arrays = accepted_arrays(frame, accept, source, candidate.view)
+                if arrays is None:
+                    tries += 1
+                    if tries >= MAX_TRIES_PER_FRAME:
+                        raise CannotDraw(
+                            "frame",
+                            f"{MAX_TRIES_PER_FRAME} draws of pose and view gave no accepted frame",
+                        )
+                    continue
+                yield arrays
+                done, tries = done + 1, 0
+                if done == frames:
+                    return

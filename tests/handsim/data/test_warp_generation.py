@@ -1,0 +1,172 @@
+"""`handsim generate --backend warp`: batched MuJoCo Warp frames against the OpenGL path."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from handsim.data.config import GenerationConfig, InvalidGenerationConfig
+from handsim.data.generation import PRESETS, generate
+from handsim.data.shards import ShardReader
+from handsim.world.warp_render import warp_available
+
+needs_warp = pytest.mark.skipif(
+    not warp_available(), reason="mujoco-warp is not installed (pip install 'handsim[gpu]')"
+)
+# 8 frames of 320 x 240 (the smallest preset), 2 shards of 4, episodes of 3 (a batch of 4
+# never spans two: the last one is cut short).
+SMALL = dict(PRESETS["hand-only"], frames=8, frames_per_shard=4, frames_per_episode=3, seed=5)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _warp_cache(tmp_path_factory):
+    os.environ.setdefault("WARP_CACHE_PATH", str(tmp_path_factory.mktemp("warp_cache")))
+
+
+def _arrays(folder):
+    out = {}
+    for path in sorted(folder.glob("shard-*.h5")):
+        reader = ShardReader(path)
+        out[path.name] = {
+            "depth": np.stack([reader[i]["depth"] for i in range(len(reader))]),
+            "keypoints_px": reader.labels("keypoints_px"),
+            "visible": reader.labels("visible"),
+            "hand_pose": reader.labels("hand_pose"),
+        }
+        reader.close()
+    return out
+
+
+def _assert_same(a, b):
+    assert a.keys() == b.keys()
+    for name in a:
+        for field in a[name]:
+            np.testing.assert_array_equal(a[name][field], b[name][field], err_msg=field)
+
+
+@needs_warp
+def test_warp_dataset_checks_resumes_and_does_not_depend_on_batch(tmp_path):
+    """A shard is a function of (seed, index): resumed, or made with another batch, the same."""
+    config = GenerationConfig.from_mapping(SMALL)
+    manifest = generate(config, tmp_path / "a", backend="warp", device="cpu", batch=4)
+    assert manifest.frames == 8 and manifest.config["backend"] == "warp"
+    first = _arrays(tmp_path / "a")
+    # Deleted shards are made again identically.
+    for path in (tmp_path / "a").glob("shard-*.h5"):
+        path.unlink()
+    generate(config, tmp_path / "a", backend="warp", device="cpu", batch=4)
+    _assert_same(first, _arrays(tmp_path / "a"))
+    # Another batch size draws the same frames.
+    generate(config, tmp_path / "b", backend="warp", device="cpu", batch=3)
+    _assert_same(first, _arrays(tmp_path / "b"))
+    # A resume with the other backend is refused.
+    with pytest.raises(InvalidGenerationConfig, match="fields differ: backend"):
+        generate(config, tmp_path / "a")
+
+
+@needs_warp
+def test_labels_agree_with_the_opengl_path_on_the_same_draws():
+    """Keypoints identical, visibility and segmentation >= 99 % as OpenGL's on the same states."""
+    from handsim.data.warp_source import WarpKinematicSource
+    from handsim.frame import FrameRenderer
+
+    config = GenerationConfig.from_mapping(SMALL, sensor="none")
+    source = WarpKinematicSource(config, device="cpu", batch=4)
+    try:
+        rng = np.random.default_rng(0)
+        kp_equal = visible_equal = total = 0
+        for _ in range(2):  # two episodes: two hand lengths
+            scene, renderer = source._scene(rng)
+            # Candidates 2 and 3 are past the episode's postures: they draw their own motion.
+            postures = source._postures(rng, "motion", 2)
+            candidates = [source._candidate(scene, 7, k, postures, "motion") for k in range(4)]
+            candidates = [c for c in candidates if c is not None]
+            assert candidates
+            warp = source._warp_renderer(scene)
+            worlds = candidates + [candidates[-1]] * (4 - len(candidates))
+            depth_m, ids = warp.render(
+                [c.data for c in worlds],
+                depth_range_m=source.intrinsics.range_m,
+                host_geom_poses=True,
+                geom_size=np.stack([c.geom_size for c in worlds]),
+            )
+            saved = (scene.data, scene.model.geom_size.copy())
+            # A new OpenGL renderer: the source's own one is never drawn with (nor rescaled).
+            opengl = FrameRenderer(scene, "camera")
+            for i, candidate in enumerate(candidates):
+                ours = source.label(scene, renderer, candidate, (depth_m[i], ids[i]))
+                # The OpenGL path on the same state: the data and the upper arm's length.
+                scene.data, scene.model.geom_size[:] = candidate.data, candidate.geom_size
+                try:
+                    reference = opengl.render(np.random.default_rng(0))
+                finally:
+                    scene.data, scene.model.geom_size[:] = saved[0], saved[1]
+                np.testing.assert_array_equal(ours.keypoints_px, reference.keypoints_px)
+                np.testing.assert_array_equal(ours.in_frame, reference.in_frame)
+                kp_equal += int(np.all(ours.keypoints_px == reference.keypoints_px))
+                visible_equal += int(np.sum(ours.visible == reference.visible))
+                total += len(ours.visible)
+                seen = (ours.segmentation != 0) | (reference.segmentation != 0)
+                seg_agree = np.mean(ours.segmentation[seen] == reference.segmentation[seen])
+                assert seg_agree >= 0.99, seg_agree
+            opengl.close()
+        assert visible_equal / total >= 0.99, (visible_equal, total)
+    finally:
+        source.close()
+
+
+def test_options_the_warp_backend_cannot_do_are_refused(tmp_path):
+    """Objects, other sources, workers, stray options: refused, the option named."""
+    config = GenerationConfig.from_mapping(SMALL)
+    with pytest.raises(InvalidGenerationConfig, match=r"cannot do: num_objects_range \(1, 3\)"):
+        generate(GenerationConfig.from_mapping(PRESETS["hand-only"], num_objects_range=(1, 3)),
+                 tmp_path / "o", backend="warp")  # fmt: skip
+    with pytest.raises(InvalidGenerationConfig, match="cannot do: source 'grasp'"):
+        generate(GenerationConfig.from_mapping(PRESETS["hand-object"]), tmp_path / "g",
+                 backend="warp")  # fmt: skip
+    with pytest.raises(InvalidGenerationConfig, match="workers must be 1 and ray None"):
+        generate(config, tmp_path / "w", backend="warp", workers=2)
+    with pytest.raises(InvalidGenerationConfig, match="options of the warp backend"):
+        generate(config, tmp_path / "d", device="cpu")
+    with pytest.raises(InvalidGenerationConfig, match="backend must be one of"):
+        generate(config, tmp_path / "x", backend="vulkan")
+    with pytest.raises(InvalidGenerationConfig, match="batch must be an integer"):
+        generate(config, tmp_path / "b", backend="warp", batch=0)
+
+
+def test_import_handsim_does_not_import_warp():
+    """Warp loads only when a warp renderer is made."""
+    code = (
+        "import sys, handsim, handsim.data.generation, handsim.data.warp_source; "
+        "print(sorted(m for m in ('warp', 'mujoco_warp') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+@needs_warp
+def test_cli_generates_with_warp_and_the_dataset_checks(tmp_path):
+    """`handsim generate --backend warp` writes a dataset that `handsim dataset check` passes."""
+    env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    out = tmp_path / "cli"
+    cli = [sys.executable, "-m", "handsim.cli"]
+    args = ["generate", "--preset", "hand-only", "--frames", "4", "--seed", "2", "--quiet"]
+    done = subprocess.run(
+        [*cli, *args, "--backend", "warp", "--device", "cpu", "--batch", "4", "--out", str(out)],
+        capture_output=True, text=True, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert json.loads(done.stdout)["frames"] == 4
+    check = subprocess.run(
+        [*cli, "dataset", "check", str(out)], capture_output=True, text=True, env=env
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    refused = subprocess.run(
+        [*cli, *args, "--batch", "4", "--out", str(tmp_path / "r")],
+        capture_output=True, text=True, env=env,
+    )  # fmt: skip
+    assert refused.returncode != 0
+    assert "options of the warp backend" in refused.stderr
