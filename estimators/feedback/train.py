@@ -72,7 +72,7 @@ class FeedbackTrainConfig:
         cube_m: cube edge, metres.
         size: crop side, pixels.
         fc: fully connected units.
-        filters: convolution filters (see :mod:`.models`).
+        filters: convolution filters (see :mod:`handsim.estimators.feedback.models`).
         lam: the loss's lambda (updater).
         synthesizer: ``renderer`` or ``learned`` (updater).
         synthesizer_checkpoint: the learned synthesizer's run folder or ``.pt`` (with
@@ -111,7 +111,7 @@ class FeedbackTrainConfig:
     seed: int = 0
 
     def model_config(self) -> dict[str, Any]:
-        """The :func:`~.models.build_feedback_model` config of this run."""
+        """The config of :func:`~handsim.estimators.feedback.models.build_feedback_model`."""
         return {"arch": self.kind, "size": self.size, "fc": self.fc, "filters": self.filters}
 
     def check(self) -> None:
