@@ -60,6 +60,7 @@ __all__ = [
     "TrainConfig",
     "InvalidTrainConfig",
     "train",
+    "open_run",
     "localizer_centers",
     "precise_bn",
 ]
@@ -325,6 +326,27 @@ def _load_init(model: Any, config: TrainConfig, ckpt_config: dict, log: Callable
     log(f"starting from the weights of {resolve_checkpoint(config.init)}")
 
 
+def open_run(out: Path, config: Any, data: list, error: type[HandSimError]) -> None:
+    """Create the run folder ``out`` and its ``run.json``; refuse one made with other options.
+
+    ``config`` is the run's dataclass config; ``error`` the exception type to raise.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    run_json = out / "run.json"
+    run = {"config": dataclasses.asdict(config), "data": [str(Path(d).resolve()) for d in data]}
+    if run_json.is_file():
+        previous = json.loads(run_json.read_text())
+        if previous["config"] != run["config"]:
+            changed = sorted(
+                k for k in run["config"] if previous["config"].get(k) != run["config"][k]
+            )
+            raise error(
+                f"{out} holds a run with other options ({', '.join(changed)}); use a new --out "
+                "or the same options to resume"
+            )
+    run_json.write_text(json.dumps(run, indent=2) + "\n")
+
+
 def train(
     data: list[str | os.PathLike[str]],
     out: str | os.PathLike[str],
@@ -363,20 +385,7 @@ def train(
 
     _check(config)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    run_json = out / "run.json"
-    run = {"config": dataclasses.asdict(config), "data": [str(Path(d).resolve()) for d in data]}
-    if run_json.is_file():
-        previous = json.loads(run_json.read_text())
-        if previous["config"] != run["config"]:
-            changed = sorted(
-                k for k in run["config"] if previous["config"].get(k) != run["config"][k]
-            )
-            raise InvalidTrainConfig(
-                f"{out} holds a run with other options ({', '.join(changed)}); use a new --out "
-                "or the same options to resume"
-            )
-    run_json.write_text(json.dumps(run, indent=2) + "\n")
+    open_run(out, config, data, InvalidTrainConfig)
     torch.manual_seed(config.seed)
     np.random.seed(config.seed % 2**32)
     if loader_workers:

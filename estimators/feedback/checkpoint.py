@@ -10,9 +10,7 @@ from __future__ import annotations
 import os
 from typing import Any
 
-from handsim.errors import HandSimError
-
-from ..deepprior.checkpoint import InvalidCheckpoint, load_checkpoint
+from ..deepprior.checkpoint import InvalidCheckpoint, built_from, load_checkpoint
 
 __all__ = ["load_feedback_model"]
 
@@ -34,14 +32,5 @@ def load_feedback_model(
             f"checkpoint {name_or_path} holds a {config.get('kind')!r} network; expected a "
             f"{kind} (train one with `handsim train {kind} --data DIR --out RUN`)"
         )
-    try:
-        model = build_feedback_model(config["model"])
-        model.load_state_dict(
-            {k: v.float() if v.is_floating_point() else v for k, v in state["model"].items()}
-        )
-    except (HandSimError, KeyError, TypeError, ValueError, RuntimeError) as err:
-        raise InvalidCheckpoint(
-            f"checkpoint {name_or_path} does not fit its network: {type(err).__name__}: "
-            f"{str(err).splitlines()[0]}"
-        ) from None
+    model = built_from(build_feedback_model, state, config, name_or_path)
     return model.to(device).eval(), config

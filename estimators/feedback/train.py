@@ -40,6 +40,7 @@ from handsim.errors import HandSimError
 from ..deepprior.checkpoint import save_checkpoint
 from ..deepprior.data import CropDataset, FrameSet, load_frames
 from ..deepprior.preprocess import CUBE_M, MIDDLE_MCP, crop_depth, crop_matrix, normalize_keypoints
+from ..deepprior.train import open_run
 
 __all__ = [
     "SYNTHESIZERS",
@@ -194,23 +195,6 @@ def frame_sides(
 # Shared run machinery ---------------------------------------------------------------------------
 
 
-def _open_run(out: Path, config: FeedbackTrainConfig, data: list) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    run_json = out / "run.json"
-    run = {"config": dataclasses.asdict(config), "data": [str(Path(d).resolve()) for d in data]}
-    if run_json.is_file():
-        previous = json.loads(run_json.read_text())
-        if previous["config"] != run["config"]:
-            changed = sorted(
-                k for k in run["config"] if previous["config"].get(k) != run["config"][k]
-            )
-            raise InvalidFeedbackConfig(
-                f"{out} holds a run with other options ({', '.join(changed)}); use a new --out "
-                "or the same options to resume"
-            )
-    run_json.write_text(json.dumps(run, indent=2) + "\n")
-
-
 def _frames(
     data: list, config: FeedbackTrainConfig
 ) -> tuple[FrameSet, FrameSet, np.ndarray, np.ndarray]:
@@ -320,7 +304,7 @@ def train_synthesizer(
             f"train_synthesizer needs kind='synthesizer'; got {config.kind!r}"
         )
     out = Path(out)
-    _open_run(out, config, data)
+    open_run(out, config, data, InvalidFeedbackConfig)
     torch.manual_seed(config.seed)
     train_frames, val_frames, _, _ = _frames(data, config)
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
@@ -493,7 +477,7 @@ def train_updater(
     if config.kind != "updater":
         raise InvalidFeedbackConfig(f"train_updater needs kind='updater'; got {config.kind!r}")
     out = Path(out)
-    _open_run(out, config, data)
+    open_run(out, config, data, InvalidFeedbackConfig)
     torch.manual_seed(config.seed)
     train_frames, val_frames, train_left, val_left = _frames(data, config)
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
