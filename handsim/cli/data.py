@@ -252,14 +252,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     gen.add_argument(
         "--backend",
         choices=BACKENDS,
-        help="renderer (overrides the config; default: opengl): 'warp' renders --batch frames "
-        "per launch on MuJoCo Warp (hand-only presets; needs pip install 'handsim[gpu]')",
+        help="renderer (overrides the config; default: opengl): 'warp' renders on MuJoCo Warp, "
+        "--batch frames per launch for a hand alone (the kinematic and grasp sources; needs "
+        "pip install 'handsim[gpu]')",
     )
     gen.add_argument(
         "--device", metavar="DEV", help="warp backend: 'cpu', 'cuda' or 'cuda:N' (default: Warp's)"
     )
     gen.add_argument(
-        "--batch", type=integer(1, 65536), help="warp backend: frames per launch (default: 16)"
+        "--batch",
+        type=integer(1, 65536),
+        help="warp backend: frames per launch of a hand alone (default: 16)",
     )
     gen.add_argument(
         "--out", type=output_folder, required=True, metavar="DIR", help="dataset folder"

@@ -327,9 +327,9 @@ class GenerationConfig:
         approach_fraction: grasp source: fraction of frames drawn along the approach to the
             grasp (the open hand, not yet in contact) instead of at the grasp.
         backend: the renderer (:data:`BACKENDS`): ``"opengl"`` (default, the reference) or
-            ``"warp"`` (MuJoCo Warp, N frames per launch: :mod:`handsim.data.warp_source`; the
-            kinematic source's hand-alone configs). Recorded with the dataset: a resume with
-            the other backend is refused (their shards differ).
+            ``"warp"`` (MuJoCo Warp: :mod:`handsim.data.warp_source`; the ``kinematic`` and
+            ``grasp`` sources, a hand alone N frames per launch). Recorded with the dataset: a
+            resume with the other backend is refused (their shards differ).
     """
 
     frames: int = 1000

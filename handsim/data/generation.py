@@ -143,10 +143,10 @@ _WARP_OPTIONS: dict[str, object] = {"device": None, "batch": None}
 
 def _make_source(config: GenerationConfig) -> FrameSource:
     if config.backend == "warp":
-        from handsim.data.warp_source import DEFAULT_BATCH, WarpKinematicSource
+        from handsim.data.warp_source import DEFAULT_BATCH, make_warp_source
 
         batch = _WARP_OPTIONS["batch"] or DEFAULT_BATCH
-        return WarpKinematicSource(config, device=_WARP_OPTIONS["device"], batch=batch)
+        return make_warp_source(config, device=_WARP_OPTIONS["device"], batch=batch)
     return make_source(config)
 
 
@@ -411,14 +411,14 @@ def generate(
             ``"ray://host:10001"``, ...). ``out`` must be a folder every node sees. A task
             that dies is retried (:data:`RAY_MAX_RETRIES` times) and writes the same shard.
         backend: the renderer, ``"opengl"`` or ``"warp"`` (default: the config's
-            ``backend``); the warp backend (:mod:`handsim.data.warp_source`) makes a hand
-            alone, in this process (``workers`` 1, no ``ray``).
+            ``backend``); the warp backend (:mod:`handsim.data.warp_source`) renders the
+            ``kinematic`` and ``grasp`` sources in this process (``workers`` 1, no ``ray``).
         device: the warp backend's device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default:
             Warp's default device). The shards are the same on any device, up to the ray
             caster's floating point.
-        batch: the warp backend's frames per launch (default
-            :data:`~handsim.data.warp_source.DEFAULT_BATCH`). The shards are the same
-            whatever the batch.
+        batch: the warp backend's frames per launch of a hand alone (default
+            :data:`~handsim.data.warp_source.DEFAULT_BATCH`; other configs render a frame per
+            launch). The shards are the same whatever the batch.
 
     Returns:
         The final manifest (also written to ``out/manifest.json``).

@@ -291,9 +291,28 @@ class KinematicSource:
             collections.OrderedDict()
         )
 
+    warp_device: str | None = None
+    """The Warp device of ``backend="warp"`` (``"cpu"``, ``"cuda"``; None: Warp's default)."""
+
     @classmethod
     def check_config(cls, config: GenerationConfig) -> None:
         """Every field is checked by :class:`GenerationConfig` itself."""
+
+    def _frame_renderer(self, scene: Scene) -> FrameRenderer:
+        """A scene's frame renderer: OpenGL, or MuJoCo Warp for ``backend="warp"``.
+
+        On Warp the frame renderer keeps its label code and renders through a
+        :class:`~handsim.world.warp_render.WarpSceneRenderer` (one world per render).
+        """
+        renderer = FrameRenderer(scene, "camera", self.sensor)
+        if self.config.backend == "warp":
+            from handsim.world.warp_render import WarpSceneRenderer
+
+            renderer.renderer.close()
+            renderer.renderer = WarpSceneRenderer(
+                scene.model, "camera", self.intrinsics, device=self.warp_device
+            )
+        return renderer
 
     def close(self) -> None:
         """Free the scenes, renderers and OpenGL context kept between episodes."""
@@ -329,7 +348,7 @@ class KinematicSource:
                 background=self.config.background,
             )
             scene = Scene(spec)
-            kept = (scene, FrameRenderer(scene, "camera", self.sensor))
+            kept = (scene, self._frame_renderer(scene))
         self._scenes[key] = kept
         kept[0].set_hand_length(length)
         return kept

@@ -42,6 +42,7 @@ from handsim.data.config import (
     CannotDraw,
     GenerationConfig,
     InvalidGenerationConfig,
+    make_source,
 )
 from handsim.data.kinematic import (
     KinematicSource,
@@ -50,34 +51,74 @@ from handsim.data.kinematic import (
     beyond_near,
     near_geoms,
 )
+from handsim.frame import FrameRenderer
 from handsim.hand.pose import HandPose
 from handsim.world.sensors import NoNoise
 
-__all__ = ["WarpKinematicSource", "check_warp_config", "DEFAULT_BATCH"]
+__all__ = [
+    "WarpKinematicSource",
+    "check_warp_config",
+    "batched",
+    "make_warp_source",
+    "DEFAULT_BATCH",
+    "WARP_SOURCES",
+]
 
 DEFAULT_BATCH = 16
 """Candidate frames rendered per launch by default."""
 
 
+WARP_SOURCES = ("kinematic", "grasp")
+"""Frame sources the warp backend renders (the posed hands of the kinematic source and the
+grasp source's grasps); the rollout source renders inside its env."""
+
+
 def check_warp_config(config: GenerationConfig) -> None:
-    """Refuse what the warp backend cannot make yet, naming the options.
+    """Refuse what the warp backend cannot make, naming the options.
 
     Raises:
-        InvalidGenerationConfig: for a source other than ``kinematic``, objects, or a
-            backdrop.
+        InvalidGenerationConfig: for a source not in :data:`WARP_SOURCES`.
     """
-    bad = []
-    if config.source != "kinematic":
-        bad.append(f"source {config.source!r} (only 'kinematic')")
-    if tuple(config.num_objects_range) != (0, 0):
-        bad.append(f"num_objects_range {tuple(config.num_objects_range)} (only (0, 0))")
-    if config.background != "none":
-        bad.append(f"background {config.background!r} (only 'none')")
-    if bad:
+    if config.source not in WARP_SOURCES:
         raise InvalidGenerationConfig(
-            "the warp backend makes a hand alone (the 'hand-only' presets) so far; it cannot "
-            f"do: {'; '.join(bad)}. Use backend 'opengl' for these"
+            f"the warp backend renders the sources {', '.join(map(repr, WARP_SOURCES))}; it "
+            f"cannot do: source {config.source!r}. Use backend 'opengl' for it"
         )
+
+
+def batched(config: GenerationConfig) -> bool:
+    """Whether the warp backend renders the config's frames in batches.
+
+    A hand alone (the kinematic source without objects or backdrop, the ``hand-only``
+    presets) is rendered ``batch`` candidate frames per launch (:class:`WarpKinematicSource`);
+    everything else (objects, a backdrop, the grasp source) one frame at a time, by the
+    OpenGL path's own source and labels with the depth renderer on Warp
+    (:class:`~handsim.world.warp_render.WarpSceneRenderer`).
+    """
+    return (
+        config.source == "kinematic"
+        and tuple(config.num_objects_range) == (0, 0)
+        and config.background == "none"
+    )
+
+
+def make_warp_source(
+    config: GenerationConfig, device: str | None = None, batch: int = DEFAULT_BATCH
+) -> object:
+    """The frame source of one shard on the warp backend (:func:`batched`).
+
+    Args:
+        config: the generation config (``backend="warp"``).
+        device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default: Warp's).
+        batch: candidate frames per launch of a hand alone; the other configs render one
+            frame per launch.
+    """
+    check_warp_config(config)
+    if batched(config):
+        return WarpKinematicSource(config, device=device, batch=batch)
+    source = make_source(config)
+    source.warp_device = device
+    return source
 
 
 class _Prerendered:
@@ -135,15 +176,25 @@ class WarpKinematicSource(KinematicSource):
     """The kinematic source for a hand alone, rendered ``batch`` frames per Warp launch.
 
     Args:
-        config: the generation config (:func:`check_warp_config`).
+        config: the generation config, a hand alone (:func:`batched`).
         device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default: Warp's).
         batch: candidate frames rendered per launch, >= 1.
+
+    Raises:
+        InvalidGenerationConfig: for a config that is not a hand alone, or a bad ``batch``.
     """
 
     def __init__(
         self, config: GenerationConfig, device: str | None = None, batch: int = DEFAULT_BATCH
     ) -> None:
-        check_warp_config(config)
+        if not batched(config):
+            raise InvalidGenerationConfig(
+                "WarpKinematicSource renders a hand alone: source 'kinematic', "
+                "num_objects_range (0, 0), background 'none'; received source "
+                f"{config.source!r}, num_objects_range {tuple(config.num_objects_range)}, "
+                f"background {config.background!r} (make_warp_source renders these one "
+                "frame at a time)"
+            )
         if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
             raise InvalidGenerationConfig(f"batch must be an integer >= 1; received {batch!r}")
         super().__init__(config)
@@ -157,6 +208,10 @@ class WarpKinematicSource(KinematicSource):
     kinematics), the renderer's stages, ``labels``, ``noise``. The device is synchronized
     between stages then.
     """
+
+    def _frame_renderer(self, scene: object) -> object:
+        """The OpenGL path's frame renderer: its labels, with the images rendered here."""
+        return FrameRenderer(scene, "camera", self.sensor)
 
     def _warp_renderer(self, scene: object) -> object:
         from handsim.world.warp_render import WarpDepthRenderer

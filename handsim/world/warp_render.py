@@ -20,19 +20,22 @@ each world's ``MjData`` at every render.
 from __future__ import annotations
 
 import importlib.util
+import math
 import time
 from collections.abc import Sequence
 
 import mujoco
 import numpy as np
 
+from handsim._validate import is_real
 from handsim.errors import HandSimError, UnknownName
 from handsim.world.camera import CameraIntrinsics
-from handsim.world.render import RENDERED_GEOM_GROUPS
+from handsim.world.render import RENDERED_GEOM_GROUPS, DepthRenderer
 
-__all__ = ["WarpRenderError", "WarpDepthRenderer", "warp_available"]
+__all__ = ["WarpRenderError", "WarpDepthRenderer", "WarpSceneRenderer", "warp_available"]
 
 _MJ_OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+_MJ_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
 
 
 class WarpRenderError(HandSimError, RuntimeError):
@@ -70,6 +73,8 @@ class WarpDepthRenderer:
         nworld: worlds rendered per call, >= 1.
         device: Warp device, ``"cpu"`` or ``"cuda"`` (``"cuda:N"``); default: Warp's default
             device (a GPU when there is one).
+        dynamic_intrinsics: compute each pixel's ray from the camera's intrinsics at every
+            render (:meth:`set_intrinsics`) instead of once when the renderer is made.
 
     Raises:
         UnknownName: if the camera is not in the model (the message lists the cameras).
@@ -85,6 +90,8 @@ class WarpDepthRenderer:
         intrinsics: CameraIntrinsics,
         nworld: int,
         device: str | None = None,
+        *,
+        dynamic_intrinsics: bool = False,
     ) -> None:
         names = [model.camera(i).name for i in range(model.ncam)]
         if camera not in names:
@@ -131,6 +138,7 @@ class WarpDepthRenderer:
                 use_textures=False,
                 enabled_geom_groups=list(RENDERED_GEOM_GROUPS),
                 cam_active=active,
+                use_precomputed_rays=not dynamic_intrinsics,
             )
         # Cameras render in model order among the active ones: ours is the only one.
         self._offset = 0
@@ -149,6 +157,47 @@ class WarpDepthRenderer:
         self._cam_xpos = np.stack([data.cam_xpos for data in datas])
         self._cam_xmat = np.stack([data.cam_xmat.reshape(-1, 3, 3) for data in datas])
 
+    def set_intrinsics(self, cam_intrinsic: np.ndarray) -> None:
+        """Give the device model the cameras' intrinsics (``MjModel.cam_intrinsic``).
+
+        Args:
+            cam_intrinsic: (ncam, 4) focal lengths and principal point offsets, sensor units,
+                as in ``MjModel.cam_intrinsic``; they take effect only for a renderer made with
+                ``dynamic_intrinsics=True``.
+        """
+        wp = self._wp
+        host = np.asarray(cam_intrinsic, dtype=np.float32).reshape(1, self.model.ncam, 4)
+        with wp.ScopedDevice(self.device):
+            self._m.cam_intrinsic.assign(wp.array(host, dtype=self._m.cam_intrinsic.dtype))
+
+    def refresh_meshes(self, mesh_ids: Sequence[int], mesh_vert: np.ndarray | None = None) -> None:
+        """Copy the meshes' vertices from the model to the device and refit their BVHs.
+
+        For vertices moved in place without changing the triangles, e.g. a hand rescaled with
+        :meth:`Scene.set_hand_length <handsim.world.scene.Scene.set_hand_length>`: a refit
+        costs a fraction of a new renderer (the BVH keeps its tree, so a uniform scale leaves
+        it as good as a new one).
+
+        Args:
+            mesh_ids: mesh indices in the model.
+            mesh_vert: (nmeshvert, 3) every mesh's vertices to read from, the model's
+                layout; default: the model's ``mesh_vert``.
+        """
+        wp, rc, model = self._wp, self._rc, self.model
+        mesh_vert = model.mesh_vert if mesh_vert is None else mesh_vert
+        bvh_ids = rc.mesh_bvh_id.numpy()
+        bounds = rc.mesh_bounds_size.numpy()
+        with wp.ScopedDevice(self.device):
+            for mesh in mesh_ids:
+                start = int(model.mesh_vertadr[mesh])
+                points = mesh_vert[start : start + int(model.mesh_vertnum[mesh])]
+                warp_mesh = rc.mesh_registry[int(bvh_ids[mesh])]
+                warp_mesh.points.assign(wp.array(points, dtype=wp.vec3))
+                warp_mesh.refit()
+                # The half extents the scene's BVH bounds the mesh's geoms with.
+                bounds[mesh] = np.maximum(np.abs(points.min(axis=0)), np.abs(points.max(axis=0)))
+            rc.mesh_bounds_size.assign(wp.array(bounds, dtype=wp.vec3))
+
     def render(
         self,
         datas: Sequence[mujoco.MjData],
@@ -157,6 +206,7 @@ class WarpDepthRenderer:
         timings_s: dict[str, float] | None = None,
         host_geom_poses: bool = False,
         geom_size: np.ndarray | None = None,
+        geom_poses: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Render the worlds' current states (their ``qpos`` and mocap poses).
 
@@ -176,6 +226,9 @@ class WarpDepthRenderer:
                 arm, :meth:`~handsim.hand.model.HandBinding.point_upper_arm`).
             geom_size: (N, ngeom, 3) each world's geom sizes (the upper arm's length differs
                 per world); default: the model's when the renderer was made.
+            geom_poses: ``(geom_xpos, geom_xmat)``, (N, ngeom, 3) and (N, ngeom, 9), world
+                frame: every geom's pose, taken instead of the worlds' own (implies
+                ``host_geom_poses``).
 
         Returns:
             ``(depth_m, geom_id)``: (N, H, W) float32 metres along the optical axis, 0 where no
@@ -195,14 +248,18 @@ class WarpDepthRenderer:
         with wp.ScopedDevice(self.device):
             if geom_size is not None:
                 self._m.geom_size = wp.array(geom_size, dtype=wp.vec3)
-            if host_geom_poses:
-                for field in ("geom_xpos", "geom_xmat"):
-                    host = np.stack([getattr(data, field) for data in datas])
-                    host = host.reshape(self.nworld, self.model.ngeom, -1)
-                    if field == "geom_xmat":
-                        host = host.reshape(self.nworld, self.model.ngeom, 3, 3)
+            if host_geom_poses or geom_poses is not None:
+                if geom_poses is None:
+                    geom_poses = tuple(
+                        np.stack([getattr(data, field) for data in datas])
+                        for field in ("geom_xpos", "geom_xmat")
+                    )
+                fields = (("geom_xpos", (3,)), ("geom_xmat", (3, 3)))
+                for (field, shape), host in zip(fields, geom_poses, strict=True):
+                    host = np.asarray(host, dtype=np.float32)
+                    host = host.reshape(self.nworld, self.model.ngeom, *shape)
                     target = getattr(self._d, field)
-                    target.assign(wp.array(host.astype(np.float32), dtype=target.dtype))
+                    target.assign(wp.array(host, dtype=target.dtype))
             else:
                 mjw.kinematics(self._m, self._d)
             # Each world's camera pose is its MjData's (the model's camera pose is per world
@@ -229,6 +286,198 @@ class WarpDepthRenderer:
         depth_m[background] = 0.0
         clock("postprocess")
         return depth_m, ids
+
+
+class WarpSceneRenderer:
+    """:class:`~handsim.world.render.DepthRenderer`'s interface on MuJoCo Warp, one world.
+
+    A stand-in for the OpenGL renderer of a :class:`~handsim.frame.FrameRenderer` (its
+    ``renderer``), so that every label is made by the same code as on the OpenGL path: the
+    hand occlusion ratio's render with the objects hidden, the objects' silhouettes on BOP's
+    canvas. It follows the model as the OpenGL renderer does:
+
+    - geoms whose group is not in :data:`~handsim.world.render.RENDERED_GEOM_GROUPS` at
+      render time are not seen (the labels hide geoms by moving them to group 5): the ray
+      caster's geom set is fixed when it is made, so they are moved behind the camera;
+    - the camera's intrinsics are read at every render (the canvas shifts the principal
+      point, :meth:`render_segmentation_canvas`), with rays computed per render;
+    - every geom's pose comes from the ``MjData`` (``geom_xpos``, ``geom_xmat``: the host's
+      kinematics, with the upper arm turned outside the kinematic tree) and its size from the
+      model (the arm's length);
+    - :meth:`scale_geoms` scales the mesh vertices on the device (and refits their BVHs).
+
+    Args:
+        model: compiled model containing the camera.
+        camera: camera name.
+        intrinsics: the camera's intrinsics (they set the image size).
+        device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default: Warp's).
+
+    Raises:
+        UnknownName, WarpRenderError: as :class:`WarpDepthRenderer`.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        camera: str,
+        intrinsics: CameraIntrinsics,
+        device: str | None = None,
+    ) -> None:
+        self.model = model
+        self.camera = camera
+        self.intrinsics = intrinsics
+        self._warp: WarpDepthRenderer | None = WarpDepthRenderer(
+            model, camera, intrinsics, 1, device=device, dynamic_intrinsics=True
+        )
+        self.camera_id = self._warp.camera_id
+        self.device = self._warp.device
+        self._intrinsic = model.cam_intrinsic.copy()
+        # The vertices on the device are these times the scale_geoms factor.
+        self._uploaded_vert = model.mesh_vert.copy()
+        self._mesh_scale = np.ones(model.nmesh)
+        self._rendered = np.isin(model.geom_group, RENDERED_GEOM_GROUPS)
+
+    def __enter__(self) -> WarpSceneRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Free the device model."""
+        self._warp = None
+
+    def _check_open(self) -> WarpDepthRenderer:
+        if self._warp is None:
+            raise WarpRenderError("render() called after close()")
+        return self._warp
+
+    def upload_meshes(self, mesh_ids: Sequence[int]) -> None:
+        """Copy meshes' vertices from the model again (a :meth:`scale_geoms` factor is dropped).
+
+        Args:
+            mesh_ids: mesh indices in the model.
+        """
+        warp = self._check_open()
+        ids = [int(m) for m in mesh_ids]
+        for mesh in ids:
+            rows = self._mesh_rows(mesh)
+            self._uploaded_vert[rows] = self.model.mesh_vert[rows]
+            self._mesh_scale[mesh] = 1.0
+        warp.refresh_meshes(ids)
+
+    def _mesh_rows(self, mesh: int) -> slice:
+        start = int(self.model.mesh_vertadr[mesh])
+        return slice(start, start + int(self.model.mesh_vertnum[mesh]))
+
+    def scale_geoms(self, geom_ids: Sequence[int], factor: float) -> None:
+        """Draw mesh geoms scaled by ``factor`` about their own frames (see DepthRenderer).
+
+        The meshes of ``geom_ids`` get the vertices uploaded times ``factor`` on the device
+        (the others the vertices uploaded): a rescaled hand's skin is then what the model
+        holds, as with the OpenGL renderer's
+        :meth:`~handsim.world.render.DepthRenderer.scale_geoms`.
+
+        Raises:
+            WarpRenderError: for a factor that is not a positive finite number or a geom index
+                outside the model.
+        """
+        warp = self._check_open()
+        if not is_real(factor) or not 0.0 < float(factor) < math.inf:
+            raise WarpRenderError(
+                f"scale_geoms: factor must be a positive number; received {factor!r}"
+            )
+        ids = np.asarray(geom_ids, dtype=int).reshape(-1)
+        if ids.size and (ids.min() < 0 or ids.max() >= self.model.ngeom):
+            raise WarpRenderError(
+                f"scale_geoms: geom ids must be in [0, {self.model.ngeom}); received "
+                f"{ids.min()}..{ids.max()}"
+            )
+        model = self.model
+        scale = np.ones(model.nmesh)
+        meshes = model.geom_dataid[ids[model.geom_type[ids] == _MJ_MESH]]
+        scale[meshes[meshes >= 0]] = float(factor)
+        changed = np.flatnonzero(scale != self._mesh_scale)
+        if not len(changed):
+            return
+        vertices = model.mesh_vert.copy()
+        for mesh in changed:
+            rows = self._mesh_rows(mesh)
+            vertices[rows] = self._uploaded_vert[rows] * np.float32(scale[mesh])
+        warp.refresh_meshes(changed, vertices)
+        self._mesh_scale = scale
+
+    def _render(
+        self, data: mujoco.MjData, depth_range_m: tuple[float, float] | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        warp, model = self._check_open(), self.model
+        if not np.array_equal(model.cam_intrinsic, self._intrinsic):
+            warp.set_intrinsics(model.cam_intrinsic)
+            self._intrinsic = model.cam_intrinsic.copy()
+        xpos, xmat = data.geom_xpos, data.geom_xmat
+        hidden = self._rendered & ~np.isin(model.geom_group, RENDERED_GEOM_GROUPS)
+        if hidden.any():
+            # Behind the camera (its +z; it looks along -z) by more than the geom's bounding
+            # radius: no ray reaches it, and the scene's BVH stays valid.
+            xpos = xpos.copy()
+            back = data.cam_xmat[self.camera_id].reshape(3, 3)[:, 2]
+            xpos[hidden] = data.cam_xpos[self.camera_id] + np.outer(
+                1.0 + model.geom_rbound[hidden], back
+            )
+        depth_m, ids = warp.render(
+            [data],
+            depth_range_m=depth_range_m,
+            geom_poses=(xpos[None], xmat[None]),
+            geom_size=model.geom_size[None],
+        )
+        return depth_m[0], ids[0]
+
+    def render(
+        self,
+        data: mujoco.MjData,
+        out: tuple[np.ndarray, np.ndarray] | None = None,
+        *,
+        geom_values: np.ndarray | None = None,
+        fill: int = -1,
+        depth_range_m: tuple[float, float] | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Render the current state.
+
+        The arguments and results of :meth:`DepthRenderer.render
+        <handsim.world.render.DepthRenderer.render>`.
+        """
+        depth_m, ids = self._render(data, depth_range_m)
+        if geom_values is not None:
+            values = np.append(geom_values, fill).astype(geom_values.dtype)
+            ids = values[ids]  # geom id -1 -> the appended fill
+        if out is None:
+            return depth_m, ids
+        out[0][...] = depth_m
+        out[1][...] = ids
+        return out
+
+    def render_segmentation(
+        self, data: mujoco.MjData, region: tuple[int, int, int, int] | None = None
+    ) -> np.ndarray:
+        """The geom-id image of ``region`` (clipped to the image), -1 for background."""
+        w, h = self.intrinsics.width, self.intrinsics.height
+        u0, v0, u1, v1 = (0, 0, w, h) if region is None else region
+        u0, u1 = max(0, u0), min(w, u1)
+        v0, v1 = max(0, v0), min(h, v1)
+        if u1 <= u0 or v1 <= v0:
+            return np.full((max(v1 - v0, 0), max(u1 - u0, 0)), -1, dtype=np.int32)
+        return self._render(data, None)[1][v0:v1, u0:u1].copy()
+
+    def render_segmentation_canvas(
+        self, data: mujoco.MjData, region: tuple[int, int, int, int]
+    ) -> np.ndarray:
+        """The geom-id image of a pixel box that may reach beyond the image.
+
+        The OpenGL renderer's own tiling (:meth:`DepthRenderer.render_segmentation_canvas
+        <handsim.world.render.DepthRenderer.render_segmentation_canvas>`): windows of the
+        image's size, each rendered with the principal point shifted by whole pixels.
+        """
+        return DepthRenderer.render_segmentation_canvas(self, data, region)
 
 
 class _Stages:

@@ -1,5 +1,6 @@
 """`handsim generate --backend warp`: batched MuJoCo Warp frames against the OpenGL path."""
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -21,6 +22,20 @@ needs_warp = pytest.mark.skipif(
 SMALL = dict(PRESETS["hand-only"], frames=8, frames_per_shard=4, frames_per_episode=3, seed=5)
 
 
+# 3 grasp frames (1-3 objects on the table), shards of 2. Without sensor noise: its draws
+# depend on the image (the pixels with depth), so with noise the two backends' draws part
+# after an episode's first frame.
+HAND_OBJECT = dict(
+    PRESETS["hand-object"], frames=3, frames_per_shard=2, frames_per_episode=2, seed=5,
+    sensor="none",
+)  # fmt: skip
+LABELS = (
+    "hand_pose", "keypoints_px", "in_frame", "visible", "occluder", "hand_occlusion_ratio",
+    "object_ycbv_id", "object_T_cam_from_obj", "object_px_count_all", "object_px_count_visib",
+    "object_visib_fract",
+)  # fmt: skip
+
+
 @pytest.fixture(scope="module", autouse=True)
 def _warp_cache(tmp_path_factory):
     os.environ.setdefault("WARP_CACHE_PATH", str(tmp_path_factory.mktemp("warp_cache")))
@@ -36,6 +51,18 @@ def _arrays(folder):
             "visible": reader.labels("visible"),
             "hand_pose": reader.labels("hand_pose"),
         }
+        reader.close()
+    return out
+
+
+def _all_arrays(folder):
+    """Every shard's images and labels, by shard name."""
+    out = {}
+    for path in sorted(folder.glob("shard-*.h5")):
+        reader = ShardReader(path)
+        out[path.name] = {name: reader.labels(name) for name in LABELS}
+        for image in ("depth", "segmentation"):
+            out[path.name][image] = np.stack([reader[i][image] for i in range(len(reader))])
         reader.close()
     return out
 
@@ -118,15 +145,51 @@ def test_labels_agree_with_the_opengl_path_on_the_same_draws():
         source.close()
 
 
+@needs_warp
+def test_hand_object_frames_follow_the_opengl_path_and_resume(tmp_path):
+    """Grasp frames on Warp: the OpenGL path's draws and labels, and a shard of (seed, index)."""
+    config = GenerationConfig.from_mapping(HAND_OBJECT)
+    manifest = generate(config, tmp_path / "w", backend="warp", device="cpu")
+    assert manifest.frames == 3 and manifest.config["backend"] == "warp"
+    warp = _all_arrays(tmp_path / "w")
+    generate(config, tmp_path / "g")
+    opengl = _all_arrays(tmp_path / "g")
+    assert warp.keys() == opengl.keys()
+    for name, ours in warp.items():
+        ref = opengl[name]
+        # The same draws: grasps, hands, objects and views.
+        for field in ("hand_pose", "keypoints_px", "in_frame", "object_ycbv_id"):
+            np.testing.assert_array_equal(ours[field], ref[field], err_msg=field)
+        np.testing.assert_allclose(ours["object_T_cam_from_obj"], ref["object_T_cam_from_obj"])
+        # The labels: as the images (test_warp_render.py checks them where the images agree).
+        seen = (ours["segmentation"] != 0) | (ref["segmentation"] != 0)
+        assert (ours["segmentation"] == ref["segmentation"])[seen].mean() >= 0.99
+        assert (ours["visible"] == ref["visible"]).mean() >= 0.95
+        np.testing.assert_allclose(ours["object_visib_fract"], ref["object_visib_fract"], atol=0.05)
+        np.testing.assert_allclose(
+            ours["hand_occlusion_ratio"], ref["hand_occlusion_ratio"], atol=0.02
+        )
+        assert (ours["object_px_count_all"] > 0).any()
+    # A deleted shard is made again identically; a resume with the other backend is refused.
+    (tmp_path / "w" / "shard-00000.h5").unlink()
+    generate(config, tmp_path / "w", backend="warp", device="cpu")
+    _assert_same(warp, _all_arrays(tmp_path / "w"))
+    with pytest.raises(InvalidGenerationConfig, match="fields differ: backend"):
+        generate(config, tmp_path / "w")
+    with pytest.raises(InvalidGenerationConfig, match="fields differ: backend"):
+        generate(dataclasses.replace(config, backend="warp"), tmp_path / "g", device="cpu")
+
+
 def test_options_the_warp_backend_cannot_do_are_refused(tmp_path):
-    """Objects, other sources, workers, stray options: refused, the option named."""
+    """The rollout source, workers, stray options: refused, the option named."""
     config = GenerationConfig.from_mapping(SMALL)
-    with pytest.raises(InvalidGenerationConfig, match=r"cannot do: num_objects_range \(1, 3\)"):
-        generate(GenerationConfig.from_mapping(PRESETS["hand-only"], num_objects_range=(1, 3)),
-                 tmp_path / "o", backend="warp")  # fmt: skip
-    with pytest.raises(InvalidGenerationConfig, match="cannot do: source 'grasp'"):
-        generate(GenerationConfig.from_mapping(PRESETS["hand-object"]), tmp_path / "g",
+    with pytest.raises(InvalidGenerationConfig, match="cannot do: source 'rollout'"):
+        generate(GenerationConfig.from_mapping(PRESETS["grasp-rollouts"]), tmp_path / "g",
                  backend="warp")  # fmt: skip
+    from handsim.data.warp_source import WarpKinematicSource
+
+    with pytest.raises(InvalidGenerationConfig, match="renders a hand alone.*source 'grasp'"):
+        WarpKinematicSource(GenerationConfig.from_mapping(PRESETS["hand-object"]), device="cpu")
     with pytest.raises(InvalidGenerationConfig, match="workers must be 1 and ray None"):
         generate(config, tmp_path / "w", backend="warp", workers=2)
     with pytest.raises(InvalidGenerationConfig, match="options of the warp backend"):
@@ -164,6 +227,20 @@ def test_cli_generates_with_warp_and_the_dataset_checks(tmp_path):
         [*cli, "dataset", "check", str(out)], capture_output=True, text=True, env=env
     )
     assert check.returncode == 0, check.stdout + check.stderr
+    # Objects hiding the hand: the occlusion-heavy preset's grasps.
+    occluded = tmp_path / "occluded"
+    done = subprocess.run(
+        [*cli, "generate", "--preset", "occlusion-heavy", "--frames", "2", "--seed", "2",
+         "--quiet", "--backend", "warp", "--device", "cpu", "--out", str(occluded)],
+        capture_output=True, text=True, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    check = subprocess.run(
+        [*cli, "dataset", "check", str(occluded)], capture_output=True, text=True, env=env
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    ratio = ShardReader(next(occluded.glob("shard-*.h5"))).labels("hand_occlusion_ratio")
+    assert (ratio >= 0.1).all()  # the preset's lowest bucket
     refused = subprocess.run(
         [*cli, *args, "--batch", "4", "--out", str(tmp_path / "r")],
         capture_output=True, text=True, env=env,
