@@ -8,18 +8,22 @@ compile time is reported on its own), and the OpenGL :class:`~handsim.world.rend
 rate of the same frames one at a time, with their ratio.
 
 With ``--generate N``: end to end to shards on disk instead, ``handsim generate --backend
-warp`` of the ``hand-only`` preset at ``--gen-camera`` (N frames, ``--batch`` per launch),
-after a first run that compiles the kernels, with the breakdown per frame (draws: pose, view,
-camera and host kinematics; the renderer's stages; labels; noise; the rest: shard writing,
-the manifest and the loop), and the OpenGL backend's rate on the same config in the same run.
+warp`` of ``--preset`` (default ``hand-only``) at ``--gen-camera`` (N frames, ``--batch`` per
+launch for a hand alone), after a first run that compiles the kernels, with the breakdown per
+frame, and the OpenGL backend's rate on the same config in the same run. A hand alone
+(batched): draws (pose, view, camera and host kinematics); the renderer's stages; labels;
+noise; the rest (shard writing, the manifest and the loop). Hand-object presets (a frame per
+launch, the OpenGL path's source and labels): the renderer's stages, summed over the frame's
+renders (the image, the hand with the objects hidden, silhouettes; their number per frame is
+reported), and the rest (grasp planning and draws, labels, noise, writing).
 
 Without a CUDA device the Warp figure is the CPU device's, and the output says so: no GPU
 figure is ever estimated.
 
 Usage: ``WARP_CACHE_PATH=/tmp/warp_cache python benchmarks/bench_warp.py [--batch 16]
 [--rounds 5] [--device cpu|cuda] [--camera sr300] [--width 320] [--height 240] [--objects 3]
-[--generate FRAMES [--gen-camera icvl]]``; writes ``benchmarks/results/bench_warp.json``
-(``bench_warp_generate.json`` with ``--generate``).
+[--generate FRAMES [--gen-camera icvl] [--preset hand-only]]``; writes
+``benchmarks/results/bench_warp.json`` (``bench_warp_generate.json`` with ``--generate``).
 """
 
 from __future__ import annotations
@@ -66,22 +70,25 @@ def _end_to_end(args: argparse.Namespace) -> dict:
 
     from handsim.data.config import PRESETS, GenerationConfig
     from handsim.data.generation import generate
-    from handsim.data.warp_source import WarpKinematicSource
+    from handsim.data.warp_source import WarpKinematicSource, batched
+    from handsim.world.warp_render import WarpSceneRenderer
 
+    preset = PRESETS[args.preset]
     config = GenerationConfig.from_mapping(
-        PRESETS["hand-only"], frames=args.generate, camera=args.gen_camera, seed=1
+        preset, frames=args.generate, camera=args.gen_camera, seed=1
     )
+    timed = WarpKinematicSource if batched(config) else WarpSceneRenderer
     root = Path(tempfile.mkdtemp(prefix="bench_warp_"))
     try:
         t0 = time.perf_counter()
-        small = GenerationConfig.from_mapping(PRESETS["hand-only"], frames=args.batch, seed=2)
+        small = GenerationConfig.from_mapping(preset, frames=min(args.batch, 4), seed=2)
         generate(small, root / "warm", backend="warp", device=args.device, batch=args.batch)
         first_s = time.perf_counter() - t0
-        WarpKinematicSource.timings_s = stages = {}
+        timed.timings_s = stages = {}
         t0 = time.perf_counter()
         generate(config, root / "warp", backend="warp", device=args.device, batch=args.batch)
         warp_s = time.perf_counter() - t0
-        WarpKinematicSource.timings_s = None
+        timed.timings_s = None
         generate(small, root / "gl-warm")  # the OpenGL path's one-off set-up (numba, skin)
         t0 = time.perf_counter()
         generate(config, root / "opengl")
@@ -91,10 +98,13 @@ def _end_to_end(args: argparse.Namespace) -> dict:
     device = str(wp.get_device(args.device))
     gpu = device.startswith("cuda")
     n = args.generate
+    renders = stages.pop("renders", None)
     per_frame = {k: round(1e3 * v / n, 3) for k, v in stages.items()}
-    per_frame["rest_writing_manifest_loop"] = round(1e3 * (warp_s - sum(stages.values())) / n, 3)
+    rest = "rest_writing_manifest_loop" if renders is None else "rest_draws_labels_noise_writing"
+    per_frame[rest] = round(1e3 * (warp_s - sum(stages.values())) / n, 3)
     return {
-        "mode": "end to end to shards (handsim generate, preset hand-only)",
+        "mode": f"end to end to shards (handsim generate, preset {args.preset})",
+        "renders_per_frame": None if renders is None else round(renders / n, 2),
         "device": device,
         "gpu": gpu,
         "note": "" if gpu else "no CUDA device: the Warp figure is the CPU device's",
@@ -124,6 +134,7 @@ def main() -> None:
     parser.add_argument("--objects", type=int, default=3)
     parser.add_argument("--generate", type=int, default=0, metavar="FRAMES")
     parser.add_argument("--gen-camera", default="icvl")
+    parser.add_argument("--preset", default="hand-only", help="--generate: the preset")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if not warp_available():

@@ -337,6 +337,10 @@ class WarpSceneRenderer:
         self._mesh_scale = np.ones(model.nmesh)
         self._rendered = np.isin(model.geom_group, RENDERED_GEOM_GROUPS)
 
+    timings_s: dict[str, float] | None = None
+    """Set to a dict (on the class, for benchmarks) to add each render's stages to it
+    (:meth:`WarpDepthRenderer.render`'s ``timings_s``); the device is synchronized then."""
+
     def __enter__(self) -> WarpSceneRenderer:
         return self
 
@@ -429,7 +433,10 @@ class WarpSceneRenderer:
             depth_range_m=depth_range_m,
             geom_poses=(xpos[None], xmat[None]),
             geom_size=model.geom_size[None],
+            timings_s=self.timings_s,
         )
+        if self.timings_s is not None:
+            self.timings_s["renders"] = self.timings_s.get("renders", 0) + 1
         return depth_m[0], ids[0]
 
     def render(
