@@ -24,8 +24,8 @@ device for speed: the noise models and the keypoint visibility kernel (per-pixel
 Geometry per world. The upper arm is turned per frame toward a shoulder placed from the eye
 (:func:`~handsim.data.kinematic.alone_shoulder_m`): the host computes every geom's pose and the
 arm's length, and the renderer takes them per world. The hand's length changes per episode
-(its skin's vertices): a new device model is made per episode, so a batch never spans two
-episodes.
+(its skin's vertices): the device model is made once per scene and the skin's vertices are
+copied to it and their BVH refitted per episode, so a batch never spans two episodes.
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ class _Prerendered:
         self.image: tuple[np.ndarray, np.ndarray] | None = None
 
     def scale_geoms(self, *args: object) -> None:
-        """The device model is made from the rescaled hand (a new one per episode)."""
+        """The device model follows the rescaled hand (its skin refitted per episode)."""
 
     def render(
         self,
@@ -199,14 +199,14 @@ class WarpKinematicSource(KinematicSource):
             raise InvalidGenerationConfig(f"batch must be an integer >= 1; received {batch!r}")
         super().__init__(config)
         self.device, self.batch = device, int(batch)
-        self._warp = None  # (scene, hand geometry version, renderer)
+        self._warp = None  # [id(scene), hand geometry version, renderer]
 
     timings_s: dict[str, float] | None = None
     """Set to a dict (on the class, for benchmarks) to add each stage's seconds to it.
 
-    ``device_model`` (a new one per episode), ``draws`` (pose, view, camera and host
-    kinematics), the renderer's stages, ``labels``, ``noise``. The device is synchronized
-    between stages then.
+    ``device_model`` (a new one per scene, the skin refitted per episode), ``draws`` (pose,
+    view, camera and host kinematics), the renderer's stages, ``labels``, ``noise``. The
+    device is synchronized between stages then.
     """
 
     def _frame_renderer(self, scene: object) -> object:
@@ -214,22 +214,25 @@ class WarpKinematicSource(KinematicSource):
         return FrameRenderer(scene, "camera", self.sensor)
 
     def _warp_renderer(self, scene: object) -> object:
+        """The scene's device model: made once per scene, its skin refitted per hand length."""
         from handsim.world.warp_render import WarpDepthRenderer
 
-        key = (id(scene), scene.hand_geometry_version)
-        if self._warp is None or self._warp[0] != key:
+        start = time.perf_counter()
+        version = scene.hand_geometry_version
+        if self._warp is None or self._warp[0] != id(scene):
             self._warp = None
-            start = time.perf_counter()
-            self._warp = (
-                key,
-                WarpDepthRenderer(
-                    scene.model, "camera", self.intrinsics, self.batch, device=self.device
-                ),
+            renderer = WarpDepthRenderer(
+                scene.model, "camera", self.intrinsics, self.batch, device=self.device
             )
-            if self.timings_s is not None:
-                spent = time.perf_counter() - start
-                self.timings_s["device_model"] = self.timings_s.get("device_model", 0.0) + spent
-        return self._warp[1]
+            self._warp = [id(scene), version, renderer]
+        elif self._warp[1] != version:
+            # A new hand length (Scene.set_hand_length): its skin's vertices on the device.
+            self._warp[2].refresh_meshes(scene.hand_mesh_ids)
+            self._warp[1] = version
+        if self.timings_s is not None:
+            spent = time.perf_counter() - start
+            self.timings_s["device_model"] = self.timings_s.get("device_model", 0.0) + spent
+        return self._warp[2]
 
     def close(self) -> None:
         """Free the device model and the kept scenes."""
