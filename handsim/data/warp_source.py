@@ -14,12 +14,14 @@ own) and the episode seed are drawn from the shard's generator as the OpenGL pat
 Candidates are accepted in order, so a shard is a function of ``(seed, index)`` alone and the
 same whatever the batch size or device; it is not the OpenGL backend's shard.
 
-Labels. Each rendered image goes through the OpenGL path's own labelling
-(:meth:`~handsim.frame.FrameRenderer.render` with the image handed in instead of drawn),
-on the host: keypoint projection, visibility and occluder, sensor noise. A hand alone has no
-objects, so no object silhouettes and no hand occlusion ratio (0) are needed: the second render
-without occluders the OpenGL path makes for them does not arise here. What would move to the
-device for speed: the noise models and the keypoint visibility kernel (per-pixel, per-world).
+Labels. On the device, batched over the launch's worlds: each pixel's geom id, the camera's
+working range and the segmentation label (:func:`render_labels`). Each image then goes
+through the OpenGL path's own labelling (:meth:`~handsim.frame.FrameRenderer.render` with the
+image handed in instead of drawn), on the host: keypoint projection, visibility and occluder,
+sensor noise. A hand alone has no objects, so no object silhouettes and no hand occlusion
+ratio (0) are needed: the second render without occluders the OpenGL path makes for them does
+not arise here. What would move to the device next: the noise models and the keypoint
+visibility kernel (per-pixel, per-world).
 
 Geometry per world. The upper arm is turned per frame toward a shoulder placed from the eye
 (:func:`~handsim.data.kinematic.alone_shoulder_m`): the host computes every geom's pose and the
@@ -62,6 +64,7 @@ __all__ = [
     "make_warp_source",
     "DEFAULT_BATCH",
     "WARP_SOURCES",
+    "render_labels",
 ]
 
 DEFAULT_BATCH = 16
@@ -122,7 +125,11 @@ def make_warp_source(
 
 
 class _Prerendered:
-    """Stands in for a :class:`DepthRenderer` and hands out an image rendered elsewhere."""
+    """Stands in for a :class:`DepthRenderer` and hands out an image rendered elsewhere.
+
+    ``image`` is ``(depth_m, labels)``: the segmentation labels already mapped on the device
+    (:func:`render_labels`), which are the values the frame renderer asks for.
+    """
 
     def __init__(self, renderer: object) -> None:
         self.real = renderer
@@ -141,13 +148,39 @@ class _Prerendered:
         fill: int,
         depth_range_m: tuple[float, float],
     ) -> tuple[np.ndarray, np.ndarray]:
-        depth_m, ids = self.image
+        depth_m, labels = self.image
         out[0][...] = depth_m
-        out[1][...] = np.where(ids >= 0, geom_values[np.maximum(ids, 0)], fill)
+        out[1][...] = labels
         return out
 
     def close(self) -> None:
         self.real.close()
+
+
+def render_labels(
+    scene: object,
+    warp: object,
+    candidates: list[_Candidate],
+    timings_s: dict[str, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Render candidates' states in one launch: depth and segmentation labels.
+
+    The segmentation labels (:data:`~handsim.world.scene.SEGMENT_LABELS`, 0 on background and
+    outside the camera's working range) are mapped from geom ids on the device, as the frame
+    renderer asks the OpenGL renderer for them.
+
+    Returns:
+        ``(depth_m, labels)``: (N, H, W) float32 metres and (N, H, W) int16 labels.
+    """
+    return warp.render(
+        [c.data for c in candidates],
+        depth_range_m=warp.intrinsics.range_m,
+        host_geom_poses=True,
+        geom_size=np.stack([c.geom_size for c in candidates]),
+        timings_s=timings_s,
+        geom_values=scene.geom_labels.astype(np.int16),
+        fill=0,
+    )
 
 
 class _TimedSensor:
@@ -263,7 +296,10 @@ class WarpKinematicSource(KinematicSource):
     def label(
         self, scene, renderer, candidate: _Candidate, image: tuple[np.ndarray, np.ndarray]
     ) -> object:  # noqa: ANN001
-        """The :class:`~handsim.frame.Frame` of a candidate from its rendered image."""
+        """The :class:`~handsim.frame.Frame` of a candidate from its image.
+
+        ``image``: ``(depth_m, labels)`` of :func:`render_labels`.
+        """
         real, sensor = renderer.renderer, renderer.sensor
         stand_in = _Prerendered(real)
         stand_in.image = image
@@ -310,18 +346,12 @@ class WarpKinematicSource(KinematicSource):
             if drawn:
                 # Worlds past the drawn ones repeat the last (their images are not used).
                 worlds = drawn + [drawn[-1]] * (self.batch - len(drawn))
-                depth_m, ids = warp.render(
-                    [c.data for c in worlds],
-                    depth_range_m=self.intrinsics.range_m,
-                    host_geom_poses=True,
-                    geom_size=np.stack([c.geom_size for c in worlds]),
-                    timings_s=self.timings_s,
-                )
+                depth_m, labels = render_labels(scene, warp, worlds, self.timings_s)
             i = 0
             for candidate in candidates:
                 arrays = None
                 if candidate is not None:
-                    frame = self.label(scene, renderer, candidate, (depth_m[i], ids[i]))
+                    frame = self.label(scene, renderer, candidate, (depth_m[i], labels[i]))
                     i += 1
                     arrays = accepted_arrays(frame, accept, source, candidate.view)
                 if arrays is None:

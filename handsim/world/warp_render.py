@@ -142,6 +142,8 @@ class WarpDepthRenderer:
             )
         # Cameras render in model order among the active ones: ours is the only one.
         self._offset = 0
+        self._out = None  # the post-processed images on the device, made at the first render
+        self._values: tuple[bytes, object] | None = None
 
     def _upload(self, datas: Sequence[mujoco.MjData]) -> None:
         if len(datas) != self.nworld:
@@ -207,6 +209,8 @@ class WarpDepthRenderer:
         host_geom_poses: bool = False,
         geom_size: np.ndarray | None = None,
         geom_poses: tuple[np.ndarray, np.ndarray] | None = None,
+        geom_values: np.ndarray | None = None,
+        fill: int = -1,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Render the worlds' current states (their ``qpos`` and mocap poses).
 
@@ -218,8 +222,8 @@ class WarpDepthRenderer:
                 (depth 0, geom id -1), as with :meth:`DepthRenderer.render
                 <handsim.world.render.DepthRenderer.render>`.
             timings_s: a dict to add each stage's seconds to (``upload``, ``kinematics``,
-                ``render``, ``readback``, ``postprocess``), for benchmarks; the device is
-                synchronized between stages then, which costs a little.
+                ``render``, ``postprocess`` (on the device), ``readback``), for benchmarks;
+                the device is synchronized between stages then, which costs a little.
             host_geom_poses: take every geom's pose from the worlds' ``geom_xpos`` and
                 ``geom_xmat`` (computed on the host) instead of running kinematics on the
                 device: for geoms the host moves outside the kinematic tree (the hand's upper
@@ -229,10 +233,14 @@ class WarpDepthRenderer:
             geom_poses: ``(geom_xpos, geom_xmat)``, (N, ngeom, 3) and (N, ngeom, 9), world
                 frame: every geom's pose, taken instead of the worlds' own (implies
                 ``host_geom_poses``).
+            geom_values: (ngeom,) integer values (e.g. segmentation labels) to give instead of
+                geom ids, mapped on the device: the second image is ``geom_values[geom id]``,
+                ``fill`` on background, in ``geom_values``' dtype.
+            fill: the second image's value on background, with ``geom_values``.
 
         Returns:
             ``(depth_m, geom_id)``: (N, H, W) float32 metres along the optical axis, 0 where no
-            geom is seen; (N, H, W) int32 geom ids, -1 for background.
+            geom is seen; (N, H, W) int32 geom ids, -1 for background (or the values).
         """
         wp, mjw = self._wp, self._mjw
         clock = _Stages(wp, timings_s)
@@ -270,22 +278,65 @@ class WarpDepthRenderer:
             mjw.refit_bvh(self._m, self._d, self._rc)
             mjw.render(self._m, self._d, self._rc)
             clock("render")
-            depth = self._rc.depth_data.numpy()
-            seg = self._rc.seg_data.numpy()
+            # Geom ids, the working range and the values (e.g. segmentation labels) on the
+            # device, in one pass over every world's pixels: only the images come back.
+            h, w = self.intrinsics.height, self.intrinsics.width
+            n = h * w
+            if self._out is None:
+                self._out = (
+                    wp.empty((self.nworld, n), dtype=wp.float32),
+                    wp.empty((self.nworld, n), dtype=wp.int32),
+                    wp.empty(1, dtype=wp.int32),
+                )
+            values, fill_value = self._values_on_device(geom_values, fill)
+            near, far = (0.0, np.inf) if depth_range_m is None else depth_range_m
+            wp.launch(
+                _postprocess_kernel(),
+                dim=(self.nworld, n),
+                inputs=[
+                    self._rc.depth_data, self._rc.seg_data, _MJ_OBJ_GEOM, self._offset,
+                    np.float32(near), np.float32(far), values, geom_values is not None,
+                    int(fill_value),
+                ],
+                outputs=[self._out[0], self._out[1]],
+            )  # fmt: skip
+            clock("postprocess")
+            depth_m = self._out[0].numpy().reshape(-1, h, w)
+            ids = self._out[1].numpy().reshape(-1, h, w)
             clock("readback")
+        if geom_values is not None:
+            ids = ids.astype(np.asarray(geom_values).dtype, copy=False)
+        return depth_m, ids
+
+    def _values_on_device(self, geom_values: np.ndarray | None, fill: int) -> tuple[object, int]:
+        """The (ngeom,) values on the device (kept while they are the same) and the fill."""
+        wp = self._wp
+        if geom_values is None:
+            return self._out[2], -1
+        geom_values = np.asarray(geom_values)
+        if geom_values.shape != (self.model.ngeom,) or geom_values.dtype.kind not in "iu":
+            raise WarpRenderError(
+                f"geom_values must be ({self.model.ngeom},) integers, one per geom; received "
+                f"shape {geom_values.shape}, dtype {geom_values.dtype}"
+            )
+        key = geom_values.tobytes()
+        if self._values is None or self._values[0] != key:
+            with wp.ScopedDevice(self.device):
+                self._values = (key, wp.array(geom_values.astype(np.int32), dtype=wp.int32))
+        return self._values[1], fill
+
+    def raw_images(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last render's images as the ray caster left them (for tests).
+
+        Returns:
+            ``(depth, seg)``: (N, H, W) float32 ray-cast depth (along the optical axis, any
+            range) and (N, H, W, 2) int32 (object id, object type) per pixel.
+        """
         h, w = self.intrinsics.height, self.intrinsics.width
         n = h * w
-        depth_m = depth[:, self._offset : self._offset + n].reshape(-1, h, w).astype(np.float32)
-        seg = seg[:, self._offset : self._offset + n].reshape(-1, h, w, 2)
-        ids = np.where(seg[..., 1] == _MJ_OBJ_GEOM, seg[..., 0], -1).astype(np.int32)
-        background = ids < 0
-        if depth_range_m is not None:
-            near, far = np.float32(depth_range_m[0]), np.float32(depth_range_m[1])
-            background |= (depth_m < near) | (depth_m > far)
-            ids[background] = -1
-        depth_m[background] = 0.0
-        clock("postprocess")
-        return depth_m, ids
+        depth = self._rc.depth_data.numpy()[:, self._offset : self._offset + n]
+        seg = self._rc.seg_data.numpy()[:, self._offset : self._offset + n]
+        return depth.reshape(-1, h, w).astype(np.float32), seg.reshape(-1, h, w, 2)
 
 
 class WarpSceneRenderer:
@@ -412,7 +463,11 @@ class WarpSceneRenderer:
         self._mesh_scale = scale
 
     def _render(
-        self, data: mujoco.MjData, depth_range_m: tuple[float, float] | None
+        self,
+        data: mujoco.MjData,
+        depth_range_m: tuple[float, float] | None,
+        geom_values: np.ndarray | None = None,
+        fill: int = -1,
     ) -> tuple[np.ndarray, np.ndarray]:
         warp, model = self._check_open(), self.model
         if not np.array_equal(model.cam_intrinsic, self._intrinsic):
@@ -434,6 +489,8 @@ class WarpSceneRenderer:
             geom_poses=(xpos[None], xmat[None]),
             geom_size=model.geom_size[None],
             timings_s=self.timings_s,
+            geom_values=geom_values,
+            fill=fill,
         )
         if self.timings_s is not None:
             self.timings_s["renders"] = self.timings_s.get("renders", 0) + 1
@@ -453,10 +510,7 @@ class WarpSceneRenderer:
         The arguments and results of :meth:`DepthRenderer.render
         <handsim.world.render.DepthRenderer.render>`.
         """
-        depth_m, ids = self._render(data, depth_range_m)
-        if geom_values is not None:
-            values = np.append(geom_values, fill).astype(geom_values.dtype)
-            ids = values[ids]  # geom id -1 -> the appended fill
+        depth_m, ids = self._render(data, depth_range_m, geom_values, fill)
         if out is None:
             return depth_m, ids
         out[0][...] = depth_m
@@ -485,6 +539,54 @@ class WarpSceneRenderer:
         image's size, each rendered with the principal point shifted by whole pixels.
         """
         return DepthRenderer.render_segmentation_canvas(self, data, region)
+
+
+_KERNEL = None
+
+
+def _postprocess_kernel() -> object:
+    """The Warp kernel that turns the ray caster's images into depth and ids (or values).
+
+    Per world and pixel: the geom id where the pixel sees a geom (-1 elsewhere: nothing, or
+    another object type), background where the depth is outside ``[near, far]`` (float32
+    compares, as :class:`~handsim.world.render.DepthRenderer`), depth 0 on background; the id
+    mapped through ``values`` when asked (``fill`` on background). Made at the first render
+    (``import handsim`` never imports Warp).
+    """
+    global _KERNEL
+    if _KERNEL is None:
+        import warp as wp
+
+        @wp.kernel(enable_backward=False)
+        def postprocess(
+            depth_in: wp.array2d(dtype=wp.float32),
+            seg_in: wp.array2d(dtype=wp.vec2i),
+            obj_geom: int,
+            offset: int,
+            near: wp.float32,
+            far: wp.float32,
+            values: wp.array(dtype=wp.int32),
+            use_values: bool,
+            fill: int,
+            depth_out: wp.array2d(dtype=wp.float32),
+            ids_out: wp.array2d(dtype=wp.int32),
+        ):
+            world, pixel = wp.tid()
+            seg = seg_in[world, offset + pixel]
+            depth = depth_in[world, offset + pixel]
+            geom = wp.where(seg[1] == obj_geom, seg[0], -1)
+            if geom < 0 or depth < near or depth > far:
+                depth_out[world, pixel] = wp.float32(0.0)
+                ids_out[world, pixel] = fill
+            else:
+                depth_out[world, pixel] = depth
+                if use_values:
+                    ids_out[world, pixel] = values[geom]
+                else:
+                    ids_out[world, pixel] = geom
+
+        _KERNEL = postprocess
+    return _KERNEL
 
 
 class _Stages:

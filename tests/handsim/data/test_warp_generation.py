@@ -97,7 +97,7 @@ def test_warp_dataset_checks_resumes_and_does_not_depend_on_batch(tmp_path):
 @needs_warp
 def test_labels_agree_with_the_opengl_path_on_the_same_draws():
     """Keypoints identical, visibility and segmentation >= 99 % as OpenGL's on the same states."""
-    from handsim.data.warp_source import WarpKinematicSource
+    from handsim.data.warp_source import WarpKinematicSource, render_labels
     from handsim.frame import FrameRenderer
 
     config = GenerationConfig.from_mapping(SMALL, sensor="none")
@@ -114,17 +114,12 @@ def test_labels_agree_with_the_opengl_path_on_the_same_draws():
             assert candidates
             warp = source._warp_renderer(scene)
             worlds = candidates + [candidates[-1]] * (4 - len(candidates))
-            depth_m, ids = warp.render(
-                [c.data for c in worlds],
-                depth_range_m=source.intrinsics.range_m,
-                host_geom_poses=True,
-                geom_size=np.stack([c.geom_size for c in worlds]),
-            )
+            depth_m, labels = render_labels(scene, warp, worlds)
             saved = (scene.data, scene.model.geom_size.copy())
             # A new OpenGL renderer: the source's own one is never drawn with (nor rescaled).
             opengl = FrameRenderer(scene, "camera")
             for i, candidate in enumerate(candidates):
-                ours = source.label(scene, renderer, candidate, (depth_m[i], ids[i]))
+                ours = source.label(scene, renderer, candidate, (depth_m[i], labels[i]))
                 # The OpenGL path on the same state: the data and the upper arm's length.
                 scene.data, scene.model.geom_size[:] = candidate.data, candidate.geom_size
                 try:

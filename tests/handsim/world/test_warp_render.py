@@ -272,3 +272,30 @@ def test_frame_labels_match_opengl(preset, objects, background):
     assert compared["keypoints"] >= 10 and compared["objects"] >= 1
     assert occluded >= 1
     assert (backdrop_px > 0) == (background != "none")
+
+
+@needs_warp
+def test_postprocess_on_the_device_matches_numpy():
+    """Ids, the working range and the label values mapped on the device: numpy's result."""
+    scene = _scene("sr300", ("025_mug", "003_cracker_box"), seed=1)
+    intr = scene.spec.cameras[0].intrinsics
+    datas = _poses(scene, 2, seed=5)
+    warp = WarpDepthRenderer(scene.model, "camera", intr, nworld=2, device="cpu")
+    warp.render(datas)
+    raw_depth, seg = warp.raw_images()
+    # A range that cuts through the scene: pixels on both sides of it and inside.
+    near, far = (float(np.percentile(raw_depth[raw_depth > 0], q)) for q in (30, 70))
+    values = scene.geom_labels.astype(np.int16)
+    depth_m, labels = warp.render(datas, depth_range_m=(near, far), geom_values=values, fill=0)
+    ids = np.where(seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[..., 0], -1)
+    background = (ids < 0) | (raw_depth < np.float32(near)) | (raw_depth > np.float32(far))
+    assert background.any() and (~background).any()
+    assert ((ids >= 0) & (raw_depth < np.float32(near))).any()
+    assert ((ids >= 0) & (raw_depth > np.float32(far))).any()
+    np.testing.assert_array_equal(depth_m, np.where(background, np.float32(0), raw_depth))
+    np.testing.assert_array_equal(labels, np.where(background, 0, values[np.maximum(ids, 0)]))
+    assert labels.dtype == np.int16 and depth_m.dtype == np.float32
+    _, plain = warp.render(datas, depth_range_m=(near, far))
+    np.testing.assert_array_equal(plain, np.where(background, -1, ids))
+    with pytest.raises(WarpRenderError, match=r"geom_values must be \(\d+,\) integers"):
+        warp.render(datas, geom_values=np.zeros(3))
