@@ -36,6 +36,7 @@ __all__ = ["WarpRenderError", "WarpDepthRenderer", "WarpSceneRenderer", "warp_av
 
 _MJ_OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 _MJ_MESH = int(mujoco.mjtGeom.mjGEOM_MESH)
+_MJ_PLANE = int(mujoco.mjtGeom.mjGEOM_PLANE)
 
 
 class WarpRenderError(HandSimError, RuntimeError):
@@ -476,6 +477,14 @@ class WarpSceneRenderer:
         xpos, xmat = data.geom_xpos, data.geom_xmat
         hidden = self._rendered & ~np.isin(model.geom_group, RENDERED_GEOM_GROUPS)
         if hidden.any():
+            planes = np.flatnonzero(hidden & (model.geom_type == _MJ_PLANE))
+            if len(planes):
+                names = ", ".join(model.geom(int(g)).name or str(g) for g in planes)
+                raise WarpRenderError(
+                    f"a plane cannot be hidden on MuJoCo Warp (moved behind the camera it still "
+                    f"reaches into view): {names}; make the renderer with it in a group no "
+                    "camera renders, or use the OpenGL DepthRenderer"
+                )
             # Behind the camera (its +z; it looks along -z) by more than the geom's bounding
             # radius: no ray reaches it, and the scene's BVH stays valid.
             xpos = xpos.copy()

@@ -299,3 +299,39 @@ def test_postprocess_on_the_device_matches_numpy():
     np.testing.assert_array_equal(plain, np.where(background, -1, ids))
     with pytest.raises(WarpRenderError, match=r"geom_values must be \(\d+,\) integers"):
         warp.render(datas, geom_values=np.zeros(3))
+
+
+PLANE_XML = """
+<mujoco>
+  <visual><global offwidth="64" offheight="48"/></visual>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <geom name="block" type="box" size="0.1 0.1 0.1" pos="0 0 0.1"/>
+    <camera name="camera" pos="0 -1 1" xyaxes="1 0 0 0 0.7 0.7" resolution="64 48"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+@needs_warp
+def test_scene_renderer_refuses_bad_input():
+    """The OpenGL renderer's checks, and a plane it cannot hide: refused, saying why."""
+    from handsim.world.warp_render import WarpSceneRenderer
+
+    scene = _scene("sr300", ("025_mug",), seed=0)
+    intr = scene.spec.cameras[0].intrinsics
+    renderer = WarpSceneRenderer(scene.model, "camera", intr, device="cpu")
+    with pytest.raises(WarpRenderError, match="factor must be a positive number; received 0"):
+        renderer.scale_geoms(scene.hand_skin_geom_ids, 0)
+    with pytest.raises(WarpRenderError, match=r"geom ids must be in \[0, \d+\)"):
+        renderer.scale_geoms([scene.model.ngeom], 1.1)
+    renderer.close()
+    with pytest.raises(WarpRenderError, match=r"render\(\) called after close\(\)"):
+        renderer.render(scene.data)
+    model = mujoco.MjModel.from_xml_string(PLANE_XML)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    renderer = WarpSceneRenderer(model, "camera", intr, device="cpu")
+    model.geom_group[model.geom("floor").id] = 5
+    with pytest.raises(WarpRenderError, match="a plane cannot be hidden on MuJoCo Warp.*floor"):
+        renderer.render(data)
