@@ -12,9 +12,15 @@ It needs the optional extra ``handsim[gpu]`` (``mujoco-warp``, ``warp-lang``); t
 imports them when a renderer is made, never on ``import handsim``. The first renderer in a
 process compiles Warp's kernels (tens of seconds on the CPU; cached in ``WARP_CACHE_PATH``).
 
-The device model is a copy of the model when the renderer is made: a model changed later
-(e.g. a rescaled hand's mesh vertices) needs a new renderer; the camera's pose is read from
-each world's ``MjData`` at every render.
+The device model is a copy of the model when the renderer is made: mesh vertices moved later
+(a rescaled hand) are copied with :meth:`WarpDepthRenderer.refresh_meshes`, other model changes
+need a new renderer; the camera's pose is read from each world's ``MjData`` at every render.
+The geom ids become depth, ids or segmentation labels on the device (one kernel over every
+world's pixels), so only the final images are read back.
+
+:class:`WarpSceneRenderer` is :class:`~handsim.world.render.DepthRenderer`'s interface on one
+Warp world: a :class:`~handsim.frame.FrameRenderer` renders through it with its own label code
+(the hand occlusion ratio's and the silhouettes' renders included).
 """
 
 from __future__ import annotations
