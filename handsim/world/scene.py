@@ -35,6 +35,7 @@ from handsim.hand.model import (
     HAND_PHYSICS_OPTIONS,
     UPPER_ARM_GEOM,
     Hand,
+    HandBinding,
 )
 from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import add_camera
@@ -121,10 +122,15 @@ class Scene:
         model: compiled MuJoCo model.
         data: its data (reset to the spec's placements and a flat hand at the default target).
         mjspec: the ``mujoco.MjSpec`` the model was compiled from (see :meth:`to_xml`).
-        hand: the hand entity (``None`` without a hand).
+        hand: the hand entity (``None`` without a hand); in a two-hand scene the first of
+            :attr:`hands`.
         binding: the hand's look-ups in ``model`` (``None`` without a hand).
+        hands: every hand entity, in :attr:`SceneSpec.all_hands` order (empty without one).
+        bindings: their look-ups in ``model``, in the same order.
         objects: one ``(body name, YCBObject)`` per instance, in spec order.
         geom_labels: (ngeom,) int16 segmentation label of each geom (see module docstring).
+        label_names: the name of every label in use, indexed by label: :data:`SEGMENT_LABELS`,
+            the objects' body names, then ``<side>_<part>`` for a second hand's parts.
     """
 
     def __init__(self, spec: SceneSpec) -> None:
@@ -156,10 +162,11 @@ class Scene:
                     name=name, type=kind, size=size, pos=pos, contype=0, conaffinity=0,
                     density=0.0, group=0, rgba=[0.8, 0.8, 0.75, 1.0],
                 )  # fmt: skip
-        self.hand = Hand(spec.hand) if spec.hand is not None else None
-        if self.hand is not None:
-            self.hand.attach_to(mj)
-        else:
+        self.hands: tuple[Hand, ...] = tuple(Hand(p) for p in spec.all_hands)
+        self.hand = self.hands[0] if self.hands else None
+        for hand in self.hands:
+            hand.attach_to(mj)
+        if not self.hands:
             for key, value in HAND_PHYSICS_OPTIONS.items():
                 setattr(mj.option, key, value)
         self.objects: list[tuple[str, YCBObject]] = []
@@ -177,8 +184,7 @@ class Scene:
         self.mjspec = mj
         self._set_clip_planes()
         self.data = mujoco.MjData(self.model)
-        self.binding = self.hand.bind(self.model) if self.hand is not None else None
-        self.geom_labels = self._label_geoms()
+        self._bind_hands()
         self._hand_body_ids = np.array(
             []
             if self.hand is None
@@ -310,7 +316,9 @@ class Scene:
             np.multiply(values, factor, out=getattr(self.model, name)[rows])
         self.hand = self.hand.rescaled(params)
         self.binding.hand = self.hand
-        self.spec = dataclasses.replace(self.spec, hand=params)
+        self.hands = (self.hand, *self.hands[1:])
+        hands = None if self.spec.hands is None else (params, *self.spec.hands[1:])
+        self.spec = dataclasses.replace(self.spec, hand=params, hands=hands)
         self.hand_geometry_version += 1
         mujoco.mj_forward(self.model, self.data)
 
@@ -353,28 +361,84 @@ class Scene:
                 out.append((name, rows_run, getattr(model, name)[rows_run].copy()))
         return out
 
+    def _bind_hands(self) -> None:
+        """Look the hands up in :attr:`model` and label its geoms (after every compile)."""
+        self.bindings: tuple[HandBinding, ...] = tuple(h.bind(self.model) for h in self.hands)
+        self.binding = self.bindings[0] if self.bindings else None
+        self.geom_labels = self._label_geoms()
+
+    def recompile(self) -> None:
+        """Compile :attr:`mjspec` again after adding to it (a task's fixtures), with new data.
+
+        The cameras keep the model's current placement; the hands are bound and the geoms
+        labelled again (a geom added after the objects is labelled 0 unless its task labels it).
+        """
+        cam = (self.model.cam_pos.copy(), self.model.cam_quat.copy())
+        self.model = self.mjspec.compile()
+        self._set_clip_planes()
+        self.model.cam_pos[:], self.model.cam_quat[:] = cam
+        self.data = mujoco.MjData(self.model)
+        self._bind_hands()
+
     def _label_geoms(self) -> np.ndarray:
         labels = np.zeros(self.model.ngeom, dtype=np.int16)
         body_label = {}
-        if self.hand is not None:
-            for b in self.hand.skeleton.bodies:
-                body_id = self.model.body(self.hand.prefix + b.name).id
-                body_label[body_id] = SEGMENT_LABELS.index(b.part)
+        arm: dict[str, int] = {}
+        names = list(SEGMENT_LABELS) + [body for body, _ in self.objects]
+        for i, hand in enumerate(self.hands):
+            if i == 0:
+                part_label = {p: SEGMENT_LABELS.index(p) for p in HAND_PART_LABELS}
+            else:
+                # A second hand's parts follow the objects: the first hand's labels (and a
+                # frame's) stay those of a one-hand scene.
+                part_label = {p: len(names) + k for k, p in enumerate(HAND_PART_LABELS)}
+                names += [f"{hand.params.side}_{p}" for p in HAND_PART_LABELS]
+            for b in hand.skeleton.bodies:
+                body_label[self.model.body(hand.prefix + b.name).id] = part_label[b.part]
+            for geom in (FOREARM_GEOM, UPPER_ARM_GEOM):
+                arm[hand.prefix + geom] = part_label["arm"]
         for k, (body, _) in enumerate(self.objects):
             body_label[self.model.body(body).id] = OBJECT_LABEL_OFFSET + k
-        p = "" if self.hand is None else self.hand.prefix
-        arm = () if self.hand is None else (p + FOREARM_GEOM, p + UPPER_ARM_GEOM)
+        self.label_names: tuple[str, ...] = tuple(names)
         for g in range(self.model.ngeom):
             name = self.model.geom(g).name
             if name == "table":
                 labels[g] = SEGMENT_LABELS.index("table")
             elif name in arm:
-                labels[g] = SEGMENT_LABELS.index("arm")
+                labels[g] = arm[name]
             elif name.startswith(_BACKDROP_PREFIX):
                 labels[g] = SEGMENT_LABELS.index("backdrop")
             else:
                 labels[g] = body_label.get(int(self.model.geom_bodyid[g]), 0)
         return labels
+
+    def label(self, name: str) -> int:
+        """The segmentation label called ``name`` in :attr:`label_names` (e.g. ``"left_palm"``).
+
+        Raises:
+            InvalidScene: for a name not in this scene, listing the names.
+        """
+        if name not in self.label_names:
+            raise InvalidScene(
+                f"no segmentation label {name!r} in this scene; labels: "
+                f"{', '.join(self.label_names)}"
+            )
+        return self.label_names.index(name)
+
+    def hand_binding(self, side: str) -> HandBinding:
+        """The binding of the scene's hand of ``side`` (``"right"`` or ``"left"``).
+
+        Raises:
+            InvalidScene: if the scene has no hand of that side, listing its hands.
+        """
+        for binding in self.bindings:
+            if binding.hand.params.side == side:
+                return binding
+        have = ", ".join(b.hand.params.side for b in self.bindings) or "none"
+        raise InvalidScene(
+            f"this scene has no {side!r} hand; its hands: {have} (two hands: "
+            "SceneSpec(hands=(hand_params('medium', 'right'), hand_params('medium', 'left'))))"
+        )
 
     def place_backdrop(
         self, eye_m: np.ndarray, target_m: np.ndarray, distance_m: float, *, forward: bool = True
@@ -426,21 +490,25 @@ class Scene:
         far = float(((points - eye) @ ahead).max())
         self.place_backdrop(eye, eye + ahead, far + _BACKDROP_REACH_M, forward=False)
 
-    def reset(self, hand_pose: HandPose | None = None) -> None:
+    def reset(
+        self, hand_pose: HandPose | None = None, *, other_pose: HandPose | None = None
+    ) -> None:
         """Reset the data: objects at their placements, hand at ``hand_pose``.
 
         Args:
-            hand_pose: default: a flat hand, palm down, above the table centre.
+            hand_pose: the (first) hand's pose; default: a flat hand, palm down, above the
+                table centre (two hands: each 12 cm to its own side of it).
+            other_pose: a second hand's pose (same default).
         """
         mujoco.mj_resetData(self.model, self.data)
         self._place_default_backdrop()
-        if self.binding is not None:
-            if hand_pose is None:
-                # Palm down (hand z = palmar -> world -z), fingers toward +y.
-                hand_pose = HandPose.neutral(
-                    wrist_pos=(0.0, -0.1, 0.12), wrist_rotvec=(0.0, np.pi, 0.0)
-                )
-            self.binding.set_pose(self.data, hand_pose)
+        two = len(self.bindings) == 2
+        for binding, pose in zip(self.bindings, (hand_pose, other_pose), strict=False):
+            if pose is None:
+                # Palm down (hand z = palmar -> world -z), fingers toward +y; two hands apart.
+                x = (0.12 if binding.hand.params.side == "right" else -0.12) if two else 0.0
+                pose = HandPose.neutral(wrist_pos=(x, -0.1, 0.12), wrist_rotvec=(0.0, np.pi, 0.0))
+            binding.set_pose(self.data, pose)
         mujoco.mj_forward(self.model, self.data)
 
     def segment(self, geom_id: np.ndarray) -> np.ndarray:

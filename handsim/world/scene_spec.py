@@ -322,7 +322,8 @@ class SceneSpec:
     """Everything a scene contains.
 
     Attributes:
-        hand: the hand (``None`` for an object-only scene).
+        hand: the hand (``None`` for an object-only scene); with :attr:`hands`, the first of
+            them (set from it).
         objects: object instances on the table.
         cameras: depth cameras (at least one); names must be unique.
         table: add the table (top at ``z = 0``).
@@ -332,6 +333,11 @@ class SceneSpec:
             Its geoms are drawn only (no contact, no mass) and labelled ``"backdrop"``; it
             stands upright, facing the first camera beyond the table (and beyond anything a
             hand reaches over it), and :meth:`Scene.place_backdrop` moves it per frame.
+        hands: two hands at once (or one), e.g. ``(hand_params("medium", "right"),
+            hand_params("medium", "left"))``: one of each side at most (every MJCF name of a
+            hand carries its side's prefix, ``rh_`` or ``lh_``, so they stay unique). The
+            first is :attr:`hand`, the hand a :class:`~handsim.frame.Frame` labels. ``None``
+            (default): the one hand of :attr:`hand`.
     """
 
     hand: HandParams | None = dataclasses.field(default_factory=HandParams)
@@ -341,6 +347,7 @@ class SceneSpec:
     )
     table: bool = True
     background: str = "none"
+    hands: tuple[HandParams, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.hand is not None and not isinstance(self.hand, HandParams):
@@ -348,6 +355,8 @@ class SceneSpec:
                 f"hand must be a HandParams or None (e.g. hand_params('medium')); received "
                 f"{show(self.hand)}"
             )
+        if self.hands is not None:
+            self._set_hands()
         for field, kind in (("objects", ObjectPlacement), ("cameras", CameraSpec)):
             items = getattr(self, field)
             if isinstance(items, (str, bytes)) or not isinstance(items, (list, tuple)):
@@ -372,6 +381,41 @@ class SceneSpec:
             raise InvalidScene(f"camera names must be unique; received {names}")
         for placement in self.objects:
             placement.object  # noqa: B018 (raises UnknownName listing the valid names)
+
+    def _set_hands(self) -> None:
+        hands = self.hands
+        example = "e.g. (hand_params('medium', 'right'), hand_params('medium', 'left'))"
+        if (
+            isinstance(hands, (str, bytes))
+            or not isinstance(hands, (list, tuple))
+            or not 1 <= len(hands) <= 2
+            or not all(isinstance(h, HandParams) for h in hands)
+        ):
+            raise InvalidScene(
+                f"hands must be a tuple of one or two HandParams ({example}) or None; received "
+                f"{show(hands)}"
+            )
+        sides = [h.side for h in hands]
+        if len(set(sides)) != len(sides):
+            raise InvalidScene(
+                f"hands must be of different sides (one right, one left: each hand's MJCF "
+                f"names carry its side's prefix); received sides {sides}"
+            )
+        # hand= is the first of hands=: left at its default (or None) it is set from them.
+        if self.hand not in (None, HandParams(), hands[0]):
+            raise InvalidScene(
+                f"hand={show(self.hand)} disagrees with hands[0]={show(hands[0])}: give the "
+                "hands with hands= alone (hand is set to hands[0])"
+            )
+        object.__setattr__(self, "hands", tuple(hands))
+        object.__setattr__(self, "hand", hands[0])
+
+    @property
+    def all_hands(self) -> tuple[HandParams, ...]:
+        """Every hand of the scene, first :attr:`hand` (empty without a hand)."""
+        if self.hands is not None:
+            return self.hands
+        return () if self.hand is None else (self.hand,)
 
 
 _MAX_DIST_M = 1000.0  # positions and distances beyond a kilometre are a mistake
