@@ -652,8 +652,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         choices=_LIVE_HANDS,
         default="right",
         help=choice_help(
-            "the hand to drive (packets of the other hand are ignored); both: each packet "
-            "drives the hand its 'hand' names (a two-hand --task, press2)",
+            "the hand to drive (packets of the other hand are ignored); both: each "
+            "packet drives its 'hand' (a two-hand --task: press2)",
             _LIVE_HANDS,
             "right",
         ),
