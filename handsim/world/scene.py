@@ -41,33 +41,27 @@ from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import add_camera
 from handsim.world.mjcf import save_spec, spec_to_xml
 from handsim.world.objects import YCBObject, add_object
+
+# The description's names are re-exported (``from handsim.world.scene import SceneSpec``) and
+# documented where they are defined, in scene_spec.
 from handsim.world.scene_spec import (
-    BACKGROUNDS,
+    BACKGROUNDS,  # noqa: F401
     DEFAULT_HAND_TARGET_M,
     CameraSpec,
     InvalidScene,
-    ObjectPlacement,
+    ObjectPlacement,  # noqa: F401
     SceneSpec,
-    egocentric_camera,
-    sample_placements,
-    sample_viewpoint,
-    third_person_camera,
+    egocentric_camera,  # noqa: F401
+    sample_placements,  # noqa: F401
+    sample_viewpoint,  # noqa: F401
+    third_person_camera,  # noqa: F401
 )
 
 __all__ = [
     "SEGMENT_LABELS",
     "OBJECT_LABEL_OFFSET",
     "HAND_PART_LABELS",
-    "BACKGROUNDS",
-    "ObjectPlacement",
-    "CameraSpec",
-    "SceneSpec",
     "Scene",
-    "InvalidScene",
-    "third_person_camera",
-    "egocentric_camera",
-    "sample_viewpoint",
-    "sample_placements",
 ]
 
 SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "palm", *DIGITS)
