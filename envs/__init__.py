@@ -14,7 +14,7 @@ handsim/HandPose-v0       the hand alone reaches a goal hand pose             15
 handsim/Grasp-v0          grasp one object on a table, lift 10 cm, hold 2 s   400 (8 s)
 handsim/GraspClutter-v0   the same for a named target among 3-6 objects       400 (8 s)
 handsim/Press-v0          press a push button or move a slider on a panel     250 (5 s)
-handsim/PressTwoHands-v0  press two buttons at once, one with each hand      250 (5 s)
+handsim/PressTwoHands-v0  press two buttons at once, one with each hand       250 (5 s)
 ========================  ==================================================  =============
 
 Episode lengths are at the default ``frame_skip=10`` (50 Hz control).
