@@ -186,3 +186,25 @@ def test_live_packets_are_routed_by_their_hand(expert):
         assert hands[side]["packets_used"] >= 40, hands[side]
         assert hands[side]["tracking_error_mm"] < 30.0
     assert {e.hand for e in episode.events if e.kind == "button_press"} == {"right", "left"}
+
+
+def test_the_page_serves_a_two_hand_recording_with_both_hands(tmp_path, expert):
+    """`serve --replay` of a two-hand file: /replay.json lists both hands for the page."""
+    import threading
+    import urllib.request
+
+    from handsim.envs.teleop.web import make_server
+
+    path = save_streams(expert, tmp_path / "two.json")
+    server = make_server(0, 9999, replay=path)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/replay.json"
+        doc = json.loads(urllib.request.urlopen(url, timeout=10).read())
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert [h["hand"] for h in doc["hands"]] == ["right", "left"]
+    assert len(doc["hands"][1]["frames"]) == len(expert[1]) and doc["hand"] == "right"
+    left = np.array(doc["hands"][1]["frames"][0]["keypoints"])
+    np.testing.assert_allclose(left, expert[1].keypoints_world[0], atol=1e-6)

@@ -458,14 +458,25 @@ def test_the_two_commands_show_the_scene_in_headless_chromium(tmp_path):
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
-def test_two_emulated_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path):
-    """`?hand=both` streams each emulated hand as its own packet; the page draws two ghosts.
+@pytest.mark.parametrize("source", ["headset", "replay"])
+def test_two_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path, source):
+    """Both hands from the page: each as its own packet; the page draws two ghosts.
 
-    The two-hand loop routes the packets by their `hand`; the state carries the left hand's
-    ghost (`tracked_hands`), drawn over the physical left hand, in the ghost's cyan.
+    `headset`: the emulated headset with two hands and `?hand=both`; `replay`: no headset, the
+    page replays a two-hand recording (`serve --replay`). The two-hand loop routes the packets
+    by their `hand`; the state carries the left hand's ghost (`tracked_hands`), drawn over the
+    physical left hand, in the ghost's cyan.
     """
-    from handsim.envs.teleop import TwoHandTeleopLoop
+    from handsim.envs.teleop import TwoHandTeleopLoop, save_streams, streams_from_expert
     from handsim.envs.teleop.sampling import LiveSampler
+
+    replay = None
+    query = "?xrtest=1&xrhands=both&hand=both&enter=immersive-vr"
+    mode = "immersive-vr"
+    if source == "replay":
+        streams = streams_from_expert("handsim/PressTwoHands-v0", 0)
+        replay = save_streams(streams, tmp_path / "two.json")
+        query, mode = "", "browser"
 
     stop = threading.Event()
     with (
@@ -497,9 +508,8 @@ def test_two_emulated_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path)
 
         runner = threading.Thread(target=run, daemon=True)
         runner.start()
-        server = make_server(0, rx.port)
+        server = make_server(0, rx.port, replay=replay)
         threading.Thread(target=server.serve_forever, daemon=True).start()
-        query = "?xrtest=1&xrhands=both&hand=both&enter=immersive-vr"
         url = f"http://127.0.0.1:{server.server_address[1]}/{query}"
         profile = tmp_path / "profile"
         browser = subprocess.Popen(
@@ -518,7 +528,7 @@ def test_two_emulated_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path)
                 time.sleep(0.1)
             with _DevTools(int(port_file.read_text().split()[0])) as devtools:
                 ready = (
-                    "window.handsim && handsim.mode === 'immersive-vr' && "
+                    f"window.handsim && handsim.mode === '{mode}' && "
                     "handsim.statesApplied > 25 && handsim.where().leftGhostWrist !== undefined"
                 )
                 ok = devtools.wait(ready, 120)

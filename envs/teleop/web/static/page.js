@@ -327,12 +327,19 @@ async function replay() {
   const rec = await (await fetch("replay.json")).json();
   const dt = 1000 / rec.fps;
   const t0 = performance.now();
-  for (let i = 0; i < rec.frames.length; i++) {
+  // A two-hand recording lists both hands: each frame of each hand is its own packet.
+  const tracks = rec.hands || [{ hand: rec.hand, frames: rec.frames }];
+  const total = tracks.reduce((n, track) => n + track.frames.length, 0);
+  const steps = Math.max(...tracks.map((track) => track.frames.length));
+  for (let i = 0; i < steps; i++) {
     const wait = t0 + i * dt - performance.now();
     if (wait > 0) await new Promise((r) => setTimeout(r, wait));
-    send({ t: rec.frames[i].t, format: "handsim21", up_axis: "z", hand: rec.hand,
-           keypoints: rec.frames[i].keypoints });
-    status(`replay: sent ${state.sent} of ${rec.frames.length} frames`);
+    for (const track of tracks) {
+      if (i >= track.frames.length) continue;
+      send({ t: track.frames[i].t, format: "handsim21", up_axis: "z", hand: track.hand,
+             keypoints: track.frames[i].keypoints });
+    }
+    status(`replay: sent ${state.sent} of ${total} frames`);
   }
   state.done = true;
   document.title = `handsim teleop: replay done, ${state.sent} sent`;
