@@ -168,6 +168,11 @@ def test_recorded_two_hand_rollout(tmp_path, expert):
     assert {e["hand"] for e in meta["events"]} == {"right", "left"}
     # The left hand's physical keypoints are left of the right hand's (world x).
     assert arrays["physical_world_left"][:, 0, 0].max() < arrays["physical_world"][:, 0, 0].min()
+    # `handsim view` plays it: both physical hands, both hands' skeletons.
+    from handsim.envs.teleop.view import render_rollout
+
+    video = render_rollout(path, tmp_path / "r.gif", every=40)
+    assert video.stat().st_size > 1000
 
 
 def test_live_packets_are_routed_by_their_hand(expert):
