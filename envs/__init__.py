@@ -14,6 +14,7 @@ handsim/HandPose-v0       the hand alone reaches a goal hand pose             15
 handsim/Grasp-v0          grasp one object on a table, lift 10 cm, hold 2 s   400 (8 s)
 handsim/GraspClutter-v0   the same for a named target among 3-6 objects       400 (8 s)
 handsim/Press-v0          press a push button or move a slider on a panel     250 (5 s)
+handsim/PressTwoHands-v0  press two buttons at once, one with each hand       250 (5 s)
 ========================  ==================================================  =============
 
 Episode lengths are at the default ``frame_skip=10`` (50 Hz control).
@@ -37,7 +38,9 @@ ENV_IDS: tuple[str, ...] = (
     "handsim/GraspClutter-v0",
     "handsim/Press-v0",
 )
-"""Every registered id."""
+"""Every registered one-hand id (27-D actions)."""
+TWO_HAND_ENV_IDS: tuple[str, ...] = ("handsim/PressTwoHands-v0",)
+"""The registered two-hand ids (a right and a left hand; 54-D actions, right then left)."""
 
 register(
     id="handsim/HandPose-v0",
@@ -57,5 +60,10 @@ register(
 register(
     id="handsim/Press-v0",
     entry_point="handsim.envs.press:PressEnv",
+    max_episode_steps=250,
+)
+register(
+    id="handsim/PressTwoHands-v0",
+    entry_point="handsim.envs.press_two_hands:TwoHandPressEnv",
     max_episode_steps=250,
 )

@@ -23,6 +23,11 @@ Control (``control_mode``):
   rotation, world axes) and :data:`DELTA_JOINT_SPEED` rad/s (each joint) times the control
   period; the result is clipped to the ``"pose"`` bounds. Out-of-range actions are clipped.
 
+A two-hand env (:attr:`HandSimEnv.two_hands`, e.g. ``handsim/PressTwoHands-v0``) has a right
+and a left hand (:class:`~handsim.world.scene.SceneSpec` ``hands=``): its action is the two
+hands' 27-vectors, right then left (54,), each as above; ``target_pose``, ``proprio`` and the
+state's ``target`` hold both hands in the same order.
+
 A bad action raises :class:`InvalidAction` (a :class:`~handsim.errors.HandSimError` and a
 ``ValueError``): the wrong shape, NaN/Inf values, a complex, boolean or non-numeric dtype.
 Divergence is checked at the end of every step (:class:`HandDriver`: a MuJoCo instability
@@ -80,6 +85,7 @@ from handsim.hand.pose import JOINT_LIMITS, HandPose
 from handsim.hand.pose_sources import MAX_WRIST_SPEED
 from handsim.world.camera import CameraIntrinsics, camera_preset
 from handsim.world.scene import (
+    HAND_PART_LABELS,
     OBJECT_LABEL_OFFSET,
     CameraSpec,
     ObjectPlacement,
@@ -219,6 +225,8 @@ class HandSimEnv(gym.Env, abc.ABC):
     }
     max_objects: int = 0
     """Largest number of objects an episode can have (sets the segmentation bound)."""
+    two_hands: bool = False
+    """A right and a left hand (module docstring); ``handedness`` must stay ``"right"``."""
     use_table: bool = True
 
     def __init__(self, config: EnvConfig) -> None:
@@ -248,22 +256,31 @@ class HandSimEnv(gym.Env, abc.ABC):
                 obs["depth"] = spaces.Box(0, top, shape, np.uint16)
             else:
                 obs["depth"] = spaces.Box(0.0, DEPTH_MAX_M, shape, np.float32)
+        if self.two_hands and config.handedness != "right":
+            raise InvalidEnvConfig(
+                f"handedness={config.handedness!r}: a two-hand env has both hands (right, "
+                "then left); leave handedness at 'right'"
+            )
+        n_hands = 2 if self.two_hands else 1
         if config.obs_mode == "depth+segmentation":
             top = OBJECT_LABEL_OFFSET + max(self.max_objects, 1) - 1
+            if self.two_hands:  # the left hand's labels follow the objects
+                top = OBJECT_LABEL_OFFSET + self.max_objects + len(HAND_PART_LABELS) - 1
             obs["segmentation"] = spaces.Box(0, top, shape, np.int16)
         if "state" in config.obs_mode:
-            obs["proprio"] = spaces.Box(-np.inf, np.inf, (54,), np.float64)
+            obs["proprio"] = spaces.Box(-np.inf, np.inf, (54 * n_hands,), np.float64)
         if config.obs_mode == "privileged_state" and self.max_objects > 0:
             obs["object_poses"] = spaces.Box(-np.inf, np.inf, (self.max_objects, 7), np.float64)
             obs["object_present"] = spaces.Box(0, 1, (self.max_objects,), np.int8)
         obs.update(self._task_observation_space())
         self.observation_space = spaces.Dict(obs)
         if config.control_mode == "pose":
+            lo, hi = np.tile(_POSE_LO, n_hands), np.tile(_POSE_HI, n_hands)
             self.action_space = spaces.Box(
-                _POSE_LO.astype(np.float32), _POSE_HI.astype(np.float32), (27,), np.float32
+                lo.astype(np.float32), hi.astype(np.float32), (27 * n_hands,), np.float32
             )
         else:
-            self.action_space = spaces.Box(-1.0, 1.0, (27,), np.float32)
+            self.action_space = spaces.Box(-1.0, 1.0, (27 * n_hands,), np.float32)
         self._delta_scale = self.control_dt * np.concatenate(
             [[MAX_WRIST_SPEED] * 3, [DELTA_ANGULAR_SPEED] * 3, [DELTA_JOINT_SPEED] * 21]
         )
@@ -288,6 +305,15 @@ class HandSimEnv(gym.Env, abc.ABC):
         """The current 27-DoF target the hand is driven toward (world frame)."""
         return self.driver.target
 
+    @property
+    def sides(self) -> tuple[str, ...]:
+        """The hands' sides in action order (``("right", "left")`` in a two-hand env)."""
+        return tuple(b.hand.params.side for b in self.scene.bindings)
+
+    def _targets_vector(self) -> np.ndarray:
+        """Every hand's 27-vector target, in action order."""
+        return np.concatenate([self.driver.target_of(s).vector for s in self.sides])
+
     # Hooks of the tasks --------------------------------------------------------------------
 
     def _episode_objects(self, rng: np.random.Generator) -> tuple[ObjectPlacement, ...]:
@@ -297,6 +323,10 @@ class HandSimEnv(gym.Env, abc.ABC):
     @abc.abstractmethod
     def _reset_task(self, rng: np.random.Generator) -> HandPose:
         """Draw the task (goal, target) for the new scene; return the hand's start pose."""
+
+    def _other_hand_start(self, rng: np.random.Generator) -> HandPose:
+        """A two-hand env's left hand start pose (called after :meth:`_reset_task`)."""
+        raise NotImplementedError("a two-hand env defines its left hand's start pose")
 
     def _begin_task(self) -> None:
         """Start the task's bookkeeping once the scene has settled (before the first frame)."""
@@ -373,8 +403,12 @@ class HandSimEnv(gym.Env, abc.ABC):
         key = (length, side, tuple(p.name for p in placements))
         if key != self._scene_key:
             self._close_renderers()
+            hands = None
+            if self.two_hands:
+                hands = (hand_params(length, "right"), hand_params(length, "left"))
             spec = SceneSpec(
                 hand=hand_params(length, side),
+                hands=hands,
                 objects=placements,
                 cameras=(camera,),
                 table=self.use_table,
@@ -414,8 +448,13 @@ class HandSimEnv(gym.Env, abc.ABC):
             self._build_scene(rng)
             start = self._reset_task(rng)
             self.scene.binding.set_pose(self.scene.data, start)
+            other = self._other_hand_start(rng) if self.two_hands else None
+            if other is not None:
+                self.scene.bindings[1].set_pose(self.scene.data, other)
             self.driver = HandDriver(self.scene)
             self.driver.set_target(start)
+            if other is not None:
+                self.driver.set_target(other, self.sides[1])
             if not self.driver.step(int(round(SETTLE_S / self.scene.model.opt.timestep))):
                 break
         else:
@@ -432,9 +471,11 @@ class HandSimEnv(gym.Env, abc.ABC):
         return obs, self._info(terms, self._task_info())
 
     def _check_action(self, action: object) -> np.ndarray:
-        expected = (
-            "have shape (27,) ([wrist_pos 3, wrist_rotvec 3, angles 21]) and a real numeric dtype"
-        )
+        n = self.action_space.shape[0]
+        layout = "[wrist_pos 3, wrist_rotvec 3, angles 21]"
+        if n != 27:
+            layout = f"the right hand's {layout}, then the left hand's"
+        expected = f"have shape ({n},) ({layout}) and a real numeric dtype"
         try:
             array = np.asarray(action)
         except (TypeError, ValueError):
@@ -449,7 +490,7 @@ class HandSimEnv(gym.Env, abc.ABC):
                 f"the action must {expected}; received dtype {array.dtype} "
                 f"({type(action).__name__})"
             )
-        if array.shape != (27,):
+        if array.shape != (n,):
             raise InvalidAction(f"the action must {expected}; received shape {array.shape}")
         array = array.astype(np.float64)
         if not np.all(np.isfinite(array)):
@@ -458,16 +499,19 @@ class HandSimEnv(gym.Env, abc.ABC):
         return array
 
     def _apply_action(self, action: np.ndarray) -> None:
-        if self.config.control_mode == "pose":
-            vector = np.clip(action, _POSE_LO, _POSE_HI)
-        else:
-            step = np.clip(action, -1.0, 1.0) * self._delta_scale
-            current = self.target.vector
-            rot = Rotation.from_rotvec(step[3:6]) * Rotation.from_rotvec(current[3:6])
-            vector = current + step
-            vector[3:6] = rot.as_rotvec()
-            vector = np.clip(vector, _POSE_LO, _POSE_HI)
-        self.driver.set_target(HandPose.from_vector(vector))
+        sides = self.sides if self.two_hands else (None,)
+        for k, side in enumerate(sides):
+            part = action[27 * k : 27 * (k + 1)]
+            if self.config.control_mode == "pose":
+                vector = np.clip(part, _POSE_LO, _POSE_HI)
+            else:
+                step = np.clip(part, -1.0, 1.0) * self._delta_scale
+                current = (self.target if side is None else self.driver.target_of(side)).vector
+                rot = Rotation.from_rotvec(step[3:6]) * Rotation.from_rotvec(current[3:6])
+                vector = current + step
+                vector[3:6] = rot.as_rotvec()
+                vector = np.clip(vector, _POSE_LO, _POSE_HI)
+            self.driver.set_target(HandPose.from_vector(vector), side)
 
     def step(
         self, action: np.ndarray
@@ -540,10 +584,12 @@ class HandSimEnv(gym.Env, abc.ABC):
         return {k: v.copy() for k, v in obs.items()}
 
     def _proprio(self) -> np.ndarray:
-        binding, data = self.scene.binding, self.scene.data
-        root = binding.root_dof
-        velocities = np.concatenate([data.qvel[root : root + 6], data.qvel[binding.joint_dof]])
-        return np.concatenate([binding.pose(data).vector, velocities])
+        data, out = self.scene.data, []
+        for binding in self.scene.bindings:
+            root = binding.root_dof
+            velocities = np.concatenate([data.qvel[root : root + 6], data.qvel[binding.joint_dof]])
+            out += [binding.pose(data).vector, velocities]
+        return np.concatenate(out)
 
     def _object_poses(self) -> dict[str, np.ndarray]:
         poses = np.zeros((self.max_objects, 7))
@@ -562,7 +608,7 @@ class HandSimEnv(gym.Env, abc.ABC):
         self._last_task_info = task
         info: dict[str, Any] = {
             "time_s": float(self.scene.data.time),
-            "target_pose": self.target.vector.copy(),
+            "target_pose": self._targets_vector(),
             "physics_diverged": diverged,
             **{k: float(v) for k, v in terms.items()},
             **{k: _plain(v) for k, v in task.items()},
@@ -587,7 +633,7 @@ class HandSimEnv(gym.Env, abc.ABC):
             "mocap_pos": data.mocap_pos.copy(),
             "mocap_quat": data.mocap_quat.copy(),
             "qacc_warmstart": data.qacc_warmstart.copy(),
-            "target": self.target.vector.copy(),
+            "target": self._targets_vector(),
         }
 
     def set_state(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -616,7 +662,10 @@ class HandSimEnv(gym.Env, abc.ABC):
                 value = np.asarray(state[key])
             except (TypeError, ValueError):
                 value = np.asarray(None)
-            shape = () if key == "time" else (27,) if key == "target" else getattr(data, key).shape
+            if key == "target":
+                shape = (27 * len(self.scene.bindings),)
+            else:
+                shape = () if key == "time" else getattr(data, key).shape
             if value.dtype.kind not in "iuf" or not np.all(np.isfinite(value)):
                 raise InvalidEnvConfig(
                     f"state[{key!r}] must be finite real numbers; received {str(state[key])[:60]!r}"
@@ -627,14 +676,15 @@ class HandSimEnv(gym.Env, abc.ABC):
                     "only transfer within one scene"
                 )
             values[key] = value
-        target = HandPose.from_vector(values["target"])
+        targets = values["target"].reshape(-1, 27)
         for key in arrays:
             getattr(data, key)[:] = values[key]
         data.time = float(values["time"])
         mujoco.mj_forward(self.scene.model, data)
         # A fresh driver: the restored state may follow a divergence.
         self.driver = HandDriver(self.scene, forwarded=True)
-        self.driver.set_target(target)
+        for side, vector in zip(self.sides, targets, strict=True):
+            self.driver.set_target(HandPose.from_vector(vector), side)
         return self._observe()
 
     # Rendering -----------------------------------------------------------------------------

@@ -65,7 +65,9 @@ class PhysicsDiverged(HandSimError, RuntimeError):
 
 
 def divergence_speed_bounds(
-    model: mujoco.MjModel, hand_length_m: float, hand_root_body: int | None = None
+    model: mujoco.MjModel,
+    hand_length_m: float,
+    hand_root_body: int | tuple[int, ...] | None = None,
 ) -> np.ndarray:
     """Per-DoF speed bound above which a state counts as diverged.
 
@@ -79,7 +81,8 @@ def divergence_speed_bounds(
     Args:
         model: the compiled model.
         hand_length_m: the hand's length, metres.
-        hand_root_body: the body id of the hand's root, to tell its DoFs from the objects'.
+        hand_root_body: the body id of the hand's root (or of each hand's, two hands), to
+            tell their DoFs from the objects'.
 
     Returns:
         (nv,) bound per DoF: m/s for linear DoFs, rad/s for rotational ones.
@@ -93,7 +96,7 @@ def divergence_speed_bounds(
         elif model.jnt_type[j] == mujoco.mjtJoint.mjJNT_SLIDE:
             bounds[adr] = DIVERGENCE_SPEED_M_S
     if hand_root_body is not None:
-        objects = model.body_rootid[model.dof_bodyid] != hand_root_body
+        objects = ~np.isin(model.body_rootid[model.dof_bodyid], hand_root_body)
         bounds[objects] *= DIVERGENCE_OBJECT_FACTOR
     return bounds
 
@@ -105,11 +108,11 @@ def stiffen_hand_contacts(scene: Scene) -> None:
     ``HAND_CONTACT_SOLMIX`` onto every collision geom outside the hand (idempotent). MuJoCo
     mixes the two geoms' parameters by ``solmix``, so hand-object and hand-table contacts (and
     object-object and object-table ones) are stiff, and contacts between the hand's own
-    segments keep MuJoCo's defaults.
+    segments keep MuJoCo's defaults (and so do the contacts between two hands).
     """
     model = scene.model
-    root = model.body(scene.hand.root_body).id
-    other = (model.body_rootid[model.geom_bodyid] != root) & (
+    roots = [model.body(h.root_body).id for h in scene.hands]
+    other = ~np.isin(model.body_rootid[model.geom_bodyid], roots) & (
         (model.geom_contype != 0) | (model.geom_conaffinity != 0)
     )
     model.geom_solref[other] = HAND_CONTACT_SOLREF
@@ -256,8 +259,12 @@ class HandDriver:
     a huge acceleration). A diverged driver refuses to step again (:class:`PhysicsDiverged`).
     Envs and scripted-episode loops share it, so both run the same physics.
 
+    A two-hand scene's driver drives both hands (one physics for both): each has its own
+    target (:meth:`set_target` with ``side``; :attr:`target` is the first hand's,
+    :meth:`target_of` any hand's), and the wrist tracking and speed limits apply to each.
+
     Args:
-        scene: a scene with a hand.
+        scene: a scene with a hand (or two).
         forwarded: the data already holds ``mj_forward`` of its current state.
     """
 
@@ -269,19 +276,23 @@ class HandDriver:
                 "scene built for the hand, Scene(scene.spec)"
             )
         self.scene = scene
-        self.target = scene.binding.pose(scene.data)
-        self._target_quat_wxyz = self.target.quat_wxyz
+        self._bindings = scene.bindings
+        self._sides = tuple(b.hand.params.side for b in self._bindings)
+        self._targets = [b.pose(scene.data) for b in self._bindings]
+        self._target_quats_wxyz = [t.quat_wxyz for t in self._targets]
         self._warnings = self._divergence_count()
         model = scene.model
-        root = model.body(scene.hand.root_body).id
-        self._static_bounds = divergence_speed_bounds(model, scene.hand.params.hand_length, root)
+        roots = tuple(model.body(h.root_body).id for h in scene.hands)
+        self._static_bounds = divergence_speed_bounds(
+            model, min(h.params.hand_length for h in scene.hands), roots
+        )
         self._speed_bounds = self._static_bounds.copy()
         # The objects' free joints: linear DoFs and the qpos index of their height.
         free = [
             j
             for j in range(model.njnt)
             if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
-            and model.body_rootid[model.jnt_bodyid[j]] != root
+            and model.body_rootid[model.jnt_bodyid[j]] not in roots
         ]
         self._fall_dofs = np.array([model.jnt_dofadr[j] + k for j in free for k in range(3)], int)
         self._fall_z = np.repeat(np.array([model.jnt_qposadr[j] + 2 for j in free], int), 3)
@@ -290,20 +301,53 @@ class HandDriver:
         self.diverged = False
         """``True`` once a :meth:`step` diverged."""
         self._forwarded = bool(forwarded)
-        self._arrived = False  # the mocap body sits at the wrist target
+        # Per hand: the mocap body sits at the wrist target.
+        self._arrived = [False] * len(self._bindings)
 
-    def set_target(self, target: HandPose) -> None:
-        """Set the 27-DoF target (world frame); angles are clipped to the joint limits."""
+    @property
+    def target(self) -> HandPose:
+        """The (first) hand's 27-DoF target, world frame."""
+        return self._targets[0]
+
+    def _index(self, side: str | None) -> int:
+        if side is None:
+            return 0
+        if side not in self._sides:
+            raise InvalidEnvConfig(
+                f"side={side!r} is not a hand of this scene; its hands: {', '.join(self._sides)}"
+            )
+        return self._sides.index(side)
+
+    def target_of(self, side: str) -> HandPose:
+        """The 27-DoF target of the hand of ``side`` (``"right"`` or ``"left"``), world frame.
+
+        Raises:
+            InvalidEnvConfig: for a side the scene has no hand of.
+        """
+        return self._targets[self._index(side)]
+
+    def set_target(self, target: HandPose, side: str | None = None) -> None:
+        """Set a 27-DoF target (world frame); angles are clipped to the joint limits.
+
+        Args:
+            target: the pose to drive the hand toward.
+            side: which hand (``"right"`` or ``"left"``); ``None``: the (first) hand.
+
+        Raises:
+            InvalidEnvConfig: for a side the scene has no hand of.
+        """
+        i = self._index(side)
         target = target.clip()
+        old = self._targets[i]
         if not (
-            np.array_equal(target.wrist_pos, self.target.wrist_pos)
-            and np.array_equal(target.wrist_rotvec, self.target.wrist_rotvec)
+            np.array_equal(target.wrist_pos, old.wrist_pos)
+            and np.array_equal(target.wrist_rotvec, old.wrist_rotvec)
         ):
-            self._arrived = False
-        self.target = target
-        self._target_quat_wxyz = self.target.quat_wxyz
-        binding = self.scene.binding
-        self.scene.data.ctrl[binding.actuator_ids] = self.target.angles[binding.actuated]
+            self._arrived[i] = False
+        self._targets[i] = target
+        self._target_quats_wxyz[i] = target.quat_wxyz
+        binding = self._bindings[i]
+        self.scene.data.ctrl[binding.actuator_ids] = target.angles[binding.actuated]
 
     def speed_bounds(self) -> np.ndarray:
         """The (nv,) speed bounds of the current state, m/s or rad/s.
@@ -329,31 +373,36 @@ class HandDriver:
         return int(data.warning.number[_DIVERGENCE_WARNING_INDICES].sum())
 
     def _track(self, duration_s: float) -> None:
-        """Move the mocap body toward the wrist target, rate-limited over ``duration_s``."""
-        if self._arrived:
-            return
-        data, mocap = self.scene.data, self.scene.binding.mocap_id
+        """Move each mocap body toward its wrist target, rate-limited over ``duration_s``."""
+        for i in range(len(self._bindings)):
+            if not self._arrived[i]:
+                self._track_hand(i, duration_s)
+
+    def _track_hand(self, i: int, duration_s: float) -> None:
+        data, mocap = self.scene.data, self._bindings[i].mocap_id
+        target = self._targets[i]
+        target_quat = self._target_quats_wxyz[i]
         pos = data.mocap_pos[mocap]
-        offset = self.target.wrist_pos - pos
+        offset = target.wrist_pos - pos
         distance = np.linalg.norm(offset)
         reach = WRIST_TRACKING_SPEED * duration_s
         if distance > reach:
             data.mocap_pos[mocap] = pos + offset * (reach / distance)
         else:
-            data.mocap_pos[mocap] = self.target.wrist_pos
+            data.mocap_pos[mocap] = target.wrist_pos
         quat = data.mocap_quat[mocap]
         # Rotation from the current to the target orientation (the short way), as axis * angle.
         inverse, relative, rotvec = np.empty(4), np.empty(4), np.empty(3)
         mujoco.mju_negQuat(inverse, quat)
-        mujoco.mju_mulQuat(relative, self._target_quat_wxyz, inverse)
+        mujoco.mju_mulQuat(relative, target_quat, inverse)
         if relative[0] < 0:
             relative = -relative
         mujoco.mju_quat2Vel(rotvec, relative, 1.0)
         angle = np.linalg.norm(rotvec)
         turn = WRIST_TRACKING_ANGULAR_SPEED * duration_s
         if angle <= turn:
-            data.mocap_quat[mocap] = self._target_quat_wxyz
-            self._arrived = distance <= reach
+            data.mocap_quat[mocap] = target_quat
+            self._arrived[i] = distance <= reach
             return
         step, new = np.empty(4), np.empty(4)
         mujoco.mju_axisAngle2Quat(step, rotvec / angle, turn)

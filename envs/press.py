@@ -365,19 +365,11 @@ class PressEnv(HandSimEnv):
         super()._build_scene(rng)
         scene = self.scene
         if not getattr(scene, "has_press_panel", False):
-            model = scene.model
-            cam = (model.cam_pos.copy(), model.cam_quat.copy())
             add_panel(scene.mjspec)
-            scene.model = scene.mjspec.compile()
-            scene._set_clip_planes()
-            scene.model.cam_pos[:], scene.model.cam_quat[:] = cam
-            scene.data = mujoco.MjData(scene.model)
-            scene.binding = scene.hand.bind(scene.model)
-            labels = scene._label_geoms()
+            scene.recompile()
             for g in range(scene.model.ngeom):
                 if scene.model.geom(g).name.startswith("press_"):
-                    labels[g] = _PANEL_LABEL
-            scene.geom_labels = labels
+                    scene.geom_labels[g] = _PANEL_LABEL
             scene.has_press_panel = True
         model = scene.model
         self._panel_body = model.body("press_panel").id

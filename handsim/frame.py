@@ -20,9 +20,9 @@ or, when that pixel has no nearer surface (the keypoint on its silhouette's edge
 evidence of visibility. Visibility is decided on the clean render, so sensor dropouts and noise
 do not change it. A keypoint that is not visible has as occluder what the camera sees at its
 pixel when that surface is nearer than ``z - (r + tolerance)``: a hand part (its own digit
-folded in front included) -> :data:`OCCLUDER_SELF`; an object instance ``k`` -> ``k``; the table
--> :data:`OCCLUDER_SCENE`. With nothing in front (out of range, or its surface not rendered) the
-occluder is :data:`OCCLUDER_NONE`.
+folded in front included, or the person's other hand) -> :data:`OCCLUDER_SELF`; an object
+instance ``k`` -> ``k``; the table -> :data:`OCCLUDER_SCENE`. With nothing in front (out of
+range, or its surface not rendered) the occluder is :data:`OCCLUDER_NONE`.
 
 What the sensor returned: ``visible_sensor`` is ``visible`` judged on the noisy image too. A
 visible keypoint is seen by the sensor when, at a pixel that makes it visible (its own pixel,
@@ -48,11 +48,11 @@ jitter by tens of micrometres a step, then cost no render, and the counts differ
 render at most by the mask's boundary pixels whose centres the edge crossed (exact counts:
 ``silhouette_tolerance_px=0``).
 
-Hand occlusion ratio: ``1 - visible hand pixels / hand pixels with every object hidden``,
-counting the hand proper, from the wrist crease to the fingertips: the forearm's pixels (the
-palm's skin proximal of the wrist crease plane, the palm frame's ``y = 0``) are left out, so a
-hidden hand scores 1 however much of its forearm is in view. It needs one more render and is
-computed on request.
+Hand occlusion ratio: ``1 - visible hand pixels / hand pixels with every object hidden``
+(and, in a two-hand scene, the other hand), counting the hand proper, from the wrist crease
+to the fingertips: the forearm's pixels (the palm's skin proximal of the wrist crease plane,
+the palm frame's ``y = 0``) are left out, so a hidden hand scores 1 however much of its
+forearm is in view. It needs one more render and is computed on request.
 
 Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
 object instance, position in the camera frame, normal force in newtons).
@@ -428,7 +428,11 @@ class FrameRenderer:
         labels = scene.geom_labels
         self._is_hand_geom = (labels >= _PALM_LABEL) & (labels < OBJECT_LABEL_OFFSET)
         # geom id -> object instance (-1: not an object); geom id -1 (background) -> the last.
-        instance = np.where(labels >= OBJECT_LABEL_OFFSET, labels - OBJECT_LABEL_OFFSET, -1)
+        # Labels past the objects' are a second hand's (Scene module docstring): no instance.
+        self._object_end = OBJECT_LABEL_OFFSET + len(scene.objects)
+        is_object = (labels >= OBJECT_LABEL_OFFSET) & (labels < self._object_end)
+        self._other_hand_geoms = np.flatnonzero(labels >= self._object_end)
+        instance = np.where(is_object, labels - OBJECT_LABEL_OFFSET, -1)
         self._geom_instance = np.append(instance, -1).astype(np.intp)
         self._geom_labels = labels.astype(np.int16)
         # Buffers reused by every frame (no image-sized allocation per frame but the Frame's).
@@ -622,7 +626,8 @@ class FrameRenderer:
         visible_sensor = np.zeros(21, dtype=bool)
         _kernels.keypoint_visibility(
             depth_m, labels, z, row, col, in_frame, self._kp_radius + VISIBILITY_TOLERANCE_M,
-            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, _SELF_LABEL, OCCLUDER_SELF,
+            self._kp_parts, _NEIGHBOURS, OBJECT_LABEL_OFFSET, self._object_end, _SELF_LABEL,
+            OCCLUDER_SELF,
             OCCLUDER_SCENE, sensor_depth_m, SENSOR_AGREEMENT_M, visible, occluder,
             visible_sensor,
         )  # fmt: skip
@@ -666,10 +671,10 @@ class FrameRenderer:
         R: np.ndarray,  # noqa: N803
         t: np.ndarray,
     ) -> float:
-        """``1 - visible hand pixels / hand pixels with every object hidden`` (no forearm)."""
+        """``1 - visible hand pixels / hand pixels with objects and other hand hidden``."""
         groups = self.scene.model.geom_group
         saved = groups.copy()
-        for geoms in self._object_geoms:
+        for geoms in (*self._object_geoms, self._other_hand_geoms):
             groups[geoms] = _HIDDEN_GROUP
         if self._hand_only_buffers is None:
             self._hand_only_buffers = (np.empty_like(depth_m), np.empty_like(labels))

@@ -55,6 +55,12 @@ from handsim.envs.teleop.streams import (
     stream_from_motion,
     stream_from_poses,
 )
+from handsim.envs.teleop.two_hands import (
+    TwoHandTeleopLoop,
+    load_streams,
+    save_streams,
+    streams_from_expert,
+)
 
 __all__ = [
     "OperatorStream",
@@ -89,4 +95,8 @@ __all__ = [
     "read_rollout",
     "InteractionEvent",
     "EVENT_KINDS",
+    "TwoHandTeleopLoop",
+    "load_streams",
+    "save_streams",
+    "streams_from_expert",
 ]

@@ -272,6 +272,12 @@ class TeleopLoop:
             kwargs["max_episode_steps"] = int(math.ceil(limit_s / (frame_skip * PHYSICS_DT_S)))
         self.env_kwargs = kwargs
         self.env = gym.make(env_id, **self.env_kwargs)
+        if getattr(self.env.unwrapped, "two_hands", False) and type(self) is TeleopLoop:
+            self.env.close()
+            raise InvalidTeleopConfig(
+                f"{env_id} has two hands: run it with "
+                "handsim.envs.teleop.two_hands.TwoHandTeleopLoop (a stream per hand)"
+            )
         self._capture: Capture | None = None
         self._side_checked: weakref.WeakSet[OperatorStream] = weakref.WeakSet()
         self._capture_key: tuple | None = None

@@ -24,7 +24,7 @@ import numpy as np
 from handsim.envs.teleop.live import DEFAULT_HOST
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
 
-__all__ = ["packet", "packets", "send_stream", "PROTOCOLS"]
+__all__ = ["packet", "packets", "send_stream", "send_streams", "PROTOCOLS"]
 
 PROTOCOLS: tuple[str, ...] = ("udp", "websocket")
 
@@ -120,3 +120,37 @@ def send_stream(
     except OSError as err:
         raise InvalidStream(f"cannot reach ws://{host}:{port}: {err}") from None
     return sent
+
+
+def send_streams(
+    streams: list[OperatorStream] | tuple[OperatorStream, ...],
+    port: int,
+    **kwargs: object,
+) -> int:
+    """Send streams of both hands at once (each at its own pace, one thread each).
+
+    Each packet carries its stream's ``hand``, so the receiver routes it to that hand. Takes
+    the keyword arguments of :func:`send_stream`; returns the packets sent in all.
+
+    Raises:
+        InvalidStream: as :func:`send_stream` (the first error of any stream).
+    """
+    import threading
+
+    sent: list[int] = []
+    errors: list[BaseException] = []
+
+    def one(stream: OperatorStream) -> None:
+        try:
+            sent.append(send_stream(stream, port, **kwargs))  # type: ignore[arg-type]
+        except BaseException as err:  # noqa: BLE001 (re-raised in the caller's thread)
+            errors.append(err)
+
+    threads = [threading.Thread(target=one, args=(s,), daemon=True) for s in streams]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[0]
+    return sum(sent)

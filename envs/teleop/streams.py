@@ -77,6 +77,7 @@ __all__ = [
     "OperatorStream",
     "load_stream",
     "save_stream",
+    "stream_to_doc",
     "parse_stream",
     "frame_to_world",
     "stream_from_poses",
@@ -612,19 +613,30 @@ def save_stream(stream: OperatorStream, path: str | os.PathLike[str]) -> pathlib
             p, t=stream.times_s, **{key: values}, **{k: np.array(v) for k, v in head.items()}
         )
     elif p.suffix.lower() == ".json":
-        frames = [
-            {
-                "t": float(t),
-                key: [[None if not math.isfinite(x) else float(x) for x in row] for row in v]
-                if v.ndim == 2
-                else [float(x) for x in v],
-            }
-            for t, v in zip(stream.times_s, values, strict=True)
-        ]
-        p.write_text(json.dumps({**head, "frames": frames}))
+        p.write_text(json.dumps(stream_to_doc(stream)))
     else:
         raise InvalidStream(f"stream file {str(p)!r} must end in .json or .npz")
     return p
+
+
+def stream_to_doc(stream: OperatorStream) -> dict[str, Any]:
+    """The stream as the JSON object of a stream file (what :func:`save_stream` writes)."""
+    fmt = "pose27" if stream.poses is not None else "handsim21"
+    head: dict[str, Any] = {"format": fmt, "units": "m", "up_axis": "z", "hand": stream.side}
+    if stream.hand_length_m is not None:
+        head["hand_length_m"] = float(stream.hand_length_m)
+    values = stream.poses if stream.poses is not None else stream.keypoints_world
+    key = "pose" if fmt == "pose27" else "keypoints"
+    frames = [
+        {
+            "t": float(t),
+            key: [[None if not math.isfinite(x) else float(x) for x in row] for row in v]
+            if v.ndim == 2
+            else [float(x) for x in v],
+        }
+        for t, v in zip(stream.times_s, values, strict=True)
+    ]
+    return {**head, "frames": frames}
 
 
 # Generated streams ----------------------------------------------------------------------------

@@ -118,11 +118,20 @@ def render_rollout(
                 truth = _project(K, T, arrays["operator_world"][t])
                 estimate = _project(K, T, arrays["tracked_world"][t])
                 top = "direct (no capture)"
+            pairs = [(truth, estimate)]
+            if not camera_mode and "operator_world_left" in arrays:  # a two-hand rollout
+                pairs.append(
+                    (
+                        _project(K, T, arrays["operator_world_left"][t]),
+                        _project(K, T, arrays["tracked_world_left"][t]),
+                    )
+                )
             # Black borders (the estimate's under the truth) keep both visible on the colour map.
             border = viz.OUTLINE_BGR
-            left = viz.draw_skeleton(left, estimate, colour=border, thickness=3, radius=4)
-            left = viz.draw_skeleton(left, truth, colour=viz.TRUTH_BGR, outline=border)
-            left = viz.draw_skeleton(left, estimate, colour=viz.ESTIMATE_BGR)
+            for truth, estimate in pairs:
+                left = viz.draw_skeleton(left, estimate, colour=border, thickness=3, radius=4)
+                left = viz.draw_skeleton(left, truth, colour=viz.TRUTH_BGR, outline=border)
+                left = viz.draw_skeleton(left, estimate, colour=viz.ESTIMATE_BGR)
             left = cv2.resize(left, _PANEL, interpolation=cv2.INTER_NEAREST)
             text = [top, "green: operator", "magenta: tracked"]
             for i, line in enumerate(text):

@@ -43,7 +43,7 @@ import warnings
 from typing import Any
 
 from handsim.envs.teleop.live import LOCAL_HOSTS
-from handsim.envs.teleop.streams import InvalidStream, load_stream
+from handsim.envs.teleop.streams import InvalidStream
 
 __all__ = ["make_server", "serve", "page_html", "static_files"]
 
@@ -76,19 +76,30 @@ def static_files() -> dict[str, bytes]:
 
 
 def _replay_doc(path: pathlib.Path) -> dict[str, Any]:
-    stream = load_stream(path)
+    # A two-hand file (handsim.envs.teleop.two_hands) also lists both hands under "hands";
+    # the page sends each hand's frame as its own packet.
+    from handsim.envs.teleop.two_hands import load_streams
+
+    streams = load_streams(path)
+    stream = streams[0]
     dt = float(stream.times_s[1] - stream.times_s[0]) if len(stream) > 1 else 1 / 50
-    frames = [
-        {
-            "t": float(t),
-            "keypoints": [
-                None if not all(map(math.isfinite, p)) else [round(float(v), 6) for v in p]
-                for p in kp
-            ],
-        }
-        for t, kp in zip(stream.times_s - stream.times_s[0], stream.keypoints_world, strict=True)
-    ]
-    return {"fps": 1.0 / dt, "hand": stream.side, "frames": frames}
+
+    def frames(s: Any) -> list[dict[str, Any]]:
+        return [
+            {
+                "t": float(t),
+                "keypoints": [
+                    None if not all(map(math.isfinite, p)) else [round(float(v), 6) for v in p]
+                    for p in kp
+                ],
+            }
+            for t, kp in zip(s.times_s - s.times_s[0], s.keypoints_world, strict=True)
+        ]
+
+    doc = {"fps": 1.0 / dt, "hand": stream.side, "frames": frames(stream)}
+    if len(streams) > 1:
+        doc["hands"] = [{"hand": s.side, "frames": frames(s)} for s in streams]
+    return doc
 
 
 def make_server(

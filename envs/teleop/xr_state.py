@@ -14,7 +14,12 @@ A page (``handsim teleop serve``) that sends ``{"type": "subscribe"}`` on its We
         "poses": [x, y, z, qw, qx, qy, qz, ...],   # per body of "bodies", MuJoCo world, m
         "tracked": [[x, y, z] | null] * 21,        # what the loop tracks (after faults and
                                                    #   filter), world frame, m: the ghost
-        "offset_m": [dx, dy, dz]}                  # world = tracked frame + offset (anchor)
+        "offset_m": [dx, dy, dz],                  # world = tracked frame + offset (anchor)
+        "tracked_hands": {"left": [...] * 21}}     # two hands only: the other hand's ghost
+
+With two hands (:class:`~handsim.envs.teleop.two_hands.TwoHandTeleopLoop`) ``tracked`` is the
+first hand's (the right) and ``tracked_hands`` holds the others by side; the glb and ``poses``
+hold both physical hands (every body).
 
 ``seq`` is the sequence number of the packet the step used; ``offset_m`` is the translation the
 loop's anchor added to the stream (zero without one), so a headset page places the world at
@@ -141,6 +146,11 @@ class StatePublisher:
             "tracked": _rows(tracked),
             "offset_m": np.round(offset, 5).tolist(),
         }
+        hands = record.get("hands") or {}
+        if len(hands) > 1:  # the first hand is "tracked"; the page draws a ghost per hand
+            doc["tracked_hands"] = {
+                side: _rows(h.get("tracked_world")) for side, h in list(hands.items())[1:]
+            }
         message = json.dumps(doc, separators=(",", ":"))
         with self._cond:
             self._state, self._state_id = message, self._state_id + 1

@@ -35,7 +35,11 @@ from handsim.cli._args import (
 
 __all__ = ["add_parser", "TASKS"]
 
-TASKS: dict[str, str] = {"grasp": "handsim/Grasp-v0", "press": "handsim/Press-v0"}
+TASKS: dict[str, str] = {
+    "grasp": "handsim/Grasp-v0",
+    "press": "handsim/Press-v0",
+    "press2": "handsim/PressTwoHands-v0",
+}
 """Short task names of ``--task`` (a full registered id also works)."""
 _MODES = ("direct", "camera")
 _FILTERS = ("none", "one_euro", "ema")
@@ -43,6 +47,7 @@ _ANCHORS = ("none", "start")
 _SENSORS = ("none", "structured_light", "tof")
 _DROPOUT_MODES = ("hold", "extrapolate")
 _HANDS = ("right", "left")
+_LIVE_HANDS = (*_HANDS, "both")
 _DEFAULT_LIVE_RATE_HZ = 90.0  # a headset's rate, when the stream cannot be measured
 
 
@@ -64,11 +69,11 @@ def _task(text: str) -> str:
         return TASKS[text]
     import handsim.envs
 
-    if text in handsim.envs.ENV_IDS:
+    ids = (*handsim.envs.ENV_IDS, *handsim.envs.TWO_HAND_ENV_IDS)
+    if text in ids:
         return text
     raise argparse.ArgumentTypeError(
-        f"unknown task {text!r}; one of {', '.join(TASKS)} or a registered id "
-        f"({', '.join(handsim.envs.ENV_IDS)})"
+        f"unknown task {text!r}; one of {', '.join(TASKS)} or a registered id ({', '.join(ids)})"
     )
 
 
@@ -102,7 +107,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "--task",
         type=_task,
         default="handsim/Grasp-v0",
-        help="the task: grasp, press or a registered id (default: grasp)",
+        help="the task: grasp, press, press2 (two hands) or a registered id (default: grasp)",
     )
     p.add_argument(
         "--mode",
@@ -300,6 +305,9 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
     print(f"  {'stage_ms':22s} {stages}")
     events = ", ".join(f"{k} {v}" for k, v in metrics.get("events", {}).items() if v)
     print(f"  {'events':22s} {events or 'none'}")
+    from handsim.cli.teleop_two import print_hands
+
+    print_hands(metrics)
 
 
 def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, Any]) -> int:
@@ -319,11 +327,17 @@ def _finish(args: argparse.Namespace, loop: Any, episode: Any, extra: dict[str, 
 
 
 def _replay(args: argparse.Namespace) -> int:
-    from handsim.envs.teleop import TeleopLoop, load_stream
+    from handsim.cli.teleop_two import replay_streams, replay_two
+    from handsim.envs.teleop import TeleopLoop
     from handsim.envs.teleop.loop import MAX_CONTROL_RATE_HZ
 
-    stream = load_stream(args.file)
+    streams = replay_streams(args.task, args.file)
     config = _config(args, record=bool(args.rollout))
+    if len(streams) > 1:
+        loop, episode = replay_two(args, streams, config)
+        with loop:
+            return _finish(args, loop, episode, {"stream": [str(f) for f in args.file]})
+    stream = streams[0]
     env_kwargs = {"handedness": stream.side}
     rate = args.rate_hz or min(stream.rate_hz(), MAX_CONTROL_RATE_HZ)
     with TeleopLoop(
@@ -334,7 +348,7 @@ def _replay(args: argparse.Namespace) -> int:
         control_rate_hz=rate,
     ) as loop:
         episode = loop.run(stream, args.seed, max_steps=args.max_steps)
-        return _finish(args, loop, episode, {"stream": str(args.file)})
+        return _finish(args, loop, episode, {"stream": str(args.file[0])})
 
 
 def _measured_rate_hz(receiver: Any, side: str, timeout_s: float = 1.0) -> float | None:
@@ -356,9 +370,13 @@ def _measured_rate_hz(receiver: Any, side: str, timeout_s: float = 1.0) -> float
 
 
 def _live(args: argparse.Namespace) -> int:
-    from handsim.envs.teleop import TeleopLoop, UdpReceiver, WebSocketReceiver
+    from handsim.cli.teleop_two import check_two_hands
+    from handsim.envs.teleop import TeleopLoop, TwoHandTeleopLoop, UdpReceiver, WebSocketReceiver
     from handsim.envs.teleop.loop import MAX_CONTROL_RATE_HZ, BehindRealTime
     from handsim.envs.teleop.sampling import LiveSampler
+
+    two = args.hand == "both"
+    check_two_hands(args.task, two, f"--hand {args.hand}")
 
     if args.udp is not None:
         receiver = UdpReceiver(args.udp, host=args.host)
@@ -385,7 +403,8 @@ def _live(args: argparse.Namespace) -> int:
             )
             return 1
         other = "left" if args.hand == "right" else "right"
-        if args.wait > 0 and not receiver.history[args.hand] and receiver.history[other]:
+        mine, theirs = receiver.history.get(args.hand), receiver.history[other]
+        if args.wait > 0 and not two and theirs and not mine:
             print(
                 f"handsim: warning: the packets so far are of the {other} hand and --hand is "
                 f"{args.hand}: they are ignored (use --hand {other})",
@@ -393,16 +412,18 @@ def _live(args: argparse.Namespace) -> int:
             )
         rate = args.rate_hz
         if rate is None:
-            measured = _measured_rate_hz(receiver, args.hand) if args.wait > 0 else None
+            # Both hands: the rate of the side that is streaming (the right if both are).
+            side = args.hand if not two else ("right" if receiver.history["right"] else "left")
+            measured = _measured_rate_hz(receiver, side) if args.wait > 0 else None
             rate = min(measured or _DEFAULT_LIVE_RATE_HZ, MAX_CONTROL_RATE_HZ)
             how = f"measured {measured:.1f} Hz" if measured else "no stream to measure"
         else:
             how = "--rate-hz"
-        with TeleopLoop(
+        with (TwoHandTeleopLoop if two else TeleopLoop)(
             args.task,
             config,
             estimator=_estimator(args),
-            env_kwargs={"handedness": args.hand},
+            env_kwargs={} if two else {"handedness": args.hand},
             control_rate_hz=min(rate, MAX_CONTROL_RATE_HZ),
             episode_s=args.duration,
         ) as loop:
@@ -416,9 +437,10 @@ def _live(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             predict = args.predict_ms if args.predict_ms == "auto" else args.predict_ms / 1e3
-            sampler = LiveSampler(
-                receiver, args.hand, delay_s=args.delay_ms / 1e3, predict_s=predict
-            )
+            samplers = [
+                LiveSampler(receiver, side, delay_s=args.delay_ms / 1e3, predict_s=predict)
+                for side in (_HANDS if two else (args.hand,))
+            ]
 
             def show(message: Any, *_: Any, **__: Any) -> None:
                 print(f"handsim: warning: {message}", file=sys.stderr)
@@ -434,7 +456,7 @@ def _live(args: argparse.Namespace) -> int:
                 warnings.simplefilter("always", BehindRealTime)
                 warnings.showwarning = show
                 episode = loop.run(
-                    sampler,
+                    samplers if two else samplers[0],
                     args.seed,
                     max_steps=steps,
                     realtime=True,
@@ -445,7 +467,7 @@ def _live(args: argparse.Namespace) -> int:
             accepted = max(packets["accepted"], 1)
             extra: dict[str, Any] = {
                 "packets": packets,
-                "packets_used_fraction": sampler.packets_used / accepted,
+                "packets_used_fraction": sum(s.packets_used for s in samplers) / accepted,
             }
             if publisher is not None:
                 extra["state_stream"] = dict(publisher.counters)
@@ -499,8 +521,11 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _generate(args: argparse.Namespace) -> int:
+    from handsim.cli.teleop_two import generate_two, two_hand_task
     from handsim.envs.teleop import save_stream, stream_from_expert
 
+    if two_hand_task(args.task):
+        return generate_two(args)
     stream = stream_from_expert(args.task, args.seed)
     path = save_stream(stream, args.out)
     print(f"{path}: {len(stream)} frames, {stream.duration_s:.2f} s, {stream.source}")
@@ -508,12 +533,13 @@ def _generate(args: argparse.Namespace) -> int:
 
 
 def _send(args: argparse.Namespace) -> int:
-    from handsim.envs.teleop import load_stream
-    from handsim.envs.teleop.sender import send_stream
+    from handsim.envs.teleop.sender import send_streams
+    from handsim.envs.teleop.two_hands import load_streams
 
-    stream = load_stream(args.file)
+    streams = load_streams(args.file)
     protocol, port = ("udp", args.udp) if args.udp is not None else ("websocket", args.websocket)
-    n = send_stream(stream, port, protocol=protocol, host=args.host, speed=args.speed)
+    # Both hands of a two-hand file at once, each packet with its hand.
+    n = send_streams(streams, port, protocol=protocol, host=args.host, speed=args.speed)
     print(f"sent {n} packets to {protocol}://{args.host}:{port}")
     return 0
 
@@ -564,7 +590,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "world landmarks, or 27-DoF poses) through the teleop "
         "loop and print the metrics.",
     )
-    p.add_argument("file", type=Path, help="stream file (.json or .npz; see docs/teleop.md)")
+    p.add_argument(
+        "file",
+        type=Path,
+        nargs="+",
+        help="stream file (.json or .npz; see docs/teleop.md); two hands: a two-hand file, or "
+        "two files (one per hand), with a two-hand --task (press2)",
+    )
     _add_loop_options(p)
     p.add_argument(
         "--anchor",
@@ -617,10 +649,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--hand",
-        choices=_HANDS,
+        choices=_LIVE_HANDS,
         default="right",
         help=choice_help(
-            "the hand to drive (packets of the other hand are ignored)", _HANDS, "right"
+            "the hand to drive (packets of the other hand are ignored); both: each "
+            "packet drives its 'hand' (a two-hand --task: press2)",
+            _LIVE_HANDS,
+            "right",
         ),
     )
     p.add_argument(
@@ -711,7 +746,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--task",
         type=_task,
         default="handsim/Grasp-v0",
-        help="grasp, press or a registered id (default: grasp)",
+        help="grasp, press, press2 (two hands: a two-hand .json) or a registered id "
+        "(default: grasp)",
     )
     p.add_argument("--seed", type=seed, default=0, help="episode seed (default: 0)")
     add_quiet(p, "accepted by every command; generate shows no progress bars")

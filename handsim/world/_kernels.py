@@ -272,6 +272,7 @@ def keypoint_visibility(
     parts: np.ndarray,
     neighbours: np.ndarray,
     object_offset: int,
+    object_end: int,
     palm: int,
     occluder_self: int,
     occluder_scene: int,
@@ -302,6 +303,8 @@ def keypoint_visibility(
         parts: (21, P) int16 labels each keypoint's surface may carry.
         neighbours: (9, 2) int (row, column) offsets, the pixel itself first.
         object_offset: label of object instance 0.
+        object_end: the label after the last object's: the labels from it on are the person's
+            other hand (a two-hand scene), a blocker among them is self-occlusion.
         palm: the lowest label of the person (the arm; the labels ``palm ..
             object_offset - 1`` are theirs): a blocker among them is self-occlusion.
         occluder_self: occluder code of the hand itself.
@@ -351,7 +354,9 @@ def keypoint_visibility(
             visible_sensor[k] = vis and neighbour_sensed
         visible[k] = vis
         if centre_blocked and not vis:
-            if centre_label >= object_offset:
+            if centre_label >= object_end:
+                occluder[k] = occluder_self
+            elif centre_label >= object_offset:
                 occluder[k] = centre_label - object_offset
             elif centre_label >= palm:
                 occluder[k] = occluder_self

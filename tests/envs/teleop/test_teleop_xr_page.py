@@ -455,3 +455,111 @@ def test_the_two_commands_show_the_scene_in_headless_chromium(tmp_path):
     hand = np.abs(full.astype(int) - shots["hand"].astype(int)).sum(axis=2) > 30
     objects = np.abs(full.astype(int) - shots["objects"].astype(int)).sum(axis=2) > 30
     assert hand.sum() > 0.01 * hand.size and objects.sum() > 0.001 * objects.size
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="needs Debian's chromium (apt-get install chromium)")
+@pytest.mark.parametrize("source", ["headset", "replay"])
+def test_two_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path, source):
+    """Both hands from the page: each as its own packet; the page draws two ghosts.
+
+    `headset`: the emulated headset with two hands and `?hand=both`; `replay`: no headset, the
+    page replays a two-hand recording (`serve --replay`). The two-hand loop routes the packets
+    by their `hand`; the state carries the left hand's ghost (`tracked_hands`), drawn over the
+    physical left hand, in the ghost's cyan.
+    """
+    from handsim.envs.teleop import TwoHandTeleopLoop, save_streams, streams_from_expert
+    from handsim.envs.teleop.sampling import LiveSampler
+
+    replay = None
+    query = "?xrtest=1&xrhands=both&hand=both&enter=immersive-vr"
+    mode = "immersive-vr"
+    if source == "replay":
+        streams = streams_from_expert("handsim/PressTwoHands-v0", 0)
+        replay = save_streams(streams, tmp_path / "two.json")
+        query, mode = "", "browser"
+
+    stop = threading.Event()
+    with (
+        WebSocketReceiver(0) as rx,
+        TwoHandTeleopLoop("handsim/PressTwoHands-v0", TeleopConfig(anchor="start")) as loop,
+        StatePublisher(rx, loop.env) as publisher,
+    ):
+        loop.env.reset(seed=0)
+        samplers = {side: LiveSampler(rx, side) for side in ("right", "left")}
+
+        def follow(side):
+            def stream(i):
+                if stop.is_set():
+                    raise _Stop
+                return samplers[side](i)
+
+            return stream
+
+        def run():
+            with contextlib.suppress(_Stop):
+                while True:
+                    loop.run(
+                        {side: follow(side) for side in samplers},
+                        0,
+                        realtime=True,
+                        stop_at_success=False,
+                        on_step=publisher.on_step,
+                    )
+
+        runner = threading.Thread(target=run, daemon=True)
+        runner.start()
+        server = make_server(0, rx.port, replay=replay)
+        threading.Thread(target=server.serve_forever, daemon=True).start()
+        url = f"http://127.0.0.1:{server.server_address[1]}/{query}"
+        profile = tmp_path / "profile"
+        browser = subprocess.Popen(
+            [CHROMIUM, "--headless=new", "--no-sandbox", "--no-first-run",
+             "--disable-dev-shm-usage", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
+             "--window-size=800,600", "--remote-debugging-port=0",
+             f"--user-data-dir={profile}", url],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+        try:
+            port_file = pathlib.Path(profile / "DevToolsActivePort")
+            end = time.monotonic() + 60
+            while not port_file.exists() or not port_file.read_text().strip():
+                assert time.monotonic() < end, "Chromium wrote no DevToolsActivePort"
+                time.sleep(0.1)
+            with _DevTools(int(port_file.read_text().split()[0])) as devtools:
+                ready = (
+                    f"window.handsim && handsim.mode === '{mode}' && "
+                    "handsim.statesApplied > 25 && handsim.where().leftGhostWrist !== undefined"
+                )
+                ok = devtools.wait(ready, 120)
+                page = json.loads(devtools.eval(_PAGE_STATE))
+                assert ok, page
+                sides = {side: len(rx.history[side]) for side in ("right", "left")}
+                devtools.eval("handsim.hold = true")
+                full = devtools.screenshot()
+                shots = {}
+                for part in ("ghost:left", "ghost"):
+                    devtools.eval(f"handsim.setVisible('{part}', false)")
+                    shots[part] = devtools.screenshot()
+                    devtools.eval(f"handsim.setVisible('{part}', true)")
+                (tmp_path / "page.png").write_bytes(cv2.imencode(".png", full[:, :, ::-1])[1])
+        finally:
+            stop.set()
+            browser.terminate()
+            browser.wait(timeout=30)
+            server.shutdown()
+            server.server_close()
+            runner.join(timeout=10)
+    assert page["errors"] == [] and rx.counters["malformed"] == 0
+    assert sides["right"] > 0 and sides["left"] > 0, sides  # each hand's own packets
+    where = page["where"]
+    # Each physical hand lies under its own ghost (one anchor for both hands).
+    assert np.linalg.norm(np.subtract(where["palm"], where["ghostWrist"])) < 0.06, where
+    assert np.linalg.norm(np.subtract(where["leftPalm"], where["leftGhostWrist"])) < 0.06, where
+    assert where["leftGhostWrist"][0] < where["ghostWrist"][0] - 0.1, where
+    h, w = full.shape[:2]
+    left = np.abs(full.astype(int) - shots["ghost:left"].astype(int)).sum(axis=2) > 30
+    both = np.abs(full.astype(int) - shots["ghost"].astype(int)).sum(axis=2) > 30
+    assert left.sum() > 0.001 * h * w and both.sum() > left.sum() * 1.5, (left.sum(), both.sum())
+    r, g, b = full[left].mean(axis=0)
+    assert g > r and b > r, (r, g, b)

@@ -139,7 +139,8 @@ def test_errors_are_one_line(argv, message, capsys):
         (["teleop", "replay", "x.json", "--rate-hz", "0"], "--rate-hz: expected a number"),
         (["teleop", "live", "--udp", "9000", "--predict-ms", "500"], "--predict-ms"),
         (["teleop", "live", "--udp", "9000", "--predict-ms", "soon"], "or auto"),
-        (["teleop", "live", "--udp", "9000", "--hand", "both"], "invalid choice: 'both'"),
+        # 'both' is valid since two hands (live --hand both); any other side is not.
+        (["teleop", "live", "--udp", "9000", "--hand", "middle"], "invalid choice: 'middle'"),
     ],
 )
 def test_bad_options_are_usage_errors(argv, message, capsys):

@@ -1,9 +1,10 @@
 // handsim teleop page: streams the tracked hand to the teleop loop and draws the simulation.
 //
 // - In a headset (Enter VR / Enter AR): every XR frame, the WebXR Hand Input joints of the
-//   chosen hand (?hand=right, default) go to the loop as a 'webxr25' packet; the scene that the
-//   loop streams back (glb, then body poses per control step) is drawn where the operator's hand
-//   is, the physical hand over the real one, the tracked hand as a cyan ghost.
+//   chosen hand (?hand=right, default; ?hand=both: each hand, as its own packet) go to the loop
+//   as a 'webxr25' packet; the scene that the loop streams back (glb, then body poses per
+//   control step) is drawn where the operator's hand is, the physical hand(s) over the real
+//   one(s), each tracked hand as a cyan ghost.
 // - In a browser without a headset: the same scene with an orbit camera (drag to turn, wheel to
 //   zoom); the recording given to 'serve --replay' is replayed into the loop.
 // - ?xrtest=1 loads xr_emulation.js (an emulated headset with a scripted hand) for tests.
@@ -77,24 +78,50 @@ window.addEventListener("resize", () => {
   renderer.setSize(window.innerWidth, window.innerHeight);
 });
 
-// The ghost: the tracked keypoints (after the loop's faults and filter), drawn over everything.
-const ghost = new THREE.Group();
+// The ghosts: the tracked keypoints (after the loop's faults and filter), drawn over everything;
+// one per hand the state carries ("tracked": the first hand; "tracked_hands": by side).
 const ghostMaterial = new THREE.MeshBasicMaterial({
   color: GHOST_COLOR, transparent: true, opacity: 0.7, depthTest: false });
-const ghostJoints = Array.from({ length: 21 }, () => {
-  const m = new THREE.Mesh(new THREE.SphereGeometry(0.006, 12, 8), ghostMaterial);
-  m.renderOrder = 10;
-  ghost.add(m);
-  return m;
-});
-const boneGeometry = new THREE.BufferGeometry();
-boneGeometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(BONES.length * 6), 3));
-const ghostBones = new THREE.LineSegments(boneGeometry, new THREE.LineBasicMaterial({
-  color: GHOST_COLOR, transparent: true, opacity: 0.7, depthTest: false }));
-ghostBones.renderOrder = 10;
-ghost.add(ghostBones);
-ghost.visible = false;
-world.add(ghost);
+function makeGhost() {
+  const group = new THREE.Group();
+  const joints = Array.from({ length: 21 }, () => {
+    const m = new THREE.Mesh(new THREE.SphereGeometry(0.006, 12, 8), ghostMaterial);
+    m.renderOrder = 10;
+    group.add(m);
+    return m;
+  });
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(BONES.length * 6), 3));
+  const bones = new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({
+    color: GHOST_COLOR, transparent: true, opacity: 0.7, depthTest: false }));
+  bones.renderOrder = 10;
+  group.add(bones);
+  group.visible = false;
+  world.add(group);
+  return { group, joints, geometry, show: true };
+}
+const ghosts = { first: makeGhost() };  // "first": doc.tracked; a side: doc.tracked_hands[side]
+
+// Draw one ghost between the tracked keypoints of two states (null rows are untracked).
+function drawGhost(g, rowsA, rowsB, alpha) {
+  const tracked = rowsB.map((q, j) => {
+    const r = rowsA ? rowsA[j] : null;
+    return q && r ? q.map((v, c) => r[c] + alpha * (v - r[c])) : q;
+  });
+  const lines = g.geometry.attributes.position;
+  tracked.forEach((q, j) => {
+    g.joints[j].visible = q !== null;
+    if (q) g.joints[j].position.set(q[0], q[1], q[2]);
+  });
+  BONES.forEach(([i, j], k) => {
+    const qi = tracked[i] || tracked[j] || [0, 0, 0];
+    const qj = tracked[j] || qi;
+    lines.setXYZ(2 * k, qi[0], qi[1], qi[2]);
+    lines.setXYZ(2 * k + 1, qj[0], qj[1], qj[2]);
+  });
+  lines.needsUpdate = true;
+  g.group.visible = tracked.some((q) => q !== null) && state.showGhost !== false && g.show;
+}
 
 // -- the scene and state from the loop ----------------------------------------------------
 const loader = new GLTFLoader();
@@ -192,23 +219,12 @@ function applyState(a, b, alpha) {
     qb.set(p[k + 4], p[k + 5], p[k + 6], p[k + 3]);
     node.quaternion.slerpQuaternions(qa, qb, alpha);
   });
-  const tracked = doc.tracked.map((q, j) => {
-    const r = a.tracked[j];
-    return q && r ? q.map((v, c) => r[c] + alpha * (v - r[c])) : q;
-  });
-  const lines = boneGeometry.attributes.position;
-  tracked.forEach((q, j) => {
-    ghostJoints[j].visible = q !== null;
-    if (q) ghostJoints[j].position.set(q[0], q[1], q[2]);
-  });
-  BONES.forEach(([i, j], k) => {
-    const qi = tracked[i] || tracked[j] || [0, 0, 0];
-    const qj = tracked[j] || qi;
-    lines.setXYZ(2 * k, qi[0], qi[1], qi[2]);
-    lines.setXYZ(2 * k + 1, qj[0], qj[1], qj[2]);
-  });
-  lines.needsUpdate = true;
-  ghost.visible = tracked.some((q) => q !== null) && state.showGhost !== false;
+  drawGhost(ghosts.first, a.tracked, doc.tracked, alpha);
+  // Two hands: the hands after the first (the state names them by side).
+  for (const [side, rows] of Object.entries(doc.tracked_hands || {})) {
+    if (!ghosts[side]) ghosts[side] = makeGhost();
+    drawGhost(ghosts[side], (a.tracked_hands || {})[side], rows, alpha);
+  }
   if (renderer.xr.isPresenting) {
     // xr = R_y_up (world - offset): the anchor the loop added is taken off again.
     const o = doc.offset_m;
@@ -224,15 +240,32 @@ state.where = () => {
   if (current) {
     const i = current.names.findIndex((n) => /^[rl]h_palm$/.test(n));
     if (i >= 0) out.palm = current.nodes[i].getWorldPosition(new THREE.Vector3()).toArray();
+    const left = current.names.indexOf("lh_palm");
+    if (left >= 0 && left !== i) {
+      out.leftPalm = current.nodes[left].getWorldPosition(new THREE.Vector3()).toArray();
+    }
   }
-  out.ghostWrist = ghostJoints[0].getWorldPosition(new THREE.Vector3()).toArray();
+  out.ghostWrist = ghosts.first.joints[0].getWorldPosition(new THREE.Vector3()).toArray();
+  if (ghosts.left) {
+    out.leftGhostWrist = ghosts.left.joints[0].getWorldPosition(new THREE.Vector3()).toArray();
+  }
   out.placement = placement.position.toArray();
   return out;
 };
 
-// Tests hide parts to see which pixels they cover: "hand", "objects", "table", "ghost".
+// Tests hide parts to see which pixels they cover: "hand", "objects", "table", "ghost" (every
+// ghost), "ghost:<side>" (one hand's ghost of a two-hand state).
 state.setVisible = (part, visible) => {
-  if (part === "ghost") { state.showGhost = visible; ghost.visible = visible; return; }
+  if (part === "ghost") {
+    state.showGhost = visible;
+    Object.values(ghosts).forEach((g) => { g.group.visible = visible; });
+    return;
+  }
+  if (part.startsWith("ghost:")) {
+    const g = ghosts[part.slice(6)];
+    if (g) { g.show = visible; g.group.visible = visible; }
+    return;
+  }
   if (!current) return;
   current.nodes.forEach((node, i) => {
     if (node && bodyGroup(current.names[i]) === part) node.visible = visible;
@@ -294,12 +327,19 @@ async function replay() {
   const rec = await (await fetch("replay.json")).json();
   const dt = 1000 / rec.fps;
   const t0 = performance.now();
-  for (let i = 0; i < rec.frames.length; i++) {
+  // A two-hand recording lists both hands: each frame of each hand is its own packet.
+  const tracks = rec.hands || [{ hand: rec.hand, frames: rec.frames }];
+  const total = tracks.reduce((n, track) => n + track.frames.length, 0);
+  const steps = Math.max(...tracks.map((track) => track.frames.length));
+  for (let i = 0; i < steps; i++) {
     const wait = t0 + i * dt - performance.now();
     if (wait > 0) await new Promise((r) => setTimeout(r, wait));
-    send({ t: rec.frames[i].t, format: "handsim21", up_axis: "z", hand: rec.hand,
-           keypoints: rec.frames[i].keypoints });
-    status(`replay: sent ${state.sent} of ${rec.frames.length} frames`);
+    for (const track of tracks) {
+      if (i >= track.frames.length) continue;
+      send({ t: track.frames[i].t, format: "handsim21", up_axis: "z", hand: track.hand,
+             keypoints: track.frames[i].keypoints });
+    }
+    status(`replay: sent ${state.sent} of ${total} frames`);
   }
   state.done = true;
   document.title = `handsim teleop: replay done, ${state.sent} sent`;
@@ -311,7 +351,7 @@ const wanted = params.get("hand") || "right";
 function streamHand(time, frame) {
   const space = renderer.xr.getReferenceSpace();
   for (const source of frame.session.inputSources) {
-    if (!source.hand || source.handedness !== wanted) continue;
+    if (!source.hand || (wanted !== "both" && source.handedness !== wanted)) continue;
     const keypoints = [], radii = [];
     for (const name of JOINTS) {
       const pose = frame.getJointPose(source.hand.get(name), space);
@@ -321,7 +361,8 @@ function streamHand(time, frame) {
         radii.push(pose.radius);
       } else { keypoints.push(null); radii.push(null); }
     }
-    if (send({ t: time / 1000, format: "webxr25", up_axis: "y", hand: wanted, keypoints, radii })) {
+    const hand = source.handedness;  // each hand its own packet, routed by its 'hand'
+    if (send({ t: time / 1000, format: "webxr25", up_axis: "y", hand, keypoints, radii })) {
       status(`${state.mode}: sent ${state.sent} frames, ${state.statesReceived} states back`);
     }
   }

@@ -1,11 +1,12 @@
-// handsim test hook: an emulated WebXR device with one scripted right hand.
+// handsim test hook: an emulated WebXR device with one scripted right hand (or two hands).
 //
 // Loaded by the teleop page only when its URL has ?xrtest=1, before three.js builds its
 // renderer. It replaces navigator.xr with a device that supports 'immersive-vr' and
 // 'immersive-ar', whose sessions render into the page's own canvas (one view, the default
 // framebuffer) from a fixed head pose, and whose one input source is a right hand (WebXR Hand
 // Input, 25 joints) that sways 3 cm left and right at 0.5 Hz. So headless Chromium can enter a
-// session, stream joints and render, and a screenshot shows what a headset would.
+// session, stream joints and render, and a screenshot shows what a headset would. With
+// ?xrhands=both a left hand (the right one mirrored, 20 cm to its left) is a second input source.
 
 // A relaxed right hand, mm from the wrist, in the XR frame (x right, y up, z toward the viewer):
 // palm down, fingers forward. handsim 21-keypoint order; made with
@@ -22,6 +23,8 @@ const WRIST_XR_M = [0.0, 1.05, -0.3];  // where the hand is held, metres (local-
 const HEAD_XR_M = [0.32, 1.36, 0.0];  // the viewer's eye, to the right (the arm hides less)
 const LOOK_AT_XR_M = [0.02, 0.92, -0.45];
 const FOV_Y_RAD = (65 * Math.PI) / 180;
+const TWO_HANDS = new URLSearchParams(location.search).get("xrhands") === "both";
+const LEFT_OFFSET_XR_M = -0.2;  // the left wrist from the right one, along x
 
 const JOINTS = [
   "wrist",
@@ -33,9 +36,11 @@ const JOINTS = [
 
 // The 25 WebXR joints from the 21 keypoints (a finger's metacarpal joint, which handsim's 21
 // do not have, lies a quarter of the way from the wrist to its MCP).
-function handJoints(timeS) {
+function handJoints(timeS, side = "right") {
   const sway = 0.03 * Math.sin(2 * Math.PI * 0.5 * timeS);
-  const at = (p) => [WRIST_XR_M[0] + sway + p[0] / 1000, WRIST_XR_M[1] + p[1] / 1000,
+  // The left hand is the right one mirrored in x, beside it.
+  const sx = side === "left" ? -1 : 1, dx = side === "left" ? LEFT_OFFSET_XR_M : 0;
+  const at = (p) => [WRIST_XR_M[0] + dx + sway + (sx * p[0]) / 1000, WRIST_XR_M[1] + p[1] / 1000,
     WRIST_XR_M[2] + p[2] / 1000];
   const out = { wrist: at(HAND21_MM[0]) };
   ["thumb-metacarpal", "thumb-phalanx-proximal", "thumb-phalanx-distal", "thumb-tip"]
@@ -107,7 +112,7 @@ class EmulatedLayer {
 class EmulatedFrame {
   constructor(session, timeS) {
     this.session = session;
-    this.joints = handJoints(timeS);
+    this.joints = { right: handJoints(timeS, "right"), left: handJoints(timeS, "left") };
   }
   getViewerPose() {
     const layer = this.session.renderState.baseLayer;
@@ -121,7 +126,7 @@ class EmulatedFrame {
   }
   getPose() { return null; }
   getJointPose(jointSpace) {
-    const p = this.joints[jointSpace.jointName];
+    const p = this.joints[jointSpace.side][jointSpace.jointName];
     if (!p) return null;
     return { transform: new EmulatedTransform(translation(p)), radius: 0.008, emulatedPosition: false };
   }
@@ -137,9 +142,12 @@ class EmulatedSession extends EventTarget {
     this.visibilityState = "visible";
     this.supportedFrameRates = new Float32Array([72, 90]);
     this.frameRate = 90;
-    const hand = new Map(JOINTS.map((name) => [name, { jointName: name }]));
-    this.inputSources = [{ handedness: "right", hand, targetRayMode: "tracked-pointer",
-      profiles: ["generic-hand"], gamepad: null, gripSpace: {}, targetRaySpace: {} }];
+    const source = (side) => ({
+      handedness: side,
+      hand: new Map(JOINTS.map((name) => [name, { jointName: name, side }])),
+      targetRayMode: "tracked-pointer", profiles: ["generic-hand"], gamepad: null,
+      gripSpace: {}, targetRaySpace: {} });
+    this.inputSources = TWO_HANDS ? [source("right"), source("left")] : [source("right")];
     this.ended = false;
     this.startMs = performance.now();
     window.handsimXrTest.session = this;
