@@ -329,7 +329,10 @@ class KinematicSource:
                 background=self.config.background,
             )
             scene = Scene(spec)
-            kept = (scene, FrameRenderer(scene, "camera", self.sensor))
+            renderer = FrameRenderer(
+                scene, "camera", self.sensor, skin_detail=self.config.skin_detail
+            )
+            kept = (scene, renderer)
         self._scenes[key] = kept
         kept[0].set_hand_length(length)
         return kept

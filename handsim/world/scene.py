@@ -43,6 +43,7 @@ from handsim.world.registry import get_object
 __all__ = [
     "SEGMENT_LABELS",
     "OBJECT_LABEL_OFFSET",
+    "SKIN_LOD_GROUP",
     "BACKGROUNDS",
     "ObjectPlacement",
     "CameraSpec",
@@ -58,6 +59,9 @@ __all__ = [
 SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "palm", *DIGITS)
 """Names of the fixed segmentation labels; objects follow from :data:`OBJECT_LABEL_OFFSET`."""
 OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
+SKIN_LOD_GROUP = 4
+"""Geom group of the skin's coarse level of detail (:attr:`SceneSpec.skin_lod`); cameras draw
+groups 0 to 2, so only a renderer that swaps it in for the skin shows it."""
 
 BACKGROUNDS: tuple[str, ...] = ("none", "wall", "torso", "clutter")
 """What stands beyond the table (:attr:`SceneSpec.background`): nothing (no depth), a wall, the
@@ -386,6 +390,11 @@ class SceneSpec:
             Its geoms are drawn only (no contact, no mass) and labelled ``"backdrop"``; it
             stands upright, facing the first camera beyond the table (and beyond anything a
             hand reaches over it), and :meth:`Scene.place_backdrop` moves it per frame.
+        skin_lod: also build the skin's coarse level of detail (a hand with
+            ``surface="skin"``): one more mesh geom per hand body, ``<side>_<body>_visual_1``
+            in geom group :data:`SKIN_LOD_GROUP` (no camera draws it by default), which a
+            :class:`~handsim.frame.FrameRenderer` draws instead of the skin for small projected
+            hands. Drawn only (no contact, no mass): physics is the same without it.
     """
 
     hand: HandParams | None = dataclasses.field(default_factory=HandParams)
@@ -395,6 +404,7 @@ class SceneSpec:
     )
     table: bool = True
     background: str = "none"
+    skin_lod: bool = True
 
     def __post_init__(self) -> None:
         if self.hand is not None and not isinstance(self.hand, HandParams):
@@ -414,6 +424,7 @@ class SceneSpec:
                 )
             object.__setattr__(self, field, tuple(items))
         boolean("table", self.table, InvalidScene)
+        boolean("skin_lod", self.skin_lod, InvalidScene)
         if not isinstance(self.background, str) or self.background not in BACKGROUNDS:
             raise InvalidScene(
                 f"background must be one of {', '.join(map(repr, BACKGROUNDS))}; received "
@@ -462,6 +473,20 @@ def _intrinsics(value: object, default: str) -> CameraIntrinsics:
             f"received {show(value)}"
         )
     return value
+
+
+def _add_coarse_skin(mj: mujoco.MjSpec, hand: Hand) -> None:
+    """Add the skin's coarse level of detail to the hand attached to ``mj`` (drawn only)."""
+    from handsim.hand.skin import build_skin
+
+    full_rgba = mj.geom(f"{hand.prefix}palm_visual_0").rgba
+    for part in build_skin(hand.params, "coarse"):
+        name = f"{hand.prefix}{hand.skeleton.bodies[part.body].name}_visual_1"
+        mj.add_mesh(name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel())
+        mj.body(f"{hand.prefix}{hand.skeleton.bodies[part.body].name}").add_geom(
+            name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name, group=SKIN_LOD_GROUP,
+            contype=0, conaffinity=0, density=0.0, rgba=full_rgba,
+        )  # fmt: skip
 
 
 class Scene:
@@ -513,6 +538,8 @@ class Scene:
         self.hand = Hand(spec.hand) if spec.hand is not None else None
         if self.hand is not None:
             self.hand.attach_to(mj)
+            if spec.skin_lod and spec.hand.surface == "skin":
+                _add_coarse_skin(mj, self.hand)
         else:
             for key, value in HAND_PHYSICS_OPTIONS.items():
                 setattr(mj.option, key, value)
@@ -548,6 +575,18 @@ class Scene:
         self.hand_skin_geom_ids: np.ndarray = np.flatnonzero(mesh_geoms)
         """The geoms that draw the hand's skin (those meshes), read-only."""
         self.hand_skin_geom_ids.setflags(write=False)
+        self.skin_lod_geom_ids: tuple[np.ndarray, np.ndarray] | None = None
+        """``(full, coarse)``: (n,) ids of the skin's geoms and of their coarse twins in the
+        same order (the same bodies), or ``None`` without :attr:`SceneSpec.skin_lod`."""
+        if self.hand is not None and spec.skin_lod and spec.hand.surface == "skin":
+            full, coarse = [], []
+            for b in self.hand.skeleton.bodies:
+                name = self.hand.prefix + b.name
+                full.append(self.model.geom(f"{name}_visual_0").id)
+                coarse.append(self.model.geom(f"{name}_visual_1").id)
+            self.skin_lod_geom_ids = (np.array(full), np.array(coarse))
+            for ids in self.skin_lod_geom_ids:
+                ids.setflags(write=False)
         self._built_hand_params = None if self.hand is None else self.hand.params
         self._built_hand_geometry: list | None = None
         self.hand_geometry_version = 0
