@@ -358,7 +358,8 @@ class _Raw:
     """The cost an env step cannot go below.
 
     MuJoCo's plain depth render (``mujoco.Renderer``) of the env's camera, and bare physics
-    (``mj_step`` x frame skip) on a scratch copy of the env's state.
+    (``mj_step`` x frame skip) on a scratch copy of the env's state. The render draws the
+    skin's level of detail the env draws for the state (``FrameRenderer.skin_as_drawn``).
     """
 
     def __init__(self) -> None:
@@ -370,6 +371,7 @@ class _Raw:
             return
         self.close()
         self.model, self.data = u.scene.model, u.scene.data
+        self.frame_renderer = u.frame_renderer
         self.scratch = mujoco.MjData(self.model)
         intr = u.frame_renderer.intrinsics
         self.renderer = mujoco.Renderer(self.model, intr.height, intr.width)
@@ -380,13 +382,14 @@ class _Raw:
 
     def physics_and_render(self, clock: _Clock) -> None:
         mujoco.mj_copyData(self.scratch, self.model, self.data)
-        with clock.time():
+        # The skin's level of detail the env draws for this state (the same scene's limit).
+        with self.frame_renderer.skin_as_drawn(), clock.time():
             mujoco.mj_step(self.model, self.scratch, nstep=self.frame_skip)
             self.renderer.update_scene(self.scratch, camera="camera")
             self.renderer.render()
 
     def render(self, clock: _Clock) -> None:
-        with clock.time():
+        with self.frame_renderer.skin_as_drawn(), clock.time():
             self.renderer.update_scene(self.data, camera="camera")
             self.renderer.render()
 

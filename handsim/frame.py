@@ -72,8 +72,10 @@ deviation.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+from collections.abc import Iterator
 from typing import NamedTuple
 
 import mujoco
@@ -792,6 +794,31 @@ class FrameRenderer:
             self._kp_radius = _keypoint_radii(scene)
             self._hand_version = scene.hand_geometry_version
 
+    @contextlib.contextmanager
+    def skin_as_drawn(self) -> Iterator[str]:
+        """Within the block, the model shows the skin's level of detail :meth:`render` draws.
+
+        For the scene's current state (:attr:`skin_detail`): the coarse skin's geoms take the
+        full skin's geom group (which is hidden), so any renderer of the same model, e.g.
+        ``mujoco.Renderer`` for a reference render, draws what this one draws. The groups are
+        restored when the block ends.
+
+        Yields:
+            The level drawn, ``"full"`` or ``"coarse"`` (also :attr:`last_skin_detail`).
+        """
+        self._follow_hand_geometry()
+        data = self.scene.data
+        T = self._camera_pose(data)  # noqa: N806
+        coarse = self._coarse_wanted(data, T[:3, :3], T[:3, 3])
+        self.last_skin_detail = "coarse" if coarse else "full"
+        if coarse:
+            self._swap_skin(True)
+        try:
+            yield self.last_skin_detail
+        finally:
+            if coarse:
+                self._swap_skin(False)
+
     def render_images(self) -> tuple[np.ndarray, np.ndarray]:
         """The scene's current state drawn as :meth:`render` draws it, without any label work.
 
@@ -802,18 +829,8 @@ class FrameRenderer:
             ``(depth_m, geom_id)``: (H, W) float32 clean depth along the optical axis, metres
             (0 where no geom is seen), and (H, W) int32 geom ids (-1 for background).
         """
-        self._follow_hand_geometry()
-        data = self.scene.data
-        T = self._camera_pose(data)  # noqa: N806
-        coarse = self._coarse_wanted(data, T[:3, :3], T[:3, 3])
-        self.last_skin_detail = "coarse" if coarse else "full"
-        if coarse:
-            self._swap_skin(True)
-        try:
-            return self.renderer.render(data)
-        finally:
-            if coarse:
-                self._swap_skin(False)
+        with self.skin_as_drawn():
+            return self.renderer.render(self.scene.data)
 
     def render(
         self,

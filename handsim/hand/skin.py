@@ -47,8 +47,12 @@ All geometry is in the body frames of :class:`~handsim.hand.model.Skeleton` (met
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
+import hashlib
+import os
+import pathlib
 from collections.abc import Callable
 
 import numpy as np
@@ -450,6 +454,48 @@ def _project(sdf: Sdf, p: np.ndarray, steps: int = 6, tol: float = 1e-7) -> np.n
 # Building --------------------------------------------------------------------------------------
 
 
+_CACHE_DIR = pathlib.Path(__file__).parent / "__pycache__"
+"""Where meshed palms are kept between processes (beside this module, as numba keeps its
+compiled loops); nothing is kept where it is not writable."""
+
+
+def _palm_mesh(skeleton, sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
+    """The palm's surface-nets mesh projected onto its zero set, from the disk cache if there.
+
+    Meshing costs ~0.3 s, paid by every process that builds a hand (each dataset worker):
+    the result is kept in a file named by a hash of everything it depends on (this module's
+    and the lofting module's source, the hand's parameters and skeleton, the grid step,
+    NumPy's version),
+    so a kept mesh is bitwise the one this process would make.
+    """
+    key = hashlib.sha256()
+    for module in (__file__, loft_faces.__code__.co_filename):
+        key.update(pathlib.Path(module).read_bytes())
+    key.update(np.__version__.encode())
+    key.update(repr(skeleton.params).encode())
+    key.update(np.float64(step).tobytes() + lo.tobytes() + hi.tobytes())
+    for body in skeleton.bodies:
+        key.update(repr((body.name, body.part, body.parent)).encode())
+        key.update(np.asarray(body.pos, dtype=np.float64).tobytes())
+        for g in body.geoms:
+            for name in ("start", "end", "radius", "pos", "half_size"):
+                if hasattr(g, name):
+                    key.update(np.asarray(getattr(g, name), dtype=np.float64).tobytes())
+    path = _CACHE_DIR / f"palm-{key.hexdigest()[:32]}.npz"
+    with contextlib.suppress(OSError, ValueError, KeyError):
+        with np.load(path) as kept:
+            return kept["vertices"], kept["faces"]
+    vertices, faces = _surface_nets(sdf, lo, hi, step)
+    vertices = _project(sdf, vertices)
+    # Written under a name of this process's, then renamed: a reader never sees half a file.
+    with contextlib.suppress(OSError):
+        _CACHE_DIR.mkdir(exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez(partial, vertices=vertices, faces=faces)
+        os.replace(partial, path)
+    return vertices, faces
+
+
 def _segment_kind(name: str) -> str:
     return name.split("_", 1)[1]
 
@@ -467,8 +513,8 @@ def _right_parts(params, detail: str = "full") -> tuple[SkinPart, ...]:
     # The grid scales with the hand: the same mesh density (and cost) for every size.
     res = _RESOLUTIONS[detail]
     step = res.palm_grid_m * params.hand_length / 0.189
-    vertices, faces = _surface_nets(sdf, lo, hi, step)
-    parts.append(SkinPart(0, _project(sdf, vertices), faces, sdf))
+    vertices, faces = _palm_mesh(skeleton, sdf, lo, hi, step)
+    parts.append(SkinPart(0, vertices, faces, sdf))
 
     for i, body in enumerate(bodies[1:], start=1):
         capsule = body.geoms[0]

@@ -602,3 +602,25 @@ def test_skin_detail_without_a_coarse_skin_and_bad_values():
             renderer.skin_detail = "medium"
     with pytest.raises(InvalidScene, match=r"skin_detail must be one of .* received 3"):
         FrameRenderer(scene, "front", skin_detail=3)
+
+
+def test_skin_as_drawn_shows_the_level_render_draws_to_other_renderers():
+    """Inside the block the model shows the drawn level (a plain render sees it); then restored."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    full_ids, coarse_ids = scene.skin_lod_geom_ids
+    groups = scene.model.geom_group.copy()
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), keep_clean=True)
+        with renderer.skin_as_drawn() as level:
+            assert level == renderer.last_skin_detail == "coarse"
+            assert np.all(scene.model.geom_group[coarse_ids] == 2)
+            assert np.all(scene.model.geom_group[full_ids] > 4)
+            depth, _ = renderer.renderer.render(scene.data)
+        np.testing.assert_array_equal(scene.model.geom_group, groups)
+        depth_images, _ = renderer.render_images()
+    # The same draw: equal wherever the labelled frame's working range keeps a depth.
+    kept = frame.depth_clean > 0
+    np.testing.assert_array_equal(depth[kept], frame.depth_clean[kept])
+    np.testing.assert_array_equal(depth_images, depth)

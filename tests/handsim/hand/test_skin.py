@@ -254,3 +254,23 @@ def test_skin_deviation_is_about_a_millimetre_and_zero_at_full_detail():
     assert skin_deviation_m(HandParams(), "full") == 0.0
     with pytest.raises(InvalidHandParams, match=r"one of 'full', 'coarse'; received 'fine'"):
         build_skin(HandParams(), "fine")
+
+
+def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_path, monkeypatch):
+    """The palm's mesh read back from the disk cache is bitwise the mesh made; junk is ignored."""
+    import handsim.hand.skin as skin
+
+    monkeypatch.setattr(skin, "_CACHE_DIR", tmp_path)
+    shape = HandParams(hand_length=0.17, surface="capsules")
+    made = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    (kept_file,) = tmp_path.glob("palm-*.npz")
+    kept = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    np.testing.assert_array_equal(kept.vertices, made.vertices)
+    np.testing.assert_array_equal(kept.faces, made.faces)
+    assert kept.faces.dtype == made.faces.dtype
+    kept_file.write_bytes(b"not a mesh")
+    remade = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    np.testing.assert_array_equal(remade.vertices, made.vertices)
+    # Another hand is another file.
+    skin._right_parts.__wrapped__(HandParams(hand_length=0.18, surface="capsules"), "coarse")
+    assert len(list(tmp_path.glob("palm-*.npz"))) == 2
