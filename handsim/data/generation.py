@@ -621,6 +621,7 @@ def _generate_in(
                 progress(start + written.value, config.frames)
 
         results = _as_completed(futures, tick)
+    complete = False
     try:
         for index, info in results:
             manifest.shards[index] = info
@@ -628,6 +629,7 @@ def _generate_in(
             done += info.frames
             if progress is not None and pool is None:
                 progress(done, config.frames)
+        complete = True
     except BrokenProcessPool as err:
         raise GenerationError(
             f"a generation worker died ({err}); the complete shards are kept, rerun the same "
@@ -635,9 +637,14 @@ def _generate_in(
         ) from err
     finally:
         if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+            # Every shard is written: the workers free their contexts and exit while this
+            # process sums the dataset up. After an error they are awaited first (a worker
+            # still writing could race a resumed run).
+            pool.shutdown(wait=not complete, cancel_futures=True)
         close_kept_source()  # shards made in this process
     edges = config._buckets()[0] if config.occlusion_buckets is not None else np.linspace(0, 1, 11)
     manifest.occlusion_histogram = _histogram(folder, manifest, edges)
     manifest.write(folder)
+    if pool is not None:
+        pool.shutdown(wait=True)
     return manifest
