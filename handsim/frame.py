@@ -485,9 +485,9 @@ class FrameRenderer:
         if self._lod is not None:
             from handsim.hand.skin import skin_deviation_m
 
-            # The deviation scales with the hand: per metre of hand length, for rescaled hands.
-            hand = scene.hand.params
-            self._lod_deviation_per_m = skin_deviation_m(hand, "coarse") / hand.hand_length
+            # That of the meshes built, per metre of hand length: a rescaled hand scales them.
+            built = scene.built_hand_params
+            self._lod_deviation_per_m = skin_deviation_m(built, "coarse") / built.hand_length
             full = self._lod[0]
             # (n, 8, 3) corners of the skin geoms' boxes in their geom frames.
             aabb = model.geom_aabb[full]

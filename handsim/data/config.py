@@ -334,11 +334,12 @@ class GenerationConfig:
             ``"warp"`` (MuJoCo Warp, N frames per launch: :mod:`handsim.data.warp_source`; the
             kinematic source's hand-alone configs). Recorded with the dataset: a resume with
             the other backend is refused (their shards differ).
-        skin_detail: the skin's level of detail in the OpenGL renders of the kinematic and
-            grasp sources (:data:`SKIN_DETAILS`): ``"auto"`` (default) draws the coarse skin
-            (a quarter of the triangles) when its deviation from the skin's surface projects
-            to under a pixel, i.e. for small projected hands, ``"full"`` always the full skin
-            (:class:`~handsim.frame.FrameRenderer`). Recorded with the dataset.
+        skin_detail: the skin's level of detail in the OpenGL renders of every source
+            (:data:`SKIN_DETAILS`; the warp backend draws the full skin): ``"auto"`` (default)
+            draws the coarse skin (a quarter of the triangles) when its deviation from the
+            skin's surface projects to under a pixel, i.e. for small projected hands,
+            ``"full"`` always the full skin (:class:`~handsim.frame.FrameRenderer`).
+            Recorded with the dataset.
     """
 
     frames: int = 1000

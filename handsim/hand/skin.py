@@ -457,6 +457,7 @@ def _project(sdf: Sdf, p: np.ndarray, steps: int = 6, tol: float = 1e-7) -> np.n
 _CACHE_DIR = pathlib.Path(__file__).parent / "__pycache__"
 """Where meshed palms are kept between processes (beside this module, as numba keeps its
 compiled loops); nothing is kept where it is not writable."""
+_CACHE_FILES = 96  # hand lengths on a 2 mm grid: 36, at two levels of detail
 
 
 def _palm_mesh(skeleton, sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
@@ -493,6 +494,10 @@ def _palm_mesh(skeleton, sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
         partial = path.with_suffix(f".{os.getpid()}.npz")
         np.savez(partial, vertices=vertices, faces=faces)
         os.replace(partial, path)
+        # At most _CACHE_FILES palms (about 0.4 MB each): the least recently made go.
+        kept = sorted(_CACHE_DIR.glob("palm-*.npz"), key=lambda f: f.stat().st_mtime)
+        for old in kept[:-_CACHE_FILES]:
+            old.unlink(missing_ok=True)
     return vertices, faces
 
 

@@ -627,6 +627,15 @@ class Scene:
         return save_spec(self.mjspec, path, assets_dir=assets_dir)
 
     @property
+    def built_hand_params(self) -> HandParams | None:
+        """The hand parameters the model's hand (its meshes) was built with (``None``: none).
+
+        :meth:`set_hand_length` scales that hand in place; :attr:`hand` then has the new
+        parameters.
+        """
+        return self._built_hand_params
+
+    @property
     def hand_rescaled(self) -> bool:
         """:meth:`set_hand_length` changed the hand from the one built: kinematic use only."""
         return self.hand is not None and self.hand.params != self._built_hand_params

@@ -274,3 +274,11 @@ def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_
     # Another hand is another file.
     skin._right_parts.__wrapped__(HandParams(hand_length=0.18, surface="capsules"), "coarse")
     assert len(list(tmp_path.glob("palm-*.npz"))) == 2
+    # Beyond _CACHE_FILES the least recently made go.
+    monkeypatch.setattr(skin, "_CACHE_FILES", 1)
+    newest = skin._right_parts.__wrapped__(
+        HandParams(hand_length=0.19, surface="capsules"), "coarse"
+    )
+    (left,) = tmp_path.glob("palm-*.npz")
+    with np.load(left) as kept:
+        np.testing.assert_array_equal(kept["vertices"], newest[0].vertices)
