@@ -642,9 +642,12 @@ def _generate_in(
             # still writing could race a resumed run).
             pool.shutdown(wait=not complete, cancel_futures=True)
         close_kept_source()  # shards made in this process
-    edges = config._buckets()[0] if config.occlusion_buckets is not None else np.linspace(0, 1, 11)
-    manifest.occlusion_histogram = _histogram(folder, manifest, edges)
-    manifest.write(folder)
-    if pool is not None:
-        pool.shutdown(wait=True)
+    try:
+        buckets = config.occlusion_buckets is not None
+        edges = config._buckets()[0] if buckets else np.linspace(0, 1, 11)
+        manifest.occlusion_histogram = _histogram(folder, manifest, edges)
+        manifest.write(folder)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
     return manifest
