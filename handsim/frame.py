@@ -850,15 +850,11 @@ class FrameRenderer:
             The labelled frame.
         """
         scene, model, data = self.scene, self.scene.model, self.scene.data
-        self._follow_hand_geometry()
         intr = self.intrinsics
-        T = self._camera_pose(data)  # noqa: N806
-        R, t = T[:3, :3], T[:3, 3]  # noqa: N806
-        coarse = self._coarse_wanted(data, R, t)
-        self.last_skin_detail = "coarse" if coarse else "full"
-        if coarse:
-            self._swap_skin(True)
-        try:
+        # The skin's level of detail for both draws of the hand (the frame and the hand alone).
+        with self.skin_as_drawn():
+            T = self._camera_pose(data)  # noqa: N806
+            R, t = T[:3, :3], T[:3, 3]  # noqa: N806
             labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
             # The camera's working range: nothing is measured outside it (the far clip plane
             # of the scene may serve a camera with a longer range); those pixels get label 0.
@@ -872,9 +868,6 @@ class FrameRenderer:
             occlusion_ratio = None
             if hand_occlusion:
                 occlusion_ratio = self._hand_occlusion_ratio(data, labels, depth_clean, R, t)
-        finally:
-            if coarse:
-                self._swap_skin(False)
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:
