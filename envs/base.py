@@ -380,6 +380,7 @@ class HandSimEnv(gym.Env, abc.ABC):
                 objects=placements,
                 cameras=(camera,),
                 table=self.use_table,
+                skin_lod=self.config.skin_detail != "full",  # a coarse skin only if drawn
             )
             self.scene = Scene(spec)
             self._scene_key = key

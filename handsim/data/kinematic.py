@@ -327,6 +327,7 @@ class KinematicSource:
                 cameras=(camera,),
                 table=n > 0,
                 background=self.config.background,
+                skin_lod=self.config.skin_detail != "full",  # a coarse skin only if drawn
             )
             scene = Scene(spec)
             renderer = FrameRenderer(
