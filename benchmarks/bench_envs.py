@@ -1,7 +1,7 @@
 """Benchmark: env step rates, vector-env scaling, the closed loop, and memory over 10^4 steps.
 
 Run: ``python benchmarks/bench_envs.py [--steps 300] [--memory-steps 10000] [--repeats 2]
-[--only {all,vector,obs_modes,rgb_array,resolution}] [--limit] [--out FILE.json]``.
+[--only {all,vector,obs_modes,rgb_array,resolution,peer}] [--limit] [--out FILE.json]``.
 
 ``--limit`` runs only the ratios of "the step at the limit" (also printed at the end of a full
 run), each measured interleaved step by step in this run and timed in process CPU time (on a
@@ -14,9 +14,12 @@ JSON too):
    of the same state, the silhouettes kept as the env keeps them;
 3. for each env, the step with its expert (the expert's decision + ``env.step``, and
    ``env.step`` alone) against bare physics (``mj_step`` x frame skip on a copy of the state) +
-   the plain depth render; and, when ``gymnasium-robotics`` is installed, Grasp-v0 against the
-   peer ``HandManipulateBlock-v1`` stepping with a 320 x 240 RGB or depth render (MuJoCo 4's
-   enums need a small shim in its helpers, :func:`_shim_gymnasium_robotics`);
+   the plain depth render; and, when ``gymnasium-robotics`` is installed, Grasp-v0 and
+   GraspClutter-v0 (with the skin's level of detail chosen by projected size, the default, and
+   with ``skin_detail="full"``) against the peer ``HandManipulateBlock-v1`` stepping with a
+   320 x 240 RGB render, Gymnasium's depth render (with a shadow pass) or a plain depth render
+   (``mujoco.Renderer``) (MuJoCo 4's enums need a small shim in its helpers,
+   :func:`_shim_gymnasium_robotics`); ``--only peer`` measures just these;
 4. Grasp-v0 step + 320 x 240 ``rgb_array`` render (``render_quality="fast"`` and ``"high"``)
    against the depth step;
 5. ``EstimatorLoop`` with the oracle, feedback on against off.
@@ -355,7 +358,8 @@ class _Raw:
     """The cost an env step cannot go below.
 
     MuJoCo's plain depth render (``mujoco.Renderer``) of the env's camera, and bare physics
-    (``mj_step`` x frame skip) on a scratch copy of the env's state.
+    (``mj_step`` x frame skip) on a scratch copy of the env's state. The render draws the
+    skin's level of detail the env draws for the state (``FrameRenderer.skin_as_drawn``).
     """
 
     def __init__(self) -> None:
@@ -367,6 +371,7 @@ class _Raw:
             return
         self.close()
         self.model, self.data = u.scene.model, u.scene.data
+        self.frame_renderer = u.frame_renderer
         self.scratch = mujoco.MjData(self.model)
         intr = u.frame_renderer.intrinsics
         self.renderer = mujoco.Renderer(self.model, intr.height, intr.width)
@@ -377,13 +382,14 @@ class _Raw:
 
     def physics_and_render(self, clock: _Clock) -> None:
         mujoco.mj_copyData(self.scratch, self.model, self.data)
-        with clock.time():
+        # The skin's level of detail the env draws for this state (the same scene's limit).
+        with self.frame_renderer.skin_as_drawn(), clock.time():
             mujoco.mj_step(self.model, self.scratch, nstep=self.frame_skip)
             self.renderer.update_scene(self.scratch, camera="camera")
             self.renderer.render()
 
     def render(self, clock: _Clock) -> None:
-        with clock.time():
+        with self.frame_renderer.skin_as_drawn(), clock.time():
             self.renderer.update_scene(self.data, camera="camera")
             self.renderer.render()
 
@@ -454,10 +460,41 @@ def _shim_gymnasium_robotics() -> None:
     mujoco_utils.mujoco = shim
 
 
-def _peer(steps: int) -> dict:
-    """Grasp-v0 (expert) against Gymnasium-Robotics' HandManipulateBlock-v1.
+class _PeerPlainDepth:
+    """The peer stepping and rendering a plain 320 x 240 depth image (``mujoco.Renderer``).
 
-    The peer steps (random actions) and renders 320 x 240 RGB or depth; interleaved step by step.
+    The same camera as its own renders (Gymnasium's viewer camera), without the shadow pass
+    that Gymnasium's ``depth_array`` draws.
+    """
+
+    def __init__(self, peer: gym.Env) -> None:
+        self.peer = peer
+        u = peer.unwrapped
+        self.camera = u.mujoco_renderer._get_viewer("rgb_array").cam
+        self.renderer = mujoco.Renderer(u.model, 240, 320)
+        self.renderer.enable_depth_rendering()
+
+    def step(self) -> tuple[bool, bool]:
+        _, _, terminated, truncated, _ = self.peer.step(self.peer.action_space.sample())
+        self.renderer.update_scene(self.peer.unwrapped.data, camera=self.camera)
+        self.renderer.render()
+        return terminated, truncated
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+_PEER_ENVS = ("Grasp-v0", "GraspClutter-v0")
+"""handsim envs compared with the peer, each with ``skin_detail`` "auto" (default) and "full"."""
+
+
+def _peer(steps: int) -> dict:
+    """Grasp-v0 and GraspClutter-v0 (expert) against Gymnasium-Robotics' HandManipulateBlock-v1.
+
+    The peer steps (random actions) and renders 320 x 240 RGB, Gymnasium's depth (with its
+    shadow pass) or a plain depth image (``mujoco.Renderer``, no shadows); each handsim env
+    steps with its default skin level of detail ("auto") and with the full skin. All of them
+    interleaved step by step.
     """
     try:
         import gymnasium_robotics
@@ -470,26 +507,35 @@ def _peer(steps: int) -> dict:
             "HandManipulateBlock-v1", render_mode=mode, width=320, height=240,
             disable_env_checker=True,  # it declares no depth_array, but renders it
         )
-        for mode in ("rgb_array", "depth_array")
+        for mode in ("rgb_array", "depth_array", "plain")
     }  # fmt: skip
     for peer in peers.values():
         peer.reset(seed=0)
         peer.action_space.seed(0)
-    grasp = gym.make("handsim/Grasp-v0", **_ENVS["Grasp-v0"])
-    u = grasp.unwrapped
-    seed = 0
-    grasp.reset(seed=seed)
-    expert = u.make_expert(np.random.default_rng(seed))
-    clocks = {k: _Clock() for k in ("Grasp-v0", "peer_rgb", "peer_depth")}
+    plain = _PeerPlainDepth(peers["plain"])
+    ours = {}
+    for name in _PEER_ENVS:
+        for detail in ("auto", "full"):
+            env = gym.make(f"handsim/{name}", skin_detail=detail, **_ENVS[name])
+            env.reset(seed=0)
+            ours[f"{name}_{detail}"] = [env, 0, env.unwrapped.make_expert(np.random.default_rng(0))]
+    keys = (*ours, "peer_rgb", "peer_depth", "peer_plain_depth")
+    clocks = {k: _Clock() for k in keys}
+    coarse = dict.fromkeys(ours, 0)
     for i in range(steps + 1):
         if i == 1:
-            clocks = {k: _Clock() for k in clocks}
-        with clocks["Grasp-v0"].time():
-            _, _, terminated, truncated, _ = grasp.step(expert.act(u.expert_state()).vector)
-        if terminated or truncated:
-            seed += 1
-            grasp.reset(seed=seed)
-            expert = u.make_expert(np.random.default_rng(seed))
+            clocks = {k: _Clock() for k in keys}
+            coarse = dict.fromkeys(ours, 0)
+        for key, run in ours.items():
+            env, seed, expert = run
+            u = env.unwrapped
+            with clocks[key].time():
+                _, _, terminated, truncated, _ = env.step(expert.act(u.expert_state()).vector)
+            coarse[key] += u.frame_renderer.last_skin_detail == "coarse"
+            if terminated or truncated:
+                run[1] = seed = seed + 1
+                env.reset(seed=seed)
+                run[2] = u.make_expert(np.random.default_rng(seed))
         for mode, key in (("rgb_array", "peer_rgb"), ("depth_array", "peer_depth")):
             peer = peers[mode]
             with clocks[key].time():
@@ -500,15 +546,27 @@ def _peer(steps: int) -> dict:
                 peer.render()
             if terminated or truncated:
                 peer.reset()
-    for env in (grasp, *peers.values()):
+        with clocks["peer_plain_depth"].time():
+            terminated, truncated = plain.step()
+        if terminated or truncated:
+            peers["plain"].reset()
+    plain.close()
+    for env in (*(run[0] for run in ours.values()), *peers.values()):
         env.close()
-    return {
+    out = {
         "installed": True,
         "gymnasium_robotics": getattr(gymnasium_robotics, "__version__", "?"),
+        "mujoco": mujoco.__version__,
         **{k: c.rates() for k, c in clocks.items()},
-        "ratio_grasp_vs_peer_rgb": _ratio(clocks["Grasp-v0"], clocks["peer_rgb"]),
-        "ratio_grasp_vs_peer_depth": _ratio(clocks["Grasp-v0"], clocks["peer_depth"]),
+        **{f"{k}_coarse_fraction": v / max(steps, 1) for k, v in coarse.items()},
     }
+    for key in ours:
+        for peer in ("peer_rgb", "peer_depth", "peer_plain_depth"):
+            out[f"ratio_{key}_vs_{peer}"] = _ratio(clocks[key], clocks[peer])
+    # The names of the earlier single-env runs: Grasp-v0 as made by default.
+    out["ratio_grasp_vs_peer_rgb"] = out["ratio_Grasp-v0_auto_vs_peer_rgb"]
+    out["ratio_grasp_vs_peer_depth"] = out["ratio_Grasp-v0_auto_vs_peer_depth"]
+    return out
 
 
 def _rgb_vs_depth(steps: int) -> dict:
@@ -640,6 +698,18 @@ def _limit_ratios(steps: int) -> dict:
                 "3 Grasp-v0 / peer step + depth (target >= 1.5)": results["peer"][
                     "ratio_grasp_vs_peer_depth"
                 ],
+                "3 Grasp-v0 / peer step + plain depth (target >= 1.5)": results["peer"][
+                    "ratio_Grasp-v0_auto_vs_peer_plain_depth"
+                ],
+                "3 GraspClutter-v0 / peer step + plain depth (target >= 1.0)": results["peer"][
+                    "ratio_GraspClutter-v0_auto_vs_peer_plain_depth"
+                ],
+                "3 Grasp-v0 skin_detail='full' / peer step + plain depth": results["peer"][
+                    "ratio_Grasp-v0_full_vs_peer_plain_depth"
+                ],
+                "3 GraspClutter-v0 skin_detail='full' / peer step + plain depth": results["peer"][
+                    "ratio_GraspClutter-v0_full_vs_peer_plain_depth"
+                ],
             }
             if results["peer"]["installed"]
             else {}
@@ -676,7 +746,7 @@ def main() -> None:
     )
     parser.add_argument(
         "--only",
-        choices=["all", "vector", "obs_modes", "rgb_array", "resolution"],
+        choices=["all", "vector", "obs_modes", "rgb_array", "resolution", "peer"],
         default="all",
         help="run one group of measurements",
     )
@@ -696,8 +766,14 @@ def main() -> None:
             "obs_modes": lambda: {"obs_modes": _obs_modes(args.steps, args.repeats)},
             "rgb_array": lambda: {"rgb_array": _rgb_array(args.steps, args.repeats)},
             "resolution": lambda: {"resolution": _resolution(args.steps, args.repeats)},
+            "peer": lambda: {"peer": _peer(args.steps)},
         }
         results.update(runs[args.only]())
+        if args.only == "peer" and results["peer"]["installed"]:
+            _print_summary(
+                {k: v for k, v in results["peer"].items() if k.startswith("ratio_")}
+                | {k: v for k, v in results["peer"].items() if k.endswith("_fraction")}
+            )
         _write(results, args.out)
         return
     results["env_steps_per_s"] = {}

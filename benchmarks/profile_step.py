@@ -17,8 +17,8 @@ the function that does it (process CPU time, nested parts subtracted):
 
 ``--cprofile`` also prints cProfile's top functions by own time (CPU clock).
 ``--draw-by-part`` then times the depth draw + read-back of the last state with parts of the
-scene hidden (everything, without the palm's mesh, without the hand, without the table,
-nothing), with the triangles each part adds.
+scene hidden (everything, everything with the skin's coarse level of detail, without the palm's
+mesh, without the hand, without the table, nothing), with the triangles each part adds.
 """
 
 from __future__ import annotations
@@ -139,14 +139,21 @@ def _draw_by_part(u: gym.Env, draws: int = 300) -> None:
     faces = np.where(is_mesh, model.mesh_facenum[np.maximum(model.geom_dataid, 0)], 0)
     saved = model.geom_group.copy()
     print(f"{'drawn':<28} {'ms/draw':>8} {'mesh triangles hidden':>22}")
+    lod = u.scene.skin_lod_geom_ids
     for label, hide in (
         ("everything", np.zeros_like(drawn)),
+        *((("everything, coarse skin", None),) if lod is not None else ()),
         ("without the palm", palm),
         ("without the hand", hand),
         ("without the table", table),
         ("nothing", drawn),
     ):
-        model.geom_group[hide] = _HIDDEN_GROUP  # the group the frame hides geoms in
+        if hide is None:  # the coarse skin drawn instead of the full one
+            model.geom_group[lod[0]] = _HIDDEN_GROUP
+            model.geom_group[lod[1]] = 2
+            hide = np.zeros_like(drawn)
+        else:
+            model.geom_group[hide] = _HIDDEN_GROUP  # the group the frame hides geoms in
         try:
             renderer._draw(data)
             mujoco.mjr_readPixels(rgb, depth, renderer._rect, renderer._context)

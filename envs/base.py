@@ -373,7 +373,9 @@ class HandSimEnv(gym.Env, abc.ABC):
         """
         self._own_process()
         if self._frame_renderer is None and self.scene is not None:
-            self._frame_renderer = FrameRenderer(self.scene, "camera", self.sensor)
+            self._frame_renderer = FrameRenderer(
+                self.scene, "camera", self.sensor, skin_detail=self.config.skin_detail
+            )
         return self._frame_renderer
 
     def _close_renderers(self) -> None:
@@ -412,6 +414,7 @@ class HandSimEnv(gym.Env, abc.ABC):
                 objects=placements,
                 cameras=(camera,),
                 table=self.use_table,
+                skin_lod=self.config.skin_detail != "full",  # a coarse skin only if drawn
             )
             self.scene = Scene(spec)
             self._scene_key = key
@@ -559,8 +562,8 @@ class HandSimEnv(gym.Env, abc.ABC):
             self.frame = None
             if "depth" in config.obs_mode:
                 # Images without labels: one draw, no label work.
-                renderer = self.frame_renderer
-                depth_clean, geom_id = renderer.renderer.render(self.scene.data)
+                # Drawn as a labelled frame is (the same skin level of detail).
+                depth_clean, geom_id = self.frame_renderer.render_images()
                 depth = self.sensor.apply(depth_clean, self.intrinsics, self.np_random)
                 if config.obs_mode == "depth+segmentation":
                     segmentation = self.scene.segment(geom_id)

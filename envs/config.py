@@ -53,6 +53,8 @@ RENDER_QUALITIES: tuple[str, ...] = ("fast", "high")
 """``render_quality`` values: ``"fast"`` draws no shadows (a shadow pass more than doubles the
 cost of a software-rendered colour image); ``"high"`` lets one light cast shadows, with a shadow
 map about half the image size."""
+SKIN_DETAILS: tuple[str, ...] = ("auto", "full")
+"""``skin_detail`` values (:class:`~handsim.frame.FrameRenderer`)."""
 _HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 RENDER_MODES: tuple[str, ...] = ("rgb_array", "depth_array", "depth_rgb_array") + (
     ("human",) if _HAS_DISPLAY else ()
@@ -200,6 +202,10 @@ class EnvConfig:
         object_friction: hand-object sliding friction: ``"skin"`` (default: measured skin
             friction on each object's material, 0.42 to 0.6), ``"mujoco"`` (MuJoCo's 1.0) or a
             number > 0 for every object (:func:`~handsim.envs.physics.set_skin_friction`).
+        skin_detail: the hand skin's level of detail in depth frames (``"full"``, default:
+            always the full skin, as the ``-v0`` envs have drawn it; ``"auto"``: the coarse
+            skin for small projected hands, 1.2-1.4x faster steps; see
+            :class:`~handsim.frame.FrameRenderer`).
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
     :mod:`handsim.envs`).
@@ -225,6 +231,7 @@ class EnvConfig:
     render_height: int = 360
     render_quality: str = "fast"
     object_friction: str | float = "skin"
+    skin_detail: str = "full"
 
     @classmethod
     def from_kwargs(
@@ -251,6 +258,7 @@ class EnvConfig:
         render_height: object = 360,
         render_quality: object = "fast",
         object_friction: object = "skin",
+        skin_detail: object = "full",
     ) -> EnvConfig:
         """Validate the keyword arguments of an env (each error lists the valid values)."""
         if not isinstance(frame_skip, (int, np.integer)) or isinstance(frame_skip, bool):
@@ -304,4 +312,5 @@ class EnvConfig:
             render_height=_size(render_height, "render_height", RENDER_SIZE_RANGE),
             render_quality=_choice(render_quality, "render_quality", RENDER_QUALITIES),
             object_friction=_object_friction(object_friction),
+            skin_detail=_choice(skin_detail, "skin_detail", SKIN_DETAILS),
         )

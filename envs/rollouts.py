@@ -241,6 +241,7 @@ class RolloutSource:
             "obs_mode": "state",
             "labels": False,
             "hand_size": c.hand_length_range_m,
+            "skin_detail": c.skin_detail,
         }
         if c.env_id != "handsim/HandPose-v0":
             kwargs["objects"] = list(c.objects)

@@ -35,7 +35,6 @@ import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim._validate import is_real
 from handsim.errors import EstimatorStateError, InvalidEstimatorInput, InvalidEstimatorParams
@@ -238,6 +237,9 @@ class OracleEstimator(EstimatorBase):
                 direction = rng.normal(size=3)
                 T[:3, 3] += self.object_noise_mm / MM_PER_M * direction / np.linalg.norm(direction)
             rotvec = rng.normal(0.0, rot_std_rad, size=3)
+            # scipy.spatial loads here, not with the module: the CLI imports this module.
+            from scipy.spatial.transform import Rotation
+
             T[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix() @ T[:3, :3]
             poses[instance] = T
         return Estimate(keypoints_cam=keypoints, object_poses=poses)

@@ -56,12 +56,26 @@ forearm is in view. It needs one more render and is computed on request.
 
 Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand part label,
 object instance, position in the camera frame, normal force in newtons).
+
+Skin level of detail (``skin_detail``): a scene built with :attr:`SceneSpec.skin_lod
+<handsim.world.scene.SceneSpec.skin_lod>` (the default) holds the skin twice, in full and at
+a quarter of the triangles (:data:`handsim.hand.skin.SKIN_DETAILS`), on the same bodies, so
+both pose alike. With ``"auto"`` (the default) a frame draws the coarse skin when its largest
+deviation from the skin's surface (:func:`~handsim.hand.skin.skin_deviation_m`, 1.2 mm on a
+medium hand) projects to less than :data:`LOD_TOLERANCE_PX` (one pixel) at the hand's nearest
+point, i.e. for small projected hands, where the full skin's triangles are smaller than a
+pixel and its vertex work buys no detail; ``"full"`` always draws the full skin. Keypoints
+come from the kinematics, so their positions and pixels do not depend on the level; depth,
+segmentation and what is decided on them (visibility, pixel counts) do, by at most the
+deviation.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+from collections.abc import Iterator
 from typing import NamedTuple
 
 import mujoco
@@ -72,7 +86,13 @@ from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.pose import HandPose
 from handsim.world.camera import T_cam_from_world
 from handsim.world.render import DepthRenderer
-from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS, InvalidScene, Scene
+from handsim.world.scene import (
+    OBJECT_LABEL_OFFSET,
+    SEGMENT_LABELS,
+    SKIN_LOD_GROUP,
+    InvalidScene,
+    Scene,
+)
 from handsim.world.sensors import InvalidSensor, NoNoise, SensorModel
 
 __all__ = [
@@ -86,6 +106,8 @@ __all__ = [
     "VISIBILITY_TOLERANCE_M",
     "SENSOR_AGREEMENT_M",
     "SILHOUETTE_TOLERANCE_PX",
+    "SKIN_DETAIL_CHOICES",
+    "LOD_TOLERANCE_PX",
 ]
 
 OCCLUDER_NONE = -1
@@ -107,8 +129,16 @@ SILHOUETTE_TOLERANCE_PX = 0.1
 :class:`FrameRenderer`): it bounds the reused mask's difference from a fresh render to pixels whose
 centres lie within 0.1 pixel of the silhouette's edge."""
 
+SKIN_DETAIL_CHOICES: tuple[str, ...] = ("auto", "full", "coarse")
+"""Values of ``FrameRenderer(skin_detail=...)``: the level of detail chosen per frame by the
+hand's projected size, or always the full or the coarse skin."""
+LOD_TOLERANCE_PX = 1.0
+"""With ``skin_detail="auto"``, the coarse skin is drawn while its largest deviation from the
+skin's surface projects to less than this, pixels, at the hand's nearest point."""
+
 _KERNEL_3X3 = np.ones((3, 3), np.uint8)
 _HIDDEN_GROUP = 5  # a geom group no camera renders
+_VISUAL_GROUP = 2  # the hand's visual geoms (cameras draw it; not SKIN_LOD_GROUP)
 # A neighbouring hand/object surface up to this far behind an object still counts as a
 # possible occluder (conservative: it only costs a silhouette render).
 _OCCLUSION_MARGIN_M = 0.005
@@ -366,6 +396,10 @@ class FrameRenderer:
         silhouette_tolerance_px: image motion, pixels in [0, 0.5), up to which an object's
             silhouette is reused (module docstring); 0 re-renders whenever the object's pose
             relative to the camera changed at all.
+        skin_detail: the skin's level of detail (:data:`SKIN_DETAIL_CHOICES`; module
+            docstring): ``"auto"`` by the hand's projected size, ``"full"`` always the full
+            skin, ``"coarse"`` always the coarse one. A scene without the coarse skin
+            (``SceneSpec(skin_lod=False)`` or a capsule hand) always draws the full one.
 
     Raises:
         InvalidScene: for an unknown camera or a bad ``silhouette_tolerance_px``.
@@ -379,6 +413,7 @@ class FrameRenderer:
         sensor: SensorModel | None = None,
         *,
         silhouette_tolerance_px: float = SILHOUETTE_TOLERANCE_PX,
+        skin_detail: str = "auto",
     ) -> None:
         if not isinstance(scene, Scene):
             raise InvalidScene(f"scene must be a Scene; received {type(scene).__name__}")
@@ -402,6 +437,9 @@ class FrameRenderer:
                 f"{tolerance!r}"
             )
         self.silhouette_tolerance_px = float(tolerance)
+        self.skin_detail = skin_detail
+        self.last_skin_detail = "full"
+        """The level of detail the last :meth:`render` drew (``"full"`` or ``"coarse"``)."""
         self.scene = scene
         self.camera_spec = scene.camera(camera)
         self.intrinsics = self.camera_spec.intrinsics
@@ -447,6 +485,19 @@ class FrameRenderer:
         self._hand_only_buffers: tuple[np.ndarray, np.ndarray] | None = None
         self._camera_key: bytes | None = None
         self._T_cam_from_world: np.ndarray | None = None
+        self._lod = scene.skin_lod_geom_ids
+        if self._lod is not None:
+            from handsim.hand.skin import skin_deviation_m
+
+            # That of the meshes built, per metre of hand length: a rescaled hand scales them.
+            built = scene.built_hand_params
+            self._lod_deviation_per_m = skin_deviation_m(built, "coarse") / built.hand_length
+            full = self._lod[0]
+            # (n, 8, 3) corners of the skin geoms' boxes in their geom frames.
+            aabb = model.geom_aabb[full]
+            signs = np.array([(i & 1, i >> 1 & 1, i >> 2 & 1) for i in range(8)]) * 2.0 - 1.0
+            self._skin_box_corners = aabb[:, None, :3] + signs[None] * aabb[:, None, 3:]
+            self._skin_box_scale_m = scene.hand.params.hand_length
 
     def close(self) -> None:
         """Free the renderer."""
@@ -693,6 +744,99 @@ class FrameRenderer:
         visible_px = self._hand_pixels(data, labels, depth_m, R, t)
         return 1.0 - visible_px / hand_px if hand_px else 0.0
 
+    @property
+    def skin_detail(self) -> str:
+        """The skin's level of detail (:data:`SKIN_DETAIL_CHOICES`); may be set between frames.
+
+        Raises:
+            InvalidScene: when set to another value.
+        """
+        return self._skin_detail
+
+    @skin_detail.setter
+    def skin_detail(self, value: str) -> None:
+        if not isinstance(value, str) or value not in SKIN_DETAIL_CHOICES:
+            raise InvalidScene(
+                f"skin_detail must be one of {', '.join(map(repr, SKIN_DETAIL_CHOICES))}; "
+                f"received {value!r}"
+            )
+        self._skin_detail = value
+
+    def _coarse_wanted(self, data: mujoco.MjData, R: np.ndarray, t: np.ndarray) -> bool:  # noqa: N803
+        """Whether this frame draws the coarse skin (``skin_detail``, module docstring)."""
+        if self._lod is None or self._skin_detail == "full":
+            return False
+        if self._skin_detail == "coarse":
+            return True
+        full = self._lod[0]
+        hand_length_m = self.scene.hand.params.hand_length
+        # The skin boxes' corners (rescaled with the hand) in the camera frame: the nearest.
+        corners = self._skin_box_corners * (hand_length_m / self._skin_box_scale_m)
+        rot = data.geom_xmat[full].reshape(-1, 3, 3)
+        world = np.einsum("nij,nkj->nki", rot, corners) + data.geom_xpos[full][:, None]
+        z_near_m = float(np.min(world.reshape(-1, 3) @ R[2] + t[2]))
+        if z_near_m <= 0.0:
+            return False  # part of the hand behind the camera: its size is unbounded
+        focal_px = max(self.intrinsics.fx, self.intrinsics.fy)
+        deviation_px = self._lod_deviation_per_m * hand_length_m * focal_px / z_near_m
+        return deviation_px < LOD_TOLERANCE_PX
+
+    def _swap_skin(self, coarse: bool) -> None:
+        """Draw the coarse skin instead of the full one (``coarse``), or back."""
+        full, lod = self._lod
+        groups = self.scene.model.geom_group
+        groups[full] = _HIDDEN_GROUP if coarse else _VISUAL_GROUP
+        groups[lod] = _VISUAL_GROUP if coarse else SKIN_LOD_GROUP
+
+    def _follow_hand_geometry(self) -> None:
+        scene = self.scene
+        if scene.hand_geometry_version != self._hand_version:  # Scene.set_hand_length
+            # The skin is drawn scaled from the vertices uploaded: no upload per new length.
+            self.renderer.scale_geoms(
+                scene.hand_skin_geom_ids,
+                scene.hand.params.hand_length / self._uploaded_hand_length_m,
+            )
+            self._kp_radius = _keypoint_radii(scene)
+            self._hand_version = scene.hand_geometry_version
+
+    @contextlib.contextmanager
+    def skin_as_drawn(self) -> Iterator[str]:
+        """Within the block, the model shows the skin's level of detail :meth:`render` draws.
+
+        For the scene's current state (:attr:`skin_detail`): the coarse skin's geoms take the
+        full skin's geom group (which is hidden), so any renderer of the same model, e.g.
+        ``mujoco.Renderer`` for a reference render, draws what this one draws. The groups are
+        restored when the block ends.
+
+        Yields:
+            The level drawn, ``"full"`` or ``"coarse"`` (also :attr:`last_skin_detail`).
+        """
+        self._follow_hand_geometry()
+        data = self.scene.data
+        T = self._camera_pose(data)  # noqa: N806
+        coarse = self._coarse_wanted(data, T[:3, :3], T[:3, 3])
+        self.last_skin_detail = "coarse" if coarse else "full"
+        if coarse:
+            self._swap_skin(True)
+        try:
+            yield self.last_skin_detail
+        finally:
+            if coarse:
+                self._swap_skin(False)
+
+    def render_images(self) -> tuple[np.ndarray, np.ndarray]:
+        """The scene's current state drawn as :meth:`render` draws it, without any label work.
+
+        The same level of detail (:attr:`skin_detail`) as :meth:`render`; no working range is
+        applied (what :meth:`render` gives on every pixel within it).
+
+        Returns:
+            ``(depth_m, geom_id)``: (H, W) float32 clean depth along the optical axis, metres
+            (0 where no geom is seen), and (H, W) int32 geom ids (-1 for background).
+        """
+        with self.skin_as_drawn():
+            return self.renderer.render(self.scene.data)
+
     def render(
         self,
         rng: np.random.Generator,
@@ -711,33 +855,30 @@ class FrameRenderer:
             The labelled frame.
         """
         scene, model, data = self.scene, self.scene.model, self.scene.data
-        if scene.hand_geometry_version != self._hand_version:  # Scene.set_hand_length
-            # The skin is drawn scaled from the vertices uploaded: no upload per new length.
-            self.renderer.scale_geoms(
-                scene.hand_skin_geom_ids,
-                scene.hand.params.hand_length / self._uploaded_hand_length_m,
-            )
-            self._kp_radius = _keypoint_radii(scene)
-            self._hand_version = scene.hand_geometry_version
         intr = self.intrinsics
-        labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
-        # The camera's working range: nothing is measured outside it (the far clip plane of
-        # the scene may serve a camera with a longer range); those pixels get label 0.
-        depth_clean, labels = self.renderer.render(
-            data,
-            out=(self._depth_buffer, labels),
-            geom_values=self._geom_labels,
-            fill=0,
-            depth_range_m=(self._near_m, self._far_m),
-        )
+        # The skin's level of detail for both draws of the hand (the frame and the hand alone).
+        with self.skin_as_drawn():
+            T = self._camera_pose(data)  # noqa: N806
+            R, t = T[:3, :3], T[:3, 3]  # noqa: N806
+            labels = np.empty(self._depth_buffer.shape, dtype=np.int16)  # the Frame's own array
+            # The camera's working range: nothing is measured outside it (the far clip plane
+            # of the scene may serve a camera with a longer range); those pixels get label 0.
+            depth_clean, labels = self.renderer.render(
+                data,
+                out=(self._depth_buffer, labels),
+                geom_values=self._geom_labels,
+                fill=0,
+                depth_range_m=(self._near_m, self._far_m),
+            )
+            occlusion_ratio = None
+            if hand_occlusion:
+                occlusion_ratio = self._hand_occlusion_ratio(data, labels, depth_clean, R, t)
         if type(self.sensor) is NoNoise:
             depth = depth_clean.copy()  # its apply() would also check the depth: two more passes
         else:
             depth = self.sensor.apply(depth_clean, intr, rng)
             if np.may_share_memory(depth, depth_clean):
                 depth = depth.copy()  # a sensor model that returned its input
-        T = self._camera_pose(data)  # noqa: N806
-        R, t = T[:3, :3], T[:3, 3]  # noqa: N806
 
         # Keypoints.
         kp_world = scene.binding.keypoints(data)
@@ -788,10 +929,6 @@ class FrameRenderer:
                         px_count_visib=px_visib,
                     )
                 )
-
-        occlusion_ratio = None
-        if hand_occlusion:
-            occlusion_ratio = self._hand_occlusion_ratio(data, labels, depth_clean, R, t)
 
         contacts = []
         ncon = data.ncon

@@ -201,7 +201,9 @@ def _grasp_files(out: pathlib.Path) -> list[pathlib.Path]:
         (*_GRASP_OBJECT_XY_M, float(obj.rest_height_m + 5e-4)),
         tuple(map(float, obj.rest_quat_wxyz)),
     )
-    scene = Scene(SceneSpec(objects=(placement,), cameras=(third_person_camera(),)))
+    # No coarse skin (a handsim renderer's level of detail): the asset is the hand as drawn.
+    spec = SceneSpec(objects=(placement,), cameras=(third_person_camera(),), skin_lod=False)
+    scene = Scene(spec)
     spec = scene.mjspec.copy()
     spec.modelname = "grasp scene"
     spec.comment = (

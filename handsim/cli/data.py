@@ -42,6 +42,8 @@ def _config(args: argparse.Namespace):
     from handsim.data.generation import PRESETS, GenerationConfig
 
     overrides = {"frames": args.frames, "seed": args.seed}
+    if args.skin_detail is not None:
+        overrides["skin_detail"] = args.skin_detail
     if args.config is not None:
         return GenerationConfig.from_file(args.config, **overrides)
     return GenerationConfig.from_mapping(PRESETS[args.preset], **overrides)
@@ -219,7 +221,7 @@ def _export_minari(args: argparse.Namespace) -> int:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     """Add ``handsim generate``, ``handsim dataset`` and ``handsim export``."""
-    from handsim.data.config import BACKENDS
+    from handsim.data.config import BACKENDS, SKIN_DETAILS
     from handsim.data.generation import PRESETS
 
     presets = tuple(PRESETS)
@@ -263,6 +265,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--batch",
         type=integer(1, 65536),
         help="warp backend: frames per launch of a hand alone (default: 16)",
+    )
+    gen.add_argument(
+        "--skin-detail",
+        choices=SKIN_DETAILS,
+        help="the hand skin's level of detail (overrides the config; default: auto, the coarse "
+        "skin for small projected hands; full: always the full skin)",
     )
     gen.add_argument(
         "--out", type=output_folder, required=True, metavar="DIR", help="dataset folder"

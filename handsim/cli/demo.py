@@ -29,19 +29,19 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-import cv2
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from handsim.cli._args import add_quiet, integer, non_negative_int, progress_bar, strict_json
 from handsim.frame import FrameRenderer
 from handsim.hand.model import HAND_SIZES, Hand, HandParams
 from handsim.hand.pose_sources import gesture, smooth_motion
-from handsim.viz import contact_sheet, draw_frame, draw_frame_panels, frame_legend
 from handsim.world.camera import camera_preset
 from handsim.world.scene import Scene, SceneSpec, sample_placements, sample_viewpoint
 from handsim.world.sensors import StructuredLight
+
+# OpenCV, SciPy's rotations and handsim.viz load when the demo runs: `handsim` builds every
+# command's parser, and a `handsim generate` should not pay for them.
 
 __all__ = ["DEMO_GESTURES", "DEMO_GRASP_OBJECTS", "run_demo", "add_parser"]
 
@@ -61,11 +61,13 @@ _HOLD_S = 0.4
 _WRIST_POS = np.array([0.0, 0.0, 0.3])
 
 
-def _hand_frame_rotation() -> Rotation:
+def _hand_frame_rotation_rotvec() -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
     # Fingers up, palm toward the camera at -y: hand x (radial) -> world +x, y (distal) ->
     # world +z, z (palmar) -> world -y.
     columns = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]).T
-    return Rotation.from_matrix(columns)
+    return Rotation.from_matrix(columns).as_rotvec()
 
 
 @dataclasses.dataclass
@@ -104,7 +106,7 @@ def _play(params: HandParams, gestures: Sequence[str], width: int, height: int) 
     binding = hand.bind(model)
     renderer = mujoco.Renderer(model, height, width)
 
-    rotvec = _hand_frame_rotation().as_rotvec()
+    rotvec = _hand_frame_rotation_rotvec()
     keyframes = [
         gesture(name).replace(wrist_pos=_WRIST_POS, wrist_rotvec=rotvec) for name in gestures
     ]
@@ -142,6 +144,8 @@ _FRAME_GESTURES = ("open", "pinch", "point", "fist", "ok", "relaxed", "victory",
 
 def _labelled_frames(seed: int = 0, bar=None) -> tuple[np.ndarray, dict, np.ndarray]:
     """Noisy labelled frames of a hand among objects, their statistics, the first one's panels."""
+    from handsim.viz import draw_frame, draw_frame_panels
+
     rng = np.random.default_rng(seed)
     intrinsics = camera_preset("icvl")
     placements = sample_placements(rng, _FRAME_OBJECTS)
@@ -186,6 +190,10 @@ def run_demo(
     Returns:
         The summary that is also written to ``summary.json``.
     """
+    import cv2
+
+    from handsim.viz import contact_sheet, frame_legend
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     hands = [(length, side) for length in HAND_SIZES.values() for side in ("right", "left")]

@@ -19,8 +19,9 @@ module                   holds
 Nothing here imports the envs or torch.
 """
 
+from typing import Any
+
 from handsim.data.arrays import LABEL_SCHEMA, arrays_to_frame, frame_to_arrays
-from handsim.data.export import export_bop, export_hand_labels
 from handsim.data.generation import PRESETS, GenerationConfig, generate
 from handsim.data.manifest import Manifest, check_dataset
 from handsim.data.shards import ShardReader, ShardWriter, check_shard
@@ -42,3 +43,20 @@ __all__ = [
     "export_bop",
     "export_hand_labels",
 ]
+
+
+# The exports load OpenCV and SciPy's rotations: imported on first use, not by every user of
+# handsim.data (a generation worker, `handsim generate`).
+_LAZY = {"export_bop": "handsim.data.export", "export_hand_labels": "handsim.data.export"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'handsim.data' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + __all__)

@@ -24,6 +24,9 @@ from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics
 from handsim.world.registry import OBJECT_NAMES, OBJECTS
 from handsim.world.scene import BACKGROUNDS
 
+SKIN_DETAILS: tuple[str, ...] = ("auto", "full")
+"""Values of :attr:`GenerationConfig.skin_detail`."""
+
 __all__ = [
     "POSE_SOURCES",
     "DEFAULT_POSE_SOURCES",
@@ -33,6 +36,7 @@ __all__ = [
     "SENSORS",
     "BACKENDS",
     "BACKGROUNDS",
+    "SKIN_DETAILS",
     "PRESETS",
     "OCCLUDING_OBJECTS",
     "MAX_PENETRATION_M",
@@ -330,6 +334,12 @@ class GenerationConfig:
             ``"warp"`` (MuJoCo Warp: :mod:`handsim.data.warp_source`; the ``kinematic`` and
             ``grasp`` sources, a hand alone N frames per launch). Recorded with the dataset: a
             resume with the other backend is refused (their shards differ).
+        skin_detail: the skin's level of detail in the OpenGL renders of every source
+            (:data:`SKIN_DETAILS`; the warp backend draws the full skin): ``"auto"`` (default)
+            draws the coarse skin (a quarter of the triangles) when its deviation from the
+            skin's surface projects to under a pixel, i.e. for small projected hands,
+            ``"full"`` always the full skin (:class:`~handsim.frame.FrameRenderer`).
+            Recorded with the dataset.
     """
 
     frames: int = 1000
@@ -357,6 +367,7 @@ class GenerationConfig:
     background: str = "none"
     approach_fraction: float = 0.0
     backend: str = "opengl"
+    skin_detail: str = "auto"
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))
@@ -399,6 +410,7 @@ class GenerationConfig:
         _choice("sensor", self.sensor, SENSORS)
         _choice("background", self.background, BACKGROUNDS)
         _choice("backend", self.backend, BACKENDS)
+        _choice("skin_detail", self.skin_detail, SKIN_DETAILS)
         if not isinstance(self.paired_clean, bool):
             raise InvalidGenerationConfig(
                 f"paired_clean must be true or false; received {self.paired_clean!r}"

@@ -141,6 +141,11 @@ _WARP_OPTIONS: dict[str, object] = {"device": None, "batch": None}
 """This process's warp backend options (device, batch): they change no frame."""
 
 
+_BEFORE_THEY_EXISTED: dict[str, object] = {"skin_detail": "full"}
+"""Config fields whose default differs from what datasets made before the field existed used:
+a resume of such a dataset takes this value (its shards were made so), not the default."""
+
+
 def _make_source(config: GenerationConfig) -> FrameSource:
     if config.backend == "warp":
         from handsim.data.warp_source import DEFAULT_BATCH, make_warp_source
@@ -563,8 +568,11 @@ def _generate_in(
         )
     stored = manifest.config
     try:
-        # Fields added since the dataset was made take their defaults.
-        stored = GenerationConfig.from_mapping(manifest.config).to_json()
+        # Fields added since the dataset was made take the value that made its shards (the
+        # behaviour before they existed), else their defaults.
+        stored = GenerationConfig.from_mapping(
+            {**_BEFORE_THEY_EXISTED, **manifest.config}
+        ).to_json()
     except (InvalidGenerationConfig, TypeError):
         pass
     if stored != config.to_json():
@@ -621,6 +629,7 @@ def _generate_in(
                 progress(start + written.value, config.frames)
 
         results = _as_completed(futures, tick)
+    complete = False
     try:
         for index, info in results:
             manifest.shards[index] = info
@@ -628,6 +637,7 @@ def _generate_in(
             done += info.frames
             if progress is not None and pool is None:
                 progress(done, config.frames)
+        complete = True
     except BrokenProcessPool as err:
         raise GenerationError(
             f"a generation worker died ({err}); the complete shards are kept, rerun the same "
@@ -635,9 +645,17 @@ def _generate_in(
         ) from err
     finally:
         if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+            # Every shard is written: the workers free their contexts and exit while this
+            # process sums the dataset up. After an error they are awaited first (a worker
+            # still writing could race a resumed run).
+            pool.shutdown(wait=not complete, cancel_futures=True)
         close_kept_source()  # shards made in this process
-    edges = config._buckets()[0] if config.occlusion_buckets is not None else np.linspace(0, 1, 11)
-    manifest.occlusion_histogram = _histogram(folder, manifest, edges)
-    manifest.write(folder)
+    try:
+        buckets = config.occlusion_buckets is not None
+        edges = config._buckets()[0] if buckets else np.linspace(0, 1, 11)
+        manifest.occlusion_histogram = _histogram(folder, manifest, edges)
+        manifest.write(folder)
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True)
     return manifest

@@ -304,14 +304,15 @@ class KinematicSource:
         On Warp the frame renderer keeps its label code and renders through a
         :class:`~handsim.world.warp_render.WarpSceneRenderer` (one world per render).
         """
-        renderer = FrameRenderer(scene, "camera", self.sensor)
-        if self.config.backend == "warp":
-            from handsim.world.warp_render import WarpSceneRenderer
+        if self.config.backend != "warp":
+            return FrameRenderer(scene, "camera", self.sensor, skin_detail=self.config.skin_detail)
+        from handsim.world.warp_render import WarpSceneRenderer
 
-            renderer.renderer.close()
-            renderer.renderer = WarpSceneRenderer(
-                scene.model, "camera", self.intrinsics, device=self.warp_device
-            )
+        renderer = FrameRenderer(scene, "camera", self.sensor, skin_detail="full")
+        renderer.renderer.close()
+        renderer.renderer = WarpSceneRenderer(
+            scene.model, "camera", self.intrinsics, device=self.warp_device
+        )
         return renderer
 
     def close(self) -> None:
@@ -346,6 +347,8 @@ class KinematicSource:
                 cameras=(camera,),
                 table=n > 0,
                 background=self.config.background,
+                # A coarse skin only if drawn (the warp backend ray-casts every mesh: full).
+                skin_lod=self.config.skin_detail != "full" and self.config.backend != "warp",
             )
             scene = Scene(spec)
             kept = (scene, self._frame_renderer(scene))

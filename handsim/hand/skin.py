@@ -47,18 +47,25 @@ All geometry is in the body frames of :class:`~handsim.hand.model.Skeleton` (met
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
+import hashlib
+import os
+import pathlib
 from collections.abc import Callable
 
 import numpy as np
 
+from handsim.errors import InvalidHandParams
 from handsim.hand.lofting import loft_faces
 
 __all__ = [
     "SURFACES",
+    "SKIN_DETAILS",
     "SkinPart",
     "build_skin",
+    "skin_deviation_m",
     "round_cone_profile",
     "FOREARM_LENGTH_RATIO",
     "ELBOW_RATIO",
@@ -72,14 +79,32 @@ SURFACES: tuple[str, ...] = ("skin", "capsules")
 # Width / depth of the phalanx sections and of the fingertip pad [estimate].
 _WIDTH_RATIO = 1.10
 _TIP_WIDTH_RATIO = 1.12
-_RINGS_PER_CAP = 8
-_RINGS_ON_CONE = 6
-_AROUND = 24
 _BURIED_M = 2e-4
 # The palm's skin stays within this of its collision primitives (blended over _CLIP_BLEND_M).
 _CLIP_M = 0.0018
 _CLIP_BLEND_M = 0.0015
-_PALM_GRID_M = 0.0025  # surface-nets grid step of a medium (189 mm) palm, metres
+
+
+@dataclasses.dataclass(frozen=True)
+class _Resolution:
+    """How finely a level of detail samples the skin."""
+
+    rings_per_cap: int  # rings on each spherical cap of a phalanx's round cone
+    rings_on_cone: int  # rings on the cone between the caps
+    around: int  # vertices around each ring
+    palm_grid_m: float  # surface-nets grid step of a medium (189 mm) palm, metres
+
+
+SKIN_DETAILS: tuple[str, ...] = ("full", "coarse")
+"""Levels of detail of the skin: ``"full"`` (what cameras draw by default; about 32 000
+triangles) and ``"coarse"`` (a quarter of them: the palm on a grid twice as coarse, half the
+vertices around and along each phalanx), the depth sensor's skin for small projected hands."""
+
+_RESOLUTIONS = {
+    "full": _Resolution(rings_per_cap=8, rings_on_cone=6, around=24, palm_grid_m=0.0025),
+    "coarse": _Resolution(rings_per_cap=4, rings_on_cone=3, around=12, palm_grid_m=0.005),
+}
+_FULL = _RESOLUTIONS["full"]
 
 Sdf = Callable[[np.ndarray], np.ndarray]
 
@@ -106,24 +131,32 @@ class SkinPart:
 # Round cones ---------------------------------------------------------------------------------
 
 
-def round_cone_profile(r0: float, r1: float, length: float) -> tuple[np.ndarray, np.ndarray]:
+def round_cone_profile(
+    r0: float,
+    r1: float,
+    length: float,
+    rings_per_cap: int = _FULL.rings_per_cap,
+    rings_on_cone: int = _FULL.rings_on_cone,
+) -> tuple[np.ndarray, np.ndarray]:
     """Meridian of a round cone along ``+y`` (hull of spheres ``r0`` at 0 and ``r1`` at ``length``).
 
     Args:
         r0: radius of the sphere at ``y = 0``, metres.
         r1: radius of the sphere at ``y = length``, metres.
         length: distance between the sphere centres, metres (> ``|r0 - r1|``).
+        rings_per_cap: rings on each spherical cap (the full skin's by default).
+        rings_on_cone: rings on the cone between them.
 
     Returns:
         ``(y, rho)``: (K,) axial positions and radii, from the proximal pole (``rho = 0``) to
         the distal pole, sampled on both spherical caps and the cone between them.
     """
     alpha_t = np.arcsin((r0 - r1) / length)
-    a0 = np.linspace(-np.pi / 2, alpha_t, _RINGS_PER_CAP + 1)
-    a1 = np.linspace(alpha_t, np.pi / 2, _RINGS_PER_CAP + 1)
+    a0 = np.linspace(-np.pi / 2, alpha_t, rings_per_cap + 1)
+    a1 = np.linspace(alpha_t, np.pi / 2, rings_per_cap + 1)
     y0, rho0 = r0 * np.sin(a0), r0 * np.cos(a0)
     y1, rho1 = length + r1 * np.sin(a1), r1 * np.cos(a1)
-    t = np.linspace(0.0, 1.0, _RINGS_ON_CONE + 2)[1:-1]
+    t = np.linspace(0.0, 1.0, rings_on_cone + 2)[1:-1]
     yc = y0[-1] + t * (y1[0] - y0[-1])
     rc = rho0[-1] + t * (rho1[0] - rho0[-1])
     return np.concatenate([y0, yc, y1]), np.concatenate([rho0, rc, rho1])
@@ -143,26 +176,26 @@ def _sd_round_cone(p: np.ndarray, r0: float, r1: float, length: float) -> np.nda
 
 
 def _elliptic_round_cone(
-    r0: float, r1: float, length: float, s0: float, s1: float
+    r0: float, r1: float, length: float, s0: float, s1: float, res: _Resolution = _FULL
 ) -> tuple[np.ndarray, np.ndarray, Sdf]:
     """Mesh and signed distance of a round cone whose sections are ``s(y)`` wider than deep."""
-    y, rho = round_cone_profile(r0, r1, length)
+    y, rho = round_cone_profile(r0, r1, length, res.rings_per_cap, res.rings_on_cone)
 
     def width(yy: np.ndarray) -> np.ndarray:
         return s0 + (s1 - s0) * np.clip(yy / length, 0.0, 1.0)
 
     s = width(y)
-    t = 2.0 * np.pi * np.arange(_AROUND) / _AROUND
+    t = 2.0 * np.pi * np.arange(res.around) / res.around
     rings = np.stack(
         [
             np.cos(t)[None, :] * (s * rho)[1:-1, None],
-            np.broadcast_to(y[1:-1, None], (len(y) - 2, _AROUND)),
+            np.broadcast_to(y[1:-1, None], (len(y) - 2, res.around)),
             np.sin(t)[None, :] * rho[1:-1, None],
         ],
         axis=-1,
     ).reshape(-1, 3)
     vertices = np.concatenate([[[0.0, y[0], 0.0]], rings, [[0.0, y[-1], 0.0]]])
-    faces = loft_faces(len(y) - 2, _AROUND)
+    faces = loft_faces(len(y) - 2, res.around)
 
     def sdf(p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=np.float64)
@@ -421,12 +454,59 @@ def _project(sdf: Sdf, p: np.ndarray, steps: int = 6, tol: float = 1e-7) -> np.n
 # Building --------------------------------------------------------------------------------------
 
 
+_CACHE_DIR = pathlib.Path(__file__).parent / "__pycache__"
+"""Where meshed palms are kept between processes (beside this module, as numba keeps its
+compiled loops); nothing is kept where it is not writable."""
+_CACHE_FILES = 96  # hand lengths on a 2 mm grid: 36, at two levels of detail
+
+
+def _palm_mesh(skeleton, sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
+    """The palm's surface-nets mesh projected onto its zero set, from the disk cache if there.
+
+    Meshing costs ~0.3 s, paid by every process that builds a hand (each dataset worker):
+    the result is kept in a file named by a hash of everything it depends on (this module's
+    and the lofting module's source, the hand's parameters and skeleton, the grid step,
+    NumPy's version),
+    so a kept mesh is bitwise the one this process would make.
+    """
+    key = hashlib.sha256()
+    for module in (__file__, loft_faces.__code__.co_filename):
+        key.update(pathlib.Path(module).read_bytes())
+    key.update(np.__version__.encode())
+    key.update(repr(skeleton.params).encode())
+    key.update(np.float64(step).tobytes() + lo.tobytes() + hi.tobytes())
+    for body in skeleton.bodies:
+        key.update(repr((body.name, body.part, body.parent)).encode())
+        key.update(np.asarray(body.pos, dtype=np.float64).tobytes())
+        for g in body.geoms:
+            for name in ("start", "end", "radius", "pos", "half_size"):
+                if hasattr(g, name):
+                    key.update(np.asarray(getattr(g, name), dtype=np.float64).tobytes())
+    path = _CACHE_DIR / f"palm-{key.hexdigest()[:32]}.npz"
+    with contextlib.suppress(OSError, ValueError, KeyError):
+        with np.load(path) as kept:
+            return kept["vertices"], kept["faces"]
+    vertices, faces = _surface_nets(sdf, lo, hi, step)
+    vertices = _project(sdf, vertices)
+    # Written under a name of this process's, then renamed: a reader never sees half a file.
+    with contextlib.suppress(OSError):
+        _CACHE_DIR.mkdir(exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.npz")
+        np.savez(partial, vertices=vertices, faces=faces)
+        os.replace(partial, path)
+        # At most _CACHE_FILES palms (about 0.4 MB each): the least recently made go.
+        kept = sorted(_CACHE_DIR.glob("palm-*.npz"), key=lambda f: f.stat().st_mtime)
+        for old in kept[:-_CACHE_FILES]:
+            old.unlink(missing_ok=True)
+    return vertices, faces
+
+
 def _segment_kind(name: str) -> str:
     return name.split("_", 1)[1]
 
 
 @functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
-def _right_parts(params) -> tuple[SkinPart, ...]:
+def _right_parts(params, detail: str = "full") -> tuple[SkinPart, ...]:
     from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
 
     skeleton = build_skeleton(dataclasses.replace(params, side="right", surface="capsules"))
@@ -436,9 +516,10 @@ def _right_parts(params) -> tuple[SkinPart, ...]:
 
     sdf, lo, hi = _palm_sdf(skeleton)
     # The grid scales with the hand: the same mesh density (and cost) for every size.
-    step = _PALM_GRID_M * params.hand_length / 0.189
-    vertices, faces = _surface_nets(sdf, lo, hi, step)
-    parts.append(SkinPart(0, _project(sdf, vertices), faces, sdf))
+    res = _RESOLUTIONS[detail]
+    step = res.palm_grid_m * params.hand_length / 0.189
+    vertices, faces = _palm_mesh(skeleton, sdf, lo, hi, step)
+    parts.append(SkinPart(0, vertices, faces, sdf))
 
     for i, body in enumerate(bodies[1:], start=1):
         capsule = body.geoms[0]
@@ -465,7 +546,7 @@ def _right_parts(params) -> tuple[SkinPart, ...]:
         else:
             s0 = _WIDTH_RATIO
             s1 = _TIP_WIDTH_RATIO if child is None else _WIDTH_RATIO
-        vertices, faces, sdf = _elliptic_round_cone(r0, r1, length, s0, s1)
+        vertices, faces, sdf = _elliptic_round_cone(r0, r1, length, s0, s1, res)
         parts.append(SkinPart(i, vertices, faces, sdf))
     return tuple(parts)
 
@@ -482,26 +563,67 @@ def _mirror(part: SkinPart) -> SkinPart:
 
 
 @functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
-def build_skin(params) -> tuple[SkinPart, ...]:
+def build_skin(params, detail: str = "full") -> tuple[SkinPart, ...]:
     """The skin of a hand, one part per body (cached per parameters).
 
     Args:
         params: hand parameters (:class:`~handsim.hand.model.HandParams`); ``surface`` is
             ignored.
+        detail: level of detail (:data:`SKIN_DETAILS`): the same surface sampled more or less
+            finely; every level's parts share the bodies, so they pose alike.
 
     Returns:
         One :class:`SkinPart` per body of :func:`~handsim.hand.model.build_skeleton`, in body
         order (the palm, with the forearm stub, first). Arrays are read-only.
+
+    Raises:
+        InvalidHandParams: for an unknown ``detail``.
     """
+    if not isinstance(detail, str) or detail not in _RESOLUTIONS:
+        raise InvalidHandParams(
+            f"detail must be one of {', '.join(map(repr, SKIN_DETAILS))}; received {detail!r}"
+        )
     # The skin depends on the sizes and the forearm only: left and right share one build.
     shape = dataclasses.replace(params, side="right", surface="skin", couple_dip=False)
-    parts = _right_parts(shape)
+    parts = _right_parts(shape, detail)
     if params.side == "left":
         parts = tuple(_mirror(p) for p in parts)
     for p in parts:
         p.vertices.setflags(write=False)
         p.faces.setflags(write=False)
     return parts
+
+
+@functools.lru_cache(maxsize=64)
+def skin_deviation_m(params, detail: str = "coarse") -> float:
+    """How far a level of detail's surface strays from the full skin's, metres (largest).
+
+    Measured at the level's triangle centres and edge midpoints (its vertices lie on the
+    surface, its flat triangles cut inside convex parts) with each part's signed distance:
+    where the palm's pieces blend the distance is approximate, elsewhere exact for round
+    sections and within the width ratio for elliptic ones. About proportional to hand length
+    (the palm's grid scales with it), up to where the grid falls on the palm's edges; a hand
+    rescaled in place (:meth:`Scene.set_hand_length
+    <handsim.world.scene.Scene.set_hand_length>`) has its built mesh's, scaled.
+
+    Args:
+        params: hand parameters.
+        detail: level of detail (:data:`SKIN_DETAILS`).
+
+    Returns:
+        The largest absolute distance, metres (0 for ``"full"``).
+    """
+    if detail == "full":
+        build_skin(params, detail)  # validates the params' type as the other levels do
+        return 0.0
+    worst = 0.0
+    for part in build_skin(params, detail):
+        tri = part.vertices[part.faces]
+        points = np.concatenate(
+            [tri.mean(axis=1), 0.5 * (tri[:, 0] + tri[:, 1]), 0.5 * (tri[:, 1] + tri[:, 2])]
+        )
+        worst = max(worst, float(np.abs(part.sdf(points)).max()))
+    return worst
 
 
 # Measuring the skin against the skeleton ------------------------------------------------------

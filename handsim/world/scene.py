@@ -61,6 +61,7 @@ __all__ = [
     "SEGMENT_LABELS",
     "OBJECT_LABEL_OFFSET",
     "HAND_PART_LABELS",
+    "SKIN_LOD_GROUP",
     "Scene",
 ]
 
@@ -69,6 +70,9 @@ SEGMENT_LABELS: tuple[str, ...] = ("background", "table", "backdrop", "arm", "pa
 OBJECT_LABEL_OFFSET = len(SEGMENT_LABELS)
 HAND_PART_LABELS: tuple[str, ...] = ("arm", "palm", *DIGITS)
 """The labels a hand's geoms carry (each hand after the first gets its own copy of them)."""
+SKIN_LOD_GROUP = 4
+"""Geom group of the skin's coarse level of detail (:attr:`SceneSpec.skin_lod`); cameras draw
+groups 0 to 2, so only a renderer that swaps it in for the skin shows it."""
 
 _TABLE_HALF_SIZE_M = (0.6, 0.4, 0.02)
 _BACKDROP_BODY = "backdrop"
@@ -103,6 +107,20 @@ _BACKDROP_REACH_M = 0.3
 _DEFAULT_HAND_TARGET = DEFAULT_HAND_TARGET_M
 # OpenGL near clip plane, metres: well inside every sensor's minimum range.
 _GL_NEAR_M = 0.01
+
+
+def _add_coarse_skin(mj: mujoco.MjSpec, hand: Hand) -> None:
+    """Add the skin's coarse level of detail to the hand attached to ``mj`` (drawn only)."""
+    from handsim.hand.skin import build_skin
+
+    full_rgba = mj.geom(f"{hand.prefix}palm_visual_0").rgba
+    for part in build_skin(hand.params, "coarse"):
+        name = f"{hand.prefix}{hand.skeleton.bodies[part.body].name}_visual_1"
+        mj.add_mesh(name=name, uservert=part.vertices.ravel(), userface=part.faces.ravel())
+        mj.body(f"{hand.prefix}{hand.skeleton.bodies[part.body].name}").add_geom(
+            name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name, group=SKIN_LOD_GROUP,
+            contype=0, conaffinity=0, density=0.0, rgba=full_rgba,
+        )  # fmt: skip
 
 
 class Scene:
@@ -160,6 +178,8 @@ class Scene:
         self.hand = self.hands[0] if self.hands else None
         for hand in self.hands:
             hand.attach_to(mj)
+            if spec.skin_lod and hand.params.surface == "skin":
+                _add_coarse_skin(mj, hand)
         if not self.hands:
             for key, value in HAND_PHYSICS_OPTIONS.items():
                 setattr(mj.option, key, value)
@@ -194,6 +214,21 @@ class Scene:
         self.hand_skin_geom_ids: np.ndarray = np.flatnonzero(mesh_geoms)
         """The geoms that draw the hand's skin (those meshes), read-only."""
         self.hand_skin_geom_ids.setflags(write=False)
+        self.skin_lod_geom_ids: tuple[np.ndarray, np.ndarray] | None = None
+        """``(full, coarse)``: (n,) ids of the skin's geoms and of their coarse twins in the
+        same order (the same bodies; every hand's), or ``None`` without
+        :attr:`SceneSpec.skin_lod`."""
+        lod_hands = [h for h in self.hands if spec.skin_lod and h.params.surface == "skin"]
+        if lod_hands:
+            full, coarse = [], []
+            for hand in lod_hands:
+                for b in hand.skeleton.bodies:
+                    name = hand.prefix + b.name
+                    full.append(self.model.geom(f"{name}_visual_0").id)
+                    coarse.append(self.model.geom(f"{name}_visual_1").id)
+            self.skin_lod_geom_ids = (np.array(full), np.array(coarse))
+            for ids in self.skin_lod_geom_ids:
+                ids.setflags(write=False)
         self._built_hand_params = None if self.hand is None else self.hand.params
         self._built_hand_geometry: list | None = None
         self.hand_geometry_version = 0
@@ -232,6 +267,15 @@ class Scene:
         """
         self._check_not_rescaled("save")
         return save_spec(self.mjspec, path, assets_dir=assets_dir)
+
+    @property
+    def built_hand_params(self) -> HandParams | None:
+        """The hand parameters the model's hand (its meshes) was built with (``None``: none).
+
+        :meth:`set_hand_length` scales that hand in place; :attr:`hand` then has the new
+        parameters.
+        """
+        return self._built_hand_params
 
     @property
     def hand_rescaled(self) -> bool:

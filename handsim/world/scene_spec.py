@@ -338,6 +338,12 @@ class SceneSpec:
             hand carries its side's prefix, ``rh_`` or ``lh_``, so they stay unique). The
             first is :attr:`hand`, the hand a :class:`~handsim.frame.Frame` labels. ``None``
             (default): the one hand of :attr:`hand`.
+        skin_lod: also build the skin's coarse level of detail (each hand with
+            ``surface="skin"``): one more mesh geom per hand body, ``<side>_<body>_visual_1``
+            in geom group :data:`~handsim.world.scene.SKIN_LOD_GROUP` (no camera draws it by
+            default), which a :class:`~handsim.frame.FrameRenderer` draws instead of the skin
+            for small projected hands. Drawn only (no contact, no mass): physics is the same
+            without it.
     """
 
     hand: HandParams | None = dataclasses.field(default_factory=HandParams)
@@ -348,6 +354,7 @@ class SceneSpec:
     table: bool = True
     background: str = "none"
     hands: tuple[HandParams, ...] | None = None
+    skin_lod: bool = True
 
     def __post_init__(self) -> None:
         if self.hand is not None and not isinstance(self.hand, HandParams):
@@ -369,6 +376,7 @@ class SceneSpec:
                 )
             object.__setattr__(self, field, tuple(items))
         boolean("table", self.table, InvalidScene)
+        boolean("skin_lod", self.skin_lod, InvalidScene)
         if not isinstance(self.background, str) or self.background not in BACKGROUNDS:
             raise InvalidScene(
                 f"background must be one of {', '.join(map(repr, BACKGROUNDS))}; received "

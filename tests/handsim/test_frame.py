@@ -13,6 +13,7 @@ from handsim.world.scene import (
     OBJECT_LABEL_OFFSET,
     SEGMENT_LABELS,
     CameraSpec,
+    InvalidScene,
     ObjectPlacement,
     Scene,
     SceneSpec,
@@ -541,3 +542,85 @@ def test_border_cut_object_counts_its_whole_silhouette(panel, side):
     assert abs(label.px_count_visib - expected_visib) <= perimeter
     assert label.visib_fract == pytest.approx(expected_visib / expected_all, abs=0.02)
     assert 0.4 < label.visib_fract < 0.6  # about half of it is in the image
+
+
+def test_coarse_skin_keeps_the_keypoints_and_the_depth_within_a_millimetre():
+    """The coarse skin poses as the full one: keypoints alike, depth within 1 mm, groups kept."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    groups = scene.model.geom_group.copy()
+    full_ids, coarse_ids = scene.skin_lod_geom_ids
+    assert np.all(groups[full_ids] == 2) and np.all(groups[coarse_ids] == 4)
+    with FrameRenderer(scene, "front", skin_detail="full") as renderer:
+        full = renderer.render(np.random.default_rng(0), keep_clean=True)
+        assert renderer.last_skin_detail == "full"
+        renderer.skin_detail = "coarse"
+        coarse = renderer.render(np.random.default_rng(0), keep_clean=True)
+        assert renderer.last_skin_detail == "coarse"
+    np.testing.assert_array_equal(scene.model.geom_group, groups)  # swapped back
+    np.testing.assert_array_equal(coarse.keypoints_cam, full.keypoints_cam)
+    np.testing.assert_array_equal(coarse.keypoints_px, full.keypoints_px)
+    assert coarse.visible.all() and full.visible.all()
+    palm = SEGMENT_LABELS.index("palm")
+    hand_f = (full.segmentation >= palm) & (full.segmentation < OBJECT_LABEL_OFFSET)
+    hand_c = (coarse.segmentation >= palm) & (coarse.segmentation < OBJECT_LABEL_OFFSET)
+    assert set(np.unique(coarse.segmentation)) == set(np.unique(full.segmentation))
+    close = hand_f & hand_c & (np.abs(coarse.depth_clean - full.depth_clean) <= 0.001)
+    assert np.count_nonzero(close) >= 0.95 * np.count_nonzero(hand_f | hand_c)
+    assert not np.array_equal(coarse.depth_clean, full.depth_clean)  # another mesh was drawn
+
+
+@pytest.mark.parametrize(("camera_y", "expected"), [(0.0, "coarse"), (0.36, "full")])
+def test_auto_skin_detail_follows_the_hands_projected_size(camera_y, expected):
+    """skin_detail="auto" draws the coarse skin while its deviation projects under a pixel."""
+    from handsim.frame import LOD_TOLERANCE_PX
+    from handsim.hand.skin import skin_deviation_m
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, camera_y, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(camera_y))
+    # The palm faces the camera 0.5 - camera_y away (0.5 m: 0.6 pixel; 0.14 m: over 2).
+    deviation_px = skin_deviation_m(scene.hand.params) * ICVL.fx / (0.5 - camera_y)
+    assert (deviation_px < LOD_TOLERANCE_PX) == (expected == "coarse")
+    with FrameRenderer(scene, "front") as renderer:
+        assert renderer.skin_detail == "auto"
+        renderer.render(np.random.default_rng(0))
+        assert renderer.last_skin_detail == expected
+
+
+def test_skin_detail_without_a_coarse_skin_and_bad_values():
+    """A scene built without the coarse skin draws the full one; unknown levels are refused."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False, skin_lod=False))
+    assert scene.skin_lod_geom_ids is None
+    scene.reset(_flat_hand_facing(0.0))
+    with FrameRenderer(scene, "front", skin_detail="coarse") as renderer:
+        renderer.render(np.random.default_rng(0))
+        assert renderer.last_skin_detail == "full"
+        with pytest.raises(InvalidScene, match=r"skin_detail must be one of 'auto', 'full', "):
+            renderer.skin_detail = "medium"
+    with pytest.raises(InvalidScene, match=r"skin_detail must be one of .* received 3"):
+        FrameRenderer(scene, "front", skin_detail=3)
+
+
+def test_skin_as_drawn_shows_the_level_render_draws_to_other_renderers():
+    """Inside the block the model shows the drawn level (a plain render sees it); then restored."""
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    full_ids, coarse_ids = scene.skin_lod_geom_ids
+    groups = scene.model.geom_group.copy()
+    with FrameRenderer(scene, "front") as renderer:
+        frame = renderer.render(np.random.default_rng(0), keep_clean=True)
+        with renderer.skin_as_drawn() as level:
+            assert level == renderer.last_skin_detail == "coarse"
+            assert np.all(scene.model.geom_group[coarse_ids] == 2)
+            assert np.all(scene.model.geom_group[full_ids] > 4)
+            depth, _ = renderer.renderer.render(scene.data)
+        np.testing.assert_array_equal(scene.model.geom_group, groups)
+        depth_images, _ = renderer.render_images()
+    # The same draw: equal wherever the labelled frame's working range keeps a depth.
+    kept = frame.depth_clean > 0
+    np.testing.assert_array_equal(depth[kept], frame.depth_clean[kept])
+    np.testing.assert_array_equal(depth_images, depth)

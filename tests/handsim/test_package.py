@@ -106,6 +106,21 @@ def test_import_does_not_pull_heavy_modules(module):
     assert out.stdout.strip() == "[]"
 
 
+@pytest.mark.parametrize(
+    ("module", "allowed"),
+    [("handsim.cli.main", ()), ("handsim.data.generation", ("numba",))],
+)
+def test_generate_path_does_not_pull_heavy_modules(module, allowed):
+    """``handsim generate`` (the CLI's parsers, the generation module) loads no OpenCV/SciPy.
+
+    Every command's parser is built on every call, and the generation module is what each
+    dataset worker starts with: their start-up is serial time in a run with workers.
+    """
+    code = f"import sys, {module}; print([m for m in {_LAZY_MODULES!r} if m in sys.modules])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == str(list(allowed))
+
+
 def test_lazy_modules_load_on_use():
     """The lazily imported modules do load when their feature is used (the check is live)."""
     code = (

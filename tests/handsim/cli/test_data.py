@@ -328,3 +328,33 @@ def test_generate_with_workers_shows_progress_per_frame_subprocess(tmp_path):
     assert json.loads(run.stdout)["frames"] == 40
     counts = {int(n) for n in re.findall(r"(\d+)/40 ", run.stderr)}
     assert 40 in counts and counts - {0, 20, 40}, run.stderr
+
+
+def test_generate_skin_detail_is_recorded_subprocess(tmp_path):
+    """`handsim generate --skin-detail full` records the level in the manifest; bad ones fail."""
+    values = dict(CONFIG, frames=2, frames_per_shard=2, frames_per_episode=2)
+    (tmp_path / "c.json").write_text(json.dumps(values))
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    command = [sys.executable, "-m", "handsim.cli", "generate", "--config"]
+    command.append(str(tmp_path / "c.json"))
+    run = subprocess.run(
+        command + ["--skin-detail", "full", "--out", str(tmp_path / "d"), "--quiet"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert run.returncode == 0, run.stderr
+    manifest = json.loads((tmp_path / "d" / "manifest.json").read_text())
+    assert manifest["config"]["skin_detail"] == "full"
+    bad = subprocess.run(
+        command + ["--skin-detail", "coarse", "--out", str(tmp_path / "e")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+        check=False,
+    )
+    assert bad.returncode == 2
+    assert re.search(r"--skin-detail: invalid choice: 'coarse' \(choose from '?auto", bad.stderr)

@@ -15,6 +15,7 @@ from handsim.hand.skin import (
     collision_gap_m,
     digit_volume_m3,
     joint_crease_depth_m,
+    skin_deviation_m,
 )
 from handsim.world.camera import camera_preset
 from handsim.world.scene import SEGMENT_LABELS, CameraSpec, Scene, SceneSpec
@@ -228,3 +229,56 @@ def test_segmentation_shows_every_hand_part_on_the_skin():
     for part in ("palm", *DIGITS):
         assert SEGMENT_LABELS.index(part) in labels, part
     assert frame.visible.all()
+
+
+@pytest.mark.parametrize(
+    "params", [HandParams(), HandParams(side="left", hand_length=0.15, forearm=False)]
+)
+def test_coarse_skin_samples_the_same_surface_with_a_quarter_of_the_triangles(params):
+    """The coarse level: the same bodies, closed meshes on the same zero sets, 1/4 the triangles."""
+    full, coarse = build_skin(params), build_skin(params, "coarse")
+    assert [p.body for p in coarse] == [p.body for p in full]
+    for part, fine in zip(coarse, full, strict=True):
+        edges = np.sort(trimesh.Trimesh(part.vertices, part.faces, process=False).edges, axis=1)
+        assert np.all(np.unique(edges, axis=0, return_counts=True)[1] % 2 == 0)
+        # Its vertices lie on the full part's surface (the same signed distance).
+        assert np.abs(fine.sdf(part.vertices)).max() < 1e-5
+    ratio = sum(len(p.faces) for p in coarse) / sum(len(p.faces) for p in full)
+    assert 0.2 < ratio < 0.3
+
+
+def test_skin_deviation_is_about_a_millimetre_and_zero_at_full_detail():
+    """The coarse level strays by at most about a millimetre (where the palm's grid falls)."""
+    for length_m in (0.15, 0.189, 0.22):
+        assert 0.0003 < skin_deviation_m(HandParams(hand_length=length_m)) < 0.002
+    assert skin_deviation_m(HandParams(), "full") == 0.0
+    with pytest.raises(InvalidHandParams, match=r"one of 'full', 'coarse'; received 'fine'"):
+        build_skin(HandParams(), "fine")
+
+
+def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_path, monkeypatch):
+    """The palm's mesh read back from the disk cache is bitwise the mesh made; junk is ignored."""
+    import handsim.hand.skin as skin
+
+    monkeypatch.setattr(skin, "_CACHE_DIR", tmp_path)
+    shape = HandParams(hand_length=0.17, surface="capsules")
+    made = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    (kept_file,) = tmp_path.glob("palm-*.npz")
+    kept = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    np.testing.assert_array_equal(kept.vertices, made.vertices)
+    np.testing.assert_array_equal(kept.faces, made.faces)
+    assert kept.faces.dtype == made.faces.dtype
+    kept_file.write_bytes(b"not a mesh")
+    remade = skin._right_parts.__wrapped__(shape, "coarse")[0]
+    np.testing.assert_array_equal(remade.vertices, made.vertices)
+    # Another hand is another file.
+    skin._right_parts.__wrapped__(HandParams(hand_length=0.18, surface="capsules"), "coarse")
+    assert len(list(tmp_path.glob("palm-*.npz"))) == 2
+    # Beyond _CACHE_FILES the least recently made go.
+    monkeypatch.setattr(skin, "_CACHE_FILES", 1)
+    newest = skin._right_parts.__wrapped__(
+        HandParams(hand_length=0.19, surface="capsules"), "coarse"
+    )
+    (left,) = tmp_path.glob("palm-*.npz")
+    with np.load(left) as kept:
+        np.testing.assert_array_equal(kept["vertices"], newest[0].vertices)

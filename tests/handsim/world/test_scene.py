@@ -237,9 +237,10 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
     scene.reset(gesture("fist").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2)))
     built_m = scene.hand.params.hand_length
     skin = scene.hand_skin_geom_ids
-    assert len(skin) == len(scene.hand_mesh_ids) == 17  # the skin's 16 and the forearm's
+    # The skin's 16, their coarse level of detail's 16 and the forearm's.
+    assert len(skin) == len(scene.hand_mesh_ids) == 33
     assert set(scene.model.geom_dataid[skin]) == set(scene.hand_mesh_ids)
-    with FrameRenderer(scene, "camera") as kept:
+    with FrameRenderer(scene, "camera", skin_detail="full") as kept:
         for length_m in (0.15, 0.22, built_m):
             scene.set_hand_length(length_m)
             depth_kept = kept.render(np.random.default_rng(0)).depth
@@ -247,6 +248,16 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
                 depth_fresh, _ = fresh.render(scene.data)
             np.testing.assert_array_equal(depth_kept > 0, depth_fresh > 0)
             assert np.count_nonzero(depth_fresh) > 500
+            np.testing.assert_allclose(depth_kept, depth_fresh, rtol=0, atol=2e-6)
+    # The coarse skin is rescaled alike: against a renderer made after the rescale.
+    with FrameRenderer(scene, "camera", skin_detail="coarse") as kept:
+        for length_m in (0.15, 0.22, built_m):
+            scene.set_hand_length(length_m)
+            depth_kept = kept.render(np.random.default_rng(0)).depth
+            with FrameRenderer(scene, "camera", skin_detail="coarse") as fresh:
+                depth_fresh = fresh.render(np.random.default_rng(0)).depth
+            assert kept.last_skin_detail == fresh.last_skin_detail == "coarse"
+            np.testing.assert_array_equal(depth_kept > 0, depth_fresh > 0)
             np.testing.assert_allclose(depth_kept, depth_fresh, rtol=0, atol=2e-6)
         renderer = kept.renderer
         with pytest.raises(RenderError, match=r"factor must be a positive number; received 0"):
