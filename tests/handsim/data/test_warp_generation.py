@@ -117,7 +117,7 @@ def test_labels_agree_with_the_opengl_path_on_the_same_draws():
             depth_m, labels = render_labels(scene, warp, worlds)
             saved = (scene.data, scene.model.geom_size.copy())
             # A new OpenGL renderer: the source's own one is never drawn with (nor rescaled).
-            opengl = FrameRenderer(scene, "camera")
+            opengl = FrameRenderer(scene, "camera", skin_detail="full")
             for i, candidate in enumerate(candidates):
                 ours = source.label(scene, renderer, candidate, (depth_m[i], labels[i]))
                 # The OpenGL path on the same state: the data and the upper arm's length.

@@ -168,8 +168,8 @@ def _frame_renderers(scene: Scene):
     from handsim.frame import FrameRenderer
     from handsim.world.warp_render import WarpSceneRenderer
 
-    gl = FrameRenderer(scene, "camera")
-    warp = FrameRenderer(scene, "camera")
+    gl = FrameRenderer(scene, "camera", skin_detail="full")
+    warp = FrameRenderer(scene, "camera", skin_detail="full")
     warp.renderer.close()
     intr = scene.spec.cameras[0].intrinsics
     warp.renderer = WarpSceneRenderer(scene.model, "camera", intr, device="cpu")
