@@ -15,8 +15,9 @@ JSON too):
 3. for each env, the step with its expert (the expert's decision + ``env.step``, and
    ``env.step`` alone) against bare physics (``mj_step`` x frame skip on a copy of the state) +
    the plain depth render; and, when ``gymnasium-robotics`` is installed, Grasp-v0 and
-   GraspClutter-v0 (with the skin's level of detail chosen by projected size, the default, and
-   with ``skin_detail="full"``) against the peer ``HandManipulateBlock-v1`` stepping with a
+   GraspClutter-v0 (with the skin's level of detail chosen by projected size, as every env of
+   the limit, and with ``skin_detail="full"``, the envs' default) against the peer
+   ``HandManipulateBlock-v1`` stepping with a
    320 x 240 RGB render, Gymnasium's depth render (with a shadow pass) or a plain depth render
    (``mujoco.Renderer``) (MuJoCo 4's enums need a small shim in its helpers,
    :func:`_shim_gymnasium_robotics`); ``--only peer`` measures just these;
@@ -315,10 +316,12 @@ def _memory(steps: int) -> dict:
 
 # --- The step at the limit (issue 11): every ratio from one run -------------------------------
 
+# The limit's envs draw the skin's level of detail chosen by projected size (the envs' default
+# is the full skin; the peer comparison measures both).
 _ENVS = {
-    "HandPose-v0": {},
-    "Grasp-v0": {"objects": "005_tomato_soup_can"},
-    "GraspClutter-v0": {"num_objects": 4},
+    "HandPose-v0": {"skin_detail": "auto"},
+    "Grasp-v0": {"objects": "005_tomato_soup_can", "skin_detail": "auto"},
+    "GraspClutter-v0": {"num_objects": 4, "skin_detail": "auto"},
 }
 
 
@@ -485,7 +488,7 @@ class _PeerPlainDepth:
 
 
 _PEER_ENVS = ("Grasp-v0", "GraspClutter-v0")
-"""handsim envs compared with the peer, each with ``skin_detail`` "auto" (default) and "full"."""
+"""handsim envs compared with the peer, each with ``skin_detail`` "auto" and "full" (default)."""
 
 
 def _peer(steps: int) -> dict:
@@ -575,6 +578,7 @@ def _rgb_vs_depth(steps: int) -> dict:
     Both render qualities; the same random actions; interleaved step by step.
     """
     grasp = {"objects": "005_tomato_soup_can", "render_width": 320, "render_height": 240}
+    grasp["skin_detail"] = "auto"  # as the limit's other envs
     envs = {
         "depth_step": gym.make("handsim/Grasp-v0", **grasp),
         "rgb_array_step": gym.make("handsim/Grasp-v0", render_mode="rgb_array", **grasp),

@@ -42,7 +42,11 @@ def _measure(width: int, height: int, frames: int) -> dict:
     from handsim.world.scene import OBJECT_LABEL_OFFSET, SEGMENT_LABELS
 
     config = GenerationConfig.from_mapping(
-        PRESETS["hand-only"], frames=frames, frames_per_shard=frames, sensor="none"
+        PRESETS["hand-only"],
+        frames=frames,
+        frames_per_shard=frames,
+        sensor="none",
+        skin_detail="auto",  # the scenes carry the coarse skin
     )
     source = KinematicSource(config)
     # The same views at another image size: the ICVL camera's K scaled.

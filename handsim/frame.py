@@ -58,9 +58,10 @@ Contacts: every MuJoCo contact between a hand geom and an object geom, as (hand 
 object instance, position in the camera frame, normal force in newtons).
 
 Skin level of detail (``skin_detail``): a scene built with :attr:`SceneSpec.skin_lod
-<handsim.world.scene.SceneSpec.skin_lod>` (the default) holds the skin twice, in full and at
+<handsim.world.scene.SceneSpec.skin_lod>` holds the skin twice, in full and at
 a quarter of the triangles (:data:`handsim.hand.skin.SKIN_DETAILS`), on the same bodies, so
-both pose alike. With ``"auto"`` (the default) a frame draws the coarse skin when its largest
+both pose alike. With ``"auto"`` (the renderer's default; a scene without the coarse skin
+always draws the full one) a frame draws the coarse skin when its largest
 deviation from the skin's surface (:func:`~handsim.hand.skin.skin_deviation_m`, 1.2 mm on a
 medium hand) projects to less than :data:`LOD_TOLERANCE_PX` (one pixel) at the hand's nearest
 point, i.e. for small projected hands, where the full skin's triangles are smaller than a

@@ -335,10 +335,10 @@ class GenerationConfig:
             ``grasp`` sources, a hand alone N frames per launch). Recorded with the dataset: a
             resume with the other backend is refused (their shards differ).
         skin_detail: the skin's level of detail in the OpenGL renders of every source
-            (:data:`SKIN_DETAILS`; the warp backend draws the full skin): ``"auto"`` (default)
-            draws the coarse skin (a quarter of the triangles) when its deviation from the
-            skin's surface projects to under a pixel, i.e. for small projected hands,
-            ``"full"`` always the full skin (:class:`~handsim.frame.FrameRenderer`).
+            (:data:`SKIN_DETAILS`; the warp backend draws the full skin): ``"full"`` (default)
+            always the full skin; ``"auto"`` the coarse skin (a quarter of the triangles) when
+            its deviation from the skin's surface projects to under a pixel, i.e. for small
+            projected hands (:class:`~handsim.frame.FrameRenderer`), for cheaper frames.
             Recorded with the dataset.
     """
 
@@ -367,7 +367,7 @@ class GenerationConfig:
     background: str = "none"
     approach_fraction: float = 0.0
     backend: str = "opengl"
-    skin_detail: str = "auto"
+    skin_detail: str = "full"
 
     def __post_init__(self) -> None:
         _choice("source", self.source, tuple(SOURCES))

@@ -141,11 +141,6 @@ _WARP_OPTIONS: dict[str, object] = {"device": None, "batch": None}
 """This process's warp backend options (device, batch): they change no frame."""
 
 
-_BEFORE_THEY_EXISTED: dict[str, object] = {"skin_detail": "full"}
-"""Config fields whose default differs from what datasets made before the field existed used:
-a resume of such a dataset takes this value (its shards were made so), not the default."""
-
-
 def _make_source(config: GenerationConfig) -> FrameSource:
     if config.backend == "warp":
         from handsim.data.warp_source import DEFAULT_BATCH, make_warp_source
@@ -568,11 +563,8 @@ def _generate_in(
         )
     stored = manifest.config
     try:
-        # Fields added since the dataset was made take the value that made its shards (the
-        # behaviour before they existed), else their defaults.
-        stored = GenerationConfig.from_mapping(
-            {**_BEFORE_THEY_EXISTED, **manifest.config}
-        ).to_json()
+        # Fields added since the dataset was made take their defaults.
+        stored = GenerationConfig.from_mapping(manifest.config).to_json()
     except (InvalidGenerationConfig, TypeError):
         pass
     if stored != config.to_json():

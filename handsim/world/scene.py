@@ -36,6 +36,7 @@ from handsim.hand.model import (
     UPPER_ARM_GEOM,
     Hand,
     HandBinding,
+    HandParams,
 )
 from handsim.hand.pose import DIGITS, HandPose
 from handsim.world.camera import add_camera

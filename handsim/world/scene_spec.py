@@ -338,7 +338,7 @@ class SceneSpec:
             hand carries its side's prefix, ``rh_`` or ``lh_``, so they stay unique). The
             first is :attr:`hand`, the hand a :class:`~handsim.frame.Frame` labels. ``None``
             (default): the one hand of :attr:`hand`.
-        skin_lod: also build the skin's coarse level of detail (each hand with
+        skin_lod: also build the skin's coarse level of detail (default: no; each hand with
             ``surface="skin"``): one more mesh geom per hand body, ``<side>_<body>_visual_1``
             in geom group :data:`~handsim.world.scene.SKIN_LOD_GROUP` (no camera draws it by
             default), which a :class:`~handsim.frame.FrameRenderer` draws instead of the skin
@@ -354,7 +354,7 @@ class SceneSpec:
     table: bool = True
     background: str = "none"
     hands: tuple[HandParams, ...] | None = None
-    skin_lod: bool = True
+    skin_lod: bool = False
 
     def __post_init__(self) -> None:
         if self.hand is not None and not isinstance(self.hand, HandParams):

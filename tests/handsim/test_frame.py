@@ -547,7 +547,7 @@ def test_border_cut_object_counts_its_whole_silhouette(panel, side):
 def test_coarse_skin_keeps_the_keypoints_and_the_depth_within_a_millimetre():
     """The coarse skin poses as the full one: keypoints alike, depth within 1 mm, groups kept."""
     cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
-    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False, skin_lod=True))
     scene.reset(_flat_hand_facing(0.0))
     groups = scene.model.geom_group.copy()
     full_ids, coarse_ids = scene.skin_lod_geom_ids
@@ -578,7 +578,7 @@ def test_auto_skin_detail_follows_the_hands_projected_size(camera_y, expected):
     from handsim.hand.skin import skin_deviation_m
 
     cam = CameraSpec.look_at("front", ICVL, (0.0, camera_y, 0.19), (0.0, 0.5, 0.19))
-    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False, skin_lod=True))
     scene.reset(_flat_hand_facing(camera_y))
     # The palm faces the camera 0.5 - camera_y away (0.5 m: 0.6 pixel; 0.14 m: over 2).
     deviation_px = skin_deviation_m(scene.hand.params) * ICVL.fx / (0.5 - camera_y)
@@ -607,7 +607,7 @@ def test_skin_detail_without_a_coarse_skin_and_bad_values():
 def test_skin_as_drawn_shows_the_level_render_draws_to_other_renderers():
     """Inside the block the model shows the drawn level (a plain render sees it); then restored."""
     cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
-    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False, skin_lod=True))
     scene.reset(_flat_hand_facing(0.0))
     full_ids, coarse_ids = scene.skin_lod_geom_ids
     groups = scene.model.geom_group.copy()

@@ -276,18 +276,18 @@ def test_a_dataset_made_before_new_config_fields_resumes(tmp_path):
     assert Manifest.read(tmp_path).redraws == {}
 
 
-def test_a_dataset_made_before_the_skin_detail_field_resumes_only_with_the_full_skin(tmp_path):
-    """Its shards were drawn with the full skin: the default "auto" would change the rest."""
-    full = GenerationConfig.from_mapping(TINY, frames=2, skin_detail="full")
-    made = generate(full, tmp_path)
+def test_a_dataset_made_before_the_skin_detail_field_resumes_with_the_full_skin(tmp_path):
+    """Its shards were drawn with the full skin, the default; "auto" is refused on resume."""
+    default = GenerationConfig.from_mapping(TINY, frames=2)
+    assert default.skin_detail == "full"
+    made = generate(default, tmp_path)
     doc = json.loads((tmp_path / "manifest.json").read_text())
     del doc["config"]["skin_detail"]
     (tmp_path / "manifest.json").write_text(json.dumps(doc))
-    default = GenerationConfig.from_mapping(TINY, frames=2)
-    assert default.skin_detail == "auto"
+    coarse = GenerationConfig.from_mapping(TINY, frames=2, skin_detail="auto")
     with pytest.raises(InvalidGenerationConfig, match=r"fields differ: skin_detail\)"):
-        generate(default, tmp_path)
-    assert generate(full, tmp_path).shards == made.shards
+        generate(coarse, tmp_path)
+    assert generate(default, tmp_path).shards == made.shards
 
 
 def test_scenes_kept_between_shards_change_no_frame(tmp_path):

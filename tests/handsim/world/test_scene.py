@@ -233,7 +233,9 @@ def test_a_renderer_made_before_a_rescale_draws_the_rescaled_skin():
 
     intr = camera_preset("icvl")
     cam = CameraSpec.look_at("camera", intr, (0.0, -0.45, 0.5), (0, 0, 0.3))
-    scene = Scene(SceneSpec(hand=hand_params("medium", "left"), cameras=(cam,), table=False))
+    scene = Scene(
+        SceneSpec(hand=hand_params("medium", "left"), cameras=(cam,), table=False, skin_lod=True)
+    )
     scene.reset(gesture("fist").replace(wrist_pos=(0.0, 0.0, 0.25), wrist_rotvec=(0.3, 2.8, 0.2)))
     built_m = scene.hand.params.hand_length
     skin = scene.hand_skin_geom_ids
