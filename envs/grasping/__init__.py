@@ -59,8 +59,9 @@ tool        035 power drill                     small diameter; upright, the gri
                                                 from behind, the index under the barrel
                                                 (:data:`OBJECT_RECIPES`); facing the user,
                                                 prismatic 4 finger from the top
-vessel      019 pitcher base                    palmar pinch; thumb outside and index inside
-                                                the rim nearest the user
+vessel      019 pitcher base                    small diameter; by its handle, the fingers
+                                                through the opening between it and the wall
+                                                (:data:`OBJECT_RECIPES`)
 vessel      025 mug                             prismatic 4 finger; around its body from
                                                 above, as the boxes, the pinch away from the
                                                 handle (:data:`OBJECT_RECIPES`)

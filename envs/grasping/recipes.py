@@ -120,6 +120,9 @@ class GraspRecipe:
         max_from_user_deg: side wraps: and at most this far from pointing away from the
             user, degrees (past it, the reach from the user's side around the object is too
             long for the episode: the shape class's recipe is used instead).
+        handle: side wraps of a vessel: wrap its handle (the points of the band farther from
+            the cavity's axis than the wall), not its body; ``height_fraction`` is then not
+            capped at the cans' 0.14 m.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -149,6 +152,7 @@ class GraspRecipe:
     approach_obj: tuple[float, float, float] | None = None
     approach_cone_deg: float = 75.0
     max_from_user_deg: float = 180.0
+    handle: bool = False
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -265,6 +269,21 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
         approach_obj=(1.0, 0.0, 0.0),
         approach_cone_deg=20.0,
         max_from_user_deg=100.0,
+    ),
+    # The pitcher base by its handle, as people lift a pitcher: the palm on the handle's
+    # outside (approaching along +x, toward the body), the fingers around the 18 mm tube
+    # through the opening between it and the wall, the thumb up over the handle. The palm
+    # centre line at 0.62 of the height (154 mm; the opening is 39-43 mm deep from 135 to
+    # 180 mm, at least 26 mm from 90 to 210 mm). Whichever way the handle faces: the rim
+    # pinch (the class's) swung out of 3 of 8 pinches with the small right hand.
+    "019_pitcher_base": GraspRecipe(
+        "side",
+        "small_diameter",
+        height_fraction=0.62,
+        approach_obj=(1.0, 0.0, 0.0),
+        approach_cone_deg=20.0,
+        max_from_user_deg=180.0,
+        handle=True,
     ),
     # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
     # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg

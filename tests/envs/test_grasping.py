@@ -1487,3 +1487,43 @@ def test_planning_still_exports_the_names_of_its_split_modules():
     assert planning._hand_geometry is hand_geometry._hand_geometry
     # Documented once, where defined.
     assert not set(planning.__all__) & (set(state.__all__) | set(recipes.__all__))
+
+
+def test_the_pitcher_base_is_lifted_by_its_handle_the_fingers_through_its_opening():
+    """Executed handle wrap: every fingertip between the pitcher's wall and its handle tube.
+
+    Medium right hand, seed 0, skin friction, in the hold: at each fingertip's height and
+    depth (object frame) the pitcher's surface lies on both sides of it along the handle's
+    direction (-x): the handle tube beyond the tip, the wall before it.
+    """
+    from handsim.hand.keypoints import KEYPOINT_NAMES
+
+    pitcher = get_object("019_pitcher_base")
+    params = hand_params("medium")
+    rng = np.random.default_rng(0)
+    scene = Scene(SceneSpec(hand=params, objects=sample_placements(rng, [pitcher.name])))
+    set_skin_friction(scene)
+    expert = GraspExpert(pitcher, params)
+    seen = {}
+
+    def on_step(step, expert):
+        if expert.phase == "hold":
+            state = GraspState.from_sim(scene, 0, 0.0)
+            T = state.T_world_from_obj
+            seen["kp_m"] = (state.keypoints_world - T[:3, 3]) @ T[:3, :3]
+
+    outcome = run_episode(scene, 0, expert, rng, on_step=on_step)
+    assert expert.grasp_type == "small_diameter"
+    assert outcome.success, outcome
+    points = np.asarray(pitcher.model_points_m)
+    kp = {name: seen["kp_m"][i] for i, name in enumerate(KEYPOINT_NAMES)}
+    for finger in ("index", "middle", "ring", "little"):
+        tip = kp[f"{finger}_tip"]
+        near = points[
+            (np.abs(points[:, 1] - tip[1]) < 0.006)
+            & (np.abs(points[:, 2] - tip[2]) < 0.015)
+            & (points[:, 0] < 0.0)
+        ]
+        handle = near[near[:, 0] < tip[0] - 0.005]
+        wall = near[near[:, 0] > tip[0] + 0.005]
+        assert len(handle) and len(wall), (finger, np.round(1000 * tip))
