@@ -189,7 +189,7 @@ class GraspExpert(PoseActions):
 
     Phases (:attr:`phase`): ``"wait"`` (no grasp found yet for the perceived object pose: the
     hand stays where it is), ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
-    speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
+    speed 0.45 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
     actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),

@@ -273,13 +273,16 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # The pitcher base by its handle, as people lift a pitcher: the palm on the handle's
     # outside (approaching along +x, toward the body), the fingers around the 18 mm tube
     # through the opening between it and the wall, the thumb up over the handle. The palm
-    # centre line at 0.62 of the height (154 mm; the opening is 39-43 mm deep from 135 to
-    # 180 mm, at least 26 mm from 90 to 210 mm). Whichever way the handle faces: the rim
-    # pinch (the class's) swung out of 3 of 8 pinches with the small right hand.
+    # centre line at 0.66 of the height (164 mm; the opening is 39-43 mm deep from 135 to
+    # 180 mm, at least 26 mm from 90 to 210 mm): the index under the handle's upper bend
+    # carries the load (at 0.62, 154 mm, the small left hand's grip let the pitcher pivot about
+    # the handle, seeds 7, 17 slipped 10.4-10.6 mm; 20/20 at 0.66, 19/20 at 0.70). Whichever
+    # way the handle faces: the rim pinch (the class's) swung out of 3 of 8 pinches with the
+    # small right hand.
     "019_pitcher_base": GraspRecipe(
         "side",
         "small_diameter",
-        height_fraction=0.62,
+        height_fraction=0.66,
         approach_obj=(1.0, 0.0, 0.0),
         approach_cone_deg=20.0,
         max_from_user_deg=180.0,
@@ -372,9 +375,14 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # the tripod, stay straight above it. Closing with the others, the ring finger's proximal
     # segment of the small hands pressed on the X's top edge (34 N in the squeeze) while the
     # thumb met it with its proximal segment, and at skin friction the clamp fell as the hold
-    # eased; the large hands did not lift it in 7 of 20 episodes.
+    # eased; the large hands did not lift it in 7 of 20 episodes. The lift's grip 1.4 times the
+    # tripods': with the large right hand the X, pinched above its centre of mass, swung 35-50
+    # deg about the pinch while it rose and was still turning when the hold began (seeds 14,
+    # 15 turned 10.0-10.5 deg in the hold; 18/20 at the tripods' lift grip, 20/20 at 1.4x).
     "052_extra_large_clamp": dataclasses.replace(
-        GRASP_RECIPES["clamp"], straight_fingers=("ring", "little")
+        GRASP_RECIPES["clamp"],
+        straight_fingers=("ring", "little"),
+        lift_grip_margin=1.4 * _LIFT_MARGIN,
     ),
     # The large clamp (125 g): the hold's margin 1.5, not the tripods' 1.25 (the lift's aim
     # unchanged, 4 times the slip force). With the medium left hand the thumb's proximal segment
