@@ -56,15 +56,16 @@ box         003, 004, 008, 009, 010, 036, 061   prismatic 4 finger; the whole ha
                                                 and little curled over the top
 disk        007 tuna fish can                   prismatic 4 finger; from the top
 tool        035 power drill                     small diameter; upright, the grip wrapped
-                                                from behind, the index under the barrel
-                                                (:data:`OBJECT_RECIPES`); facing the user,
-                                                prismatic 4 finger from the top
-vessel      019 pitcher base                    palmar pinch; thumb outside and index inside
-                                                the rim nearest the user
+                                                from behind, the index under the barrel,
+                                                whichever way it faces (:data:`OBJECT_RECIPES`)
+vessel      019 pitcher base                    small diameter; by its handle, the fingers
+                                                through the opening between it and the wall
+                                                (:data:`OBJECT_RECIPES`)
 vessel      025 mug                             prismatic 4 finger; around its body from
                                                 above, as the boxes, the pinch away from the
                                                 handle (:data:`OBJECT_RECIPES`)
-bowl        024 bowl                            palmar pinch; as vessel
+bowl        024 bowl                            palmar pinch; thumb outside and index inside
+                                                the rim nearest the user
 flat_tool   037 scissors                        tripod; fingertips into the loops, pinching
                                                 the material between them
 clamp       051, 052 clamps                     tripod; fingertips at the table, across the

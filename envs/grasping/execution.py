@@ -90,7 +90,9 @@ _LIFTOFF_M = 0.03  # a rim pinch lifts its vessel this far clear of the table, m
 _LIFTOFF_PAUSE_S = 0.4  # ...and waits this long for the swing to die down, s
 _PALM_PRESS_M = 0.02  # the side wrap's wrist goes this far past palm contact, m
 _VIA_BACK_M = 0.06  # a reach from behind passes this far behind the pre-grasp, m
-_VIA_CLEARANCE_M = 0.05  # ...and this far above the object's top, m
+# ...and this far above the object's top, m: the hand, thumb up, hangs 5-8 cm below its wrist;
+# at 5 cm it swept over the pitcher base's rim and knocked it over (handle away from the user).
+_VIA_CLEARANCE_M = 0.10
 _REPLAN_PERIOD_S = 0.1  # at most one re-plan per 0.1 s
 _GRIP_RATE = 0.5  # exponent of the multiplicative force correction per control step
 # The grip scale falls by at most 3 % per control step (a gradual relaxation, so that the slip
@@ -187,7 +189,7 @@ class GraspExpert(PoseActions):
 
     Phases (:attr:`phase`): ``"wait"`` (no grasp found yet for the perceived object pose: the
     hand stays where it is), ``"reach"`` (to 8 cm before the grasp, shaping the hand: peak
-    speed 0.3 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
+    speed 0.45 m/s), ``"approach"`` (the final 8 cm, peak 0.15 m/s), ``"close"`` (0.4 s: the
     digits close to the planned contact posture while an open hand that hovered sinks to the
     grasp), ``"squeeze"`` (0.3 s: the finger targets go past contact, so the position
     actuators press), ``"settle"`` (0.2 s: the grip eases to the force the object needs),

@@ -396,8 +396,15 @@ def _side_candidates(
     )
     points = _world_points(obj, T)
     top = float(points[:, 2].max())
-    height = min(recipe.height_fraction * top, 0.14)
+    height = (
+        recipe.height_fraction * top if recipe.handle else min(recipe.height_fraction * top, 0.14)
+    )
     band = points[np.abs(points[:, 2] - height) < 0.01]
+    if recipe.handle and obj.cavity_point_m is not None:
+        # The handle: the band's points farther from the cavity's axis than the wall.
+        axis = T[:3, :3] @ obj.cavity_point_m + T[:3, 3]
+        radial = np.linalg.norm(band[:, :2] - axis[:2], axis=1)
+        band = band[radial > 1.1 * float(np.median(radial))]
     if len(band) < 3:
         return []  # no upright object there (it fell over, or off the table)
     centre = 0.5 * (band.max(axis=0) + band.min(axis=0))

@@ -120,6 +120,9 @@ class GraspRecipe:
         max_from_user_deg: side wraps: and at most this far from pointing away from the
             user, degrees (past it, the reach from the user's side around the object is too
             long for the episode: the shape class's recipe is used instead).
+        handle: side wraps of a vessel: wrap its handle (the points of the band farther from
+            the cavity's axis than the wall), not its body; ``height_fraction`` is then not
+            capped at the cans' 0.14 m.
     """
 
     strategy: Literal["top", "side", "rim"]
@@ -149,6 +152,7 @@ class GraspRecipe:
     approach_obj: tuple[float, float, float] | None = None
     approach_cone_deg: float = 75.0
     max_from_user_deg: float = 180.0
+    handle: bool = False
 
 
 # Pad pinches of boxes and of thin objects at the table are sized for twice the hold's margin
@@ -256,15 +260,34 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # the grip's front under the barrel (the trigger). At 0.4 of the height the index's middle
     # phalanx lay on the grip's side 30 mm under the barrel (seeds 2-3, medium right hand); at
     # 0.46 across its front, 20 mm under it. Higher, the index meets the barrel, which
-    # overhangs the back of the grip by 45 mm. Not facing the user (max_from_user_deg): the
-    # reach around the drill to the back of its grip left too little of the 8 s episode.
+    # overhangs the back of the grip by 45 mm. Whichever way it faces: when its chuck points
+    # at the user the reach goes around it to the back of the grip, and the hold then ends
+    # 7.0-7.7 s into the 8 s episode (seeds 0-19, six preset hands, reach peak 0.45 m/s).
     "035_power_drill": GraspRecipe(
         "side",
         "small_diameter",
         height_fraction=0.46,
         approach_obj=(1.0, 0.0, 0.0),
         approach_cone_deg=20.0,
-        max_from_user_deg=100.0,
+        max_from_user_deg=180.0,
+    ),
+    # The pitcher base by its handle, as people lift a pitcher: the palm on the handle's
+    # outside (approaching along +x, toward the body), the fingers around the 18 mm tube
+    # through the opening between it and the wall, the thumb up over the handle. The palm
+    # centre line at 0.66 of the height (164 mm; the opening is 39-43 mm deep from 135 to
+    # 180 mm, at least 26 mm from 90 to 210 mm): the index under the handle's upper bend
+    # carries the load (at 0.62, 154 mm, the small left hand's grip let the pitcher pivot about
+    # the handle, seeds 7, 17 slipped 10.4-10.6 mm; 20/20 at 0.66, 19/20 at 0.70). Whichever
+    # way the handle faces: the rim pinch (the class's) swung out of 3 of 8 pinches with the
+    # small right hand.
+    "019_pitcher_base": GraspRecipe(
+        "side",
+        "small_diameter",
+        height_fraction=0.66,
+        approach_obj=(1.0, 0.0, 0.0),
+        approach_cone_deg=20.0,
+        max_from_user_deg=180.0,
+        handle=True,
     ),
     # The banana is thick and round (38 mm high): pads below its equator (0.35 of its height)
     # press up under its flanks. At its equator the thumb met the upper flank (normal 12-18 deg
@@ -353,9 +376,14 @@ OBJECT_RECIPES: dict[str, GraspRecipe] = {
     # the tripod, stay straight above it. Closing with the others, the ring finger's proximal
     # segment of the small hands pressed on the X's top edge (34 N in the squeeze) while the
     # thumb met it with its proximal segment, and at skin friction the clamp fell as the hold
-    # eased; the large hands did not lift it in 7 of 20 episodes.
+    # eased; the large hands did not lift it in 7 of 20 episodes. The lift's grip 1.4 times the
+    # tripods': with the large right hand the X, pinched above its centre of mass, swung 35-50
+    # deg about the pinch while it rose and was still turning when the hold began (seeds 14,
+    # 15 turned 10.0-10.5 deg in the hold; 18/20 at the tripods' lift grip, 20/20 at 1.4x).
     "052_extra_large_clamp": dataclasses.replace(
-        GRASP_RECIPES["clamp"], straight_fingers=("ring", "little")
+        GRASP_RECIPES["clamp"],
+        straight_fingers=("ring", "little"),
+        lift_grip_margin=1.4 * _LIFT_MARGIN,
     ),
     # The large clamp (125 g): the hold's margin 1.5, not the tripods' 1.25 (the lift's aim
     # unchanged, 4 times the slip force). With the medium left hand the thumb's proximal segment

@@ -51,7 +51,7 @@ MAX_TURN_RAD = math.radians(10.0)
 """Largest rotation of the object in the palm frame during the hold, radians (10 deg)."""
 MAX_WRIST_SPEED_M_S = 0.5
 """Largest wrist target speed the expert may command, m/s (the wrist follows a stiff weld)."""
-EXPERT_WRIST_SPEED_M_S = 0.3
+EXPERT_WRIST_SPEED_M_S = 0.45
 """Peak wrist speed of the expert's minimum-jerk segments, m/s."""
 _EXPERT_ANGULAR_SPEED_RAD_S = 2.5
 _SLOW_SPEED_M_S = 0.15  # final approach
