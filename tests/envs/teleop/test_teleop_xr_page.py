@@ -560,6 +560,9 @@ def test_two_hands_drive_both_hands_and_both_ghosts_are_drawn(tmp_path, source):
     h, w = full.shape[:2]
     left = np.abs(full.astype(int) - shots["ghost:left"].astype(int)).sum(axis=2) > 30
     both = np.abs(full.astype(int) - shots["ghost"].astype(int)).sum(axis=2) > 30
-    assert left.sum() > 0.001 * h * w and both.sum() > left.sum() * 1.5, (left.sum(), both.sum())
+    # Each ghost is drawn: hiding the left one changes at least 0.1 % of the image, and hiding
+    # the right one as well changes at least 0.1 % more (its size depends on the pose held).
+    assert left.sum() > 0.001 * h * w, left.sum()
+    assert both.sum() - left.sum() > 0.001 * h * w, (left.sum(), both.sum())
     r, g, b = full[left].mean(axis=0)
     assert g > r and b > r, (r, g, b)
