@@ -90,6 +90,7 @@ class GripStabiliser:
         self._mean: np.ndarray | None = None
         self._release_steps = max(1, round(release_s / dt_s))
         self._contact: list[np.ndarray | None] = [None] * len(DIGITS)
+        self._press: list[np.ndarray | None] = [None] * len(DIGITS)  # held flexion targets
         self._off = np.zeros(len(DIGITS), dtype=int)
         self.held_steps = 0
         """Steps with at least one digit latched."""
@@ -133,14 +134,22 @@ class GripStabiliser:
                     continue
                 contact = self._contact[d] = physical.copy()
                 self._off[d] = 0
+                self._press[d] = np.maximum(mean[flex], contact[flex])
             else:
                 self._off[d] = 0 if touching[d] else self._off[d] + 1
                 opened = float(np.mean(mean[flex] - contact[flex])) < -self.band_rad
                 if opened or self._off[d] >= self._release_steps:
-                    self._contact[d] = None  # let go on purpose, or the object is gone
+                    self._contact[d] = self._press[d] = None  # let go, or the object is gone
                     continue
+            press = self._press[d]
+            assert press is not None
+            # The grip tightens as the tracked digit closes and eases only when it opens by
+            # more than the band: noise and drift within it leave the press as it was.
+            change = float(np.mean(mean[flex] - press))
+            if change > 0.0 or change < -self.band_rad:
+                press = self._press[d] = np.maximum(mean[flex], contact[flex])
             # Past the surface the tracked digit presses; it never opens below the contact.
-            angles[flex] = np.maximum(angles[flex], contact[flex])
+            angles[flex] = np.maximum(angles[flex], press)
         if any(c is not None for c in self._contact):
             self.held_steps += 1
         return out

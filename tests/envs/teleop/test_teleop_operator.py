@@ -141,8 +141,8 @@ INDEX_FLEX = INDEX[[0, 2, 3]]
 def test_grip_stops_a_touching_digit_at_its_surface_and_releases_on_opening():
     """A digit closing onto an object stops at the contact posture.
 
-    Each flexion joint presses past it as tracked and never opens below it within the band
-    (the spread follows tracking); opening beyond the band releases it.
+    Each flexion joint presses past it as tracked; opening within the band keeps the press
+    (the spread follows tracking); opening beyond the band releases the digit.
     """
     touch = [[False, True, False, False, False]]  # the index only
     env, grip = _stabiliser(touch)
@@ -153,12 +153,12 @@ def test_grip_stops_a_touching_digit_at_its_surface_and_releases_on_opening():
     out = grip(target, _Data())
     np.testing.assert_allclose(out[INDEX], [0.6, -0.1, 0.7, 0.5])  # never below the surface
     assert grip.latched().tolist() == [False, True, False, False, False]
-    # Opening within the band: the digit stays on the surface; the thumb follows tracking.
+    # Opening within the band keeps the press it had; the thumb follows tracking.
     opened = target.copy()
     opened[INDEX] = surface + [-0.1, 0.2, -0.15, -0.05]
     opened[6] = 0.3
     out = grip(opened, _Data())
-    np.testing.assert_allclose(out[INDEX], surface + [0.0, 0.2, 0.0, 0.0])
+    np.testing.assert_allclose(out[INDEX], [0.6, 0.3, 0.7, 0.5])
     assert out[6] == 0.3 and grip.held_steps == 2
     # Opening by more than the band releases: the tracked target comes through.
     opened[INDEX_FLEX] = surface[[0, 2, 3]] - GRIP_BAND_RAD - 0.05
