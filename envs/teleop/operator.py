@@ -13,10 +13,12 @@ instead, as a person in a headset does:
 - **moves** with visual-motor noise: a slow random drift (Ornstein-Uhlenbeck, time constant
   ``motor_time_s``) of the wrist (``motor_noise_mm`` std per axis) and of every joint angle
   (``motor_noise_rad``) on top of the expert's command;
-- **corrects** that drift as it sees it: the hand's deviation from what it meant, shown
-  ``display_latency_s + reaction_s`` late, is integrated into a correction with time
-  constant ``correction_s`` (closed-loop visual-motor control: a person watching the hand
-  does not let a drift build up into a missed grasp; ``None``: no correction).
+- **corrects** the wrist's drift as it sees it: the wrist's deviation from where it meant
+  it, shown ``display_latency_s + reaction_s`` late, is integrated into a correction with
+  time constant ``correction_s`` (closed-loop visual-motor control: a person watching the
+  hand does not let a drift build up into a missed grasp; ``None``: no correction). The
+  joints' drift is not corrected: 0.02 rad does not show on a virtual hand, and no haptics
+  tell the fingers where the object is.
 """
 
 from __future__ import annotations
@@ -61,8 +63,8 @@ class ReactiveOperator:
         motor_noise_mm: std of the wrist's drift per axis, mm.
         motor_noise_rad: std of every joint angle's drift, rad.
         motor_time_s: time constant of the drift, seconds.
-        correction_s: time constant of the visual correction of the drift, seconds (``None``:
-            the drift is not corrected).
+        correction_s: time constant of the visual correction of the wrist's drift, seconds
+            (``None``: not corrected).
 
     Raises:
         InvalidTeleopConfig: an env without an expert, or a setting out of range.
@@ -156,7 +158,9 @@ class ReactiveOperator:
         while len(self._seen_offsets) > lag + 1:
             self._seen_offsets.popleft()
         if self.correction_s is not None:
-            self._correction += dt / self.correction_s * self._seen_offsets[0]
+            # The wrist's offset shows against the scene; a joint's 0.02 rad does not (and no
+            # haptics tell the fingers), so only the wrist is corrected.
+            self._correction[:3] += dt / self.correction_s * self._seen_offsets[0][:3]
         low, high = self.env.action_space.low, self.env.action_space.high
         vec = np.clip(pose.vector, low, high)
         vec[:3] += offset[:3]
