@@ -1,7 +1,7 @@
 """Where grasps fail under tracking noise: the reactive operator, with one part made clean.
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
-[--filter none] [--beta 1] [--pose-filter on|off] [--motor-noise on|off]
+[--filter none] [--beta 1] [--pose-filter on|off] [--motor-noise on|off|wrist|joints]
 [--correction on|off] [--clean none|wrist|fingers] [--episodes 20] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
@@ -78,7 +78,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         # The clean part goes in where the pose filter sits.
         pose_filter=args.pose_filter == "on" or args.clean != "none",
     )
-    quiet = {} if args.motor_noise == "on" else {"motor_noise_mm": 0.0, "motor_noise_rad": 0.0}
+    quiet: dict[str, Any] = {
+        "on": {},
+        "off": {"motor_noise_mm": 0.0, "motor_noise_rad": 0.0},
+        "wrist": {"motor_noise_rad": 0.0},
+        "joints": {"motor_noise_mm": 0.0},
+    }[args.motor_noise]
     if args.correction == "off":
         quiet["correction_s"] = None
     stages = []
@@ -134,7 +139,7 @@ def main() -> None:
     p.add_argument("--filter", choices=("none", "one_euro"), default="none")
     p.add_argument("--beta", type=float, default=1.0)
     p.add_argument("--pose-filter", choices=("on", "off"), default="off")
-    p.add_argument("--motor-noise", choices=("on", "off"), default="off")
+    p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
     p.add_argument("--correction", choices=("on", "off"), default="on")
     p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")
     p.add_argument("--episodes", type=int, default=20)

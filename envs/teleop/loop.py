@@ -17,7 +17,10 @@ Per control step of the task env (``obs_mode="state"``: the task itself renders 
    jitter, occlusion, dropout (held or extrapolated).
 5. **filter** (:mod:`~handsim.envs.teleop.filters`): One Euro, exponential or none.
 6. **retarget** (:class:`~handsim.hand.retarget.Retargeter`, warm-started, partial keypoints,
-   floating scale) onto the physical hand; the pose is the env's action (``"pose"`` control).
+   floating scale) onto the physical hand, optionally smoothed in joint space
+   (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`), then the grip stabiliser
+   (:class:`~handsim.envs.teleop.grip.GripStabiliser`); the pose is the env's action
+   (``"pose"`` control).
 7. **physics**: the env steps; contacts give the interpenetration, and the interaction
    events (:mod:`~handsim.envs.teleop.events`) are detected.
 
