@@ -1,16 +1,25 @@
-"""Grip stabilisation: contact-aware finger targets with hysteresis on closure.
+"""Grip stabilisation: a digit on an object stops at its surface and opens only on intent.
 
 Tracking noise moves every retargeted joint angle from frame to frame; a physical hand that
 follows them opens and closes its fingers around an object at the noise's rate and lets it
-go. VR physics hands keep a grip the way a person does: once a digit touches an object, its
-target is held at the running mean of its recent targets and stops following tracking
-changes smaller than the noise (a dead band on the digit's mean flexion, measured on that
-running mean), and changes only when the tracked digit clearly opens (release) or clearly
-closes further (a tighter grip, re-latched there).
+go. VR physics hands keep a grip the way the object would stop a real finger: once a digit
+touches an object while the tracked digit closes onto it, the surface is latched (the
+digit's joint angles at that moment, the *contact posture*), and from then on
 
-Nothing is attached: the object is held by the fingers' position actuators pressing on it, as
-in a grasp without the stabiliser, so a success with it is a physical grasp. The time a digit
-spends latched is reported (``grip_hold_s``) so a sweep shows how much the grip leaned on it.
+- the digit never opens beyond the contact posture: each flexion target is the larger of the
+  tracked one and the contact posture's (a tracked digit that closes further, past the
+  surface, presses harder, as a position actuator held off its target does); its spread
+  (abduction) joints follow tracking (held at the contact posture they broke the grasp
+  expert's replayed grasps, seeds 0-3 of 0-5, which move them while squeezing);
+- it releases when the tracked digit clearly opens, its mean flexion (a running mean of the
+  targets, so one frame's noise does not count) falling more than a band below the contact
+  posture's (the user lets go), or after some time off every object (the object is gone).
+
+This is the grasp *intent* of VR SDKs with hysteresis: closing past the surface grips,
+opening within the band keeps the grip. Nothing is attached: the object is held by the
+fingers' torque-limited position actuators pressing on it, as in a grasp without the
+stabiliser, so a success with it is a physical grasp. The time a digit spends latched is
+reported (``grip_hold_s``) so a sweep shows how much the grip leaned on it.
 """
 
 from __future__ import annotations
@@ -25,11 +34,11 @@ __all__ = ["GripStabiliser", "DIGITS", "GRIP_BAND_RAD", "GRIP_SMOOTH_S", "GRIP_R
 
 DIGITS: tuple[str, ...] = ("thumb", *FINGERS)
 GRIP_BAND_RAD = 0.2
-"""Dead band on a latched digit's mean flexion target, rad (11.5 deg): tracking changes within
-it are noise; beyond it the digit releases (opening) or re-latches (closing)."""
+"""Hysteresis on a latched digit's mean flexion, rad (11.5 deg): a tracked digit that opens
+less than this below the contact posture keeps its grip; beyond it, it releases."""
 GRIP_SMOOTH_S = 0.15
-"""Time constant of the running mean of the targets the band is measured on, seconds: one
-frame's noise neither latches a grip nor breaks it."""
+"""Time constant of the running mean of the targets that latching and release are judged on,
+seconds: one frame's noise neither latches a grip nor breaks it."""
 GRIP_RELEASE_S = 0.3
 """A latched digit off every object this long releases (the object is gone)."""
 
@@ -40,12 +49,12 @@ _DIGIT_FLEX = [np.array([i for i in idx if "flex" in JOINT_NAMES[i]]) for idx in
 
 
 class GripStabiliser:
-    """Holds each digit's target while it touches an object and tracking changes within noise.
+    """Stops each digit at the surface it touches and keeps it there until the user opens.
 
     Args:
         base: the task env (``env.unwrapped``) after its reset: its scene's hand and objects.
         dt_s: the control period, seconds.
-        band_rad: the dead band on the digit's mean flexion, rad.
+        band_rad: the hysteresis on the digit's mean flexion, rad.
         smooth_s: time constant of the running mean of the targets, seconds.
         release_s: seconds off every object after which a latched digit releases.
     """
@@ -60,6 +69,7 @@ class GripStabiliser:
     ) -> None:
         scene = base.scene
         model = scene.model
+        self._binding = scene.binding
         prefix = scene.hand.root_body.split("_", 1)[0] + "_"
         root = model.body(scene.hand.root_body).id
         # Hand geoms -> digit index (DIGITS order), -1 for the rest of the model.
@@ -79,7 +89,8 @@ class GripStabiliser:
         self._alpha = 1.0 - float(np.exp(-dt_s / smooth_s))
         self._mean: np.ndarray | None = None
         self._release_steps = max(1, round(release_s / dt_s))
-        self._held: list[np.ndarray | None] = [None] * len(DIGITS)
+        self._contact: list[np.ndarray | None] = [None] * len(DIGITS)
+        self._press: list[np.ndarray | None] = [None] * len(DIGITS)  # held flexion targets
         self._off = np.zeros(len(DIGITS), dtype=int)
         self.held_steps = 0
         """Steps with at least one digit latched."""
@@ -95,6 +106,10 @@ class GripStabiliser:
                 out[digits[keep]] = True
         return out
 
+    def latched(self) -> np.ndarray:
+        """(5,) bool: each digit (DIGITS order) is held at a contact posture."""
+        return np.array([c is not None for c in self._contact])
+
     def __call__(self, target: np.ndarray, data: Any) -> np.ndarray:
         """The stabilised 27-DoF target for the tracked ``target`` and the contacts in ``data``."""
         out = np.array(target, dtype=np.float64)
@@ -105,24 +120,36 @@ class GripStabiliser:
         else:
             self._mean += self._alpha * (angles - self._mean)
         mean = self._mean
+        physical: np.ndarray | None = None
         for d in range(len(DIGITS)):
-            held = self._held[d]
             flex = _DIGIT_FLEX[d]
-            if held is None:
-                if touching[d]:
-                    self._held[d] = mean[_DIGIT_JOINTS[d]].copy()
-                    angles[_DIGIT_JOINTS[d]] = self._held[d]
-                    self._off[d] = 0
-                continue
-            self._off[d] = 0 if touching[d] else self._off[d] + 1
-            change = float(np.mean(mean[flex] - held[np.searchsorted(_DIGIT_JOINTS[d], flex)]))
-            if change < -self.band_rad or self._off[d] >= self._release_steps:
-                self._held[d] = None  # opened on purpose, or the object is gone
-            elif change > self.band_rad:
-                self._held[d] = mean[_DIGIT_JOINTS[d]].copy()  # squeezed on purpose
-                angles[_DIGIT_JOINTS[d]] = self._held[d]
+            contact = self._contact[d]
+            if contact is None:
+                if not touching[d]:
+                    continue
+                if physical is None:
+                    physical = self._binding.pose(data).angles
+                # Latch when the tracked digit is at or inside the surface it touches.
+                if float(np.mean(mean[flex] - physical[flex])) < 0.0:
+                    continue
+                contact = self._contact[d] = physical.copy()
+                self._off[d] = 0
+                self._press[d] = np.maximum(mean[flex], contact[flex])
             else:
-                angles[_DIGIT_JOINTS[d]] = held
-        if any(h is not None for h in self._held):
+                self._off[d] = 0 if touching[d] else self._off[d] + 1
+                opened = float(np.mean(mean[flex] - contact[flex])) < -self.band_rad
+                if opened or self._off[d] >= self._release_steps:
+                    self._contact[d] = self._press[d] = None  # let go, or the object is gone
+                    continue
+            press = self._press[d]
+            assert press is not None
+            # The grip tightens as the tracked digit closes and eases only when it opens by
+            # more than the band: noise and drift within it leave the press as it was.
+            change = float(np.mean(mean[flex] - press))
+            if change > 0.0 or change < -self.band_rad:
+                press = self._press[d] = np.maximum(mean[flex], contact[flex])
+            # Past the surface the tracked digit presses; it never opens below the contact.
+            angles[flex] = np.maximum(angles[flex], press)
+        if any(c is not None for c in self._contact):
             self.held_steps += 1
         return out

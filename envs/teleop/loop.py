@@ -17,7 +17,10 @@ Per control step of the task env (``obs_mode="state"``: the task itself renders 
    jitter, occlusion, dropout (held or extrapolated).
 5. **filter** (:mod:`~handsim.envs.teleop.filters`): One Euro, exponential or none.
 6. **retarget** (:class:`~handsim.hand.retarget.Retargeter`, warm-started, partial keypoints,
-   floating scale) onto the physical hand; the pose is the env's action (``"pose"`` control).
+   floating scale) onto the physical hand, optionally smoothed in joint space
+   (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`), then the grip stabiliser
+   (:class:`~handsim.envs.teleop.grip.GripStabiliser`); the pose is the env's action
+   (``"pose"`` control).
 7. **physics**: the env steps; contacts give the interpenetration, and the interaction
    events (:mod:`~handsim.envs.teleop.events`) are detected.
 
@@ -48,6 +51,7 @@ from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
 from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
+from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
 from handsim.errors import HandSimError, InvalidKeypoints
@@ -133,8 +137,12 @@ class TeleopConfig:
             ``structured_light`` or ``tof``.
         camera: the capture camera preset (``camera`` mode).
         grip_hold: stabilise grips (:class:`~handsim.envs.teleop.grip.GripStabiliser`: a
-            digit touching an object keeps its target while tracking changes within noise).
-            Nothing is attached; the time it holds is ``grip_hold_s`` in the metrics.
+            digit touching an object stops at its surface and opens only when the tracked
+            digit clearly opens). Nothing is attached; the time it holds is ``grip_hold_s``
+            in the metrics.
+        pose_filter: smooth the retargeted pose in joint space
+            (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part).
+        pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -147,6 +155,8 @@ class TeleopConfig:
     sensor: str = "none"
     camera: str = "icvl"
     grip_hold: bool = True
+    pose_filter: bool = False
+    pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
     record: bool = False
     seed: int = 0
 
@@ -166,6 +176,7 @@ class TeleopConfig:
                 f"faults must be a FaultConfig; received {type(self.faults).__name__}"
             )
         make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
+        make_pose_filter(50.0, **self.pose_filter_params)
 
     def label(self) -> str:
         """A short description (plot legends, tables)."""
@@ -418,6 +429,9 @@ class TeleopLoop:
             self.estimator.reset()
         injector = FaultInjector(faults_cfg, rng)
         smoother = make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params)
+        pose_smoother = (
+            make_pose_filter(1.0 / dt, **cfg.pose_filter_params) if cfg.pose_filter else None
+        )
         retargeter = Retargeter(params)
         hand_geoms = tm.hand_geom_mask(
             base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
@@ -510,6 +524,8 @@ class TeleopLoop:
                     if result is not None:
                         previous, scale = result.pose, result.scale
                         target = result.pose.vector
+                        if pose_smoother is not None:
+                            target = pose_smoother(target)
                         if record:
                             rec["retarget_error"].append(result.keypoint_error_m)
                 times["retarget"] += time.perf_counter() - t4

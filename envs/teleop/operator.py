@@ -12,12 +12,13 @@ instead, as a person in a headset does:
   (``touch_forces_n=None``; the grasp expert then sizes its grip by its joint-torque model);
 - **moves** with visual-motor noise: a slow random drift (Ornstein-Uhlenbeck, time constant
   ``motor_time_s``) of the wrist (``motor_noise_mm`` std per axis) and of every joint angle
-  (``motor_noise_rad``) on top of the expert's command.
-
-Its hand is the operator's real hand; the loop then applies the tracker's faults to its
-keypoints. Call it with the step index, as :meth:`~handsim.envs.teleop.loop.TeleopLoop.run`
-does with a function stream; one instance per episode, made after nothing else has to change
-(it resets itself on the first step, after the loop's ``env.reset``).
+  (``motor_noise_rad``) on top of the expert's command;
+- **corrects** the wrist's drift as it sees it: the wrist's deviation from where it meant
+  it, shown ``display_latency_s + reaction_s`` late, is integrated into a correction with
+  time constant ``correction_s`` (closed-loop visual-motor control: a person watching the
+  hand does not let a drift build up into a missed grasp; ``None``: no correction). The
+  joints' drift is not corrected: 0.02 rad does not show on a virtual hand, and no haptics
+  tell the fingers where the object is.
 """
 
 from __future__ import annotations
@@ -62,6 +63,8 @@ class ReactiveOperator:
         motor_noise_mm: std of the wrist's drift per axis, mm.
         motor_noise_rad: std of every joint angle's drift, rad.
         motor_time_s: time constant of the drift, seconds.
+        correction_s: time constant of the visual correction of the wrist's drift, seconds
+            (``None``: not corrected).
 
     Raises:
         InvalidTeleopConfig: an env without an expert, or a setting out of range.
@@ -77,6 +80,7 @@ class ReactiveOperator:
         motor_noise_mm: float = 2.0,
         motor_noise_rad: float = 0.02,
         motor_time_s: float = 0.5,
+        correction_s: float | None = 0.5,
     ) -> None:
         base = getattr(env, "unwrapped", env)
         if not (hasattr(base, "make_expert") and hasattr(base, "expert_state")):
@@ -94,6 +98,8 @@ class ReactiveOperator:
         _check_range("motor_noise_mm", motor_noise_mm, 0.0, 100.0)
         _check_range("motor_noise_rad", motor_noise_rad, 0.0, 1.0)
         _check_range("motor_time_s", motor_time_s, 1e-3, 100.0)
+        if correction_s is not None:
+            _check_range("correction_s", correction_s, 1e-3, 100.0)
         self.env = env
         self._base = base
         self._rng = np.random.default_rng([seed, 28])
@@ -103,10 +109,13 @@ class ReactiveOperator:
         self.motor_noise_mm = float(motor_noise_mm)
         self.motor_noise_rad = float(motor_noise_rad)
         self.motor_time_s = float(motor_time_s)
+        self.correction_s = None if correction_s is None else float(correction_s)
         self._fk: ForwardKinematics | None = None  # the scene exists after the env's reset
         self._expert: Any = None
         self._seen: collections.deque = collections.deque()
         self._drift = np.zeros(3 + 21)
+        self._correction = np.zeros(3 + 21)
+        self._seen_offsets: collections.deque = collections.deque()
 
     @property
     def delay_s(self) -> float:
@@ -123,6 +132,8 @@ class ReactiveOperator:
             self._fk = ForwardKinematics(base.scene.hand.params)
             self._seen.clear()
             self._drift[:] = 0.0
+            self._correction[:] = 0.0
+            self._seen_offsets.clear()
         lag = int(round(self.delay_s / dt))
         self._seen.append(now)
         while len(self._seen) > lag + 1:
@@ -140,9 +151,19 @@ class ReactiveOperator:
         a = math.exp(-dt / self.motor_time_s)
         std = np.r_[np.full(3, self.motor_noise_mm * 1e-3), np.full(21, self.motor_noise_rad)]
         self._drift = a * self._drift + math.sqrt(1 - a * a) * std * self._rng.standard_normal(24)
+        # The hand's deviation the operator sees is its own, `lag` steps old; it integrates it
+        # away (a delayed integral controller: stable while lag * dt / correction_s < pi / 2).
+        offset = self._drift - self._correction
+        self._seen_offsets.append(offset.copy())
+        while len(self._seen_offsets) > lag + 1:
+            self._seen_offsets.popleft()
+        if self.correction_s is not None:
+            # The wrist's offset shows against the scene; a joint's 0.02 rad does not (and no
+            # haptics tell the fingers), so only the wrist is corrected.
+            self._correction[:3] += dt / self.correction_s * self._seen_offsets[0][:3]
         low, high = self.env.action_space.low, self.env.action_space.high
         vec = np.clip(pose.vector, low, high)
-        vec[:3] += self._drift[:3]
-        vec[6:] = np.clip(vec[6:] + self._drift[3:], low[6:], high[6:])
+        vec[:3] += offset[:3]
+        vec[6:] = np.clip(vec[6:] + offset[3:], low[6:], high[6:])
         assert self._fk is not None
         return self._fk.keypoints(HandPose.from_vector(vec))

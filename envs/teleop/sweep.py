@@ -71,6 +71,7 @@ def run_sweep(
     streams: Sequence[OperatorStream] | None = None,
     operator: str | None = None,
     grip_hold: bool = True,
+    pose_filter: bool = False,
     filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
@@ -93,6 +94,7 @@ def run_sweep(
         operator: one of :data:`~handsim.envs.teleop.operator.OPERATORS` (default:
             ``replay`` with ``streams``, else ``reactive``).
         grip_hold: the loop's grip stabiliser (:attr:`TeleopConfig.grip_hold`).
+        pose_filter: the loop's joint-space pose filter (:attr:`TeleopConfig.pose_filter`).
         filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
@@ -129,6 +131,7 @@ def run_sweep(
                 filter=filt,
                 filter_params=dict((filter_params or {}).get(filt, {})),
                 grip_hold=grip_hold,
+                pose_filter=pose_filter,
                 seed=seed,
             )
             if filt not in loops:
@@ -171,6 +174,7 @@ def run_sweep(
         "mode": mode,
         "operator": operator,
         "grip_hold": bool(grip_hold),
+        "pose_filter": bool(pose_filter),
         "filter_params": filter_params or {},
         "episodes": episodes,
         "seed": seed,

@@ -13,8 +13,8 @@ and a left physical hand, 54-D actions) takes both. :class:`TwoHandTeleopLoop` r
 - **anchor** (``anchor="start"``): one offset for both hands, from the first hand that has a
   stream (its first wrist onto its physical start wrist), since both come from one tracking
   space: the hands keep where they are relative to each other.
-- per hand: faults (each hand its own generator), filter, retargeting onto its own hand, and
-  the grip stabiliser; one :class:`~handsim.envs.teleop.events.EventDetector` for both, so
+- per hand: faults (each hand its own generator), filter, retargeting onto its own hand, the
+  pose filter (``pose_filter``) and the grip stabiliser; one :class:`~handsim.envs.teleop.events.EventDetector` for both, so
   every event names its hand.
 
 ``direct`` mode only (a headset reports joints); the capture camera of ``camera`` mode renders
@@ -59,6 +59,7 @@ from handsim.envs.teleop.loop import (
     TeleopEpisode,
     TeleopLoop,
 )
+from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import (
     InvalidStream,
@@ -262,6 +263,7 @@ class _Channel:
     smoother: Any
     retargeter: Retargeter
     grip: GripStabiliser | None
+    pose_smoother: Any
     hand_geoms: np.ndarray
     target: np.ndarray
     sampler: LiveSampler | None = None
@@ -375,6 +377,11 @@ class TwoHandTeleopLoop(TeleopLoop):
                     grip=(
                         GripStabiliser(types.SimpleNamespace(scene=view), dt)
                         if cfg.grip_hold
+                        else None
+                    ),
+                    pose_smoother=(
+                        make_pose_filter(1.0 / dt, **cfg.pose_filter_params)
+                        if cfg.pose_filter
                         else None
                     ),
                     hand_geoms=tm.hand_geom_mask(scene.model, binding.palm_id),
@@ -553,6 +560,8 @@ class TwoHandTeleopLoop(TeleopLoop):
             return
         ch.previous, ch.scale = result.pose, result.scale
         ch.target = result.pose.vector
+        if ch.pose_smoother is not None:
+            ch.target = ch.pose_smoother(ch.target)
 
     def _frames(
         self,

@@ -209,8 +209,15 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "--grip-hold",
         choices=("on", "off"),
         default="on",
-        help="grip stabiliser: a digit touching an object keeps its target while tracking "
-        "changes within noise; nothing is attached (default: on)",
+        help="grip stabiliser: a digit touching an object stops at its surface and opens only "
+        "when the tracked digit clearly opens; nothing is attached (default: on)",
+    )
+    p.add_argument(
+        "--pose-filter",
+        choices=("on", "off"),
+        default="off",
+        help="smooth the retargeted hand pose in joint space (One Euro per part: wrist "
+        "position, wrist rotation, joint angles; default: off)",
     )
     p.add_argument(
         "--seed",
@@ -270,6 +277,7 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         anchor=args.anchor,
         sensor=args.sensor,
         grip_hold=args.grip_hold == "on",
+        pose_filter=args.pose_filter == "on",
         record=record,
         seed=args.seed,
     )
@@ -501,6 +509,7 @@ def _sweep(args: argparse.Namespace) -> int:
             base_faults=base if isinstance(base, FaultConfig) else None,
             operator=args.operator,
             grip_hold=args.grip_hold == "on",
+            pose_filter=args.pose_filter == "on",
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )

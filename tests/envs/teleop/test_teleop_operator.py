@@ -61,6 +61,28 @@ def test_reactive_operator_sees_the_display_late():
     env.close()
 
 
+def test_reactive_operator_corrects_its_drift_as_it_sees_it():
+    """The drift it sees (late) is integrated away.
+
+    The wrist wanders less than the drift's own std, while without the correction it keeps
+    the drift's std; the correction is deterministic per seed.
+    """
+    env = _env()
+    env.reset(seed=0)
+
+    def wrist_offsets(**kwargs):
+        quiet = ReactiveOperator(env, 3, **QUIET)
+        op = ReactiveOperator(env, 3, motor_noise_mm=2.0, motor_noise_rad=0.0, **kwargs)
+        return np.array([op(i)[0] - quiet(i)[0] for i in range(1, 1501)])[250:] * 1e3
+
+    corrected = wrist_offsets()
+    free = wrist_offsets(correction_s=None)
+    np.testing.assert_array_equal(corrected, wrist_offsets())
+    assert 1.2 < np.std(free) < 2.8  # the drift's 2 mm per axis
+    assert np.std(corrected) < 0.9 * np.std(free)
+    env.close()
+
+
 def _env():
     import handsim.envs  # noqa: F401
 
@@ -74,6 +96,7 @@ def _env():
         ({"display_latency_s": -1.0}, r"display_latency_s must be a number in \[0, 2\]"),
         ({"motor_noise_mm": float("nan")}, r"motor_noise_mm must be a number in \[0, 100\]"),
         ({"motor_time_s": 0.0}, r"motor_time_s must be a number in \[0.001, 100\]"),
+        ({"correction_s": -0.5}, r"correction_s must be a number in \[0.001, 100\]"),
     ],
 )
 def test_reactive_operator_refuses_bad_settings(kwargs, message):
@@ -92,50 +115,83 @@ class _Data:
     ncon = 0
 
 
+class _Binding:
+    """The physical hand's joint angles the stabiliser reads (set by the test)."""
+
+    def __init__(self) -> None:
+        self.angles = np.zeros(21)
+
+    def pose(self, data):
+        return type("Pose", (), {"angles": self.angles.copy()})()
+
+
 def _stabiliser(touch):
     env = gym.make("handsim/Grasp-v0", obs_mode="state", control_mode="pose")
     env.reset(seed=0)
     grip = GripStabiliser(env.unwrapped, 0.02, smooth_s=1e-6)  # no smoothing: exact values
     grip.touching = lambda data: np.array(touch[0])
+    grip._binding = _Binding()
     return env, grip
 
 
-def test_grip_holds_a_touching_digit_within_the_band_and_releases_on_opening():
-    """Noise within the band leaves a touching digit's target; opening beyond it releases it."""
+INDEX = 6 + np.array([5, 6, 7, 8])  # mcp_flex, mcp_abd, pip_flex, dip_flex in the 27-vector
+INDEX_FLEX = INDEX[[0, 2, 3]]
+
+
+def test_grip_stops_a_touching_digit_at_its_surface_and_releases_on_opening():
+    """A digit closing onto an object stops at the contact posture.
+
+    Each flexion joint presses past it as tracked; opening within the band keeps the press
+    (the spread follows tracking); opening beyond the band releases the digit.
+    """
     touch = [[False, True, False, False, False]]  # the index only
     env, grip = _stabiliser(touch)
-    index = 6 + np.array([5, 6, 7, 8])
+    surface = np.array([0.5, 0.1, 0.7, 0.4])  # the physical index, stopped by the object
+    grip._binding.angles[INDEX - 6] = surface
     target = np.zeros(27)
-    target[index] = [0.6, 0.0, 0.8, 0.5]
-    held = grip(target, _Data())[index]
-    np.testing.assert_allclose(held, [0.6, 0.0, 0.8, 0.5])
-    # Flexion noise within the band: the held target stays; the thumb (not touching) follows.
-    noisy = target.copy()
-    noisy[index] += [0.1, 0.05, -0.15, 0.1]
-    noisy[6] = 0.3
-    out = grip(noisy, _Data())
-    np.testing.assert_allclose(out[index], held)
+    target[INDEX] = [0.6, -0.1, 0.65, 0.5]  # tracked: inside the object on average
+    out = grip(target, _Data())
+    np.testing.assert_allclose(out[INDEX], [0.6, -0.1, 0.7, 0.5])  # never below the surface
+    assert grip.latched().tolist() == [False, True, False, False, False]
+    # Opening within the band keeps the press it had; the thumb follows tracking.
+    opened = target.copy()
+    opened[INDEX] = surface + [-0.1, 0.2, -0.15, -0.05]
+    opened[6] = 0.3
+    out = grip(opened, _Data())
+    np.testing.assert_allclose(out[INDEX], [0.6, 0.3, 0.7, 0.5])
     assert out[6] == 0.3 and grip.held_steps == 2
     # Opening by more than the band releases: the tracked target comes through.
-    opened = target.copy()
-    opened[index[[0, 2, 3]]] -= GRIP_BAND_RAD + 0.05
-    touch[0] = [False] * len(DIGITS)
-    np.testing.assert_allclose(grip(opened, _Data())[index], opened[index])
+    opened[INDEX_FLEX] = surface[[0, 2, 3]] - GRIP_BAND_RAD - 0.05
+    np.testing.assert_allclose(grip(opened, _Data())[INDEX], opened[INDEX])
+    assert not grip.latched().any()
+    env.close()
+
+
+def test_grip_does_not_latch_a_digit_that_opens_away_from_the_object():
+    """A touching digit whose tracked target is outside the object (opening) is not held."""
+    touch = [[False, True, False, False, False]]
+    env, grip = _stabiliser(touch)
+    grip._binding.angles[INDEX - 6] = [0.5, 0.0, 0.7, 0.4]
+    target = np.zeros(27)
+    target[INDEX] = [0.3, 0.0, 0.5, 0.3]
+    np.testing.assert_allclose(grip(target, _Data())[INDEX], target[INDEX])
+    assert not grip.latched().any() and grip.held_steps == 0
     env.close()
 
 
 def test_grip_releases_a_digit_off_every_object():
-    """A latched digit that stops touching for release_s releases although its target is held."""
+    """A latched digit that stops touching for release_s releases although it stays closed."""
     touch = [[False, True, False, False, False]]
     env, grip = _stabiliser(touch)
+    grip._binding.angles[INDEX[0] - 6] = 0.5
     target = np.zeros(27)
-    target[6 + 5] = 0.5
+    target[INDEX[0]] = 0.5
     grip(target, _Data())
     touch[0] = [False] * len(DIGITS)
     moved = target.copy()
-    moved[6 + 5] = 0.55  # within the band
-    outs = [grip(moved, _Data())[6 + 5] for _ in range(16)]
-    assert outs[0] == 0.5 and outs[-1] == 0.55  # 0.3 s = 15 steps of 20 ms
+    moved[INDEX[0]] = 0.4  # opened within the band
+    outs = [grip(moved, _Data())[INDEX[0]] for _ in range(16)]
+    assert outs[0] == 0.5 and outs[-1] == 0.4  # 0.3 s = 15 steps of 20 ms
     env.close()
 
 
@@ -179,7 +235,7 @@ def test_cli_sweep_reactive_operator(tmp_path):
     out = tmp_path / "sweep"
     argv = ["teleop", "sweep", "--task", "press", "--noise-mm", "0", "--latency", "0"]
     argv += ["--dropout", "0", "--filters", "none", "--episodes", "1", "--operator", "reactive"]
-    argv += ["--grip-hold", "off", "--out", str(out), "-q"]
+    argv += ["--grip-hold", "off", "--pose-filter", "on", "--out", str(out), "-q"]
     done = subprocess.run(
         [sys.executable, "-m", "handsim.cli", *argv], capture_output=True, text=True, timeout=300
     )
@@ -187,6 +243,7 @@ def test_cli_sweep_reactive_operator(tmp_path):
     assert "grip_hold_s" in done.stdout
     report = json.loads((out / "sweep.json").read_text())
     assert report["operator"] == "reactive" and report["grip_hold"] is False
+    assert report["pose_filter"] is True
     bad = subprocess.run(
         [sys.executable, "-m", "handsim.cli", "teleop", "sweep", "--operator", "human"],
         capture_output=True,

@@ -213,3 +213,17 @@ def test_the_page_serves_a_two_hand_recording_with_both_hands(tmp_path, expert):
     assert len(doc["hands"][1]["frames"]) == len(expert[1]) and doc["hand"] == "right"
     left = np.array(doc["hands"][1]["frames"][0]["keypoints"])
     np.testing.assert_allclose(left, expert[1].keypoints_world[0], atol=1e-6)
+
+
+def test_the_pose_filter_smooths_each_hand(expert):
+    """With 10 mm of tracking noise, pose_filter=True steadies both hands (each its own filter)."""
+    from handsim.envs.teleop.faults import FaultConfig
+
+    jitter = {}
+    for on in (False, True):
+        cfg = TeleopConfig(faults=FaultConfig(noise_mm=10.0), pose_filter=on)
+        with TwoHandTeleopLoop(ENV_ID, cfg) as lp:
+            hands = lp.run(expert, 0).metrics["hands"]
+        jitter[on] = {side: hands[side]["jitter_mm"] for side in ("right", "left")}
+    for side in ("right", "left"):
+        assert jitter[True][side] < 0.5 * jitter[False][side], jitter

@@ -1,0 +1,158 @@
+"""Where grasps fail under tracking noise: the reactive operator, with one part made clean.
+
+Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
+[--filter none] [--beta 1] [--pose-filter on|off] [--motor-noise on|off|wrist|joints]
+[--correction on|off] [--clean none|wrist|fingers] [--episodes 20] [--out FILE]``.
+
+Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
+seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
+every retargeted (and, with the pose filter, filtered) pose by the operator's own, so only
+the fingers carry the tracking noise; ``--clean fingers`` the 21 joint angles, so only the
+wrist does. Each failure is put in the stage it ended in: ``approach`` (the expert still
+reaching or approaching), ``closure`` (the object never rose 2 cm), ``lift`` (it rose, but
+not to 9.5 cm) or ``hold`` (lifted, then dropped, slipped or turned). Prints and writes
+(``benchmarks/results/teleop_stages.json`` by default, one entry per configuration) the
+success rate, the stage counts and the wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import pathlib
+import time
+from typing import Any
+
+import numpy as np
+
+from handsim.envs.teleop import FaultConfig, TeleopConfig, TeleopLoop
+from handsim.envs.teleop.operator import ReactiveOperator
+
+
+class _Clean:
+    """A pose filter stand-in that puts the operator's own wrist or joints into the pose."""
+
+    def __init__(self, inner: Any, part: str, operator: dict[str, np.ndarray]) -> None:
+        self.inner, self.part, self.operator = inner, part, operator
+
+    def __call__(self, pose: np.ndarray) -> np.ndarray:
+        out = np.array(self.inner(pose) if self.inner is not None else pose)
+        truth = self.operator["pose"]
+        if self.part == "wrist":
+            out[:6] = truth[:6]
+        elif self.part == "fingers":
+            out[6:] = truth[6:]
+        return out
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """The episodes of one configuration: success rate, stage counts, wall time."""
+    import handsim.envs.teleop.loop as loop_module
+    from handsim.envs.teleop.pose_filter import make_pose_filter
+    from handsim.hand.kinematics import ForwardKinematics
+
+    operator_pose: dict[str, np.ndarray] = {}
+    if args.clean != "none":
+        # The operator's pose of this step: the one its keypoints are made from.
+        keypoints = ForwardKinematics.keypoints
+
+        def spy(self: Any, pose: Any) -> np.ndarray:
+            operator_pose["pose"] = pose.vector.copy()
+            return keypoints(self, pose)
+
+        ForwardKinematics.keypoints = spy  # type: ignore[method-assign]
+        use_filter = args.pose_filter == "on"
+
+        def clean_filter(rate_hz: float, **params: float) -> Any:
+            inner = make_pose_filter(rate_hz, **params) if use_filter else None
+            return _Clean(inner, args.clean, operator_pose)
+
+        loop_module.make_pose_filter = clean_filter  # type: ignore[assignment]
+    config = TeleopConfig(
+        faults=FaultConfig(
+            noise_mm=args.noise_mm, latency_frames=args.latency, dropout=args.dropout
+        ),
+        filter=args.filter,
+        filter_params={"beta": args.beta} if args.filter == "one_euro" else {},
+        # The clean part goes in where the pose filter sits.
+        pose_filter=args.pose_filter == "on" or args.clean != "none",
+    )
+    quiet: dict[str, Any] = {
+        "on": {},
+        "off": {"motor_noise_mm": 0.0, "motor_noise_rad": 0.0},
+        "wrist": {"motor_noise_rad": 0.0},
+        "joints": {"motor_noise_mm": 0.0},
+    }[args.motor_noise]
+    if args.correction == "off":
+        quiet["correction_s"] = None
+    stages = []
+    start = time.perf_counter()
+    with TeleopLoop("handsim/Grasp-v0", config) as loop:
+        base = loop.env.unwrapped
+        for seed in range(args.episodes):
+            op = ReactiveOperator(
+                loop.env, seed, display_latency_s=args.latency * loop.control_dt, **quiet
+            )
+            lifts: list[float] = []
+            phase: list[str] = []
+
+            def on_step(
+                i: int,
+                state: dict[str, Any],
+                op: Any = op,
+                lifts: list = lifts,
+                phase: list = phase,
+            ) -> None:
+                lifts.append(float(base._task_info()["lift_m"]))
+                phase[:] = [op._expert.phase]
+
+            metrics = loop.run(op, seed, on_step=on_step).metrics
+            lift = max(lifts)
+            if metrics["success"]:
+                stage = "success"
+            elif phase[0] in ("wait", "reach", "approach"):
+                stage = "approach"
+            elif lift < 0.02:
+                stage = "closure"
+            elif lift < 0.095:
+                stage = "lift"
+            else:
+                stage = "hold"
+            stages.append(stage)
+    counts = collections.Counter(stages)
+    return {
+        "config": {k: v for k, v in vars(args).items() if k != "out"},
+        "success_rate": counts["success"] / len(stages),
+        "stages": dict(counts),
+        "per_seed": stages,
+        "wall_s": round(time.perf_counter() - start, 1),
+    }
+
+
+def main() -> None:
+    """Parse the options, run, print and append the result to ``--out``."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--noise-mm", type=float, default=10.0)
+    p.add_argument("--latency", type=int, default=0)
+    p.add_argument("--dropout", type=float, default=0.0)
+    p.add_argument("--filter", choices=("none", "one_euro"), default="none")
+    p.add_argument("--beta", type=float, default=1.0)
+    p.add_argument("--pose-filter", choices=("on", "off"), default="off")
+    p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
+    p.add_argument("--correction", choices=("on", "off"), default="on")
+    p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")
+    p.add_argument("--episodes", type=int, default=20)
+    p.add_argument("--out", default="benchmarks/results/teleop_stages.json")
+    args = p.parse_args()
+    result = run(args)
+    print(json.dumps(result))
+    out = pathlib.Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    runs = json.loads(out.read_text()) if out.is_file() else []
+    runs.append(result)
+    out.write_text(json.dumps(runs, indent=1))
+
+
+if __name__ == "__main__":
+    main()
