@@ -16,8 +16,8 @@
 #
 # Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], DEVICE [cuda if
 # torch sees one, else cpu], WORKERS [1] (generate workers; on CUDA also loader workers),
-# THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [8],
-# DPP_EPOCHS [12], DEEP_EPOCHS [10], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
+# THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
+# DPP_EPOCHS [15], DEEP_EPOCHS [10], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), BATCH [64], BENCH [OUT/bench], EPISODES [5]; STAGES [data localizer dpp bench]
 # picks the stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
 # shared with other jobs in about an hour; on a GPU (`--amp`, bfloat16) raise the frames,
@@ -38,8 +38,8 @@ CLEAN_FRAMES=${CLEAN_FRAMES:-1000}
 EGO_FRAMES=${EGO_FRAMES:-2500}
 OBJECT_FRAMES=${OBJECT_FRAMES:-3500}
 ROLLOUT_FRAMES=${ROLLOUT_FRAMES:-0}
-LOC_EPOCHS=${LOC_EPOCHS:-8}
-DPP_EPOCHS=${DPP_EPOCHS:-12}
+LOC_EPOCHS=${LOC_EPOCHS:-24}
+DPP_EPOCHS=${DPP_EPOCHS:-15}
 DEEP_EPOCHS=${DEEP_EPOCHS:-10}
 WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
