@@ -20,7 +20,7 @@
 # DPP_EPOCHS [15], DEEP_EPOCHS [10], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), BATCH [64], BENCH [OUT/bench], EPISODES [5]; STAGES [data localizer dpp bench]
 # picks the stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
-# shared with other jobs in about an hour; on a GPU (`--amp`, bfloat16) raise the frames,
+# shared with other jobs in about 40 minutes; on a GPU (`--amp`, bfloat16) raise the frames,
 # epochs and WIDTH. Every stage resumes: run the same command again after an interruption
 # (generate keeps complete shards, train restarts after its last finished epoch, benchmark
 # make keeps complete sets). The figures of docs/deepprior.md name the settings they were
