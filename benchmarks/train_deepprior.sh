@@ -17,7 +17,7 @@
 # Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], DEVICE [cuda if
 # torch sees one, else cpu], WORKERS [1] (generate workers; on CUDA also loader workers),
 # THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
-# DPP_EPOCHS [15], DEEP_EPOCHS [10], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
+# DPP_EPOCHS [15], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), BATCH [64], BENCH [OUT/bench], EPISODES [5]; STAGES [data localizer dpp bench]
 # picks the stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
 # shared with other jobs in about 40 minutes; on a GPU (`--amp`, bfloat16) raise the frames,
@@ -40,7 +40,7 @@ OBJECT_FRAMES=${OBJECT_FRAMES:-3500}
 ROLLOUT_FRAMES=${ROLLOUT_FRAMES:-0}
 LOC_EPOCHS=${LOC_EPOCHS:-24}
 DPP_EPOCHS=${DPP_EPOCHS:-15}
-DEEP_EPOCHS=${DEEP_EPOCHS:-10}
+DEEP_EPOCHS=${DEEP_EPOCHS:-15}
 WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
 BENCH=${BENCH:-$OUT/bench}
@@ -102,14 +102,20 @@ fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
+  # spec CHECKPOINT [EXTRA_KWARGS]: the run's network behind the shipped pipeline class.
   spec() {
-    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$OUT/dpp/best.pt\", \"localizer\": \"$OUT/localizer/best.pt\", \"threads\": $THREADS$1}"
+    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$OUT/localizer/best.pt\", \"threads\": $THREADS${2:-}}"
   }
   stamp "handsim-bench: run DeepPrior++, $EPISODES closed-loop episodes"
-  $HANDSIM benchmark run --estimator "$(spec '')" --bench "$BENCH" --episodes "$EPISODES" \
-    --out "$OUT/bench_dpp" -q
+  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt")" --bench "$BENCH" \
+    --episodes "$EPISODES" --out "$OUT/bench_dpp" -q
   stamp "handsim-bench: the same network without canonicalization (offline)"
-  $HANDSIM benchmark run --estimator "$(spec ', "canonical_side": false')" --bench "$BENCH" \
-    --episodes 0 --out "$OUT/bench_dpp_unmirrored" -q
+  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt" ', "canonical_side": false')" \
+    --bench "$BENCH" --episodes 0 --out "$OUT/bench_dpp_unmirrored" -q
+  if [[ -f $OUT/deep/best.pt ]]; then
+    stamp "handsim-bench: DeepPrior (deep), offline"
+    $HANDSIM benchmark run --estimator "$(spec "$OUT/deep/best.pt")" --bench "$BENCH" \
+      --episodes 0 --out "$OUT/bench_deep" -q
+  fi
 fi
 stamp done
