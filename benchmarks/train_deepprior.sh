@@ -3,73 +3,119 @@
 #
 #   bash benchmarks/train_deepprior.sh OUT_DIR
 #
-# Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], DEVICE [cuda if torch sees one, else cpu], WORKERS
-# [nproc], HAND_FRAMES [60000], GRASP_FRAMES [15000], LOC_EPOCHS [15], DPP_EPOCHS [40],
-# WIDTH [1], BATCH [128] (on CUDA with bfloat16 mixed precision), EVAL_FRAMES [3000]; STAGES [data localizer dpp evaluate] picks the
-# stages. Every stage resumes: run the same command again after an interruption. The
-# figures of docs/deepprior.md name the settings they were made with.
+# Data: the realistic presets of `handsim generate`, a mix of sensors, both sides (training is
+# side-canonical: left frames are mirrored into the right-hand frame, the checkpoints carry
+# canonical_side):
+#   third   hand-only (third person, NYU-fitted views), structured light   THIRD_FRAMES  [6000]
+#   tof     hand-only, time of flight                                      TOF_FRAMES    [2000]
+#   clean   hand-only, noise-free depth                                    CLEAN_FRAMES  [1000]
+#   ego     hand-only-egocentric, structured light                        EGO_FRAMES    [2500]
+#   object  hand-object (grasps in contact, 1-3 objects), structured light OBJECT_FRAMES [3500]
+#   rollout Grasp-v0 rollouts of the expert (grasp-rollouts), structured light ROLLOUT_FRAMES [0]
+# A set with 0 frames is left out. Seeds 0-5 (handsim-bench-v1 uses 2601-2606).
+#
+# Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], DEVICE [cuda if
+# torch sees one, else cpu], WORKERS [1] (generate workers; on CUDA also loader workers),
+# THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
+# DPP_EPOCHS [15], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
+# paper's), BATCH [64], BENCH [OUT/bench], EPISODES [5]; STAGES [data localizer dpp bench]
+# picks the stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
+# shared with other jobs in about 40 minutes; on a GPU (`--amp`, bfloat16) raise the frames,
+# epochs and WIDTH. Every stage resumes: run the same command again after an interruption
+# (generate keeps complete shards, train restarts after its last finished epoch, benchmark
+# make keeps complete sets). The figures of docs/deepprior.md name the settings they were
+# made with.
 set -euo pipefail
 OUT=${1:?usage: train_deepprior.sh OUT_DIR}
 PYTHON=${PYTHON:-python3}
 HANDSIM=${HANDSIM:-handsim}
 DEVICE=${DEVICE:-$($PYTHON -c "import torch; print('cuda' if torch.cuda.is_available() else 'cpu')")}
-WORKERS=${WORKERS:-$(nproc)}
-HAND_FRAMES=${HAND_FRAMES:-60000}
-GRASP_FRAMES=${GRASP_FRAMES:-15000}
-LOC_EPOCHS=${LOC_EPOCHS:-15}
-DPP_EPOCHS=${DPP_EPOCHS:-40}
-WIDTH=${WIDTH:-1}
-BATCH=${BATCH:-128}
-EVAL_FRAMES=${EVAL_FRAMES:-3000}
-STAGES=${STAGES:-"data localizer dpp evaluate"}
+WORKERS=${WORKERS:-1}
+THREADS=${THREADS:-1}
+THIRD_FRAMES=${THIRD_FRAMES:-6000}
+TOF_FRAMES=${TOF_FRAMES:-2000}
+CLEAN_FRAMES=${CLEAN_FRAMES:-1000}
+EGO_FRAMES=${EGO_FRAMES:-2500}
+OBJECT_FRAMES=${OBJECT_FRAMES:-3500}
+ROLLOUT_FRAMES=${ROLLOUT_FRAMES:-0}
+LOC_EPOCHS=${LOC_EPOCHS:-24}
+DPP_EPOCHS=${DPP_EPOCHS:-15}
+DEEP_EPOCHS=${DEEP_EPOCHS:-15}
+WIDTH=${WIDTH:-0.25}
+BATCH=${BATCH:-64}
+BENCH=${BENCH:-$OUT/bench}
+EPISODES=${EPISODES:-5}
+STAGES=${STAGES:-"data localizer dpp bench"}
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
 
-# Hand alone before the third-person camera, structured-light noise (the test distribution),
-# and Grasp-v0 rollouts of the scripted expert from the same camera (hand-object frames).
-cat > "$OUT/handonly.json" <<JSON
-{"frames": $HAND_FRAMES, "seed": 0, "viewpoints": ["third_person"], "num_objects_range": [0, 0],
- "sensor": "structured_light"}
-JSON
-cat > "$OUT/grasp.json" <<JSON
-{"frames": $GRASP_FRAMES, "seed": 1, "source": "rollout", "env_id": "handsim/Grasp-v0",
- "num_objects_range": [1, 1], "viewpoints": ["third_person"], "sensor": "structured_light",
- "frames_per_episode": 60, "frame_stride": 5}
-JSON
-DATA=("$OUT/data/handonly")
-[[ $GRASP_FRAMES -gt 0 ]] && DATA+=("$OUT/data/grasp")
-COMMON=(--device "$DEVICE" --loader-workers "$WORKERS" --batch-size "$BATCH" -q)
-[[ $DEVICE == cuda ]] && COMMON+=(--amp)
+# name preset frames seed sensor: the preset's config with these frames, seed and sensor.
+SETS=()
+add_set() {
+  [[ $3 -gt 0 ]] || return 0
+  $PYTHON - "$2" "$3" "$4" "$5" "$OUT/$1.json" <<'PY'
+import json, sys
+from handsim.data.config import PRESETS, GenerationConfig
+preset, frames, seed, sensor, path = sys.argv[1:]
+config = GenerationConfig.from_mapping(PRESETS[preset], frames=int(frames), seed=int(seed),
+                                       sensor=sensor)
+with open(path, "w") as f:
+    json.dump(config.to_json(), f, indent=1)
+PY
+  SETS+=("$1")
+}
+add_set third hand-only "$THIRD_FRAMES" 0 structured_light
+add_set tof hand-only "$TOF_FRAMES" 1 tof
+add_set clean hand-only "$CLEAN_FRAMES" 2 none
+add_set ego hand-only-egocentric "$EGO_FRAMES" 3 structured_light
+add_set object hand-object "$OBJECT_FRAMES" 4 structured_light
+add_set rollout grasp-rollouts "$ROLLOUT_FRAMES" 5 structured_light
+DATA=()
+for s in "${SETS[@]}"; do DATA+=("$OUT/data/$s"); done
+
+COMMON=(--device "$DEVICE" --batch-size "$BATCH" --threads "$THREADS" -q)
+[[ $DEVICE == cuda ]] && COMMON+=(--amp --loader-workers "$WORKERS")
 
 if has data; then
-  stamp "generate $HAND_FRAMES hand-only frames"
-  $HANDSIM generate --config "$OUT/handonly.json" --workers "$WORKERS" --out "$OUT/data/handonly" >/dev/null
-  if [[ $GRASP_FRAMES -gt 0 ]]; then
-    stamp "generate $GRASP_FRAMES Grasp-v0 rollout frames"
-    $HANDSIM generate --config "$OUT/grasp.json" --workers "$WORKERS" --out "$OUT/data/grasp" >/dev/null
-  fi
+  for s in "${SETS[@]}"; do
+    stamp "generate $s ($OUT/$s.json)"
+    $HANDSIM generate --config "$OUT/$s.json" --workers "$WORKERS" --out "$OUT/data/$s" -q \
+      >/dev/null
+  done
 fi
 if has localizer; then
   stamp "train the localizer"
   $HANDSIM train localizer --data "${DATA[@]}" --out "$OUT/localizer" --epochs "$LOC_EPOCHS" \
-    "${COMMON[@]}"
+    "${COMMON[@]}" >/dev/null
 fi
 if has dpp; then
-  stamp "train DeepPrior++"
+  stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
-    --width "$WIDTH" --localizer "$OUT/localizer/best.pt" "${COMMON[@]}"
+    --width "$WIDTH" --localizer "$OUT/localizer/best.pt" "${COMMON[@]}" >/dev/null
 fi
-if has evaluate; then
-  stamp "evaluate on the hand-only test split"
-  $HANDSIM evaluate --estimator "$OUT/dpp" --localizer "$OUT/localizer/best.pt" \
-    --data "$OUT/data/handonly" --split test --max-frames "$EVAL_FRAMES" --device "$DEVICE" \
-    --out "$OUT/eval_handonly" -q
-  if [[ $GRASP_FRAMES -gt 0 ]]; then
-    stamp "evaluate on the Grasp-v0 test split"
-    $HANDSIM evaluate --estimator "$OUT/dpp" --localizer "$OUT/localizer/best.pt" \
-      --data "$OUT/data/grasp" --split test --max-frames "$EVAL_FRAMES" --device "$DEVICE" \
-      --out "$OUT/eval_grasp" -q
+if has deep; then
+  stamp "train DeepPrior (deep)"
+  $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
+    --epochs "$DEEP_EPOCHS" --localizer "$OUT/localizer/best.pt" "${COMMON[@]}" >/dev/null
+fi
+if has bench; then
+  stamp "handsim-bench: make $BENCH"
+  $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
+  # spec CHECKPOINT [EXTRA_KWARGS]: the run's network behind the shipped pipeline class.
+  spec() {
+    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$OUT/localizer/best.pt\", \"threads\": $THREADS${2:-}}"
+  }
+  stamp "handsim-bench: run DeepPrior++, $EPISODES closed-loop episodes"
+  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt")" --bench "$BENCH" \
+    --episodes "$EPISODES" --out "$OUT/bench_dpp" -q
+  stamp "handsim-bench: the same network without canonicalization (offline)"
+  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt" ', "canonical_side": false')" \
+    --bench "$BENCH" --episodes 0 --out "$OUT/bench_dpp_unmirrored" -q
+  if [[ -f $OUT/deep/best.pt ]]; then
+    stamp "handsim-bench: DeepPrior (deep), offline"
+    $HANDSIM benchmark run --estimator "$(spec "$OUT/deep/best.pt")" --bench "$BENCH" \
+      --episodes 0 --out "$OUT/bench_deep" -q
   fi
 fi
 stamp done
