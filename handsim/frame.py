@@ -401,6 +401,10 @@ class FrameRenderer:
             docstring): ``"auto"`` by the hand's projected size, ``"full"`` always the full
             skin, ``"coarse"`` always the coarse one. A scene without the coarse skin
             (``SceneSpec(skin_lod=False)`` or a capsule hand) always draws the full one.
+        renderer: the depth and geom-id renderer to draw with, made for ``camera``'s
+            intrinsics with :class:`~handsim.world.render.DepthRenderer`'s interface (e.g. a
+            :class:`~handsim.world.warp_render.WarpSceneRenderer`); ``None``: an OpenGL
+            :class:`~handsim.world.render.DepthRenderer`. The frame renderer closes it.
 
     Raises:
         InvalidScene: for an unknown camera or a bad ``silhouette_tolerance_px``.
@@ -415,6 +419,7 @@ class FrameRenderer:
         *,
         silhouette_tolerance_px: float = SILHOUETTE_TOLERANCE_PX,
         skin_detail: str = "auto",
+        renderer: DepthRenderer | None = None,
     ) -> None:
         if not isinstance(scene, Scene):
             raise InvalidScene(f"scene must be a Scene; received {type(scene).__name__}")
@@ -445,7 +450,11 @@ class FrameRenderer:
         self.camera_spec = scene.camera(camera)
         self.intrinsics = self.camera_spec.intrinsics
         self.sensor = sensor if sensor is not None else NoNoise()
-        self.renderer = DepthRenderer(scene.model, camera, self.intrinsics)
+        self.renderer = (
+            renderer
+            if renderer is not None
+            else DepthRenderer(scene.model, camera, self.intrinsics)
+        )
         self._hand_version = scene.hand_geometry_version
         self._uploaded_hand_length_m = scene.hand.params.hand_length
         self._kp_radius = _keypoint_radii(scene)

@@ -308,12 +308,8 @@ class KinematicSource:
             return FrameRenderer(scene, "camera", self.sensor, skin_detail=self.config.skin_detail)
         from handsim.world.warp_render import WarpSceneRenderer
 
-        renderer = FrameRenderer(scene, "camera", self.sensor, skin_detail="full")
-        renderer.renderer.close()
-        renderer.renderer = WarpSceneRenderer(
-            scene.model, "camera", self.intrinsics, device=self.warp_device
-        )
-        return renderer
+        warp = WarpSceneRenderer(scene.model, "camera", self.intrinsics, device=self.warp_device)
+        return FrameRenderer(scene, "camera", self.sensor, skin_detail="full", renderer=warp)
 
     def close(self) -> None:
         """Free the scenes, renderers and OpenGL context kept between episodes."""

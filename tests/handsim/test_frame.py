@@ -624,3 +624,22 @@ def test_skin_as_drawn_shows_the_level_render_draws_to_other_renderers():
     kept = frame.depth_clean > 0
     np.testing.assert_array_equal(depth[kept], frame.depth_clean[kept])
     np.testing.assert_array_equal(depth_images, depth)
+
+
+def test_a_frame_renderer_draws_through_the_renderer_it_is_given():
+    """renderer=: the frame renderer draws with it (and closes it); the frame is the same."""
+    from handsim.world.render import DepthRenderer
+
+    cam = CameraSpec.look_at("front", ICVL, (0.0, 0.0, 0.19), (0.0, 0.5, 0.19))
+    scene = Scene(SceneSpec(cameras=(cam,), table=False))
+    scene.reset(_flat_hand_facing(0.0))
+    given = DepthRenderer(scene.model, "front", ICVL)
+    with (
+        FrameRenderer(scene, "front") as default,
+        FrameRenderer(scene, "front", renderer=given) as through,
+    ):
+        assert through.renderer is given
+        a = default.render(np.random.default_rng(0))
+        b = through.render(np.random.default_rng(0))
+    np.testing.assert_array_equal(a.depth, b.depth)
+    np.testing.assert_array_equal(a.segmentation, b.segmentation)

@@ -169,10 +169,9 @@ def _frame_renderers(scene: Scene):
     from handsim.world.warp_render import WarpSceneRenderer
 
     gl = FrameRenderer(scene, "camera", skin_detail="full")
-    warp = FrameRenderer(scene, "camera", skin_detail="full")
-    warp.renderer.close()
     intr = scene.spec.cameras[0].intrinsics
-    warp.renderer = WarpSceneRenderer(scene.model, "camera", intr, device="cpu")
+    through_warp = WarpSceneRenderer(scene.model, "camera", intr, device="cpu")
+    warp = FrameRenderer(scene, "camera", skin_detail="full", renderer=through_warp)
     return gl, warp
 
 
