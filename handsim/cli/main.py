@@ -91,12 +91,18 @@ def skip_exit_collection() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``handsim`` program.
 
+    Without ``argv`` (the program itself, not a caller in a longer-lived process) the objects
+    loaded so far are frozen (:func:`gc.freeze`: the modules stay to the end, and the
+    collections of the command's set-up skip them, about 0.05 s of CPU).
+
     Args:
         argv: arguments (default: ``sys.argv[1:]``).
 
     Returns:
         The process exit status (argparse's own errors exit with 2 via ``SystemExit``).
     """
+    if argv is None:
+        gc.freeze()
     skip_exit_collection()
     words = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(_command_of(words))

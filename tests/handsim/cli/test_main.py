@@ -238,3 +238,24 @@ def test_exit_freezes_the_heap_after_the_handlers_registered_later_subprocess():
         "registered after, run first: 0",
         "registered before, run last: True",
     ]
+
+
+def test_only_the_program_freezes_its_start_up_objects(monkeypatch, capsys):
+    """main() without argv (the program) freezes what is loaded; main(argv) leaves it be.
+
+    A caller's main(argv) (a test, another program) must not freeze the caller's heap.
+    """
+    import gc
+
+    from handsim.cli.main import main
+
+    gc.unfreeze()
+    main(["info", "--json", "-q"])
+    assert gc.get_freeze_count() == 0
+    monkeypatch.setattr(sys, "argv", ["handsim", "info", "--json", "-q"])
+    try:
+        assert main() == 0
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
+    capsys.readouterr()
