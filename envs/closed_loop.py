@@ -43,10 +43,10 @@ import gymnasium as gym
 import numpy as np
 
 from handsim import metrics, viz
-from handsim._json import to_strict_json  # noqa: F401 (part of this module's API)
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.errors import HandSimError
 from handsim.estimator import Estimator, describe_estimator
+from handsim.metrics._common import to_strict_json  # noqa: F401 (part of this module's API)
 
 __all__ = [
     "evaluate_closed_loop",
