@@ -326,8 +326,14 @@ def _job_s(frames: int, workers: int, out: Path, cli: bool) -> tuple[float, floa
 
 
 _FLOOR_MODULE = """
-import gc
-import cv2, h5py, mujoco, numba, numpy, scipy.spatial.transform
+import gc, importlib, json, time
+
+cpu_s = {}
+for name in ("numpy", "mujoco", "h5py", "cv2", "scipy.spatial.transform", "numba"):
+    start = time.process_time()
+    importlib.import_module(name)
+    cpu_s[name] = time.process_time() - start
+import numba
 
 
 @numba.njit(cache=True)
@@ -335,27 +341,32 @@ def one(x):
     return x + 1
 
 
+start = time.process_time()
 one(1)
+cpu_s["numba set-up"] = time.process_time() - start
+print(json.dumps(cpu_s))
 gc.freeze()  # the exit skips its collection, as handsim's program does
 """
-"""What any process that makes a frame loads, and numba's set-up (one loop from its cache)."""
+"""What any process that makes a frame loads, and numba's set-up (one loop from its cache);
+prints the CPU seconds of each import, in this order."""
 
 
-def _floor_s(folder: Path) -> tuple[float, float]:
+def _floor_s(folder: Path) -> tuple[float, float, dict[str, float]]:
     """Wall and CPU seconds of a process that only loads the frames' dependencies.
 
     NumPy, MuJoCo, h5py, OpenCV, scipy.spatial (the hand's rotations) and numba, set up by
     loading one compiled loop from its cache: the part of a job's fixed start that no change
-    to handsim removes.
+    to handsim removes. Also the CPU seconds of each import in that process (in that order).
     """
     (folder / "floor_deps.py").write_text(_FLOOR_MODULE)
     command = [sys.executable, "-c", "import floor_deps"]
     env = {**os.environ, "PYTHONPATH": str(folder)}
-    subprocess.run(command, check=True, env=env, cwd=folder)  # compiles numba's cache
+    subprocess.run(command, check=True, env=env, cwd=folder, capture_output=True)  # numba
     cpu = _children_cpu_s()
     start = time.perf_counter()
-    subprocess.run(command, check=True, env=env, cwd=folder)
-    return time.perf_counter() - start, _children_cpu_s() - cpu
+    done = subprocess.run(command, check=True, env=env, cwd=folder, capture_output=True)
+    wall = time.perf_counter() - start
+    return wall, _children_cpu_s() - cpu, json.loads(done.stdout.decode().splitlines()[-1])
 
 
 def _spin_rate(seconds: float = 0.5) -> float:
@@ -406,6 +417,7 @@ def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
     fixed: dict[str, list[float]] = {
         k: [] for k in ("s", "cpu_s", "floor_s", "floor_cpu_s", "bound", "frames_for_target")
     }
+    floor_parts: dict[str, list[float]] = {}
     free = []
     for r in range(rounds):
         for kind in ("api", "cli"):
@@ -418,7 +430,9 @@ def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
                 cpu_ratios.append(cpu_two / cpu_one)
         one, two = seconds["cli_1"][-1], seconds["cli_2"][-1]
         start_s, start_cpu_s = _job_s(1, 1, tmp / f"job{r}fixed", cli=True)
-        floor_s, floor_cpu_s = _floor_s(tmp)
+        floor_s, floor_cpu_s, parts = _floor_s(tmp)
+        for name, value in parts.items():
+            floor_parts.setdefault(name, []).append(value)
         frame_s = (one - start_s) / (frames - 1)
         fixed["s"].append(start_s)
         fixed["cpu_s"].append(start_cpu_s)
@@ -451,6 +465,10 @@ def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
     for key, values in fixed.items():
         out[f"job_fixed_{key}_median"] = float(np.median(values))
         out[f"job_fixed_{key}_rounds"] = values
+    out["job_fixed_floor_import_cpu_s_median"] = {
+        name: float(np.median(values)) for name, values in floor_parts.items()
+    }
+    print("the dependencies' imports, CPU s (median):", out["job_fixed_floor_import_cpu_s_median"])
     out["job_free_cores_rounds"] = free
     return out
 

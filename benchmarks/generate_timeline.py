@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -93,6 +94,7 @@ def _run(frames: int, workers: int, folder: Path) -> list[tuple[int, float, floa
     log = folder / f"events-{workers}.log"
     log.unlink(missing_ok=True)
     out = folder / f"data-{workers}"
+    shutil.rmtree(out, ignore_errors=True)  # a new job each time, not a resumed one
     command = [sys.executable, "-c", _CHILD, "generate", "--preset", "hand-only"]
     command += ["--frames", str(frames), "--workers", str(workers), "--seed", "0"]
     command += ["--out", str(out), "--quiet"]
