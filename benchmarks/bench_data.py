@@ -10,8 +10,12 @@ Measured in one run, on this machine:
 - a small job as users run it (``--only job``): ``hand-only`` with ``--job-frames`` (600)
   frames and the default shard size, 1 and 2 workers, each run in a fresh process: the
   ``generate()`` call alone (after the imports) and the whole ``handsim generate`` command;
-  the ratio 2 / 1 worker in each of ``--job-rounds`` (3) interleaved rounds (median, max), and
-  the free cores measured after each round (two spinning processes over one);
+  the ratio 2 / 1 worker in each of ``--job-rounds`` (3) interleaved rounds (median, min,
+  max), and the free cores measured after each round (two spinning processes over one); in
+  each round also the command with 1 frame (the job's fixed part) and a process that loads
+  only the dependencies of a frame, and from them the best ratio 2 workers can reach with
+  that fixed part and the job size at which it reaches 1.7 (see ``_job_ratios``); handsim's
+  bytecode is compiled first, as pip installs it;
 - Grasp-v0 rollouts of the grasp expert (preset ``grasp-rollouts``) with 1 worker;
 - MuJoCo's plain depth render rate (``mujoco.Renderer`` with depth on) of the same scenes: the
   generated frames replayed from their labels (hand side, length and pose, camera pose; checked
@@ -304,8 +308,8 @@ def _children_cpu_s() -> float:
 def _job_s(frames: int, workers: int, out: Path, cli: bool) -> tuple[float, float]:
     """Wall seconds of one ``hand-only`` job of ``frames`` frames in a fresh process.
 
-    ``cli``: the whole ``handsim generate`` command (interpreter, imports, writing); else the
-    ``generate()`` call alone, after the imports (a program that already imported handsim).
+    ``cli``: the whole ``handsim generate`` command (interpreter, imports, writing, exit); else
+    the ``generate()`` call alone, after the imports (a program that already imported handsim).
     Also the CPU seconds of the whole process and its workers (imports included).
     """
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
@@ -319,6 +323,50 @@ def _job_s(frames: int, workers: int, out: Path, cli: bool) -> tuple[float, floa
     command = [sys.executable, "-c", _JOB_CHILD, str(frames), str(workers), str(out)]
     done = subprocess.run(command, check=True, env=env, capture_output=True, text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])["s"], _children_cpu_s() - cpu
+
+
+_FLOOR_MODULE = """
+import gc, importlib, json, time
+
+cpu_s = {}
+for name in ("numpy", "mujoco", "h5py", "cv2", "scipy.spatial.transform", "numba"):
+    start = time.process_time()
+    importlib.import_module(name)
+    cpu_s[name] = time.process_time() - start
+import numba
+
+
+@numba.njit(cache=True)
+def one(x):
+    return x + 1
+
+
+start = time.process_time()
+one(1)
+cpu_s["numba set-up"] = time.process_time() - start
+print(json.dumps(cpu_s))
+gc.freeze()  # the exit skips its collection, as handsim's program does
+"""
+"""What any process that makes a frame loads, and numba's set-up (one loop from its cache);
+prints the CPU seconds of each import, in this order."""
+
+
+def _floor_s(folder: Path) -> tuple[float, float, dict[str, float]]:
+    """Wall and CPU seconds of a process that only loads the frames' dependencies.
+
+    NumPy, MuJoCo, h5py, OpenCV, scipy.spatial (the hand's rotations) and numba, set up by
+    loading one compiled loop from its cache: the part of a job's fixed start that no change
+    to handsim removes. Also the CPU seconds of each import in that process (in that order).
+    """
+    (folder / "floor_deps.py").write_text(_FLOOR_MODULE)
+    command = [sys.executable, "-c", "import floor_deps"]
+    env = {**os.environ, "PYTHONPATH": str(folder)}
+    subprocess.run(command, check=True, env=env, cwd=folder, capture_output=True)  # numba
+    cpu = _children_cpu_s()
+    start = time.perf_counter()
+    done = subprocess.run(command, check=True, env=env, cwd=folder, capture_output=True)
+    wall = time.perf_counter() - start
+    return wall, _children_cpu_s() - cpu, json.loads(done.stdout.decode().splitlines()[-1])
 
 
 def _spin_rate(seconds: float = 0.5) -> float:
@@ -339,17 +387,37 @@ def _free_cores() -> float:
     return two / one
 
 
+TARGET_2_OVER_1 = 1.7
+"""The target: 2 workers at least this many times faster than 1 on the job."""
+
+
 def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
     """2 workers against 1 on a ``frames``-frame job, interleaved in ``rounds`` rounds.
 
     Each round runs, each in a fresh process: the ``generate()`` call with 1 then 2 workers,
-    and the ``handsim generate`` command with 1 then 2 workers; its ratios are taken in the
-    round (the machine's load changes from minute to minute). Also the free cores measured at
-    the end of each round.
+    the ``handsim generate`` command with 1 then 2 workers, the command with 1 frame (the
+    job's fixed part: start, set-up, end) and a process that loads only the dependencies
+    (:func:`_floor_s`); its ratios are taken in the round (the machine's load changes from
+    minute to minute). Also the free cores measured at the end of each round.
+
+    From the round's command times: the fixed part F (the 1-frame run), the time per frame
+    f = (T1 - F) / (frames - 1), the best ratio 2 workers can reach when the fixed part is on
+    both runs' path, T1 / (F + (T1 - F) / 2), and the job size at which that bound reaches
+    :data:`TARGET_2_OVER_1` (0.7 F / (0.15 f) frames for 1.7).
     """
+    # As installed by pip: the package's bytecode compiled (this machine may set
+    # PYTHONDONTWRITEBYTECODE, which would make every run compile handsim's sources).
+    import handsim
+
+    package = Path(handsim.__file__).parent
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(package)], check=True)
     ratios: dict[str, list[float]] = {"api": [], "cli": []}
     seconds: dict[str, list[float]] = {f"{k}_{w}": [] for k in ratios for w in (1, 2)}
     cpu_ratios: list[float] = []
+    fixed: dict[str, list[float]] = {
+        k: [] for k in ("s", "cpu_s", "floor_s", "floor_cpu_s", "bound", "frames_for_target")
+    }
+    floor_parts: dict[str, list[float]] = {}
     free = []
     for r in range(rounds):
         for kind in ("api", "cli"):
@@ -360,22 +428,47 @@ def _job_ratios(frames: int, rounds: int, tmp: Path) -> dict:
             ratios[kind].append(one / two)
             if kind == "cli":
                 cpu_ratios.append(cpu_two / cpu_one)
+        one, two = seconds["cli_1"][-1], seconds["cli_2"][-1]
+        start_s, start_cpu_s = _job_s(1, 1, tmp / f"job{r}fixed", cli=True)
+        floor_s, floor_cpu_s, parts = _floor_s(tmp)
+        for name, value in parts.items():
+            floor_parts.setdefault(name, []).append(value)
+        frame_s = (one - start_s) / (frames - 1)
+        fixed["s"].append(start_s)
+        fixed["cpu_s"].append(start_cpu_s)
+        fixed["floor_s"].append(floor_s)
+        fixed["floor_cpu_s"].append(floor_cpu_s)
+        fixed["bound"].append(one / (start_s + (one - start_s) / 2))
+        need = 2 * (TARGET_2_OVER_1 - 1) / (2 - TARGET_2_OVER_1)
+        fixed["frames_for_target"].append(need * start_s / frame_s)
         free.append(_free_cores())
         print(
             f"round {r}: generate() 1 / 2 workers {ratios['api'][-1]:.2f}, "
-            f"handsim generate {ratios['cli'][-1]:.2f} (CPU 2 / 1 worker "
-            f"{cpu_ratios[-1]:.2f}); free cores {free[-1]:.2f}; "
+            f"handsim generate {one:.2f} / {two:.2f} s = {ratios['cli'][-1]:.2f} (CPU 2 / 1 "
+            f"worker {cpu_ratios[-1]:.2f}); 1 frame {start_s:.2f} s (CPU {start_cpu_s:.2f}), "
+            f"the dependencies alone {floor_s:.2f} s (CPU {floor_cpu_s:.2f}): bound "
+            f"{fixed['bound'][-1]:.2f}, {TARGET_2_OVER_1} x from "
+            f"{fixed['frames_for_target'][-1]:.0f} frames; free cores {free[-1]:.2f}; "
             f"load {os.getloadavg()[0]:.1f}"
         )
     out: dict = {"job_frames": frames, "job_rounds": rounds}
     for kind, values in ratios.items():
         out[f"job_{kind}_2_over_1_median"] = float(np.median(values))
+        out[f"job_{kind}_2_over_1_min"] = min(values)
         out[f"job_{kind}_2_over_1_max"] = max(values)
         out[f"job_{kind}_2_over_1_rounds"] = values
     for key, values in seconds.items():
         out[f"job_{key}_workers_s_median"] = float(np.median(values))
+        out[f"job_{key}_workers_s_rounds"] = values
     # CPU of the whole command, 2 workers over 1: the work's cost, whatever the load.
     out["job_cli_cpu_2_over_1_median"] = float(np.median(cpu_ratios))
+    for key, values in fixed.items():
+        out[f"job_fixed_{key}_median"] = float(np.median(values))
+        out[f"job_fixed_{key}_rounds"] = values
+    out["job_fixed_floor_import_cpu_s_median"] = {
+        name: float(np.median(values)) for name, values in floor_parts.items()
+    }
+    print("the dependencies' imports, CPU s (median):", out["job_fixed_floor_import_cpu_s_median"])
     out["job_free_cores_rounds"] = free
     return out
 

@@ -46,6 +46,7 @@ from handsim import metrics, viz
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.errors import HandSimError
 from handsim.estimator import Estimator, describe_estimator
+from handsim.metrics._common import to_strict_json  # noqa: F401 (part of this module's API)
 
 __all__ = [
     "evaluate_closed_loop",
@@ -59,27 +60,6 @@ OCCLUSION_EDGES: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Bucket edges of the per-frame keypoint occlusion fraction."""
 
 _SMALL_WIDTH = 400  # sensors up to this wide (320x240) are drawn at twice their resolution
-
-
-def to_strict_json(value: Any) -> Any:
-    """A copy of ``value`` that strict JSON parsers accept: non-finite floats become ``None``.
-
-    Dicts, lists and tuples are converted recursively; numpy scalars and arrays become Python
-    numbers and lists. Use with ``json.dumps(..., allow_nan=False)``.
-    """
-    if isinstance(value, dict):
-        return {str(k): to_strict_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [to_strict_json(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return to_strict_json(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
 
 
 def estimator_label(report: dict[str, Any]) -> str:

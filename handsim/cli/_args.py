@@ -211,6 +211,6 @@ def progress_bar(total: int, desc: str, unit: str, *, enabled: bool = True) -> A
 
 def strict_json(value: Any) -> str:
     """``value`` as indented strict JSON: non-finite floats become ``null``, never ``NaN``."""
-    from handsim.envs.closed_loop import to_strict_json
+    from handsim.metrics._common import to_strict_json
 
     return json.dumps(to_strict_json(value), indent=2, allow_nan=False)

@@ -302,11 +302,16 @@ def _start_method() -> str:
 
 
 def _warm_up_for_fork() -> None:
-    """What every forked worker would do again: numba's compiler set-up (~0.35 s a process).
+    """What every forked worker would do again: numba's set-up and the frames' imports.
 
-    Loading one compiled loop from numba's cache sets it up; forked workers inherit it and
-    load the other loops in milliseconds.
+    Loading one compiled loop from numba's cache sets numba up (~0.3 s of CPU a process);
+    forked workers inherit it and load the other loops in milliseconds. The hand's rotations
+    (scipy.spatial, with scipy.sparse and scipy.special) and the sensor's image operations
+    (OpenCV) load on a worker's first frame otherwise (~0.25 s of CPU in each worker).
     """
+    import cv2  # noqa: F401
+    import scipy.spatial.transform  # noqa: F401
+
     from handsim.data import _kernels
 
     _kernels.depth_units_into(np.zeros(1, dtype=np.float32), 1.0, np.zeros(1, dtype=np.uint16))

@@ -1,4 +1,4 @@
-"""What every metric shares: units, thresholds, the input error and argument checks."""
+"""What every metric shares: units, thresholds, the input error, argument checks, strict JSON."""
 
 from __future__ import annotations
 
@@ -223,3 +223,25 @@ def _errors_with_misses(name: str, errors: Any) -> np.ndarray:
     if len(seq) == 0:
         raise InvalidMetricInput(f"{name} must hold at least one frame; received 0")
     return np.array([_error_or_miss(name, e) for e in seq], dtype=np.float64)
+
+
+def to_strict_json(value: Any) -> Any:
+    """A copy of ``value`` that strict JSON parsers accept: non-finite floats become ``None``.
+
+    Dicts, lists and tuples are converted recursively; numpy scalars and arrays become Python
+    numbers and lists. Use with ``json.dumps(..., allow_nan=False)`` (reports, the command
+    line's output).
+    """
+    if isinstance(value, dict):
+        return {str(k): to_strict_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_strict_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_strict_json(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value

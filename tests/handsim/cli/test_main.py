@@ -166,3 +166,102 @@ def test_run_time_error_subprocess(tmp_path):
     )
     assert result.returncode == 2
     assert result.stderr.splitlines() == ["handsim: error: this depth is not what Broken wants"]
+
+
+def test_command_modules_name_every_command():
+    """COMMAND_MODULES maps each command to the module whose parser adds it, and names all."""
+    import argparse
+
+    from handsim.cli.main import COMMAND_MODULES, build_parser
+
+    def commands(parser):
+        return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+
+    assert sorted(commands(build_parser()).choices) == sorted(COMMAND_MODULES)
+    for name, module in COMMAND_MODULES.items():
+        parser = argparse.ArgumentParser()
+        module.add_parser(parser.add_subparsers())
+        assert name in commands(parser).choices, (name, module.__name__)
+        assert sorted(commands(build_parser(name)).choices) == sorted(commands(parser).choices)
+
+
+def test_generate_imports_no_envs_nor_estimators_subprocess(tmp_path):
+    """`handsim generate` imports neither the envs nor the estimators.
+
+    It builds no other command's parser and prints its summary without them (their imports
+    cost every run about 0.1 s of CPU).
+    """
+    code = (
+        "import sys\n"
+        "from handsim.cli.main import main\n"
+        f"main(['generate', '--preset', 'hand-only', '--frames', '2', '--out', {str(tmp_path)!r},"
+        " '--quiet'])\n"
+        "print([m for m in ('handsim.envs', 'gymnasium', 'handsim.estimators.deepprior.train')"
+        " if m in sys.modules])\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env={**os.environ, "MUJOCO_GL": "egl"},
+    )
+    assert result.returncode == 0, result.stderr
+    assert '"frames": 2' in result.stdout
+    assert result.stdout.strip().splitlines()[-1] == "[]"
+    # Every command is still listed where an unknown one is named.
+    bogus = _handsim("bogus")
+    assert bogus.returncode == 2
+    assert "invalid choice: 'bogus' (choose from 'demo', 'closed-loop'" in bogus.stderr
+    assert "'train', 'evaluate')" in bogus.stderr
+
+
+def test_exit_freezes_the_heap_after_the_handlers_registered_later_subprocess():
+    """The program's exit freezes what is left, once, after the handlers registered later.
+
+    Python's exit collection then skips the frozen objects; the exit handlers registered while
+    the program ran (closing renderers and files) still run first, on an unfrozen heap.
+    """
+    code = (
+        "import atexit, gc\n"
+        "atexit.register(lambda: print('registered before, run last:', gc.get_freeze_count() > 0))"
+        "\n"
+        "from handsim.cli.main import skip_exit_collection\n"
+        "count = atexit._ncallbacks()\n"
+        "skip_exit_collection()\n"
+        "skip_exit_collection()\n"
+        "print('handlers added:', atexit._ncallbacks() - count)\n"
+        "atexit.register(lambda: print('registered after, run first:', gc.get_freeze_count()))\n"
+        "print('running:', gc.get_freeze_count())\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines() == [
+        "handlers added: 1",
+        "running: 0",
+        "registered after, run first: 0",
+        "registered before, run last: True",
+    ]
+
+
+def test_only_the_program_freezes_its_start_up_objects(monkeypatch, capsys):
+    """main() without argv (the program) freezes what is loaded; main(argv) leaves it be.
+
+    A caller's main(argv) (a test, another program) must not freeze the caller's heap.
+    """
+    import gc
+
+    from handsim.cli.main import main
+
+    gc.unfreeze()
+    main(["info", "--json", "-q"])
+    assert gc.get_freeze_count() == 0
+    monkeypatch.setattr(sys, "argv", ["handsim", "info", "--json", "-q"])
+    try:
+        assert main() == 0
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
+    capsys.readouterr()

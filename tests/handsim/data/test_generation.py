@@ -759,3 +759,29 @@ def test_workers_fork_only_when_it_is_safe():
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
     )
     assert out.stdout.split() == ["fork", "spawn", "spawn"]
+
+
+def test_the_parent_loads_before_forking_what_every_worker_needs():
+    """Before forking, the parent sets numba up and imports the hand's and sensor's modules.
+
+    Forked workers inherit them instead of each importing them on its first frame; the
+    warm-up makes no OpenGL display, so forking stays safe after it.
+    """
+    code = (
+        "import sys\n"
+        "import handsim.data.generation as g\n"
+        "names = ('cv2', 'scipy.spatial.transform', 'numba')\n"
+        "print([n in sys.modules for n in names])\n"
+        "g._warm_up_for_fork()\n"
+        "print([n in sys.modules for n in names])\n"
+        "print(g._start_method())\n"
+    )
+    env = {**os.environ, "MUJOCO_GL": "egl"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    assert out.stdout.splitlines() == [
+        "[False, False, True]",
+        "[True, True, True]",
+        "fork",
+    ]
