@@ -1,8 +1,9 @@
 """Where grasps fail under tracking noise: the reactive operator, with one part made clean.
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
-[--filter none] [--beta 1] [--pose-filter on|off] [--motor-noise on|off|wrist|joints]
-[--correction on|off] [--clean none|wrist|fingers] [--episodes 20] [--out FILE]``.
+[--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
+[--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
+[--episodes 20] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
@@ -62,9 +63,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             return keypoints(self, pose)
 
         ForwardKinematics.keypoints = spy  # type: ignore[method-assign]
-        use_filter = args.pose_filter == "on"
+        use_filter = args.pose_filter != "off"
 
-        def clean_filter(rate_hz: float, **params: float) -> Any:
+        def clean_filter(rate_hz: float, **params: Any) -> Any:
+            params["wrist_only"] = args.pose_filter == "wrist"
             inner = make_pose_filter(rate_hz, **params) if use_filter else None
             return _Clean(inner, args.clean, operator_pose)
 
@@ -76,7 +78,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         filter=args.filter,
         filter_params={"beta": args.beta} if args.filter == "one_euro" else {},
         # The clean part goes in where the pose filter sits.
-        pose_filter=args.pose_filter == "on" or args.clean != "none",
+        pose_filter=(
+            True
+            if args.pose_filter == "on" or (args.clean != "none" and args.pose_filter == "off")
+            else ("wrist" if args.pose_filter == "wrist" else False)
+        ),
+        grasp_intent=args.grasp_intent == "on",
     )
     quiet: dict[str, Any] = {
         "on": {},
@@ -87,6 +94,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.correction == "off":
         quiet["correction_s"] = None
     stages = []
+    intent_s: list[float] = []
     start = time.perf_counter()
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
@@ -108,6 +116,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 phase[:] = [op._expert.phase]
 
             metrics = loop.run(op, seed, on_step=on_step).metrics
+            intent_s.append(metrics["intent_grasp_s"])
             lift = max(lifts)
             if metrics["success"]:
                 stage = "success"
@@ -126,6 +135,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "success_rate": counts["success"] / len(stages),
         "stages": dict(counts),
         "per_seed": stages,
+        "intent_grasp_s": round(float(np.mean(intent_s)), 2),
         "wall_s": round(time.perf_counter() - start, 1),
     }
 
@@ -138,7 +148,8 @@ def main() -> None:
     p.add_argument("--dropout", type=float, default=0.0)
     p.add_argument("--filter", choices=("none", "one_euro"), default="none")
     p.add_argument("--beta", type=float, default=1.0)
-    p.add_argument("--pose-filter", choices=("on", "off"), default="off")
+    p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
+    p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
     p.add_argument("--correction", choices=("on", "off"), default="on")
     p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")

@@ -51,6 +51,7 @@ from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import FILTERS, make_filter
 from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
+from handsim.envs.teleop.intent import INTENT_DEFAULTS, make_grasp_intent
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
@@ -70,6 +71,7 @@ __all__ = [
     "write_rollout",
     "read_rollout",
     "ROLLOUT_VERSION",
+    "POSE_FILTERS",
     "MAX_CONTROL_RATE_HZ",
     "PHYSICS_DT_S",
     "BehindRealTime",
@@ -83,6 +85,8 @@ ANCHORS: tuple[str, ...] = ("none", "start")
 STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
 """The timed stages of a step."""
 ROLLOUT_VERSION = 1
+POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist")
+"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only."""
 PHYSICS_DT_S = 0.002
 """The envs' physics step, seconds (500 Hz)."""
 MAX_CONTROL_RATE_HZ = 120.0
@@ -141,8 +145,17 @@ class TeleopConfig:
             digit clearly opens). Nothing is attached; the time it holds is ``grip_hold_s``
             in the metrics.
         pose_filter: smooth the retargeted pose in joint space
-            (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part).
+            (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part):
+            ``False`` (off), ``True`` (the wrist and the fingers) or ``"wrist"`` (the wrist
+            only; the fingers as fitted).
         pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
+        grasp_intent: drive the fingers from a per-hand grasp intent while the hand grasps
+            an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
+            of ten keypoints with hysteresis; while it grasps, the finger targets are the
+            tracked angles averaged since the onset). Nothing is attached; the seconds in
+            grasp intent and its onsets are ``intent_grasp_s`` and ``intent_onsets``.
+        intent_params: its parameters (keys of
+            :data:`~handsim.envs.teleop.intent.INTENT_DEFAULTS`).
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -155,8 +168,10 @@ class TeleopConfig:
     sensor: str = "none"
     camera: str = "icvl"
     grip_hold: bool = True
-    pose_filter: bool = False
+    pose_filter: bool | str = False
     pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
+    grasp_intent: bool = False
+    intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
     record: bool = False
     seed: int = 0
 
@@ -175,8 +190,18 @@ class TeleopConfig:
             raise InvalidTeleopConfig(
                 f"faults must be a FaultConfig; received {type(self.faults).__name__}"
             )
+        if self.pose_filter not in POSE_FILTERS:
+            raise InvalidTeleopConfig(
+                f"pose_filter={self.pose_filter!r} is not valid; choose False (off), True (the "
+                "wrist and the fingers) or 'wrist' (the wrist only)"
+            )
         make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
         make_pose_filter(50.0, **self.pose_filter_params)
+        unknown = sorted(set(self.intent_params) - set(INTENT_DEFAULTS))
+        if unknown:
+            raise InvalidTeleopConfig(
+                f"intent_params {unknown} are not valid; choose from {', '.join(INTENT_DEFAULTS)}"
+            )
 
     def label(self) -> str:
         """A short description (plot legends, tables)."""
@@ -430,7 +455,14 @@ class TeleopLoop:
         injector = FaultInjector(faults_cfg, rng)
         smoother = make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params)
         pose_smoother = (
-            make_pose_filter(1.0 / dt, **cfg.pose_filter_params) if cfg.pose_filter else None
+            make_pose_filter(
+                1.0 / dt, **cfg.pose_filter_params, wrist_only=cfg.pose_filter == "wrist"
+            )
+            if cfg.pose_filter
+            else None
+        )
+        intent = (
+            make_grasp_intent(base.scene, dt, **cfg.intent_params) if cfg.grasp_intent else None
         )
         retargeter = Retargeter(params)
         hand_geoms = tm.hand_geom_mask(
@@ -459,6 +491,7 @@ class TeleopLoop:
                 "mocap_quat",
                 "slip",
                 "retarget_error",
+                "intent",
             )
         }
         record = cfg.record
@@ -530,9 +563,10 @@ class TeleopLoop:
                             rec["retarget_error"].append(result.keypoint_error_m)
                 times["retarget"] += time.perf_counter() - t4
             t5 = time.perf_counter()
-            _, _, terminated, truncated, info = env.step(
-                grip(target, data) if grip is not None else target
-            )
+            action = intent(target, tracked, data) if intent is not None else target
+            if grip is not None:
+                action = grip(action, data)
+            _, _, terminated, truncated, info = env.step(action)
             times["physics"] += time.perf_counter() - t5
             if sampler is not None:
                 sampler.applied()
@@ -549,6 +583,7 @@ class TeleopLoop:
             rec["penetration"].append(penetration)
             rec["touching"].append(touching)
             rec["success"].append(bool(info.get("is_success", False)))
+            rec["intent"].append(bool(intent is not None and intent.grasping))
             rec["slip"].append(float(info.get("slip_m", math.nan)))
             if record:
                 rec["qpos"].append(data.qpos.copy())
@@ -624,6 +659,8 @@ class TeleopLoop:
                 float(np.nanmean(dists) * 1e3) if np.isfinite(dists).any() else math.nan
             ),
             "grip_hold_s": grip.held_steps * dt if grip is not None else 0.0,
+            "intent_grasp_s": intent.grasp_steps * dt if intent is not None else 0.0,
+            "intent_onsets": intent.onsets if intent is not None else 0,
             "steps": n_done,
             "control_dt_s": dt,
             "dropped_frames": int(np.sum(rec["dropped"])),
@@ -644,6 +681,7 @@ class TeleopLoop:
                 "dropped": np.array(rec["dropped"], dtype=bool),
                 "penetration_m": penetration,
                 "success": np.array(rec["success"], dtype=bool),
+                "intent": np.array(rec["intent"], dtype=bool),
                 "qpos": np.array(rec["qpos"]),
                 "mocap_pos": np.array(rec["mocap_pos"]),
                 "mocap_quat": np.array(rec["mocap_quat"]),

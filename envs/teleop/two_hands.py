@@ -49,6 +49,7 @@ from handsim.envs.teleop.faults import FaultInjector
 from handsim.envs.teleop.filters import make_filter
 from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
+from handsim.envs.teleop.intent import GraspIntent, make_grasp_intent
 from handsim.envs.teleop.loop import (
     _BEHIND_FRACTION,
     _BEHIND_WINDOW_S,
@@ -266,10 +267,17 @@ class _Channel:
     pose_smoother: Any
     hand_geoms: np.ndarray
     target: np.ndarray
+    intent: GraspIntent | None = None
     sampler: LiveSampler | None = None
     previous: HandPose | None = None
     scale: float | None = None
     rec: dict[str, list] = dataclasses.field(default_factory=dict)
+
+
+def _hand_action(ch: _Channel, tracked: np.ndarray | None, data: Any) -> np.ndarray:
+    """One hand's target after the grasp intent and the grip stabiliser."""
+    action = ch.intent(ch.target, tracked, data) if ch.intent is not None else ch.target
+    return ch.grip(action, data) if ch.grip is not None else action
 
 
 class TwoHandTeleopLoop(TeleopLoop):
@@ -380,12 +388,21 @@ class TwoHandTeleopLoop(TeleopLoop):
                         else None
                     ),
                     pose_smoother=(
-                        make_pose_filter(1.0 / dt, **cfg.pose_filter_params)
+                        make_pose_filter(
+                            1.0 / dt,
+                            **cfg.pose_filter_params,
+                            wrist_only=cfg.pose_filter == "wrist",
+                        )
                         if cfg.pose_filter
                         else None
                     ),
                     hand_geoms=tm.hand_geom_mask(scene.model, binding.palm_id),
                     target=binding.pose(data).vector,
+                    intent=(
+                        make_grasp_intent(view, dt, **cfg.intent_params)
+                        if cfg.grasp_intent
+                        else None
+                    ),
                     sampler=sampler,
                     rec={k: [] for k in ("operator", "tracked", "physical", "dropped", "pen")},
                 )
@@ -424,7 +441,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 ch.rec["dropped"].append(dropped)
             t5 = time.perf_counter()
             action = np.concatenate(
-                [ch.grip(ch.target, data) if ch.grip is not None else ch.target for ch in channels]
+                [_hand_action(ch, tracked_by_side[ch.side], data) for ch in channels]
             )
             _, _, terminated, truncated, info = env.step(action)
             times["physics"] += time.perf_counter() - t5
@@ -508,6 +525,8 @@ class TwoHandTeleopLoop(TeleopLoop):
                 "penetration_max_mm": float(max(ch.rec["pen"]) * 1e3) if n_done else math.nan,
                 "dropped_frames": int(np.sum(ch.rec["dropped"])) if ch.side in routed else 0,
                 "grip_hold_s": ch.grip.held_steps * dt if ch.grip is not None else 0.0,
+                "intent_grasp_s": ch.intent.grasp_steps * dt if ch.intent is not None else 0.0,
+                "intent_onsets": ch.intent.onsets if ch.intent is not None else 0,
             }
             if ch.sampler is not None:
                 hands[ch.side].update(ch.sampler.summary())
