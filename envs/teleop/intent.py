@@ -56,8 +56,7 @@ INTENT_DEFAULTS: dict[str, float] = {
     "onset_margin": 0.05,
     "release_s": 0.3,
     "blend_s": 0.2,
-    "press_rad": 0.0,
-    "open_s": 0.4,
+    "press_rad": 0.2,
 }
 """``smooth_s``: time constant of the closure's and the angles' light running mean, s;
 ``hold_s``: time constant of the intent posture's running mean during a grasp, s; ``band``:
@@ -68,8 +67,6 @@ at most this much above the physical hand's (palm sizes: the noise biases the tr
 closure up by about 0.03 at 10 mm per axis); ``release_s``: seconds off every object that
 release a grasp; ``blend_s``: seconds over which the tracked angles come back after a release."""
 
-_FLEX_JOINTS = np.zeros(21, dtype=bool)
-_FLEX_JOINTS[np.concatenate(_DIGIT_FLEX)] = True
 _PALM = np.array([0, 5, 9, 13, 17])
 _MCPS = np.array([5, 9, 13, 17])
 # Each digit's tip and the joint below it (thumb IP and tip, fingers DIP and tip).
@@ -136,14 +133,12 @@ class GraspIntent:
         release_s: float = INTENT_DEFAULTS["release_s"],
         blend_s: float = INTENT_DEFAULTS["blend_s"],
         press_rad: float = INTENT_DEFAULTS["press_rad"],
-        open_s: float = INTENT_DEFAULTS["open_s"],
     ) -> None:
         self._binding = scene.binding
         self._contacts = DigitContacts(scene)
         dt = _positive("dt_s", dt_s)
         self._alpha_fast = 1.0 - math.exp(-dt / _positive("smooth_s", smooth_s))
         self._alpha_hold = 1.0 - math.exp(-dt / _positive("hold_s", hold_s))
-        self._alpha_open = 1.0 - math.exp(-dt / _positive("open_s", open_s))
         self.band = _positive("band", band, zero_ok=True)
         self.onset_margin = _positive("onset_margin", onset_margin, zero_ok=True)
         # The tracked palm's size over about a second (one frame's is noisy).
@@ -220,10 +215,7 @@ class GraspIntent:
                 self._blend = self._blend_steps
         if self.grasping:
             assert self._posture is not None
-            change = angles - self._posture
-            # A flexion joint opens at open_s and closes at hold_s (a squeeze comes through).
-            rate = np.where(_FLEX_JOINTS & (change < 0), self._alpha_open, self._alpha_hold)
-            self._posture += rate * change
+            self._posture += self._alpha_hold * (angles - self._posture)
             out[6:] = self._posture
             if self.press_rad > 0:
                 # A digit on the object presses past its contact posture by press_rad: its

@@ -80,12 +80,13 @@ def test_intent_passes_tracking_until_an_opposition_grasp_and_averages_the_finge
 
     The onset needs the thumb and another digit on an object and the tracked hand at least as
     closed as the physical one; in the grasp, 0.3 rad of noise per joint comes out about
-    0.05 rad (the running mean over ``hold_s`` = 0.4 s) and the wrist passes unchanged.
+    0.05 rad (the running mean over ``hold_s`` = 0.4 s) and the wrist passes unchanged
+    (``press_rad=0``: the touching digits too follow the averaged posture).
     """
     rng = np.random.default_rng(0)
     touch = [[False, True, False, False, False]]  # the index alone: no opposition
     closed = _keypoints(0.6)
-    intent = _intent(touch, _keypoints(0.5))
+    intent = _intent(touch, _keypoints(0.5), press_rad=0.0)
     held = 0.6 * np.where(_FLEX, JOINT_LIMITS[:, 1], 0.0)
     for _ in range(20):
         target = np.r_[rng.normal(size=6), held + rng.normal(0, 0.3, 21)]
@@ -104,6 +105,30 @@ def test_intent_passes_tracking_until_an_opposition_grasp_and_averages_the_finge
     assert np.abs(late.mean(axis=0) - held).max() < 0.05
 
 
+def test_touching_digits_press_past_their_contact_posture_whatever_the_tracking():
+    """In a grasp a digit on the object holds its contact flexion + press_rad.
+
+    Its flexion targets no longer carry the tracked noise; a digit off the object and every
+    spread joint follow the averaged posture.
+    """
+    rng = np.random.default_rng(2)
+    touch = [[True, True, False, False, False]]  # thumb and index on the object
+    intent = _intent(touch, _keypoints(0.5), press_rad=0.25)
+    contact = rng.uniform(0.2, 0.8, 21)
+    intent._binding.angles = contact
+    held = 0.6 * np.where(_FLEX, JOINT_LIMITS[:, 1], 0.0)
+    for _ in range(100):
+        out = intent(np.r_[np.zeros(6), held + rng.normal(0, 0.3, 21)], _keypoints(0.6), None)
+    thumb_flex = [0, 2, 4]  # cmc, mcp, ip flexion
+    index_flex = [5, 7, 8]  # mcp, pip, dip
+    np.testing.assert_allclose(
+        out[6:][thumb_flex + index_flex], contact[thumb_flex + index_flex] + 0.25
+    )
+    middle_flex = [9, 11, 12]
+    assert np.abs(out[6:][middle_flex] - held[middle_flex]).max() < 0.2
+    assert np.abs(out[6:][[1, 3, 6]]).max() < 0.2  # spread: averaged around 0
+
+
 def test_intent_does_not_start_while_the_tracked_hand_is_more_open_than_the_physical():
     """Touching with an opposition while the tracked hand opens away is no grasp."""
     touch = [[True, True, False, False, False]]
@@ -120,7 +145,7 @@ def test_intent_releases_on_opening_beyond_the_band_and_blends_back():
     The release blend lasts ``blend_s`` (0.2 s = 10 steps of 20 ms).
     """
     touch = [[True, True, False, False, False]]
-    intent = _intent(touch, _keypoints(0.5))
+    intent = _intent(touch, _keypoints(0.5), press_rad=0.0)
     grasp = np.r_[np.zeros(6), 0.6 * np.where(_FLEX, JOINT_LIMITS[:, 1], 0.0)]
     for _ in range(100):
         intent(grasp, _keypoints(0.6), None)
