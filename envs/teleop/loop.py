@@ -713,7 +713,8 @@ def write_rollout(
     :class:`~handsim.envs.teleop.events.InteractionEvent`);
     ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
     state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
-    3) metres, world frame; ``dropped``, ``success`` (T,) bool; ``penetration_m`` (T,); and in
+    3) metres, world frame; ``dropped``, ``success``, ``intent`` (grasp intent) (T,) bool;
+    ``penetration_m`` (T,); and in
     camera mode ``depth_mm`` (T, H, W) uint16 capture depth in mm, ``truth_cam`` and
     ``estimate_cam`` (T, 21, 3) metres in the capture camera frame, ``K`` (3, 3) and
     ``T_cam_from_world`` (4, 4).

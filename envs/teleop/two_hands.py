@@ -14,7 +14,8 @@ and a left physical hand, 54-D actions) takes both. :class:`TwoHandTeleopLoop` r
   stream (its first wrist onto its physical start wrist), since both come from one tracking
   space: the hands keep where they are relative to each other.
 - per hand: faults (each hand its own generator), filter, retargeting onto its own hand, the
-  pose filter (``pose_filter``) and the grip stabiliser; one
+  pose filter (``pose_filter``), the grasp intent (``grasp_intent``) and the grip
+  stabiliser; one
   :class:`~handsim.envs.teleop.events.EventDetector` for both, so every event names its hand.
 
 ``direct`` mode only (a headset reports joints); the capture camera of ``camera`` mode renders
