@@ -32,9 +32,9 @@ for a physical hand:
 
 The wrist is not touched: the intent drives the fingers only. Nothing is attached: the
 object is held by the fingers' position actuators pressing on it, so a success with the
-intent is a physical grasp. The seconds in grasp intent and the number of onsets are in the
-loop's metrics (``intent_grasp_s``, ``intent_onsets``). A scene without objects (Press-v0)
-never grasps: the intent passes the tracked angles unchanged.
+intent is a physical grasp. The seconds in grasp intent and the number of onsets and releases
+are in the loop's metrics (``intent_grasp_s``, ``intent_onsets``, ``intent_releases``). A
+scene without objects (Press-v0) never grasps: the intent passes the tracked angles unchanged.
 """
 
 from __future__ import annotations
@@ -153,7 +153,9 @@ class GraspIntent:
         self.grasp_steps = 0
         """Control steps spent in grasp intent."""
         self.onsets = 0
-        """Grasp onsets (each release follows one)."""
+        """Grasp onsets."""
+        self.releases = 0
+        """Releases (each follows an onset)."""
         self.closure = math.nan
         """The tracked hand's smoothed closure (:func:`hand_closure`)."""
         self._mean: np.ndarray | None = None  # light running mean of the tracked angles
@@ -212,6 +214,7 @@ class GraspIntent:
             opened = self.closure > self._reference + self.band
             if opened or self._off >= self._release_steps:
                 self.grasping = False
+                self.releases += 1
                 self._blend = self._blend_steps
         if self.grasping:
             assert self._posture is not None

@@ -153,7 +153,8 @@ class TeleopConfig:
             an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
             of ten keypoints with hysteresis; while it grasps, the finger targets are the
             tracked angles averaged since the onset). Nothing is attached; the seconds in
-            grasp intent and its onsets are ``intent_grasp_s`` and ``intent_onsets``.
+            grasp intent, its onsets and releases are ``intent_grasp_s``,
+            ``intent_onsets`` and ``intent_releases``.
         intent_params: its parameters (keys of
             :data:`~handsim.envs.teleop.intent.INTENT_DEFAULTS`).
         record: keep the per-step arrays for :func:`write_rollout`.
@@ -221,9 +222,10 @@ class TeleopEpisode:
             ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
             ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
             ``unintended_presses``, ``tracking_error_mm``, ``grip_hold_s`` (seconds with a
-            digit's target held by the grip stabiliser), ``steps``, ``dropped_frames``,
-            ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean milliseconds per
-            stage), ``events`` (count per kind) and, for a
+            digit's target held by the grip stabiliser), ``intent_grasp_s``,
+            ``intent_onsets``, ``intent_releases`` (the grasp intent), ``steps``,
+            ``dropped_frames``, ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean
+            milliseconds per stage), ``events`` (count per kind) and, for a
             :class:`~handsim.envs.teleop.sampling.LiveSampler` stream, its latency summary
             (``latency_p50_ms``, ``latency_p95_ms``, ``residual_latency_*``,
             ``latency_clock``, ``packets_used``).
@@ -661,6 +663,7 @@ class TeleopLoop:
             "grip_hold_s": grip.held_steps * dt if grip is not None else 0.0,
             "intent_grasp_s": intent.grasp_steps * dt if intent is not None else 0.0,
             "intent_onsets": intent.onsets if intent is not None else 0,
+            "intent_releases": intent.releases if intent is not None else 0,
             "steps": n_done,
             "control_dt_s": dt,
             "dropped_frames": int(np.sum(rec["dropped"])),

@@ -528,6 +528,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 "grip_hold_s": ch.grip.held_steps * dt if ch.grip is not None else 0.0,
                 "intent_grasp_s": ch.intent.grasp_steps * dt if ch.intent is not None else 0.0,
                 "intent_onsets": ch.intent.onsets if ch.intent is not None else 0,
+                "intent_releases": ch.intent.releases if ch.intent is not None else 0,
             }
             if ch.sampler is not None:
                 hands[ch.side].update(ch.sampler.summary())

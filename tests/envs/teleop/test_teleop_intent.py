@@ -162,7 +162,7 @@ def test_intent_releases_on_opening_beyond_the_band_and_blends_back():
         steps.append(intent(opened, _keypoints(0.0), None)[6:])
         if not intent.grasping and len(steps) < 30:
             continue
-    assert not intent.grasping and intent.onsets == 1
+    assert not intent.grasping and intent.onsets == 1 and intent.releases == 1
     first = next(k for k, s in enumerate(steps) if np.abs(s).max() < np.abs(posture).max())
     blend = [np.abs(s).max() for s in steps[first : first + 11]]
     assert all(a > b for a, b in zip(blend, blend[1:], strict=False))  # falls step by step
@@ -238,6 +238,7 @@ def test_loop_reports_intent_time_and_press_without_objects_is_unchanged(tmp_pat
         path = write_rollout(tmp_path / "r.npz", episode, loop)
     m = episode.metrics
     assert m["intent_onsets"] >= 1 and m["intent_grasp_s"] > 0.5
+    assert m["intent_onsets"] - m["intent_releases"] in (0, 1)
     _, arrays = read_rollout(path)
     assert arrays["intent"].sum() * m["control_dt_s"] == pytest.approx(m["intent_grasp_s"])
     press = stream_from_expert("handsim/Press-v0", 0)
