@@ -18,13 +18,15 @@ for a physical hand:
   digit touch an object (an opposition, as the ``grab`` event) while the tracked hand is at
   least as closed as the physical one, within ``onset_margin`` (the operator closes onto the
   object, which stops the physical hand).
-- **grasp**: the finger targets are the *intent posture*, the tracked joint angles averaged
-  since the onset (a running mean with time constant ``hold_s``, started from the light
-  running mean of ``smooth_s``): the held posture, whose noise falls with the averaging
-  (0.4 rad of noise is about 0.06 rad after a 0.4 s average). A digit that is not touching
-  yet keeps closing toward it; the grip stabiliser
-  (:class:`~handsim.envs.teleop.grip.GripStabiliser`) then holds each touching digit at its
-  contact posture as without the intent.
+- **grasp**: a digit on the object holds its *contact flexion* (its flexion joints' angles
+  when it first touched, in this grasp) plus ``press_rad``: the position actuators press on
+  the object with their stiffness times it, whatever the tracked angles do. The other digits
+  and every spread joint follow the *intent posture*, the tracked joint angles averaged since
+  the onset (a running mean with time constant ``hold_s``, started from the light running
+  mean of ``smooth_s``), whose noise falls with the averaging (0.4 rad of noise is about
+  0.06 rad after a 0.4 s average). The grip stabiliser
+  (:class:`~handsim.envs.teleop.grip.GripStabiliser`) then acts on that target as without
+  the intent.
 - **release** (the lower threshold): the tracked closure opens more than ``band`` above its
   running mean during the grasp (time constant ``hold_s``: the user lets go), or no digit
   has touched an object for ``release_s`` (the object is gone). The tracked angles come back
@@ -65,7 +67,9 @@ distance on the default hand): a grasp releases when the closure opens this far 
 running mean during the grasp; ``onset_margin``: a grasp starts when the tracked closure is
 at most this much above the physical hand's (palm sizes: the noise biases the tracked
 closure up by about 0.03 at 10 mm per axis); ``release_s``: seconds off every object that
-release a grasp; ``blend_s``: seconds over which the tracked angles come back after a release."""
+release a grasp; ``blend_s``: seconds over which the tracked angles come back after a
+release (from the intent posture); ``press_rad``: how far past its contact flexion a digit
+on the object is held during a grasp, rad (0: the intent posture instead)."""
 
 _PALM = np.array([0, 5, 9, 13, 17])
 _MCPS = np.array([5, 9, 13, 17])

@@ -151,8 +151,9 @@ class TeleopConfig:
         pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
         grasp_intent: drive the fingers from a per-hand grasp intent while the hand grasps
             an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
-            of ten keypoints with hysteresis; while it grasps, the finger targets are the
-            tracked angles averaged since the onset). Nothing is attached; the seconds in
+            of ten keypoints with hysteresis; while it grasps, a digit on the object presses
+            from its contact flexion and the others follow the tracked angles averaged since
+            the onset). Nothing is attached; the seconds in
             grasp intent, its onsets and releases are ``intent_grasp_s``,
             ``intent_onsets`` and ``intent_releases``.
         intent_params: its parameters (keys of
