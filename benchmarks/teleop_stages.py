@@ -53,7 +53,7 @@ class _Clean:
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """The episodes of one configuration: success rate, stage counts, wall time."""
-    import handsim.envs.teleop.loop as loop_module
+    import handsim.envs.teleop.channel as channel_module
     from handsim.envs.teleop.pose_filter import make_pose_filter
     from handsim.hand.kinematics import ForwardKinematics
 
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             inner = make_pose_filter(rate_hz, **params) if use_filter else None
             return _Clean(inner, args.clean, operator_pose)
 
-        loop_module.make_pose_filter = clean_filter  # type: ignore[assignment]
+        channel_module.make_pose_filter = clean_filter  # type: ignore[assignment]
     config = TeleopConfig(
         faults=FaultConfig(
             noise_mm=args.noise_mm, latency_frames=args.latency, dropout=args.dropout

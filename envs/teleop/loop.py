@@ -46,19 +46,17 @@ import numpy as np
 
 from handsim.envs.teleop import metrics as tm
 from handsim.envs.teleop.capture import Capture, world_from_cam
+from handsim.envs.teleop.channel import HandChannel
 from handsim.envs.teleop.events import EventDetector, InteractionEvent
-from handsim.envs.teleop.faults import FaultConfig, FaultInjector
+from handsim.envs.teleop.faults import FaultConfig
 from handsim.envs.teleop.filters import FILTERS, make_filter
-from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
-from handsim.envs.teleop.intent import INTENT_DEFAULTS, make_grasp_intent
+from handsim.envs.teleop.intent import INTENT_DEFAULTS
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
-from handsim.errors import HandSimError, InvalidKeypoints
+from handsim.errors import HandSimError
 from handsim.estimator import Estimate, Estimator, PrivilegedEstimator
-from handsim.hand.pose import HandPose
-from handsim.hand.retarget import Retargeter
 
 __all__ = [
     "MODES",
@@ -455,27 +453,12 @@ class TeleopLoop:
             capture.reset()
             faults_cfg = dataclasses.replace(faults_cfg, viewpoint_m=tuple(capture.camera_pos_m))
             self.estimator.reset()
-        injector = FaultInjector(faults_cfg, rng)
-        smoother = make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params)
-        pose_smoother = (
-            make_pose_filter(
-                1.0 / dt, **cfg.pose_filter_params, wrist_only=cfg.pose_filter == "wrist"
-            )
-            if cfg.pose_filter
-            else None
-        )
-        intent = (
-            make_grasp_intent(base.scene, dt, **cfg.intent_params) if cfg.grasp_intent else None
-        )
-        retargeter = Retargeter(params)
+        hand = HandChannel(cfg, base.scene, dt, rng, faults_cfg)
         hand_geoms = tm.hand_geom_mask(
             base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
         )
         times = dict.fromkeys(STAGES, 0.0)
         detector = EventDetector(base, dt)
-        grip = GripStabiliser(base, dt) if cfg.grip_hold else None
-        previous: HandPose | None = None
-        scale: float | None = None
         rec: dict[str, list[Any]] = {
             k: []
             for k in (
@@ -504,7 +487,6 @@ class TeleopLoop:
         n_done = 0
         start_wall = time.perf_counter()
         window, warned = (start_wall, 0), False
-        target = base.scene.binding.pose(data).vector
         terminated = truncated = False
         for i in range(1, steps + 1):
             tick = time.perf_counter()
@@ -539,37 +521,11 @@ class TeleopLoop:
                     tick = t2
                 else:
                     measured = operator_kp
-                tracked, dropped = injector(measured)
-                t3 = time.perf_counter()
-                times["faults"] += t3 - tick
-                tracked = smoother(tracked)
-                t4 = time.perf_counter()
-                times["filter"] += t4 - t3
-                present = np.all(np.isfinite(tracked), axis=1)
-                if present.sum() >= 4:
-                    try:
-                        result = retargeter(
-                            tracked,
-                            initial=previous,
-                            initial_scale=scale,
-                            check_side=False,
-                            report_clamped=False,
-                        )
-                    except InvalidKeypoints:
-                        result = None
-                    if result is not None:
-                        previous, scale = result.pose, result.scale
-                        target = result.pose.vector
-                        if pose_smoother is not None:
-                            target = pose_smoother(target)
-                        if record:
-                            rec["retarget_error"].append(result.keypoint_error_m)
-                times["retarget"] += time.perf_counter() - t4
+                tracked, dropped, fit = hand.track(measured, times, tick)
+                if record and fit is not None:
+                    rec["retarget_error"].append(fit.keypoint_error_m)
             t5 = time.perf_counter()
-            action = intent(target, tracked, data) if intent is not None else target
-            if grip is not None:
-                action = grip(action, data)
-            _, _, terminated, truncated, info = env.step(action)
+            _, _, terminated, truncated, info = env.step(hand.action(tracked, data))
             times["physics"] += time.perf_counter() - t5
             if sampler is not None:
                 sampler.applied()
@@ -586,7 +542,7 @@ class TeleopLoop:
             rec["penetration"].append(penetration)
             rec["touching"].append(touching)
             rec["success"].append(bool(info.get("is_success", False)))
-            rec["intent"].append(bool(intent is not None and intent.grasping))
+            rec["intent"].append(bool(hand.intent is not None and hand.intent.grasping))
             rec["slip"].append(float(info.get("slip_m", math.nan)))
             if record:
                 rec["qpos"].append(data.qpos.copy())
@@ -661,10 +617,7 @@ class TeleopLoop:
             "tracking_error_mm": (
                 float(np.nanmean(dists) * 1e3) if np.isfinite(dists).any() else math.nan
             ),
-            "grip_hold_s": grip.held_steps * dt if grip is not None else 0.0,
-            "intent_grasp_s": intent.grasp_steps * dt if intent is not None else 0.0,
-            "intent_onsets": intent.onsets if intent is not None else 0,
-            "intent_releases": intent.releases if intent is not None else 0,
+            **hand.metrics(dt),
             "steps": n_done,
             "control_dt_s": dt,
             "dropped_frames": int(np.sum(rec["dropped"])),
