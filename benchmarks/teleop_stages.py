@@ -1,14 +1,19 @@
 """Where grasps fail under tracking noise: the reactive operator, with one part made clean.
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
-[--filter none] [--beta 1] [--pose-filter on|off] [--motor-noise on|off|wrist|joints]
-[--correction on|off] [--clean none|wrist|fingers] [--episodes 20] [--out FILE]``.
+[--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
+[--intent-params JSON] [--intent-oracle none|posture|flex|spread]
+[--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
+[--episodes 20] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
 every retargeted (and, with the pose filter, filtered) pose by the operator's own, so only
 the fingers carry the tracking noise; ``--clean fingers`` the 21 joint angles, so only the
-wrist does. Each failure is put in the stage it ended in: ``approach`` (the expert still
+wrist does. ``--intent-oracle`` (with ``--grasp-intent on``) replaces, while the hand is in
+grasp intent, the fingers' targets (``posture``), their flexion joints (``flex``) or their
+spread joints (``spread``) by the operator's own: what a perfect intent posture would give.
+Each failure is put in the stage it ended in: ``approach`` (the expert still
 reaching or approaching), ``closure`` (the object never rose 2 cm), ``lift`` (it rose, but
 not to 9.5 cm) or ``hold`` (lifted, then dropped, slipped or turned). Prints and writes
 (``benchmarks/results/teleop_stages.json`` by default, one entry per configuration) the
@@ -48,12 +53,12 @@ class _Clean:
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """The episodes of one configuration: success rate, stage counts, wall time."""
-    import handsim.envs.teleop.loop as loop_module
+    import handsim.envs.teleop.channel as channel_module
     from handsim.envs.teleop.pose_filter import make_pose_filter
     from handsim.hand.kinematics import ForwardKinematics
 
     operator_pose: dict[str, np.ndarray] = {}
-    if args.clean != "none":
+    if args.clean != "none" or args.intent_oracle != "none":
         # The operator's pose of this step: the one its keypoints are made from.
         keypoints = ForwardKinematics.keypoints
 
@@ -62,13 +67,30 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             return keypoints(self, pose)
 
         ForwardKinematics.keypoints = spy  # type: ignore[method-assign]
-        use_filter = args.pose_filter == "on"
+    if args.intent_oracle != "none":
+        from handsim.envs.teleop.intent import GraspIntent
+        from handsim.hand.pose import JOINT_NAMES
 
-        def clean_filter(rate_hz: float, **params: float) -> Any:
+        flex = np.array(["flex" in n for n in JOINT_NAMES])
+        part = {"posture": np.ones(21, bool), "flex": flex, "spread": ~flex}[args.intent_oracle]
+        intent_call = GraspIntent.__call__
+
+        def oracle(self: Any, target: np.ndarray, tracked: Any, data: Any) -> np.ndarray:
+            out = intent_call(self, target, tracked, data)
+            if self.grasping:
+                out[6:][part] = operator_pose["pose"][6:][part]
+            return out
+
+        GraspIntent.__call__ = oracle  # type: ignore[method-assign]
+    if args.clean != "none":
+        use_filter = args.pose_filter != "off"
+
+        def clean_filter(rate_hz: float, **params: Any) -> Any:
+            params["wrist_only"] = args.pose_filter == "wrist"
             inner = make_pose_filter(rate_hz, **params) if use_filter else None
             return _Clean(inner, args.clean, operator_pose)
 
-        loop_module.make_pose_filter = clean_filter  # type: ignore[assignment]
+        channel_module.make_pose_filter = clean_filter  # type: ignore[assignment]
     config = TeleopConfig(
         faults=FaultConfig(
             noise_mm=args.noise_mm, latency_frames=args.latency, dropout=args.dropout
@@ -76,7 +98,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         filter=args.filter,
         filter_params={"beta": args.beta} if args.filter == "one_euro" else {},
         # The clean part goes in where the pose filter sits.
-        pose_filter=args.pose_filter == "on" or args.clean != "none",
+        pose_filter=(
+            True
+            if args.pose_filter == "on" or (args.clean != "none" and args.pose_filter == "off")
+            else ("wrist" if args.pose_filter == "wrist" else False)
+        ),
+        grasp_intent=args.grasp_intent == "on",
+        intent_params=json.loads(args.intent_params),
     )
     quiet: dict[str, Any] = {
         "on": {},
@@ -87,6 +115,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     if args.correction == "off":
         quiet["correction_s"] = None
     stages = []
+    intent_s: list[float] = []
     start = time.perf_counter()
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
@@ -108,6 +137,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 phase[:] = [op._expert.phase]
 
             metrics = loop.run(op, seed, on_step=on_step).metrics
+            intent_s.append(metrics["intent_grasp_s"])
             lift = max(lifts)
             if metrics["success"]:
                 stage = "success"
@@ -126,6 +156,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "success_rate": counts["success"] / len(stages),
         "stages": dict(counts),
         "per_seed": stages,
+        "intent_grasp_s": round(float(np.mean(intent_s)), 2),
         "wall_s": round(time.perf_counter() - start, 1),
     }
 
@@ -138,7 +169,10 @@ def main() -> None:
     p.add_argument("--dropout", type=float, default=0.0)
     p.add_argument("--filter", choices=("none", "one_euro"), default="none")
     p.add_argument("--beta", type=float, default=1.0)
-    p.add_argument("--pose-filter", choices=("on", "off"), default="off")
+    p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
+    p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
+    p.add_argument("--intent-params", default="{}", help="e.g. '{\"press_rad\": 0.2}'")
+    p.add_argument("--intent-oracle", choices=("none", "posture", "flex", "spread"), default="none")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
     p.add_argument("--correction", choices=("on", "off"), default="on")
     p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")

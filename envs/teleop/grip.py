@@ -30,7 +30,14 @@ import numpy as np
 
 from handsim.hand.pose import FINGERS, JOINT_NAMES
 
-__all__ = ["GripStabiliser", "DIGITS", "GRIP_BAND_RAD", "GRIP_SMOOTH_S", "GRIP_RELEASE_S"]
+__all__ = [
+    "GripStabiliser",
+    "DigitContacts",
+    "DIGITS",
+    "GRIP_BAND_RAD",
+    "GRIP_SMOOTH_S",
+    "GRIP_RELEASE_S",
+]
 
 DIGITS: tuple[str, ...] = ("thumb", *FINGERS)
 GRIP_BAND_RAD = 0.2
@@ -46,6 +53,44 @@ _DIGIT_JOINTS = [
     np.array([i for i, n in enumerate(JOINT_NAMES) if n.startswith(d + "_")]) for d in DIGITS
 ]
 _DIGIT_FLEX = [np.array([i for i in idx if "flex" in JOINT_NAMES[i]]) for idx in _DIGIT_JOINTS]
+
+
+class DigitContacts:
+    """Which digits of a hand touch an object (not the table, a button or the other hand).
+
+    Args:
+        scene: the scene (``env.unwrapped.scene``, or one hand's view of a two-hand scene):
+            its ``model``, ``hand`` (``root_body``) and ``objects`` ((body name, object) pairs).
+    """
+
+    def __init__(self, scene: Any) -> None:
+        model = scene.model
+        prefix = scene.hand.root_body.split("_", 1)[0] + "_"
+        root = model.body(scene.hand.root_body).id
+        # Hand geoms -> digit index (DIGITS order), -1 for the rest of the model.
+        self._geom_digit = np.full(model.ngeom, -1, dtype=np.int8)
+        for g in range(model.ngeom):
+            b = int(model.geom_bodyid[g])
+            if int(model.body_rootid[b]) != int(model.body_rootid[root]):
+                continue
+            name = model.body(b).name
+            for d, digit in enumerate(DIGITS):
+                if name.startswith(prefix + digit):
+                    self._geom_digit[g] = d
+        self._is_object = np.zeros(model.ngeom, dtype=bool)
+        for body_name, _ in getattr(scene, "objects", ()):
+            self._is_object[model.geom_bodyid == model.body(body_name).id] = True
+
+    def touching(self, data: Any) -> np.ndarray:
+        """(5,) bool: each digit (DIGITS order) touches an object now."""
+        out = np.zeros(len(DIGITS), dtype=bool)
+        if data.ncon:
+            pairs = np.asarray(data.contact.geom[: data.ncon])
+            for a, b in ((0, 1), (1, 0)):
+                digits = self._geom_digit[pairs[:, a]]
+                keep = (digits >= 0) & self._is_object[pairs[:, b]]
+                out[digits[keep]] = True
+        return out
 
 
 class GripStabiliser:
@@ -68,23 +113,8 @@ class GripStabiliser:
         release_s: float = GRIP_RELEASE_S,
     ) -> None:
         scene = base.scene
-        model = scene.model
         self._binding = scene.binding
-        prefix = scene.hand.root_body.split("_", 1)[0] + "_"
-        root = model.body(scene.hand.root_body).id
-        # Hand geoms -> digit index (DIGITS order), -1 for the rest of the model.
-        self._geom_digit = np.full(model.ngeom, -1, dtype=np.int8)
-        for g in range(model.ngeom):
-            b = int(model.geom_bodyid[g])
-            if int(model.body_rootid[b]) != int(model.body_rootid[root]):
-                continue
-            name = model.body(b).name
-            for d, digit in enumerate(DIGITS):
-                if name.startswith(prefix + digit):
-                    self._geom_digit[g] = d
-        self._is_object = np.zeros(model.ngeom, dtype=bool)
-        for body_name, _ in getattr(scene, "objects", ()):
-            self._is_object[model.geom_bodyid == model.body(body_name).id] = True
+        self._contacts = DigitContacts(scene)
         self.band_rad = float(band_rad)
         self._alpha = 1.0 - float(np.exp(-dt_s / smooth_s))
         self._mean: np.ndarray | None = None
@@ -97,14 +127,7 @@ class GripStabiliser:
 
     def touching(self, data: Any) -> np.ndarray:
         """(5,) bool: each digit (DIGITS order) touches an object now."""
-        out = np.zeros(len(DIGITS), dtype=bool)
-        if data.ncon:
-            pairs = np.asarray(data.contact.geom[: data.ncon])
-            for a, b in ((0, 1), (1, 0)):
-                digits = self._geom_digit[pairs[:, a]]
-                keep = (digits >= 0) & self._is_object[pairs[:, b]]
-                out[digits[keep]] = True
-        return out
+        return self._contacts.touching(data)
 
     def latched(self) -> np.ndarray:
         """(5,) bool: each digit (DIGITS order) is held at a contact posture."""

@@ -46,18 +46,17 @@ import numpy as np
 
 from handsim.envs.teleop import metrics as tm
 from handsim.envs.teleop.capture import Capture, world_from_cam
+from handsim.envs.teleop.channel import HandChannel
 from handsim.envs.teleop.events import EventDetector, InteractionEvent
-from handsim.envs.teleop.faults import FaultConfig, FaultInjector
+from handsim.envs.teleop.faults import FaultConfig
 from handsim.envs.teleop.filters import FILTERS, make_filter
-from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
+from handsim.envs.teleop.intent import INTENT_DEFAULTS
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
-from handsim.errors import HandSimError, InvalidKeypoints
+from handsim.errors import HandSimError
 from handsim.estimator import Estimate, Estimator, PrivilegedEstimator
-from handsim.hand.pose import HandPose
-from handsim.hand.retarget import Retargeter
 
 __all__ = [
     "MODES",
@@ -70,6 +69,7 @@ __all__ = [
     "write_rollout",
     "read_rollout",
     "ROLLOUT_VERSION",
+    "POSE_FILTERS",
     "MAX_CONTROL_RATE_HZ",
     "PHYSICS_DT_S",
     "BehindRealTime",
@@ -83,6 +83,8 @@ ANCHORS: tuple[str, ...] = ("none", "start")
 STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
 """The timed stages of a step."""
 ROLLOUT_VERSION = 1
+POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist")
+"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only."""
 PHYSICS_DT_S = 0.002
 """The envs' physics step, seconds (500 Hz)."""
 MAX_CONTROL_RATE_HZ = 120.0
@@ -141,8 +143,19 @@ class TeleopConfig:
             digit clearly opens). Nothing is attached; the time it holds is ``grip_hold_s``
             in the metrics.
         pose_filter: smooth the retargeted pose in joint space
-            (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part).
+            (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part):
+            ``False`` (off), ``True`` (the wrist and the fingers) or ``"wrist"`` (the wrist
+            only; the fingers as fitted).
         pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
+        grasp_intent: drive the fingers from a per-hand grasp intent while the hand grasps
+            an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
+            of ten keypoints with hysteresis; while it grasps, a digit on the object presses
+            from its contact flexion and the others follow the tracked angles averaged since
+            the onset). Nothing is attached; the seconds in
+            grasp intent, its onsets and releases are ``intent_grasp_s``,
+            ``intent_onsets`` and ``intent_releases``.
+        intent_params: its parameters (keys of
+            :data:`~handsim.envs.teleop.intent.INTENT_DEFAULTS`).
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -155,8 +168,10 @@ class TeleopConfig:
     sensor: str = "none"
     camera: str = "icvl"
     grip_hold: bool = True
-    pose_filter: bool = False
+    pose_filter: bool | str = False
     pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
+    grasp_intent: bool = False
+    intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
     record: bool = False
     seed: int = 0
 
@@ -175,8 +190,18 @@ class TeleopConfig:
             raise InvalidTeleopConfig(
                 f"faults must be a FaultConfig; received {type(self.faults).__name__}"
             )
+        if self.pose_filter not in POSE_FILTERS:
+            raise InvalidTeleopConfig(
+                f"pose_filter={self.pose_filter!r} is not valid; choose False (off), True (the "
+                "wrist and the fingers) or 'wrist' (the wrist only)"
+            )
         make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
         make_pose_filter(50.0, **self.pose_filter_params)
+        unknown = sorted(set(self.intent_params) - set(INTENT_DEFAULTS))
+        if unknown:
+            raise InvalidTeleopConfig(
+                f"intent_params {unknown} are not valid; choose from {', '.join(INTENT_DEFAULTS)}"
+            )
 
     def label(self) -> str:
         """A short description (plot legends, tables)."""
@@ -196,9 +221,10 @@ class TeleopEpisode:
             ``time_to_success_s``, ``penetration_max_mm``, ``penetration_mean_mm``,
             ``slip_max_mm``, ``jitter_mm``, ``operator_jitter_mm``, ``lag_s``,
             ``unintended_presses``, ``tracking_error_mm``, ``grip_hold_s`` (seconds with a
-            digit's target held by the grip stabiliser), ``steps``, ``dropped_frames``,
-            ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean milliseconds per
-            stage), ``events`` (count per kind) and, for a
+            digit's target held by the grip stabiliser), ``intent_grasp_s``,
+            ``intent_onsets``, ``intent_releases`` (the grasp intent), ``steps``,
+            ``dropped_frames``, ``steps_per_s``, ``realtime_factor``), ``stage_ms`` (mean
+            milliseconds per stage), ``events`` (count per kind) and, for a
             :class:`~handsim.envs.teleop.sampling.LiveSampler` stream, its latency summary
             (``latency_p50_ms``, ``latency_p95_ms``, ``residual_latency_*``,
             ``latency_clock``, ``packets_used``).
@@ -427,20 +453,12 @@ class TeleopLoop:
             capture.reset()
             faults_cfg = dataclasses.replace(faults_cfg, viewpoint_m=tuple(capture.camera_pos_m))
             self.estimator.reset()
-        injector = FaultInjector(faults_cfg, rng)
-        smoother = make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params)
-        pose_smoother = (
-            make_pose_filter(1.0 / dt, **cfg.pose_filter_params) if cfg.pose_filter else None
-        )
-        retargeter = Retargeter(params)
+        hand = HandChannel(cfg, base.scene, dt, rng, faults_cfg)
         hand_geoms = tm.hand_geom_mask(
             base.scene.model, base.scene.model.body(base.scene.hand.root_body).id
         )
         times = dict.fromkeys(STAGES, 0.0)
         detector = EventDetector(base, dt)
-        grip = GripStabiliser(base, dt) if cfg.grip_hold else None
-        previous: HandPose | None = None
-        scale: float | None = None
         rec: dict[str, list[Any]] = {
             k: []
             for k in (
@@ -459,6 +477,7 @@ class TeleopLoop:
                 "mocap_quat",
                 "slip",
                 "retarget_error",
+                "intent",
             )
         }
         record = cfg.record
@@ -468,7 +487,6 @@ class TeleopLoop:
         n_done = 0
         start_wall = time.perf_counter()
         window, warned = (start_wall, 0), False
-        target = base.scene.binding.pose(data).vector
         terminated = truncated = False
         for i in range(1, steps + 1):
             tick = time.perf_counter()
@@ -503,36 +521,11 @@ class TeleopLoop:
                     tick = t2
                 else:
                     measured = operator_kp
-                tracked, dropped = injector(measured)
-                t3 = time.perf_counter()
-                times["faults"] += t3 - tick
-                tracked = smoother(tracked)
-                t4 = time.perf_counter()
-                times["filter"] += t4 - t3
-                present = np.all(np.isfinite(tracked), axis=1)
-                if present.sum() >= 4:
-                    try:
-                        result = retargeter(
-                            tracked,
-                            initial=previous,
-                            initial_scale=scale,
-                            check_side=False,
-                            report_clamped=False,
-                        )
-                    except InvalidKeypoints:
-                        result = None
-                    if result is not None:
-                        previous, scale = result.pose, result.scale
-                        target = result.pose.vector
-                        if pose_smoother is not None:
-                            target = pose_smoother(target)
-                        if record:
-                            rec["retarget_error"].append(result.keypoint_error_m)
-                times["retarget"] += time.perf_counter() - t4
+                tracked, dropped, fit = hand.track(measured, times, tick)
+                if record and fit is not None:
+                    rec["retarget_error"].append(fit.keypoint_error_m)
             t5 = time.perf_counter()
-            _, _, terminated, truncated, info = env.step(
-                grip(target, data) if grip is not None else target
-            )
+            _, _, terminated, truncated, info = env.step(hand.action(tracked, data))
             times["physics"] += time.perf_counter() - t5
             if sampler is not None:
                 sampler.applied()
@@ -549,6 +542,7 @@ class TeleopLoop:
             rec["penetration"].append(penetration)
             rec["touching"].append(touching)
             rec["success"].append(bool(info.get("is_success", False)))
+            rec["intent"].append(bool(hand.intent is not None and hand.intent.grasping))
             rec["slip"].append(float(info.get("slip_m", math.nan)))
             if record:
                 rec["qpos"].append(data.qpos.copy())
@@ -623,7 +617,7 @@ class TeleopLoop:
             "tracking_error_mm": (
                 float(np.nanmean(dists) * 1e3) if np.isfinite(dists).any() else math.nan
             ),
-            "grip_hold_s": grip.held_steps * dt if grip is not None else 0.0,
+            **hand.metrics(dt),
             "steps": n_done,
             "control_dt_s": dt,
             "dropped_frames": int(np.sum(rec["dropped"])),
@@ -644,6 +638,7 @@ class TeleopLoop:
                 "dropped": np.array(rec["dropped"], dtype=bool),
                 "penetration_m": penetration,
                 "success": np.array(rec["success"], dtype=bool),
+                "intent": np.array(rec["intent"], dtype=bool),
                 "qpos": np.array(rec["qpos"]),
                 "mocap_pos": np.array(rec["mocap_pos"]),
                 "mocap_quat": np.array(rec["mocap_quat"]),
@@ -675,7 +670,8 @@ def write_rollout(
     :class:`~handsim.envs.teleop.events.InteractionEvent`);
     ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
     state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
-    3) metres, world frame; ``dropped``, ``success`` (T,) bool; ``penetration_m`` (T,); and in
+    3) metres, world frame; ``dropped``, ``success``, ``intent`` (grasp intent) (T,) bool;
+    ``penetration_m`` (T,); and in
     camera mode ``depth_mm`` (T, H, W) uint16 capture depth in mm, ``truth_cam`` and
     ``estimate_cam`` (T, 21, 3) metres in the capture camera frame, ``K`` (3, 3) and
     ``T_cam_from_world`` (4, 4).

@@ -48,6 +48,7 @@ class PoseFilter:
         beta_rot: the wrist rotation's cut-off increase per rad/s, Hz.
         beta_joint: a joint angle's cut-off increase per rad/s, Hz.
         d_cutoff_hz: cut-off of the speeds' smoothing, Hz.
+        wrist_only: smooth the wrist only; the 21 joint angles pass unchanged.
 
     Raises:
         InvalidFilter: a non-positive rate or cut-off, a negative beta.
@@ -63,6 +64,7 @@ class PoseFilter:
         beta_rot: float = POSE_FILTER_DEFAULTS["beta_rot"],
         beta_joint: float = POSE_FILTER_DEFAULTS["beta_joint"],
         d_cutoff_hz: float = POSE_FILTER_DEFAULTS["d_cutoff_hz"],
+        wrist_only: bool = False,
     ) -> None:
         self._position = OneEuroFilter(
             rate_hz, min_cutoff_hz=min_cutoff_hz, beta=beta_m_s, d_cutoff_hz=d_cutoff_hz
@@ -71,6 +73,7 @@ class PoseFilter:
             rate_hz, min_cutoff_hz=min_cutoff_hz, beta=beta_joint, d_cutoff_hz=d_cutoff_hz
         )
         self.min_cutoff_hz = float(min_cutoff_hz)
+        self.wrist_only = bool(wrist_only)
         self.rot_cutoff_hz = _positive("rot_cutoff_hz", rot_cutoff_hz)
         self.beta_rot = _positive("beta_rot", beta_rot, zero_ok=True)
         self._dt = 1.0 / float(rate_hz)
@@ -82,7 +85,7 @@ class PoseFilter:
             f"PoseFilter(rate_hz={1 / self._dt:g}, min_cutoff_hz={self.min_cutoff_hz:g}, "
             f"rot_cutoff_hz={self.rot_cutoff_hz:g}, "
             f"beta_m_s={self._position.beta:g}, beta_rot={self.beta_rot:g}, "
-            f"beta_joint={self._angles.beta:g})"
+            f"beta_joint={self._angles.beta:g}, wrist_only={self.wrist_only})"
         )
 
     def reset(self) -> None:
@@ -102,7 +105,7 @@ class PoseFilter:
             )
         out = np.empty(27)
         out[:3] = self._position(pose[:3])
-        out[6:] = self._angles(pose[6:])
+        out[6:] = pose[6:] if self.wrist_only else self._angles(pose[6:])
         rot = Rotation.from_rotvec(pose[3:6])
         if self._rot is None:
             self._rot = self._rot_raw = rot
@@ -119,8 +122,10 @@ class PoseFilter:
         return out
 
 
-def make_pose_filter(rate_hz: float, **params: float) -> PoseFilter:
+def make_pose_filter(rate_hz: float, *, wrist_only: bool = False, **params: float) -> PoseFilter:
     """A :class:`PoseFilter` with ``params`` (keys of :data:`POSE_FILTER_DEFAULTS`).
+
+    ``wrist_only`` smooths the wrist and passes the joint angles unchanged.
 
     Raises:
         InvalidFilter: an unknown parameter or a value out of range.
@@ -131,4 +136,4 @@ def make_pose_filter(rate_hz: float, **params: float) -> PoseFilter:
             f"pose filter parameters {unknown} are not valid; choose from "
             f"{', '.join(POSE_FILTER_DEFAULTS)}"
         )
-    return PoseFilter(rate_hz, **params)
+    return PoseFilter(rate_hz, wrist_only=wrist_only, **params)

@@ -48,6 +48,8 @@ SWEEP_COLUMNS: tuple[str, ...] = (
     "unintended_presses",
     "tracking_error_mm",
     "grip_hold_s",
+    "intent_grasp_s",
+    "intent_onsets",
     "steps_per_s",
 )
 """Columns of the sweep table (means over the episodes of a grid point; NaN-aware)."""
@@ -71,7 +73,8 @@ def run_sweep(
     streams: Sequence[OperatorStream] | None = None,
     operator: str | None = None,
     grip_hold: bool = True,
-    pose_filter: bool = False,
+    pose_filter: bool | str = False,
+    grasp_intent: bool = False,
     filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
@@ -94,7 +97,9 @@ def run_sweep(
         operator: one of :data:`~handsim.envs.teleop.operator.OPERATORS` (default:
             ``replay`` with ``streams``, else ``reactive``).
         grip_hold: the loop's grip stabiliser (:attr:`TeleopConfig.grip_hold`).
-        pose_filter: the loop's joint-space pose filter (:attr:`TeleopConfig.pose_filter`).
+        pose_filter: the loop's joint-space pose filter (:attr:`TeleopConfig.pose_filter`:
+            ``False``, ``True`` or ``"wrist"``).
+        grasp_intent: the loop's grasp intent (:attr:`TeleopConfig.grasp_intent`).
         filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
@@ -132,6 +137,7 @@ def run_sweep(
                 filter_params=dict((filter_params or {}).get(filt, {})),
                 grip_hold=grip_hold,
                 pose_filter=pose_filter,
+                grasp_intent=grasp_intent,
                 seed=seed,
             )
             if filt not in loops:
@@ -174,7 +180,8 @@ def run_sweep(
         "mode": mode,
         "operator": operator,
         "grip_hold": bool(grip_hold),
-        "pose_filter": bool(pose_filter),
+        "pose_filter": pose_filter if isinstance(pose_filter, str) else bool(pose_filter),
+        "grasp_intent": bool(grasp_intent),
         "filter_params": filter_params or {},
         "episodes": episodes,
         "seed": seed,

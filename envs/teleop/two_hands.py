@@ -14,7 +14,9 @@ and a left physical hand, 54-D actions) takes both. :class:`TwoHandTeleopLoop` r
   stream (its first wrist onto its physical start wrist), since both come from one tracking
   space: the hands keep where they are relative to each other.
 - per hand: faults (each hand its own generator), filter, retargeting onto its own hand, the
-  pose filter (``pose_filter``) and the grip stabiliser; one
+  pose filter (``pose_filter``), the grasp intent (``grasp_intent``) and the grip
+  stabiliser, the one-hand loop's path (:class:`~handsim.envs.teleop.channel.HandChannel`);
+  one
   :class:`~handsim.envs.teleop.events.EventDetector` for both, so every event names its hand.
 
 ``direct`` mode only (a headset reports joints); the capture camera of ``camera`` mode renders
@@ -35,7 +37,6 @@ import math
 import os
 import pathlib
 import time
-import types
 import warnings
 import weakref
 from collections.abc import Callable, Mapping, Sequence
@@ -44,10 +45,8 @@ from typing import Any
 import numpy as np
 
 from handsim.envs.teleop import metrics as tm
+from handsim.envs.teleop.channel import HandChannel
 from handsim.envs.teleop.events import EventDetector
-from handsim.envs.teleop.faults import FaultInjector
-from handsim.envs.teleop.filters import make_filter
-from handsim.envs.teleop.grip import GripStabiliser
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
 from handsim.envs.teleop.loop import (
     _BEHIND_FRACTION,
@@ -59,7 +58,6 @@ from handsim.envs.teleop.loop import (
     TeleopEpisode,
     TeleopLoop,
 )
-from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import (
     InvalidStream,
@@ -69,9 +67,6 @@ from handsim.envs.teleop.streams import (
     stream_from_poses,
     stream_to_doc,
 )
-from handsim.errors import InvalidKeypoints
-from handsim.hand.pose import HandPose
-from handsim.hand.retarget import Retargeter
 
 __all__ = [
     "TwoHandTeleopLoop",
@@ -254,21 +249,14 @@ class _HandView:
 
 @dataclasses.dataclass
 class _Channel:
-    """One hand's path through the loop."""
+    """One hand's stream and records around its shared path (:class:`HandChannel`)."""
 
     side: str
     binding: Any
     frames: Callable[[int], np.ndarray | None]
-    injector: FaultInjector
-    smoother: Any
-    retargeter: Retargeter
-    grip: GripStabiliser | None
-    pose_smoother: Any
+    hand: HandChannel
     hand_geoms: np.ndarray
-    target: np.ndarray
     sampler: LiveSampler | None = None
-    previous: HandPose | None = None
-    scale: float | None = None
     rec: dict[str, list] = dataclasses.field(default_factory=dict)
 
 
@@ -371,21 +359,9 @@ class TwoHandTeleopLoop(TeleopLoop):
                     side=side,
                     binding=binding,
                     frames=frames,
-                    injector=FaultInjector(cfg.faults, np.random.default_rng([cfg.seed + seed, k])),
-                    smoother=make_filter(cfg.filter, 1.0 / dt, **cfg.filter_params),
-                    retargeter=Retargeter(binding.hand.params),
-                    grip=(
-                        GripStabiliser(types.SimpleNamespace(scene=view), dt)
-                        if cfg.grip_hold
-                        else None
-                    ),
-                    pose_smoother=(
-                        make_pose_filter(1.0 / dt, **cfg.pose_filter_params)
-                        if cfg.pose_filter
-                        else None
-                    ),
+                    # Each hand its own fault generator.
+                    hand=HandChannel(cfg, view, dt, np.random.default_rng([cfg.seed + seed, k])),
                     hand_geoms=tm.hand_geom_mask(scene.model, binding.palm_id),
-                    target=binding.pose(data).vector,
                     sampler=sampler,
                     rec={k: [] for k in ("operator", "tracked", "physical", "dropped", "pen")},
                 )
@@ -406,14 +382,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 operator_kp = ch.frames(i)
                 tracked, dropped = None, True
                 if operator_kp is not None:
-                    tracked, dropped = ch.injector(operator_kp)
-                    t3 = time.perf_counter()
-                    times["faults"] += t3 - tick
-                    tracked = ch.smoother(tracked)
-                    t4 = time.perf_counter()
-                    times["filter"] += t4 - t3
-                    self._retarget(ch, tracked)
-                    times["retarget"] += time.perf_counter() - t4
+                    tracked, dropped, _ = ch.hand.track(operator_kp, times, tick)
                 tracked_by_side[ch.side] = tracked
                 ch.rec["operator"].append(
                     operator_kp if operator_kp is not None else np.full((21, 3), np.nan)
@@ -424,7 +393,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 ch.rec["dropped"].append(dropped)
             t5 = time.perf_counter()
             action = np.concatenate(
-                [ch.grip(ch.target, data) if ch.grip is not None else ch.target for ch in channels]
+                [ch.hand.action(tracked_by_side[ch.side], data) for ch in channels]
             )
             _, _, terminated, truncated, info = env.step(action)
             times["physics"] += time.perf_counter() - t5
@@ -507,7 +476,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 ),
                 "penetration_max_mm": float(max(ch.rec["pen"]) * 1e3) if n_done else math.nan,
                 "dropped_frames": int(np.sum(ch.rec["dropped"])) if ch.side in routed else 0,
-                "grip_hold_s": ch.grip.held_steps * dt if ch.grip is not None else 0.0,
+                **ch.hand.metrics(dt),
             }
             if ch.sampler is not None:
                 hands[ch.side].update(ch.sampler.summary())
@@ -544,24 +513,6 @@ class TwoHandTeleopLoop(TeleopLoop):
                 arrays[f"dropped{suffix}"] = np.array(ch.rec["dropped"], dtype=bool)
                 arrays[f"penetration_m{suffix}"] = np.array(ch.rec["pen"])
         return TeleopEpisode(metrics, arrays, detector.events)
-
-    def _retarget(self, ch: _Channel, tracked: np.ndarray) -> None:
-        if np.all(np.isfinite(tracked), axis=1).sum() < 4:
-            return
-        try:
-            result = ch.retargeter(
-                tracked,
-                initial=ch.previous,
-                initial_scale=ch.scale,
-                check_side=False,
-                report_clamped=False,
-            )
-        except InvalidKeypoints:
-            return
-        ch.previous, ch.scale = result.pose, result.scale
-        ch.target = result.pose.vector
-        if ch.pose_smoother is not None:
-            ch.target = ch.pose_smoother(ch.target)
 
     def _frames(
         self,

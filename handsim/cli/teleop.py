@@ -214,10 +214,18 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--pose-filter",
-        choices=("on", "off"),
+        choices=_POSE_FILTER_CHOICES,
         default="off",
         help="smooth the retargeted hand pose in joint space (One Euro per part: wrist "
-        "position, wrist rotation, joint angles; default: off)",
+        "position, wrist rotation, joint angles; 'wrist': the wrist only; default: off)",
+    )
+    p.add_argument(
+        "--grasp-intent",
+        choices=("on", "off"),
+        default="off",
+        help="drive the fingers from a grasp intent while the hand grasps an object (a "
+        "closure measure of ten keypoints with hysteresis; the finger targets the tracked "
+        "angles averaged since the grasp began); nothing is attached (default: off)",
     )
     p.add_argument(
         "--seed",
@@ -226,6 +234,10 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         help="episode seed (the scene) and fault seed (default: 0)",
     )
     add_quiet(p)
+
+
+_POSE_FILTER_CHOICES = ("on", "off", "wrist")
+_POSE_FILTER_VALUES: dict[str, bool | str] = {"on": True, "off": False, "wrist": "wrist"}
 
 
 def _faults(args: argparse.Namespace, **levels: Any) -> Any:
@@ -277,7 +289,8 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         anchor=args.anchor,
         sensor=args.sensor,
         grip_hold=args.grip_hold == "on",
-        pose_filter=args.pose_filter == "on",
+        pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
+        grasp_intent=args.grasp_intent == "on",
         record=record,
         seed=args.seed,
     )
@@ -294,6 +307,9 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
         "lag_s",
         "unintended_presses",
         "tracking_error_mm",
+        "grip_hold_s",
+        "intent_grasp_s",
+        "intent_onsets",
         "steps",
         "dropped_frames",
         "steps_per_s",
@@ -509,20 +525,23 @@ def _sweep(args: argparse.Namespace) -> int:
             base_faults=base if isinstance(base, FaultConfig) else None,
             operator=args.operator,
             grip_hold=args.grip_hold == "on",
-            pose_filter=args.pose_filter == "on",
+            pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
+            grasp_intent=args.grasp_intent == "on",
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )
     paths = write_sweep(report, args.out)
     print(
         f"{'noise_mm':>8} {'latency':>7} {'dropout':>7} {'filter':>9} {'success':>7} "
-        f"{'jitter_mm':>9} {'lag_s':>6} {'pen_max_mm':>10} {'grip_hold_s':>11}"
+        f"{'jitter_mm':>9} {'lag_s':>6} {'pen_max_mm':>10} {'grip_hold_s':>11} "
+        f"{'intent_s':>8}"
     )
     for r in report["rows"]:
         print(
             f"{r['noise_mm']:8.1f} {r['latency_frames']:7d} {r['dropout']:7.2f} "
             f"{r['filter']:>9} {100 * r['success_rate']:6.0f}% {r['jitter_mm']:9.2f} "
-            f"{r['lag_s']:6.2f} {r['penetration_max_mm']:10.2f} {r['grip_hold_s']:11.2f}"
+            f"{r['lag_s']:6.2f} {r['penetration_max_mm']:10.2f} {r['grip_hold_s']:11.2f} "
+            f"{r['intent_grasp_s']:8.2f}"
         )
     for kind, path in paths.items():
         print(f"{kind}: {path}")

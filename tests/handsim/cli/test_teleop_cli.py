@@ -36,7 +36,8 @@ from handsim.cli import main
         ),
         (
             ["teleop", "sweep", "--help"],
-            ["--noise-mm", "0,5,10", "--filters", "none,one_euro", "--episodes", "--out"],
+            ["--noise-mm", "0,5,10", "--filters", "none,one_euro", "--episodes", "--out"]
+            + ["--grasp-intent", "--pose-filter", "{on,off,wrist}"],
         ),
         (["teleop", "serve", "--help"], ["--port", "--websocket", "--replay"]),
         (["view", "--help"], ["--out", ".mp4 or .gif", "--every", "--rerun"]),
@@ -210,7 +211,7 @@ def test_live_runs_for_the_requested_duration_past_the_episode_limit(tmp_path):
     proc = subprocess.Popen(
         [sys.executable, "-m", "handsim.cli", "teleop", "live", "--udp", str(port)]
         + ["--task", "press", "--duration", "6", "--wait", "60", "--out", str(out)]
-        + ["--rollout", str(rollout)],
+        + ["--rollout", str(rollout), "--grasp-intent", "on", "--pose-filter", "wrist"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -236,6 +237,10 @@ def test_live_runs_for_the_requested_duration_past_the_episode_limit(tmp_path):
     assert metrics["latency_clock"] == "unix"
     assert 0 < metrics["latency_p50_ms"] <= metrics["latency_p95_ms"] < 200
     assert "latency_p95_ms" in stdout
+    # The options reach the loop; the panel has no objects to grasp.
+    assert metrics["config"]["grasp_intent"] is True
+    assert metrics["config"]["pose_filter"] == "wrist"
+    assert metrics["intent_grasp_s"] == 0.0 and "intent_grasp_s" in stdout
     from handsim.envs.teleop import read_rollout
 
     meta, arrays = read_rollout(rollout)
@@ -243,3 +248,42 @@ def test_live_runs_for_the_requested_duration_past_the_episode_limit(tmp_path):
     video = tmp_path / "live.gif"  # the recorded session plays back
     assert main(["view", str(rollout), "--out", str(video), "--every", "50", "--quiet"]) == 0
     assert video.stat().st_size > 1000
+
+
+def test_replay_and_sweep_take_the_grasp_intent_and_the_wrist_pose_filter(tmp_path):
+    """`replay` and `sweep` with --grasp-intent on and --pose-filter wrist, as subprocesses.
+
+    The expert's grasp replayed with the intent spends time in it; the sweep's table has the
+    intent's columns and its report the settings.
+    """
+    stream = tmp_path / "grasp.npz"
+    cli = [sys.executable, "-m", "handsim.cli", "teleop"]
+    subprocess.run(
+        [*cli, "generate", str(stream), "--task", "grasp"], check=True, capture_output=True
+    )
+    out = tmp_path / "replay"
+    done = subprocess.run(
+        [*cli, "replay", str(stream), "--task", "grasp", "--out", str(out)]
+        + ["--grasp-intent", "on", "--pose-filter", "wrist"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((out / "teleop.json").read_text())
+    assert metrics["config"]["grasp_intent"] is True
+    assert metrics["config"]["pose_filter"] == "wrist"
+    assert metrics["intent_grasp_s"] > 0.5 and metrics["intent_onsets"] >= 1
+    assert "intent_grasp_s" in done.stdout
+    sweep = tmp_path / "sweep"
+    done = subprocess.run(
+        [*cli, "sweep", "--task", "press", "--noise-mm", "0", "--latency", "0"]
+        + ["--dropout", "0", "--filters", "none", "--episodes", "1", "--quiet"]
+        + ["--grasp-intent", "on", "--pose-filter", "wrist", "--out", str(sweep)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    report = json.loads((sweep / "sweep.json").read_text())
+    assert report["grasp_intent"] is True and report["pose_filter"] == "wrist"
+    assert report["rows"][0]["intent_grasp_s"] == 0.0
+    assert "intent_s" in done.stdout

@@ -1,0 +1,136 @@
+"""One hand's path through the teleop loop, shared by the one- and the two-hand loop.
+
+From the hand's measured keypoints (the stream's, or camera mode's estimate) to its action:
+the tracking faults (:class:`~handsim.envs.teleop.faults.FaultInjector`), the keypoint filter
+(:mod:`~handsim.envs.teleop.filters`), the warm-started retargeting onto the physical hand
+(:class:`~handsim.hand.retarget.Retargeter`) and the joint-space pose filter
+(:class:`~handsim.envs.teleop.pose_filter.PoseFilter`); then, every control step, the grasp
+intent (:class:`~handsim.envs.teleop.intent.GraspIntent`) and the grip stabiliser
+(:class:`~handsim.envs.teleop.grip.GripStabiliser`) turn the last target into the action.
+"""
+
+from __future__ import annotations
+
+import time
+import types
+from typing import Any
+
+import numpy as np
+
+from handsim.envs.teleop.faults import FaultConfig, FaultInjector
+from handsim.envs.teleop.filters import make_filter
+from handsim.envs.teleop.grip import GripStabiliser
+from handsim.envs.teleop.intent import GraspIntent, make_grasp_intent
+from handsim.envs.teleop.pose_filter import make_pose_filter
+from handsim.errors import InvalidKeypoints
+from handsim.hand.pose import HandPose
+from handsim.hand.retarget import Retargeter, RetargetResult
+
+__all__ = ["HandChannel"]
+
+
+class HandChannel:
+    """One hand's faults, filter, retargeting, pose filter, grasp intent and grip.
+
+    Args:
+        config: the loop's :class:`~handsim.envs.teleop.loop.TeleopConfig`.
+        scene: the scene as one hand sees it (``env.unwrapped.scene``, or one hand's view of a
+            two-hand scene): its ``model``, ``data``, ``hand``, ``binding`` and ``objects``.
+        dt_s: the control period, seconds.
+        rng: the generator of this hand's faults.
+        faults: the faults (default: ``config.faults``; camera mode moves the viewpoint).
+    """
+
+    def __init__(
+        self,
+        config: Any,
+        scene: Any,
+        dt_s: float,
+        rng: np.random.Generator,
+        faults: FaultConfig | None = None,
+    ) -> None:
+        rate_hz = 1.0 / dt_s
+        self.injector = FaultInjector(faults if faults is not None else config.faults, rng)
+        self.smoother = make_filter(config.filter, rate_hz, **config.filter_params)
+        self.pose_smoother = (
+            make_pose_filter(
+                rate_hz, **config.pose_filter_params, wrist_only=config.pose_filter == "wrist"
+            )
+            if config.pose_filter
+            else None
+        )
+        self.retargeter = Retargeter(scene.hand.params)
+        self.intent: GraspIntent | None = (
+            make_grasp_intent(scene, dt_s, **config.intent_params) if config.grasp_intent else None
+        )
+        self.grip: GripStabiliser | None = (
+            GripStabiliser(types.SimpleNamespace(scene=scene), dt_s) if config.grip_hold else None
+        )
+        self.previous: HandPose | None = None
+        self.scale: float | None = None
+        self.target: np.ndarray = scene.binding.pose(scene.data).vector
+        """(27,) the last retargeted (and pose-filtered) target: held while nothing fits."""
+
+    def track(
+        self, measured: np.ndarray, times: dict[str, float], tick: float
+    ) -> tuple[np.ndarray, bool, RetargetResult | None]:
+        """Faults, filter and retargeting of one measured frame.
+
+        Args:
+            measured: (21, 3) keypoints, world frame, metres (NaN rows: untracked).
+            times: seconds per stage, added to (``faults``, ``filter``, ``retarget``).
+            tick: ``time.perf_counter()`` when this hand's stage began.
+
+        Returns:
+            ``(tracked, dropped, fit)``: the tracked keypoints (21, 3), whether the frame was
+            lost, and the retargeting's result (``None`` when fewer than 4 keypoints are
+            tracked or the fit failed: the target holds).
+        """
+        tracked, dropped = self.injector(measured)
+        t_fault = time.perf_counter()
+        times["faults"] += t_fault - tick
+        tracked = self.smoother(tracked)
+        t_filter = time.perf_counter()
+        times["filter"] += t_filter - t_fault
+        result = self._retarget(tracked)
+        times["retarget"] += time.perf_counter() - t_filter
+        return tracked, dropped, result
+
+    def _retarget(self, tracked: np.ndarray) -> RetargetResult | None:
+        if np.all(np.isfinite(tracked), axis=1).sum() < 4:
+            return None
+        try:
+            result = self.retargeter(
+                tracked,
+                initial=self.previous,
+                initial_scale=self.scale,
+                check_side=False,
+                report_clamped=False,
+            )
+        except InvalidKeypoints:
+            return None
+        self.previous, self.scale = result.pose, result.scale
+        self.target = result.pose.vector
+        if self.pose_smoother is not None:
+            self.target = self.pose_smoother(self.target)
+        return result
+
+    def action(self, tracked: np.ndarray | None, data: Any) -> np.ndarray:
+        """(27,) this step's action: the target after the grasp intent and the grip stabiliser.
+
+        Args:
+            tracked: this step's tracked keypoints (21, 3), or ``None`` (nothing received).
+            data: the task's ``MjData`` after the last physics step.
+        """
+        action = self.intent(self.target, tracked, data) if self.intent is not None else self.target
+        return self.grip(action, data) if self.grip is not None else action
+
+    def metrics(self, dt_s: float) -> dict[str, float]:
+        """``grip_hold_s``, ``intent_grasp_s``, ``intent_onsets``, ``intent_releases``."""
+        intent = self.intent
+        return {
+            "grip_hold_s": self.grip.held_steps * dt_s if self.grip is not None else 0.0,
+            "intent_grasp_s": intent.grasp_steps * dt_s if intent is not None else 0.0,
+            "intent_onsets": intent.onsets if intent is not None else 0,
+            "intent_releases": intent.releases if intent is not None else 0,
+        }

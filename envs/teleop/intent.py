@@ -1,0 +1,259 @@
+"""Grasp intent: one decision per hand, from many keypoints, drives the fingers while it grasps.
+
+Retargeted from keypoints with 10 mm of noise per axis, a finger joint's angle moves 0.2 to
+0.6 rad (std) from frame to frame, with little bias (under 0.1 rad for most joints, the grasp
+expert's poses, seed 0, 200 noisy fits each); a physical hand that follows 21 such angles
+shakes whatever it holds. VR SDKs do not let the raw finger joints hold an object: their grab
+detection (Meta Interaction SDK's grab rules, Ultraleap's grab strength) reduces the tracked
+hand to a curl or aperture measure, compares it with thresholds with hysteresis, and while
+the hand "grabs" the object follows the grab, not the joints. :class:`GraspIntent` does that
+for a physical hand:
+
+- **measure**: the hand's *closure*, the mean distance of the ten distal keypoints (each
+  digit's tip and the joint below it) from the palm centre (the wrist and the four finger
+  MCPs), over the palm's size (the wrist-to-MCP distance, averaged over a second): ten
+  points at once, so the noise averages out, smoothed further in time (``smooth_s``). The
+  same measure of the physical hand is its reference.
+- **onset** (a Schmitt trigger's upper threshold): the physical thumb and at least one other
+  digit touch an object (an opposition, as the ``grab`` event) while the tracked hand is at
+  least as closed as the physical one, within ``onset_margin`` (the operator closes onto the
+  object, which stops the physical hand).
+- **grasp**: a digit on the object holds its *contact flexion* (its flexion joints' angles
+  when it first touched, in this grasp) plus ``press_rad``: the position actuators press on
+  the object with their stiffness times it, whatever the tracked angles do. The other digits
+  and every spread joint follow the *intent posture*, the tracked joint angles averaged since
+  the onset (a running mean with time constant ``hold_s``, started from the light running
+  mean of ``smooth_s``), whose noise falls with the averaging (0.4 rad of noise is about
+  0.06 rad after a 0.4 s average). The grip stabiliser
+  (:class:`~handsim.envs.teleop.grip.GripStabiliser`) then acts on that target as without
+  the intent.
+- **release** (the lower threshold): the tracked closure opens more than ``band`` above its
+  running mean during the grasp (time constant ``hold_s``: the user lets go), or no digit
+  has touched an object for ``release_s`` (the object is gone). The tracked angles come back
+  over ``blend_s`` (linearly, from the intent posture).
+
+The wrist is not touched: the intent drives the fingers only. Nothing is attached: the
+object is held by the fingers' position actuators pressing on it, so a success with the
+intent is a physical grasp. The seconds in grasp intent and the number of onsets and releases
+are in the loop's metrics (``intent_grasp_s``, ``intent_onsets``, ``intent_releases``). A
+scene without objects (Press-v0) never grasps: the intent passes the tracked angles unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from handsim.envs.teleop.filters import InvalidFilter, _positive
+from handsim.envs.teleop.grip import _DIGIT_FLEX, DIGITS, DigitContacts
+
+__all__ = ["GraspIntent", "INTENT_DEFAULTS", "make_grasp_intent", "hand_closure", "palm_size"]
+
+INTENT_DEFAULTS: dict[str, float] = {
+    "smooth_s": 0.1,
+    "hold_s": 0.4,
+    "band": 0.1,
+    "onset_margin": 0.05,
+    "release_s": 0.3,
+    "blend_s": 0.2,
+    "press_rad": 0.2,
+}
+"""``smooth_s``: time constant of the closure's and the angles' light running mean, s;
+``hold_s``: time constant of the intent posture's running mean during a grasp, s; ``band``:
+the hysteresis on the closure (palm sizes; 0.1 is about 9 mm of the distal points' mean
+distance on the default hand): a grasp releases when the closure opens this far above its
+running mean during the grasp; ``onset_margin``: a grasp starts when the tracked closure is
+at most this much above the physical hand's (palm sizes: the noise biases the tracked
+closure up by about 0.03 at 10 mm per axis); ``release_s``: seconds off every object that
+release a grasp; ``blend_s``: seconds over which the tracked angles come back after a
+release (from the intent posture); ``press_rad``: how far past its contact flexion a digit
+on the object is held during a grasp, rad (0: the intent posture instead)."""
+
+_PALM = np.array([0, 5, 9, 13, 17])
+_MCPS = np.array([5, 9, 13, 17])
+# Each digit's tip and the joint below it (thumb IP and tip, fingers DIP and tip).
+_DISTAL = np.array([3, 4, 7, 8, 11, 12, 15, 16, 19, 20])
+
+
+def hand_closure(keypoints: np.ndarray, palm_size_m: float | None = None) -> float:
+    """The hand's closure measure: distal keypoints' mean distance from the palm, in palm sizes.
+
+    Args:
+        keypoints: (21, 3) keypoints, metres, any frame; NaN rows for untracked points.
+        palm_size_m: the palm's size to divide by, metres (default: this frame's
+            :func:`palm_size_m`; a tracked hand's own is noisy, so the loop passes a running
+            mean of it).
+
+    Returns:
+        The mean distance of the present distal points (tips and the joints below them)
+        from the palm centre (mean of the wrist and the four finger MCPs), over the mean
+        wrist-to-MCP distance; smaller is more closed (about 0.9 to 1.3 for an open hand,
+        0.5 to 0.7 for a fist). NaN without the wrist, an MCP or at least 5 distal points.
+    """
+    kp = np.asarray(keypoints, dtype=np.float64)
+    palm = kp[_PALM]
+    if not np.all(np.isfinite(palm)):
+        return math.nan
+    centre = palm.mean(axis=0)
+    size = palm_size(kp) if palm_size_m is None else float(palm_size_m)
+    distal = kp[_DISTAL]
+    present = np.all(np.isfinite(distal), axis=1)
+    if present.sum() < 5 or size <= 0:
+        return math.nan
+    return float(np.mean(np.linalg.norm(distal[present] - centre, axis=1)) / size)
+
+
+def palm_size(keypoints: np.ndarray) -> float:
+    """The mean distance from the wrist to the four finger MCPs, metres (NaN if one is absent)."""
+    kp = np.asarray(keypoints, dtype=np.float64)
+    return float(np.mean(np.linalg.norm(kp[_MCPS] - kp[0], axis=1)))
+
+
+class GraspIntent:
+    """Per-hand grasp intent with hysteresis; while it grasps, the fingers follow the intent.
+
+    Args:
+        scene: the task's scene (``env.unwrapped.scene``, or one hand's view of a two-hand
+            scene): its ``model``, ``data``, ``hand``, ``binding`` and ``objects``.
+        dt_s: the control period, seconds.
+        smooth_s, hold_s, band, onset_margin, release_s, blend_s: see
+            :data:`INTENT_DEFAULTS`.
+
+    Raises:
+        InvalidFilter: a non-positive time or a negative band.
+    """
+
+    def __init__(
+        self,
+        scene: Any,
+        dt_s: float,
+        *,
+        smooth_s: float = INTENT_DEFAULTS["smooth_s"],
+        hold_s: float = INTENT_DEFAULTS["hold_s"],
+        band: float = INTENT_DEFAULTS["band"],
+        onset_margin: float = INTENT_DEFAULTS["onset_margin"],
+        release_s: float = INTENT_DEFAULTS["release_s"],
+        blend_s: float = INTENT_DEFAULTS["blend_s"],
+        press_rad: float = INTENT_DEFAULTS["press_rad"],
+    ) -> None:
+        self._binding = scene.binding
+        self._contacts = DigitContacts(scene)
+        dt = _positive("dt_s", dt_s)
+        self._alpha_fast = 1.0 - math.exp(-dt / _positive("smooth_s", smooth_s))
+        self._alpha_hold = 1.0 - math.exp(-dt / _positive("hold_s", hold_s))
+        self.band = _positive("band", band, zero_ok=True)
+        self.onset_margin = _positive("onset_margin", onset_margin, zero_ok=True)
+        # The tracked palm's size over about a second (one frame's is noisy).
+        self._alpha_size = 1.0 - math.exp(-dt / 1.0)
+        self._size = math.nan
+        self._release_steps = max(1, round(_positive("release_s", release_s) / dt))
+        self._blend_steps = max(1, round(_positive("blend_s", blend_s, zero_ok=True) / dt))
+        self.press_rad = _positive("press_rad", press_rad, zero_ok=True)
+        self._contact: list[np.ndarray | None] = [None] * len(DIGITS)
+        self.grasping = False
+        """The hand is in grasp intent now."""
+        self.grasp_steps = 0
+        """Control steps spent in grasp intent."""
+        self.onsets = 0
+        """Grasp onsets."""
+        self.releases = 0
+        """Releases (each follows an onset)."""
+        self.closure = math.nan
+        """The tracked hand's smoothed closure (:func:`hand_closure`)."""
+        self._mean: np.ndarray | None = None  # light running mean of the tracked angles
+        self._posture: np.ndarray | None = None  # the intent posture (running mean in grasp)
+        self._reference = math.nan  # the closure's running mean during the grasp
+        self._off = 0
+        self._blend = 0  # steps of the release blend left
+
+    def __call__(self, target: np.ndarray, tracked: np.ndarray | None, data: Any) -> np.ndarray:
+        """The 27-DoF target with the fingers from the intent while it grasps.
+
+        Args:
+            target: (27,) the retargeted (and pose-filtered) target of this step.
+            tracked: (21, 3) the tracked keypoints of this step, world frame, metres (NaN
+                rows untracked), or ``None`` (nothing received: the state holds).
+            data: the task's ``MjData`` after the last physics step.
+
+        Returns:
+            (27,) the target to apply; the wrist is ``target``'s.
+        """
+        out = np.array(target, dtype=np.float64)
+        angles = out[6:]
+        if self._mean is None:
+            self._mean = angles.copy()
+        else:
+            self._mean += self._alpha_fast * (angles - self._mean)
+        closure = math.nan
+        if tracked is not None:
+            size = palm_size(tracked)
+            if math.isfinite(size):
+                if math.isnan(self._size):
+                    self._size = size
+                self._size += self._alpha_size * (size - self._size)
+            if math.isfinite(self._size):
+                closure = hand_closure(tracked, self._size)
+        if math.isfinite(closure):
+            if math.isnan(self.closure):
+                self.closure = closure
+            else:
+                self.closure += self._alpha_fast * (closure - self.closure)
+        touching = self._contacts.touching(data)
+        if not self.grasping:
+            physical = hand_closure(self._binding.keypoints(data))
+            if touching[0] and touching[1:].any() and self.closure <= physical + self.onset_margin:
+                self.grasping = True
+                self.onsets += 1
+                self._posture = self._mean.copy()
+                self._reference = self.closure
+                self._contact = [None] * len(DIGITS)
+                self._off = 0
+                self._blend = 0
+        else:
+            self._off = 0 if touching.any() else self._off + 1
+            if math.isfinite(self.closure):
+                self._reference += self._alpha_hold * (self.closure - self._reference)
+            opened = self.closure > self._reference + self.band
+            if opened or self._off >= self._release_steps:
+                self.grasping = False
+                self.releases += 1
+                self._blend = self._blend_steps
+        if self.grasping:
+            assert self._posture is not None
+            self._posture += self._alpha_hold * (angles - self._posture)
+            out[6:] = self._posture
+            if self.press_rad > 0:
+                # A digit on the object presses past its contact posture by press_rad: its
+                # flexion comes from the contact, not from the noisy tracked angles.
+                physical = None
+                for d, flex in enumerate(_DIGIT_FLEX):
+                    if self._contact[d] is None and touching[d]:
+                        if physical is None:
+                            physical = self._binding.pose(data).angles
+                        self._contact[d] = physical[flex] + self.press_rad
+                    if self._contact[d] is not None:
+                        out[6:][flex] = self._contact[d]
+            self.grasp_steps += 1
+        elif self._blend > 0 and self._posture is not None:
+            # After a release the tracked angles return linearly from the intent posture.
+            w = self._blend / (self._blend_steps + 1)
+            out[6:] = w * self._posture + (1.0 - w) * angles
+            self._blend -= 1
+        return out
+
+
+def make_grasp_intent(scene: Any, dt_s: float, **params: float) -> GraspIntent:
+    """A :class:`GraspIntent` with ``params`` (keys of :data:`INTENT_DEFAULTS`).
+
+    Raises:
+        InvalidFilter: an unknown parameter or a value out of range.
+    """
+    unknown = sorted(set(params) - set(INTENT_DEFAULTS))
+    if unknown:
+        raise InvalidFilter(
+            f"grasp intent parameters {unknown} are not valid; choose from "
+            f"{', '.join(INTENT_DEFAULTS)}"
+        )
+    return GraspIntent(scene, dt_s, **params)
