@@ -330,7 +330,7 @@ class Scene:
 
         Args:
             hand_length_m: the new hand length, metres (the range of
-                :class:`~handsim.hand.model.HandParams`).
+                :class:`~handsim.hand.skeleton.HandParams`).
 
         Raises:
             InvalidScene: if the scene has no hand.

@@ -17,7 +17,7 @@ import numpy as np
 
 from handsim._validate import boolean, integer, real_array, real_scalar, show
 from handsim.errors import HandSimError
-from handsim.hand.model import HandParams
+from handsim.hand.skeleton import HandParams
 from handsim.world.camera import CameraIntrinsics, camera_preset, look_at_quat_wxyz
 from handsim.world.objects import YCBObject
 from handsim.world.registry import get_object
