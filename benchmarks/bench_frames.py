@@ -6,7 +6,7 @@ For 320x240 (ICVL) and 640x480 (NYU Carmine) it measures, in one run on one scen
 3 objects on the table, third-person camera):
 
 - ``plain``: ``mujoco.Renderer`` in depth mode (update_scene + render), the reference;
-- ``labelled``: :class:`handsim.frame.FrameRenderer` with no sensor noise (depth +
+- ``labelled``: :class:`handsim.frame.renderer.FrameRenderer` with no sensor noise (depth +
   segmentation + keypoint visibility + object poses, corners and visib_fract + contacts);
 - ``labelled_noisy``: the same with the structured-light model;
 - ``labelled_occlusion``: the same plus the hand occlusion ratio (one more render);

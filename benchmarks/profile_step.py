@@ -35,7 +35,7 @@ import numpy as np
 
 import handsim.envs  # noqa: F401 (registers the ids)
 from handsim.envs.physics import HandDriver
-from handsim.frame import _HIDDEN_GROUP, FrameRenderer
+from handsim.frame.renderer import _HIDDEN_GROUP, FrameRenderer
 from handsim.world.render import RENDERED_GEOM_GROUPS, DepthRenderer
 
 _ENVS = {

@@ -4,8 +4,8 @@
 (:class:`EnvConfig`), builds a :class:`~handsim.world.Scene` per episode (rebuilt only when the
 hand or the object list changes; object placements and camera poses are written into the
 compiled model), steps MuJoCo ``frame_skip`` times per action, renders one labelled
-:class:`~handsim.frame.Frame` per step and splits it: images into the observation, labels into
-``info["labels"]`` (the Frame's label arrays, :func:`~handsim.data.arrays.frame_to_arrays`).
+:class:`~handsim.frame.record.Frame` per step and splits it: images into the observation, labels
+into ``info["labels"]`` (the Frame's label arrays, :func:`~handsim.data.arrays.frame_to_arrays`).
 The Frame itself is :attr:`HandSimEnv.frame`.
 
 Control (``control_mode``):
@@ -206,7 +206,7 @@ class HandSimEnv(gym.Env, abc.ABC):
     diverged step (so Minari's ``DataCollector(record_infos=True)`` records it):
     ``time_s``, ``target_pose`` (27,), ``physics_diverged``, every ``reward_*`` term of the
     ``reward_type`` (0 at reset and on divergence), the task's keys and, when ``labels`` is on,
-    ``labels``: the step's :class:`~handsim.frame.Frame` as arrays
+    ``labels``: the step's :class:`~handsim.frame.record.Frame` as arrays
     (:data:`~handsim.data.arrays.LABEL_SCHEMA`; the invalid fill with ``valid = False`` on a
     diverged step). The Frame itself (with its images) is :attr:`frame` (``None`` without
     labels or after a divergence); with ``labels`` off no label work is done, and in the state

@@ -8,7 +8,7 @@ expert acts on the estimate), on the same seeds. It reports, per mode:
 - per-frame estimation errors: mean keypoint error, F(tau) of the max keypoint error and its
   AUC over 0-80 mm (:mod:`handsim.metrics`), hand-centre error, and the mean keypoint error by
   occlusion bucket, where a frame's occlusion is the fraction of its 21 keypoints that are not
-  visible (:attr:`handsim.frame.Frame.visible`), in buckets [0, 0.25), [0.25, 0.5),
+  visible (:attr:`handsim.frame.record.Frame.visible`), in buckets [0, 0.25), [0.25, 0.5),
   [0.5, 0.75), [0.75, 1];
 - task success: the fraction of episodes with ``info["is_success"]`` at their end (an episode
   whose expert finds no plan for the perceived state, e.g. no collision-free grasp for a noisy

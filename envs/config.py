@@ -54,7 +54,7 @@ RENDER_QUALITIES: tuple[str, ...] = ("fast", "high")
 cost of a software-rendered colour image); ``"high"`` lets one light cast shadows, with a shadow
 map about half the image size."""
 SKIN_DETAILS: tuple[str, ...] = ("auto", "full")
-"""``skin_detail`` values (:class:`~handsim.frame.FrameRenderer`)."""
+"""``skin_detail`` values (:class:`~handsim.frame.renderer.FrameRenderer`)."""
 _HAS_DISPLAY = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 RENDER_MODES: tuple[str, ...] = ("rgb_array", "depth_array", "depth_rgb_array") + (
     ("human",) if _HAS_DISPLAY else ()
@@ -185,7 +185,8 @@ class EnvConfig:
         frame_skip: physics steps per action (control period = ``frame_skip * 0.002`` s).
         render_mode: ``None``, ``"rgb_array"``, ``"depth_array"``, ``"depth_rgb_array"`` or
             (only with a display) ``"human"``.
-        labels: render and label a :class:`~handsim.frame.Frame` every step (``info["labels"]``);
+        labels: render and label a :class:`~handsim.frame.record.Frame` every step
+            (``info["labels"]``);
             default ``True`` for modes with images, ``False`` for ``"state"`` and
             ``"privileged_state"`` (nothing is rendered then).
         width: observation image width, pixels (default: the camera preset's); the camera
@@ -205,7 +206,7 @@ class EnvConfig:
         skin_detail: the hand skin's level of detail in depth frames (``"full"``, default:
             always the full skin, as the ``-v0`` envs have drawn it; ``"auto"``: the coarse
             skin for small projected hands, 1.2-1.4x faster steps; see
-            :class:`~handsim.frame.FrameRenderer`).
+            :class:`~handsim.frame.renderer.FrameRenderer`).
 
     The episode length is Gymnasium's: ``gym.make(id, max_episode_steps=N)`` (defaults in
     :mod:`handsim.envs`).

@@ -96,8 +96,8 @@ class EstimatorLoop(gym.Wrapper):
     right-hand frame) is told the side of the episode's hand at every reset, as a real system
     knows which hand it tracks. ``info`` then holds:
 
-    - ``"frame"``: the :class:`~handsim.frame.Frame` the estimate is scored against, without its
-      images (``None`` on a diverged step);
+    - ``"frame"``: the :class:`~handsim.frame.record.Frame` the estimate is scored against,
+      without its images (``None`` on a diverged step);
     - ``"estimate"``: the :class:`~handsim.estimator.Estimate`;
     - ``"estimate_errors"``: :func:`~handsim.estimator.estimate_errors` of it (mm; NaN when not
       computable, e.g. an invalid estimate);

@@ -2,7 +2,7 @@
 
 It answers "what does an estimator with X mm of error do to the task?" without training one.
 It is a :class:`~handsim.estimator.PrivilegedEstimator`: the closed-loop wrapper calls
-``observe_truth(frame)`` with the step's ground-truth :class:`~handsim.frame.Frame` and then
+``observe_truth(frame)`` with the step's ground-truth :class:`~handsim.frame.record.Frame` and then
 ``predict(depth, K)``, whose depth is ignored. ``predict`` before any ``observe_truth`` of the
 episode raises :class:`~handsim.errors.EstimatorStateError`.
 

@@ -38,15 +38,7 @@ from handsim.estimator import (
 from handsim.frame import Frame, FrameRenderer, ObjectLabel
 from handsim.hand.keypoints import KEYPOINT_NAMES
 from handsim.hand.kinematics import ForwardKinematics
-from handsim.hand.model import (
-    HAND_PHYSICS_OPTIONS,
-    HAND_SIZES,
-    Hand,
-    HandBinding,
-    HandParams,
-    build_skeleton,
-    hand_params,
-)
+from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandBinding
 from handsim.hand.pose import (
     JOINT_LIMITS,
     JOINT_LIMITS_DEG,
@@ -67,6 +59,7 @@ from handsim.hand.pose_sources import (
     synergy_basis,
 )
 from handsim.hand.retarget import Retargeter, RetargetResult
+from handsim.hand.skeleton import HAND_SIZES, HandParams, build_skeleton, hand_params
 from handsim.metrics import (
     evaluate_dexter_object,
     evaluate_hand_poses,

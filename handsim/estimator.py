@@ -10,7 +10,8 @@ imports the other. It imports neither torch nor the envs nor the estimators.
 - :class:`PrivilegedEstimator`: an :class:`Estimator` that also reads the ground truth
   (``observe_truth(frame)``); only oracles implement it.
 - :func:`hand_center`: THE hand centre used by estimates, estimators and errors.
-- :func:`estimate_errors`: per-frame errors of an estimate against a :class:`~handsim.frame.Frame`.
+- :func:`estimate_errors`: per-frame errors of an estimate against a
+  :class:`~handsim.frame.record.Frame`.
 - :class:`EstimatorBase`, :func:`validate_depth_input`, :func:`validate_batch_input`: helpers
   for implementations.
 
@@ -152,7 +153,7 @@ class Estimate:
             (a hand localizer, an object-only estimator).
         center_cam: (3,) hand centre (:func:`hand_center`), metres, camera frame; ``None``
             if not estimated.
-        object_poses: object instance index (as in :attr:`handsim.frame.Frame.objects`) ->
+        object_poses: object instance index (as in :attr:`handsim.frame.record.Frame.objects`) ->
             (4, 4) ``T_cam_from_obj``, metres; empty if no object is estimated.
         confidence: (21,) per-keypoint confidence in ``[0, 1]``, or ``None``; needs
             ``keypoints_cam``.
@@ -274,7 +275,7 @@ class PrivilegedEstimator(Estimator, Protocol):
 
     Only oracles implement it (e.g. :class:`handsim.estimators.oracle.OracleEstimator`). The
     closed-loop wrapper checks ``isinstance(estimator, PrivilegedEstimator)`` and, if so, calls
-    ``observe_truth(frame)`` with the step's ground-truth :class:`~handsim.frame.Frame`
+    ``observe_truth(frame)`` with the step's ground-truth :class:`~handsim.frame.record.Frame`
     immediately before ``predict`` on the same step. Learned and classical estimators never
     see the truth.
     """
@@ -493,7 +494,7 @@ def estimate_errors(
 
     Args:
         estimate: the estimate of ``frame``'s depth.
-        frame: the ground truth (:class:`~handsim.frame.Frame`).
+        frame: the ground truth (:class:`~handsim.frame.record.Frame`).
         objects: the object models by instance (``[obj for _, obj in scene.objects]``);
             default: the built-in object of each instance's name (imported meshes need this).
 

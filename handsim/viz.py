@@ -283,8 +283,8 @@ def draw_skeleton(
         image: (H, W, 3) uint8 BGR image.
         keypoints_px: (21, 2) pixels ``(u, v)``.
         visible: (21,) bool per keypoint, or ``None``.
-        occluder: (21,) int per keypoint (:data:`handsim.frame.OCCLUDER_SELF` for the hand,
-            anything else but :data:`handsim.frame.OCCLUDER_NONE` for an object), or ``None``
+        occluder: (21,) int per keypoint (:data:`handsim.frame.record.OCCLUDER_SELF` for the hand,
+            anything else but :data:`handsim.frame.record.OCCLUDER_NONE` for an object), or ``None``
             (hidden keypoints are then drawn as hidden by an object).
         colour: BGR colour of bones and visible keypoints.
         thickness: bone thickness, pixels.
@@ -422,7 +422,7 @@ def draw_frame_panels(
     """A Frame as two panels: depth with its scale bar | segmentation with the skeleton.
 
     Args:
-        frame: a rendered :class:`~handsim.frame.Frame` with its images.
+        frame: a rendered :class:`~handsim.frame.record.Frame` with its images.
         near_m: near end of the depth colour map, metres (default: from the image).
         far_m: far end of the depth colour map, metres.
 
@@ -452,7 +452,7 @@ def draw_frame(frame: Frame) -> np.ndarray:
     and yellow when the hand hides itself. :func:`frame_legend` draws the key.
 
     Args:
-        frame: a rendered :class:`~handsim.frame.Frame`.
+        frame: a rendered :class:`~handsim.frame.record.Frame`.
 
     Returns:
         (H, W, 3) uint8 BGR image.

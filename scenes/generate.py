@@ -336,8 +336,8 @@ file.
 Derivation:
 
 1. `Hand(HandParams(side=side))` builds the parametric hand with `mujoco.MjSpec`
-   (segment lengths from Buchholz et al. 1992, joint limits and gains in
-   `handsim/hand/model.py`).
+   (segment lengths from Buchholz et al. 1992 in `handsim/hand/skeleton.py`, joint limits and
+   gains in `handsim/hand/model.py`).
 2. `Hand.save()` attaches it to an empty spec with the `rh_`/`lh_` prefix and writes it at
    full precision, the skin meshes as OBJ under `assets/` (`handsim.world.mjcf.save_spec`).
 3. Keyframes: `HandBinding.set_pose` of each gesture; `qpos`, `ctrl` and the mocap pose are

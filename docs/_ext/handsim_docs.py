@@ -3,7 +3,8 @@
 - ``.. handsim-submodules:: PACKAGE``: one section with ``automodule`` per public submodule of
   the package (found by ``pkgutil``, so a new module is documented without editing a page), in
   the order of the ``:order:`` option, then alphabetically; modules named in
-  ``:docstring-only:`` (facades that re-export) show their docstring without members.
+  ``:docstring-only:`` (facades that re-export) show their docstring without members; names
+  that a module's ``__all__`` imports from elsewhere are left to the module that defines them.
 - ``.. handsim-exports::``: a table of the names that ``import handsim`` re-exports, each linked
   to the module that defines it (generated from ``handsim.__all__``, so it never goes stale).
 - Links from a Markdown page to a file or folder of the repo outside ``docs/`` (``../README.md``,
@@ -16,6 +17,7 @@
 
 from __future__ import annotations
 
+import ast
 import importlib
 import inspect
 import pkgutil
@@ -33,8 +35,21 @@ from sphinx.util.nodes import nested_parse_with_titles
 _UNDERLINE = re.compile(r"^([-=~^\"'`#*+])\1{2,}\s*$")
 
 
+def _reexports(module: str) -> set[str]:
+    """Names of ``module.__all__`` that it imports from another module rather than defines."""
+    mod = importlib.import_module(module)
+    tree = ast.parse(inspect.getsource(mod))
+    imported = {
+        alias.asname or alias.name.split(".")[0]
+        for node in tree.body
+        if isinstance(node, ast.Import | ast.ImportFrom)
+        for alias in node.names
+    }
+    return imported & set(getattr(mod, "__all__", ()))
+
+
 def _defining_module(name: str, obj: object) -> str:
-    """The module whose ``__all__`` defines ``name`` (not a package that re-exports it)."""
+    """The module whose ``__all__`` defines ``name`` (not a package or module re-exporting it)."""
     module = getattr(obj, "__module__", None)
     if module and module.startswith("handsim") and inspect.getmodule(obj) is not None:
         if isinstance(obj, type) or inspect.isfunction(obj):
@@ -45,7 +60,7 @@ def _defining_module(name: str, obj: object) -> str:
         if info.ispkg or info.name.endswith("__main__"):
             continue
         mod = importlib.import_module(info.name)
-        if name in getattr(mod, "__all__", ()):
+        if name in getattr(mod, "__all__", ()) and name not in _reexports(info.name):
             return info.name
     raise LookupError(f"handsim.{name} is defined in no handsim module's __all__")
 
@@ -91,6 +106,11 @@ class HandsimSubmodules(SphinxDirective):
             # documented where defined.
             if not found[module] and module not in facades:
                 lines += ["   :members:", "   :show-inheritance:"]
+                # Names a module re-exports (kept importable after a split) are documented
+                # where defined.
+                reexports = sorted(_reexports(module))
+                if reexports:
+                    lines.append(f"   :exclude-members: {', '.join(reexports)}")
             lines.append("")
         container = nodes.section()
         source = StringList(lines, f"submodules of {package}")

@@ -190,7 +190,7 @@ def frame_to_arrays(frame: Frame, *, images: bool = False) -> dict[str, np.ndarr
     """The flat array form of a Frame (:data:`LABEL_SCHEMA`; images on request).
 
     Args:
-        frame: a rendered :class:`~handsim.frame.Frame`.
+        frame: a rendered :class:`~handsim.frame.record.Frame`.
         images: also return ``depth``, ``segmentation`` and (if present) ``depth_clean``.
 
     Returns:
@@ -292,7 +292,7 @@ def arrays_to_frame(
     Raises:
         InvalidLabelArrays: if the arrays do not follow the schema or ``valid`` is False.
     """
-    from handsim.frame import Contact, Frame, ObjectLabel, _read_only
+    from handsim.frame.record import Contact, Frame, ObjectLabel, _read_only
     from handsim.world.registry import OBJECTS
 
     arrays = fill_added_labels(dict(arrays))

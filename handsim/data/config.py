@@ -338,7 +338,7 @@ class GenerationConfig:
             (:data:`SKIN_DETAILS`; the warp backend draws the full skin): ``"full"`` (default)
             always the full skin; ``"auto"`` the coarse skin (a quarter of the triangles) when
             its deviation from the skin's surface projects to under a pixel, i.e. for small
-            projected hands (:class:`~handsim.frame.FrameRenderer`), for cheaper frames.
+            projected hands (:class:`~handsim.frame.renderer.FrameRenderer`), for cheaper frames.
             Recorded with the dataset.
     """
 

@@ -343,8 +343,8 @@ class ShardWriter:
         """Add one frame.
 
         Args:
-            arrays: :meth:`Frame.to_arrays(images=True) <handsim.frame.Frame.to_arrays>` of the
-                frame (every label, ``depth`` and ``segmentation``; ``depth_clean`` when the
+            arrays: :meth:`Frame.to_arrays(images=True) <handsim.frame.record.Frame.to_arrays>`
+                of the frame (every label, ``depth`` and ``segmentation``; ``depth_clean`` when the
                 writer keeps paired depth).
             episode: the frame's episode index.
             step: the frame's step index in its episode.

@@ -16,10 +16,11 @@ same whatever the batch size or device; it is not the OpenGL backend's shard.
 
 Labels. On the device, batched over the launch's worlds: each pixel's geom id, the camera's
 working range and the segmentation label (:func:`render_labels`). Each image then goes
-through the OpenGL path's own labelling (:meth:`~handsim.frame.FrameRenderer.render` with the
-image handed in instead of drawn), on the host: keypoint projection, visibility and occluder,
-sensor noise. A hand alone has no objects, so no object silhouettes and no hand occlusion
-ratio (0) are needed: the second render without occluders the OpenGL path makes for them does
+through the OpenGL path's own labelling
+(:meth:`~handsim.frame.renderer.FrameRenderer.render` with the image handed in instead of
+drawn), on the host: keypoint projection, visibility and occluder, sensor noise. A hand alone
+has no objects, so no object silhouettes and no hand occlusion ratio (0) are needed: the
+second render without occluders the OpenGL path makes for them does
 not arise here. What would move to the device next: the noise models and the keypoint
 visibility kernel (per-pixel, per-world).
 
@@ -296,7 +297,7 @@ class WarpKinematicSource(KinematicSource):
     def label(
         self, scene, renderer, candidate: _Candidate, image: tuple[np.ndarray, np.ndarray]
     ) -> object:  # noqa: ANN001
-        """The :class:`~handsim.frame.Frame` of a candidate from its image.
+        """The :class:`~handsim.frame.record.Frame` of a candidate from its image.
 
         ``image``: ``(depth_m, labels)`` of :func:`render_labels`.
         """

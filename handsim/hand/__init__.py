@@ -3,7 +3,8 @@
 =======================  ==========================================================================
 module                   holds
 =======================  ==========================================================================
-:mod:`.model`            :class:`HandParams`, :class:`Hand` (MJCF via ``mujoco.MjSpec``), bindings
+:mod:`.skeleton`         :class:`HandParams`, presets, the kinematic :class:`Skeleton` (anatomy)
+:mod:`.model`            :class:`Hand` (MJCF via ``mujoco.MjSpec``), :class:`HandBinding`
 :mod:`.pose`             :class:`HandPose`, the 27-vector, joint names and limits
 :mod:`.kinematics`       NumPy forward kinematics of the 21 keypoints (batched)
 :mod:`.retarget`         21 keypoints of any hand size to a 27-DoF pose
@@ -14,16 +15,7 @@ module                   holds
 
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, from_format, to_format
 from handsim.hand.kinematics import ForwardKinematics
-from handsim.hand.model import (
-    HAND_PHYSICS_OPTIONS,
-    HAND_SIZES,
-    Hand,
-    HandBinding,
-    HandParams,
-    Skeleton,
-    build_skeleton,
-    hand_params,
-)
+from handsim.hand.model import HAND_PHYSICS_OPTIONS, Hand, HandBinding
 from handsim.hand.pose import (
     JOINT_LIMITS,
     JOINT_LIMITS_DEG,
@@ -33,6 +25,7 @@ from handsim.hand.pose import (
     LimitViolation,
 )
 from handsim.hand.retarget import Retargeter, RetargetResult
+from handsim.hand.skeleton import HAND_SIZES, HandParams, Skeleton, build_skeleton, hand_params
 
 __all__ = [
     "FORMATS",

@@ -192,7 +192,7 @@ EXTRA_POINT_RULES: Mapping[str, Mapping[str, float]] = MappingProxyType(
 """Each extra point as an affine combination of canonical points (weights sum to 1).
 
 The wrist and the MCPs are fixed in the palm, so these points are too: the hand's sites sit
-exactly where the rules put them (:func:`handsim.hand.model.extra_point_positions`), and
+exactly where the rules put them (:func:`handsim.hand.skeleton.extra_point_positions`), and
 :func:`to_format` gives the same positions from the 21 keypoints as from the sites.
 """
 

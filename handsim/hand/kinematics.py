@@ -11,8 +11,8 @@ import numpy as np
 
 from handsim.errors import InvalidPose
 from handsim.hand.keypoints import EXTRA_POINT_NAMES
-from handsim.hand.model import HandParams, Skeleton, build_skeleton, extra_point_positions
 from handsim.hand.pose import HandPose
+from handsim.hand.skeleton import HandParams, Skeleton, build_skeleton, extra_point_positions
 
 __all__ = ["ForwardKinematics", "axis_angle_matrices"]
 

@@ -54,7 +54,6 @@ import numpy as np
 
 from handsim.errors import InvalidKeypoints, InvalidPose
 from handsim.hand.kinematics import ForwardKinematics
-from handsim.hand.model import HandParams, Skeleton
 from handsim.hand.pose import (
     DIGITS,
     JOINT_LIMITS,
@@ -63,6 +62,7 @@ from handsim.hand.pose import (
     HandPose,
     LimitViolation,
 )
+from handsim.hand.skeleton import HandParams, Skeleton
 
 __all__ = ["Retargeter", "RetargetResult", "BONES"]
 

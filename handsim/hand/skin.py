@@ -1,7 +1,7 @@
 """The hand's skin: one smooth closed mesh per rigid segment, built from :class:`HandParams`.
 
 What a depth camera sees of the hand (:attr:`HandParams.surface` ``"skin"``, the default).
-Collision stays the primitives of :func:`~handsim.hand.model.build_skeleton`; the skin is drawn
+Collision stays the primitives of :func:`~handsim.hand.skeleton.build_skeleton`; the skin is drawn
 instead of the capsule look (``surface="capsules"``).
 
 Why per-part rigid meshes and not MuJoCo's ``<skin>`` (linear-blend skinning): every body carries
@@ -40,7 +40,7 @@ Black 2017, "Embodied Hands", ACM TOG 36:245); finger sections 10 % wider than d
 pads 12 % [estimate]; forearm 0.30 hand length broad and 0.18 deep at the wrist, 0.36 by 0.25 at
 the stub's end 0.55 hand length up the forearm [estimate].
 
-All geometry is in the body frames of :class:`~handsim.hand.model.Skeleton` (metres; hand frame
+All geometry is in the body frames of :class:`~handsim.hand.skeleton.Skeleton` (metres; hand frame
 ``+x`` radial, ``+y`` distal, ``+z`` palmar for the right hand); a left hand is the mirror image
 (``x -> -x``) of the right one.
 """
@@ -74,7 +74,7 @@ __all__ = [
 ]
 
 SURFACES: tuple[str, ...] = ("skin", "capsules")
-"""Valid values of :attr:`HandParams.surface <handsim.hand.model.HandParams.surface>`."""
+"""Valid values of :attr:`HandParams.surface <handsim.hand.skeleton.HandParams.surface>`."""
 
 # Width / depth of the phalanx sections and of the fingertip pad [estimate].
 _WIDTH_RATIO = 1.10
@@ -114,7 +114,7 @@ class SkinPart:
     """The skin of one rigid body.
 
     Attributes:
-        body: index of the body in :attr:`Skeleton.bodies <handsim.hand.model.Skeleton.bodies>`.
+        body: index of the body in :attr:`Skeleton.bodies <handsim.hand.skeleton.Skeleton.bodies>`.
         vertices: (V, 3) float64 vertex positions in the body frame, metres.
         faces: (F, 3) int32 triangles, counter-clockwise seen from outside.
         sdf: signed distance of (N, 3) body-frame points to this part's surface, metres,
@@ -507,7 +507,7 @@ def _segment_kind(name: str) -> str:
 
 @functools.lru_cache(maxsize=64)  # a 2 mm grid of lengths over 0.15-0.22 m is 36
 def _right_parts(params, detail: str = "full") -> tuple[SkinPart, ...]:
-    from handsim.hand.model import build_skeleton  # noqa: PLC0415 (model imports this module)
+    from handsim.hand.skeleton import build_skeleton  # noqa: PLC0415 (it imports this module)
 
     skeleton = build_skeleton(dataclasses.replace(params, side="right", surface="capsules"))
     bodies = skeleton.bodies
@@ -567,13 +567,13 @@ def build_skin(params, detail: str = "full") -> tuple[SkinPart, ...]:
     """The skin of a hand, one part per body (cached per parameters).
 
     Args:
-        params: hand parameters (:class:`~handsim.hand.model.HandParams`); ``surface`` is
+        params: hand parameters (:class:`~handsim.hand.skeleton.HandParams`); ``surface`` is
             ignored.
         detail: level of detail (:data:`SKIN_DETAILS`): the same surface sampled more or less
             finely; every level's parts share the bodies, so they pose alike.
 
     Returns:
-        One :class:`SkinPart` per body of :func:`~handsim.hand.model.build_skeleton`, in body
+        One :class:`SkinPart` per body of :func:`~handsim.hand.skeleton.build_skeleton`, in body
         order (the palm, with the forearm stub, first). Arrays are read-only.
 
     Raises:
@@ -843,7 +843,7 @@ def forearm_extension(params) -> tuple[np.ndarray, np.ndarray]:
     a few hundred triangles (the palm's skin has about 16 000).
 
     Args:
-        params: hand parameters (:class:`~handsim.hand.model.HandParams`).
+        params: hand parameters (:class:`~handsim.hand.skeleton.HandParams`).
 
     Returns:
         (V, 3) float64 vertices in the palm frame, metres, and (F, 3) int32 faces,

@@ -63,7 +63,7 @@ class CameraIntrinsics:
         name: preset name, for reports.
         range_m: ``(near, far)`` working range of the sensor along the optical axis, metres.
             Surfaces outside it give no depth (0), as on the real sensor: the render's far
-            clip plane is ``far`` and :class:`~handsim.frame.FrameRenderer` drops surfaces
+            clip plane is ``far`` and :class:`~handsim.frame.renderer.FrameRenderer` drops surfaces
             nearer than ``near``. Presets carry their sensor's published range; the default
             is a generic 0.1-10 m.
     """

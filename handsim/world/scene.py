@@ -320,7 +320,7 @@ class Scene:
         of milliseconds for a new scene (and about 0.15 s for a new length's skin).
 
         Renderers made before the call draw the rescaled skin from their next frame on
-        (:class:`~handsim.frame.FrameRenderer` does it itself, scaling the skin it uploaded
+        (:class:`~handsim.frame.renderer.FrameRenderer` does it itself, scaling the skin it uploaded
         as it draws; a bare :class:`~handsim.world.render.DepthRenderer` needs
         :meth:`~handsim.world.render.DepthRenderer.upload_meshes` with :attr:`hand_mesh_ids`,
         or :meth:`~handsim.world.render.DepthRenderer.scale_geoms`). Masses, inertias and
@@ -330,7 +330,7 @@ class Scene:
 
         Args:
             hand_length_m: the new hand length, metres (the range of
-                :class:`~handsim.hand.model.HandParams`).
+                :class:`~handsim.hand.skeleton.HandParams`).
 
         Raises:
             InvalidScene: if the scene has no hand.

@@ -17,7 +17,7 @@ import numpy as np
 
 from handsim._validate import boolean, integer, real_array, real_scalar, show
 from handsim.errors import HandSimError
-from handsim.hand.model import HandParams
+from handsim.hand.skeleton import HandParams
 from handsim.world.camera import CameraIntrinsics, camera_preset, look_at_quat_wxyz
 from handsim.world.objects import YCBObject
 from handsim.world.registry import get_object
@@ -336,13 +336,13 @@ class SceneSpec:
         hands: two hands at once (or one), e.g. ``(hand_params("medium", "right"),
             hand_params("medium", "left"))``: one of each side at most (every MJCF name of a
             hand carries its side's prefix, ``rh_`` or ``lh_``, so they stay unique). The
-            first is :attr:`hand`, the hand a :class:`~handsim.frame.Frame` labels. ``None``
+            first is :attr:`hand`, the hand a :class:`~handsim.frame.record.Frame` labels. ``None``
             (default): the one hand of :attr:`hand`.
         skin_lod: also build the skin's coarse level of detail (default: no; each hand with
             ``surface="skin"``): one more mesh geom per hand body, ``<side>_<body>_visual_1``
             in geom group :data:`~handsim.world.scene.SKIN_LOD_GROUP` (no camera draws it by
-            default), which a :class:`~handsim.frame.FrameRenderer` draws instead of the skin
-            for small projected hands. Drawn only (no contact, no mass): physics is the same
+            default), which a :class:`~handsim.frame.renderer.FrameRenderer` draws instead of the
+            skin for small projected hands. Drawn only (no contact, no mass): physics is the same
             without it.
     """
 

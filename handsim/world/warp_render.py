@@ -19,8 +19,8 @@ The geom ids become depth, ids or segmentation labels on the device (one kernel 
 world's pixels), so only the final images are read back.
 
 :class:`WarpSceneRenderer` is :class:`~handsim.world.render.DepthRenderer`'s interface on one
-Warp world: a :class:`~handsim.frame.FrameRenderer` renders through it with its own label code
-(the hand occlusion ratio's and the silhouettes' renders included).
+Warp world: a :class:`~handsim.frame.renderer.FrameRenderer` renders through it with its own
+label code (the hand occlusion ratio's and the silhouettes' renders included).
 """
 
 from __future__ import annotations
@@ -349,7 +349,7 @@ class WarpDepthRenderer:
 class WarpSceneRenderer:
     """:class:`~handsim.world.render.DepthRenderer`'s interface on MuJoCo Warp, one world.
 
-    A stand-in for the OpenGL renderer of a :class:`~handsim.frame.FrameRenderer` (its
+    A stand-in for the OpenGL renderer of a :class:`~handsim.frame.renderer.FrameRenderer` (its
     ``renderer``), so that every label is made by the same code as on the OpenGL path: the
     hand occlusion ratio's render with the objects hidden, the objects' silhouettes on BOP's
     canvas. It follows the model as the OpenGL renderer does:

@@ -360,7 +360,7 @@ def test_visible_sensor_says_where_the_sensor_returned_the_keypoint():
 
 def test_a_keypoint_is_visible_only_on_its_own_part():
     """Every visible keypoint's pixel (or a neighbour) shows its own hand part near its depth."""
-    from handsim.frame import _NEIGHBOURS, _keypoint_parts
+    from handsim.frame.renderer import _NEIGHBOURS, _keypoint_parts
 
     scene = Scene(SceneSpec())
     parts = _keypoint_parts(scene)
@@ -643,3 +643,14 @@ def test_a_frame_renderer_draws_through_the_renderer_it_is_given():
         b = through.render(np.random.default_rng(0))
     np.testing.assert_array_equal(a.depth, b.depth)
     np.testing.assert_array_equal(a.segmentation, b.segmentation)
+
+
+def test_the_package_exports_the_record_and_the_renderer():
+    """``handsim.frame`` exports what its two modules define: the same objects."""
+    import handsim.frame
+    from handsim.frame import record, renderer
+
+    assert set(handsim.frame.__all__) == set(record.__all__) | set(renderer.__all__)
+    for module in (record, renderer):
+        for name in module.__all__:
+            assert getattr(handsim.frame, name) is getattr(module, name), name

@@ -491,3 +491,16 @@ def test_hands_of_the_same_parameters_compile_to_the_same_model():
         np.testing.assert_array_equal(getattr(first, field), getattr(second, field), err_msg=field)
     other = Hand(hand_params(0.161, "left")).compile()
     assert not np.array_equal(first.actuator_gainprm, other.actuator_gainprm)
+
+
+def test_the_skeleton_names_stay_importable_from_the_model():
+    """``handsim.hand.model`` still exports the skeleton's names: the same objects."""
+    from handsim.hand import model, skeleton
+
+    assert set(model.__all__) == {
+        "HandParams", "HAND_SIZES", "Skeleton", "SkeletonBody", "Capsule", "Box",
+        "build_skeleton", "Hand", "HandBinding", "ACTUATOR_GAINS", "FINGER_OMEGA",
+        "HAND_PHYSICS_OPTIONS", "hand_params", "FOREARM_GEOM", "UPPER_ARM_GEOM",
+    }  # fmt: skip
+    for name in (*skeleton.__all__, "HAND_LENGTH_RANGE_M"):
+        assert getattr(model, name) is getattr(skeleton, name), name
