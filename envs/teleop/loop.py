@@ -8,7 +8,7 @@ Per control step of the task env (``obs_mode="state"``: the task itself renders 
    its own (the task's objects mirrored into it every step, so they occlude it; nothing in it
    collides with the task), is posed from the stream (27-DoF poses directly; keypoint streams
    are first retargeted onto it) and rendered by the capture camera with the sensor model
-   (:class:`~handsim.frame.FrameRenderer`, 320 x 240 ICVL by default).
+   (:class:`~handsim.frame.renderer.FrameRenderer`, 320 x 240 ICVL by default).
 3. **estimator** (``mode="camera"``): any :class:`~handsim.estimator.Estimator` estimates the
    keypoints from that depth (a :class:`~handsim.estimator.PrivilegedEstimator` such as the
    oracle first receives the frame's truth); the estimate goes to the world frame. In
