@@ -89,6 +89,7 @@ class RefinedLocalizer(EstimatorBase):
         from handsim.estimators.com import CenterOfMassLocalizer
 
         from .checkpoint import InvalidCheckpoint, load_model
+        from .models import inference_forward
 
         if detector not in DETECTORS:
             raise InvalidCheckpoint(
@@ -102,6 +103,7 @@ class RefinedLocalizer(EstimatorBase):
         self.cube_m, self.size = CUBE_M, 64
         if checkpoint is not None:
             self.model, config = load_model(checkpoint, device)
+            self._forward = inference_forward(self.model)
             self.cube_m = float(config["cube_m"])
             self.size = int(config["model"]["size"])
         self.checkpoint = None if checkpoint is None else str(checkpoint)
@@ -113,8 +115,22 @@ class RefinedLocalizer(EstimatorBase):
         )
 
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
-        """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
-        return self.refine_batch([depth_m], K[None], np.asarray(center, np.float64)[None])[0]
+        """Apply the refinement CNN ``iterations`` times from ``center`` (metres).
+
+        The same arithmetic as :meth:`refine_batch` for one frame, without its batching.
+        """
+        import torch
+
+        c = np.array(center, dtype=np.float64)
+        if self.model is None:
+            return c
+        with torch.inference_mode():
+            for _ in range(self.iterations):
+                M = crop_matrix(c, K, self.cube_m, self.size)  # noqa: N806
+                x = crop_depth(depth_m, M, c[2], self.cube_m, self.size)
+                off = self._forward(_as_input(x[None, None], self.device))
+                c += off[0].double().cpu().numpy() * (self.cube_m / 2.0)
+        return c
 
     def refine_batch(
         self,
@@ -156,7 +172,7 @@ class RefinedLocalizer(EstimatorBase):
                     ]
                 )
                 with torch.inference_mode():
-                    off = self.model(_as_input(x[:, None], self.device))
+                    off = self._forward(_as_input(x[:, None], self.device))
                 c[start : idx.stop] += off.double().cpu().numpy() * (self.cube_m / 2.0)
         return c
 
@@ -217,6 +233,7 @@ class DeepPriorEstimator(EstimatorBase):
         import torch
 
         from .checkpoint import InvalidCheckpoint, load_model
+        from .models import inference_forward
 
         if canonical_side is not None and not isinstance(canonical_side, bool):
             raise InvalidCheckpoint(
@@ -229,6 +246,7 @@ class DeepPriorEstimator(EstimatorBase):
         self.checkpoint = str(checkpoint)
         self.device = device
         self.model, config = load_model(checkpoint, device)
+        self._forward = inference_forward(self.model)
         self.cube_m = float(config["cube_m"])
         self.size = int(config["model"]["size"])
         stored = config.get("canonical_side", False)
@@ -283,7 +301,7 @@ class DeepPriorEstimator(EstimatorBase):
         M = crop_matrix(center, K, self.cube_m, self.size)  # noqa: N806
         x = crop_depth(depth_m, M, center[2], self.cube_m, self.size)
         with torch.inference_mode():
-            y = self.model(_as_input(x[None, None], self.device))
+            y = self._forward(_as_input(x[None, None], self.device))
         return denormalize_keypoints(
             y[0].double().cpu().numpy().reshape(21, 3), center, self.cube_m
         )

@@ -13,6 +13,7 @@ from handsim.estimators.deepprior.models import (
     Localizer,
     PriorLayer,
     build_model,
+    inference_forward,
 )
 from handsim.estimators.deepprior.preprocess import fit_pca
 
@@ -181,3 +182,32 @@ def test_a_broken_checkpoint_is_refused_naming_it(tmp_path, damage, message):
     torch.save(state, path)
     with pytest.raises(InvalidCheckpoint, match=message):
         load_model(path)
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        {"arch": "shallow", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "deep", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "deep", "size": 64, "fc": 32, "prior_dim": 0},
+        {"arch": "multiscale", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "resnet", "size": 64, "fc": 32, "prior_dim": 8, "width": 0.125},
+        {"arch": "localizer", "size": 32, "fc": 16},
+    ],
+)
+def test_inference_forward_equals_the_module_forward(config):
+    """The unrolled inference pass gives exactly the eval-mode module's output."""
+    torch.manual_seed(0)
+    net = build_model(config)
+    for m in net.modules():  # non-trivial batch-norm statistics
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.5, 0.5)
+            m.running_var.uniform_(0.5, 2.0)
+    net = net.eval().to(memory_format=torch.channels_last)
+    x = torch.randn(3, 1, config["size"], config["size"]).contiguous(
+        memory_format=torch.channels_last
+    )
+    with torch.inference_mode():
+        assert torch.equal(inference_forward(net)(x), net(x))
+    with pytest.raises(ValueError, match="needs a model in eval mode"):
+        inference_forward(net.train())
