@@ -211,3 +211,16 @@ def test_inference_forward_equals_the_module_forward(config):
         assert torch.equal(inference_forward(net)(x), net(x))
     with pytest.raises(ValueError, match="needs a model in eval mode"):
         inference_forward(net.train())
+
+
+@pytest.mark.parametrize("name", sorted(C.SHIPPED))
+def test_every_shipped_network_loads_in_float32_and_predicts(name):
+    """The shipped weights (float16 or float32 on disk) load as float32 and give finite output."""
+    model, config = C.load_model(name)
+    assert config["canonical_side"] is True
+    assert all(p.dtype == torch.float32 for p in model.parameters())
+    size = int(config["model"]["size"])
+    with torch.inference_mode():
+        out = model(torch.zeros(1, 1, size, size))
+    assert out.shape == (1, 3 if name == "localizer" else 63)
+    assert torch.isfinite(out).all()
