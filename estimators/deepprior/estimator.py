@@ -201,7 +201,9 @@ class DeepPriorEstimator(EstimatorBase):
         detector: the localizer's first centre (:data:`DETECTORS`): ``"plane"`` (default,
             works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
             to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
-        threads: torch CPU threads (``None``: leave torch's setting).
+        threads: CPU threads of torch and of OpenCV (process-wide settings; ``None``: leave
+            theirs). On a CPU shared with other jobs, 1 is fastest: threads that wait for
+            each other cost more than they gain on one frame's small arrays.
         canonical_side: mirror left hands into the right-hand frame the network works in;
             ``None`` (default): the checkpoint's ``canonical_side`` flag (``False`` when it has
             none: checkpoints trained before the flag saw both sides as they came).
@@ -242,7 +244,10 @@ class DeepPriorEstimator(EstimatorBase):
             )
 
         if threads is not None:
+            import cv2
+
             torch.set_num_threads(int(threads))
+            cv2.setNumThreads(int(threads))
         self.checkpoint = str(checkpoint)
         self.device = device
         self.model, config = load_model(checkpoint, device)

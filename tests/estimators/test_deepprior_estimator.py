@@ -84,3 +84,16 @@ def test_one_frame_refinement_equals_the_batched_one(tmp_path):
     np.testing.assert_array_equal(one, loc.refine_batch(depths, Ks, starts, batch_size=1))
     np.testing.assert_allclose(one, loc.refine_batch(depths, Ks, starts), rtol=0, atol=1e-7)
     assert np.abs(one - starts).max() > 1e-3  # the network moved them
+
+
+def test_threads_sets_torch_and_opencv(tmp_path):
+    """threads=N sets both libraries' CPU threads (the preprocessing runs in OpenCV)."""
+    import cv2
+
+    before = torch.get_num_threads(), cv2.getNumThreads()
+    try:
+        _estimator(tmp_path, threads=1)
+        assert (torch.get_num_threads(), cv2.getNumThreads()) == (1, 1)
+    finally:
+        torch.set_num_threads(before[0])
+        cv2.setNumThreads(before[1])
