@@ -11,7 +11,7 @@ moves that centre towards the middle-finger MCP.
 
 The RANSAC is our own, vectorised over hypotheses: it scores all hypotheses at once on a random
 subsample of the measured points and refits the winner by least squares on its inliers of the
-whole image (about 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
+whole image (well under 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
 ``z = f(x, y)`` (a plane seen edge-on is not a function of x, y) and refits a regressor per
 trial (about 100x slower), which does not fit the inference budget.
 
