@@ -5,19 +5,23 @@ Measured in one run, on this machine, with ``torch.set_num_threads(1)`` (and Ope
 
 - preprocessing alone: RANSAC plane removal + nearest-blob centre of mass; the refined
   localizer (3 iterations of the 64 x 64 CNN); the 128 x 128 crop;
+- the centre of mass of the nearest depth slab (``detector="com"``) alone;
 - the whole pipeline (``DeepPriorEstimator.predict``: checks, localization, refinement, crop,
-  network, inverse normalization) for DeepPrior (deep network with the prior) and for
+  network, inverse normalization) for DeepPrior (the paper's deep network, FC 1024, with the
+  prior; and the shipped one, ``weights/deepprior.json``, when its config differs) and for
   DeepPrior++ at the paper's width and at the shipped width (``weights/deepprior_pp.json``);
 - DeepPrior as its paper ran it (``detector="com"``, no refinement CNN: the centre of mass of
-  the nearest depth slab, which fits hand-only frames, not a table scene);
+  the nearest depth slab, which fits hand-only frames, not a table scene), for both DeepPrior
+  networks;
 - each against its target (DeepPrior >= 500 frames/s, DeepPrior++ >= 60 frames/s) as a ratio;
 - the closed loop: ``handsim/Grasp-v0`` steps per second with the shipped DeepPrior++ in
   :class:`~handsim.envs.wrappers.EstimatorLoop` (expert on the truth, the same seeds), the
   detector in every frame against ``track=True`` (the previous frame's centre refined), with
   the mean keypoint error of each (tracking must not cost accuracy), against 50 steps/s.
 
-Speed does not depend on the weights: networks without shipped weights are timed with random
-ones of the same config. The machine's load average is recorded (a shared machine is slower).
+Speed does not depend on the weights: every pose network is timed with random weights of its
+config (the shipped localizer refines). The machine's load average is recorded (a shared
+machine is slower).
 
 Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100]``; without
 ``--data`` it generates 60 hand-only frames in a temporary folder. Writes
@@ -78,7 +82,7 @@ def _estimator(config: dict, folder: Path, **kwargs):
     from handsim.estimators.deepprior.models import build_model
 
     torch.manual_seed(0)
-    path = folder / f"{config['arch']}_{config.get('width', 1)}.pt"
+    path = folder / f"{config['arch']}_{config.get('width', 1)}_{config.get('fc', 1024)}.pt"
     save_checkpoint(
         path, {"model": build_model(config).state_dict()}, {"model": config, "cube_m": 0.25}
     )
@@ -128,6 +132,7 @@ def main() -> None:
     import cv2
     import torch
 
+    from handsim.estimators.com import CenterOfMassLocalizer
     from handsim.estimators.deepprior import preprocess as P
     from handsim.estimators.deepprior.checkpoint import WEIGHTS_DIR
     from handsim.estimators.deepprior.estimator import RefinedLocalizer
@@ -158,6 +163,7 @@ def main() -> None:
     }
     fps = results["fps"]
     fps["plane_removed_com"] = _rate(base.localize, items)
+    fps["com_detector"] = _rate(CenterOfMassLocalizer().localize, items)
     fps["refine_3_iterations"] = _rate(loc.refine, found)
     fps["crop_128"] = _rate(
         lambda d, k, c: P.crop_depth(d, P.crop_matrix(c, k), c[2]), found, repeat=5
@@ -167,10 +173,13 @@ def main() -> None:
     if shipped_pp.is_file():
         pp_width = json.loads(shipped_pp.read_text())["model"].get("width", 1.0)
     pp = {"arch": "resnet", "size": 128, "fc": 1024, "prior_dim": 30}
-    configs = {
-        "deepprior": {"arch": "deep", "size": 128, "fc": 1024, "prior_dim": 30},
-        "deepprior++ (width 1)": pp,
-    }
+    deep = {"arch": "deep", "size": 128, "fc": 1024, "prior_dim": 30}
+    configs = {"deepprior": deep, "deepprior++ (width 1)": pp}
+    shipped_deep = WEIGHTS_DIR / "deepprior.json"
+    if shipped_deep.is_file():
+        model = json.loads(shipped_deep.read_text())["model"]
+        if any(model.get(k) != v for k, v in deep.items()):
+            configs[f"deepprior (FC {model['fc']}, as shipped)"] = model
     if pp_width != 1.0:
         configs[f"deepprior++ (width {pp_width}, as shipped)"] = {**pp, "width": pp_width}
     ratios = {}
@@ -182,10 +191,11 @@ def main() -> None:
             ratios[name] = fps[f"pipeline {name}"] / target
         # DeepPrior as its paper ran it: the centre of mass of the nearest slab, no refinement
         # CNN (the refinement came with DeepPrior++; the plane fit is for table scenes).
-        name = "deepprior (paper's pipeline: CoM detector, no refinement)"
-        est = _estimator(configs["deepprior"], Path(tmp), localizer=None, detector="com")
-        fps[f"pipeline {name}"] = _rate(est.predict, items)
-        ratios[name] = fps[f"pipeline {name}"] / TARGET_FPS["deepprior"]
+        for net in [n for n in configs if n.startswith("deepprior ") or n == "deepprior"]:
+            name = f"{net} (paper's pipeline: CoM detector, no refinement)"
+            est = _estimator(configs[net], Path(tmp), localizer=None, detector="com")
+            fps[f"pipeline {name}"] = _rate(est.predict, items)
+            ratios[name] = fps[f"pipeline {name}"] / TARGET_FPS["deepprior"]
     if args.loop_episodes:
         results["loop"] = _loop(args.loop_episodes)
         for name, value in results["loop"].items():

@@ -1,17 +1,19 @@
 #!/usr/bin/env bash
 # The studies of docs/deepprior.md: (a) prior dimension and direct regression, (b) augmentation
 # ablation, (e) hand-size generalization. Every run is DeepPrior++ cropped at the true middle
-# MCP (isolating the pose network from the localizer), on hand-only frames of the
-# third-person camera with structured-light noise.
+# MCP (isolating the pose network from the localizer), on frames of the `hand-only` preset of
+# `handsim generate` (third-person camera, both sides, mirrored into the right-hand frame in
+# training) with structured-light noise.
 #
 #   bash benchmarks/deepprior_studies.sh OUT_DIR
 #
-# Environment (defaults in brackets): HANDSIM [handsim], FRAMES [3000], EPOCHS [3], WIDTH [0.25],
-# WORKERS [2] (data generation), THREADS [1] (torch), DEVICE [cpu]. Runs resume; OUT_DIR/summary.json
-# collects the best validation error of every run.
+# Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], FRAMES [3000],
+# EPOCHS [3], WIDTH [0.25], WORKERS [2] (data generation), THREADS [1] (torch), DEVICE [cpu].
+# Runs resume; OUT_DIR/summary.json collects the best validation error of every run.
 set -euo pipefail
 OUT=${1:?usage: deepprior_studies.sh OUT_DIR}
 HANDSIM=${HANDSIM:-handsim}
+PYTHON=${PYTHON:-python3}
 FRAMES=${FRAMES:-3000}
 EPOCHS=${EPOCHS:-3}
 WIDTH=${WIDTH:-0.25}
@@ -19,11 +21,19 @@ WORKERS=${WORKERS:-2}
 THREADS=${THREADS:-1}
 DEVICE=${DEVICE:-cpu}
 mkdir -p "$OUT"
-gen() {  # name seed frames hand_length_lo hand_length_hi
+gen() {  # name seed frames hand_length_lo hand_length_hi: the hand-only preset with these
   [[ -f "$OUT/data/$1/manifest.json" ]] && $HANDSIM dataset check "$OUT/data/$1" >/dev/null 2>&1 && return
-  echo "{\"frames\": $3, \"seed\": $2, \"viewpoints\": [\"third_person\"], \"num_objects_range\": [0, 0],
-  \"sensor\": \"structured_light\", \"hand_length_range_m\": [$4, $5]}" > "$OUT/$1.json"
-  $HANDSIM generate --config "$OUT/$1.json" --workers "$WORKERS" --out "$OUT/data/$1" >/dev/null
+  $PYTHON - "$OUT/$1.json" "$2" "$3" "$4" "$5" <<'PY'
+import json, sys
+from handsim.data.config import PRESETS, GenerationConfig
+path, seed, frames, lo, hi = sys.argv[1:]
+config = GenerationConfig.from_mapping(
+    PRESETS["hand-only"], frames=int(frames), seed=int(seed), sensor="structured_light",
+    hand_length_range_m=(float(lo), float(hi)))
+with open(path, "w") as f:
+    json.dump(config.to_json(), f, indent=1)
+PY
+  $HANDSIM generate --config "$OUT/$1.json" --workers "$WORKERS" --out "$OUT/data/$1" -q >/dev/null
 }
 gen all 5 "$FRAMES" 0.15 0.22
 gen small 6 "$FRAMES" 0.15 0.18
@@ -49,7 +59,7 @@ run e_small small
 for n in e_small a_prior30; do evaluate "$n" large; evaluate "$n" small; done
 for p in 8 16 45; do run "a_prior$p" all --prior-dim "$p"; done
 for a in translation rotation scale; do run "b_$a" all --augment "$a"; done
-python3 - "$OUT" <<'PY'
+$PYTHON - "$OUT" <<'PY'
 import json, sys
 from pathlib import Path
 out = Path(sys.argv[1])

@@ -18,8 +18,11 @@
 # torch sees one, else cpu], WORKERS [1] (generate workers; on CUDA also loader workers),
 # THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
 # DPP_EPOCHS [15], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
-# paper's), BATCH [64], BENCH [OUT/bench], EPISODES [5]; STAGES [data localizer dpp bench]
-# picks the stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
+# paper's), DEEP_FC [512] (units of the `deep` network's two fully connected layers; the
+# paper's 1024 makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
+# [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
+# networks, e.g. `localizer` for the shipped one); STAGES [data localizer dpp bench] picks the
+# stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
 # shared with other jobs in about 40 minutes; on a GPU (`--amp`, bfloat16) raise the frames,
 # epochs and WIDTH. Every stage resumes: run the same command again after an interruption
 # (generate keeps complete shards, train restarts after its last finished epoch, benchmark
@@ -41,11 +44,13 @@ ROLLOUT_FRAMES=${ROLLOUT_FRAMES:-0}
 LOC_EPOCHS=${LOC_EPOCHS:-24}
 DPP_EPOCHS=${DPP_EPOCHS:-15}
 DEEP_EPOCHS=${DEEP_EPOCHS:-15}
+DEEP_FC=${DEEP_FC:-512}
 WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
 BENCH=${BENCH:-$OUT/bench}
 EPISODES=${EPISODES:-5}
 STAGES=${STAGES:-"data localizer dpp bench"}
+LOCALIZER=${LOCALIZER:-$OUT/localizer/best.pt}
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
@@ -92,19 +97,19 @@ fi
 if has dpp; then
   stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
-    --width "$WIDTH" --localizer "$OUT/localizer/best.pt" "${COMMON[@]}" >/dev/null
+    --width "$WIDTH" --localizer "$LOCALIZER" "${COMMON[@]}" >/dev/null
 fi
 if has deep; then
-  stamp "train DeepPrior (deep)"
+  stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
-    --epochs "$DEEP_EPOCHS" --localizer "$OUT/localizer/best.pt" "${COMMON[@]}" >/dev/null
+    --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" "${COMMON[@]}" >/dev/null
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
   # spec CHECKPOINT [EXTRA_KWARGS]: the run's network behind the shipped pipeline class.
   spec() {
-    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$OUT/localizer/best.pt\", \"threads\": $THREADS${2:-}}"
+    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$LOCALIZER\", \"threads\": $THREADS${2:-}}"
   }
   stamp "handsim-bench: run DeepPrior++, $EPISODES closed-loop episodes"
   $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt")" --bench "$BENCH" \

@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import cv2
 import numpy as np
 
 from handsim._validate import is_real
@@ -145,23 +146,32 @@ class CenterOfMassLocalizer(EstimatorBase):
         """
         cube_m = self.cube_mm / MM_PER_M
         measured = (depth_m > 0) & (depth_m <= self.max_depth_m)
-        if np.count_nonzero(measured) < self.min_pixels:
+        uv = cv2.findNonZero(measured.view(np.uint8))  # row-major, as np.nonzero
+        if uv is None or len(uv) < self.min_pixels:
             return None
-        z_min = float(depth_m[measured].min())
-        keep = measured & (depth_m <= z_min + cube_m)
-        v_all, u_all = np.nonzero(measured)
-        z_all = depth_m[v_all, u_all].astype(np.float64)
-        # Camera-frame points of the measured pixels: K^-1 (u, v, 1) z (handles skew too).
-        rays = np.linalg.solve(K_cv, np.stack([u_all, v_all, np.ones_like(u_all)]).astype(float))
-        points = (rays * z_all).T
-        keep = keep[v_all, u_all]
-        center = self._centre_of_mass(u_all, v_all, z_all, keep, K_cv)
+        uv = uv.reshape(-1, 2)
+        z32 = depth_m[uv[:, 1], uv[:, 0]]
+        z_min = float(z32.min())
+        keep = z32 <= z_min + cube_m
+        u, v, z = uv[:, 0].astype(np.float64), uv[:, 1].astype(np.float64), z32.astype(np.float64)
+        # Camera-frame points of the measured pixels: K^-1 (u, v, 1) z (handles skew too),
+        # one coordinate array each: the cube test below runs on contiguous arrays in place.
+        K_inv = np.linalg.inv(K_cv)  # noqa: N806
+        x = (K_inv[0, 0] * u + K_inv[0, 1] * v + K_inv[0, 2]) * z
+        y = (K_inv[1, 0] * u + K_inv[1, 1] * v + K_inv[1, 2]) * z
+        center = self._centre_of_mass(u, v, z, keep, K_inv)
         half = cube_m / 2.0
+        tmp, inside = np.empty_like(z), np.empty(len(z), dtype=bool)
         for _ in range(self.max_iterations):
             if center is None:
                 return None
-            keep = np.all(np.abs(points - center) <= half, axis=1)
-            new_center = self._centre_of_mass(u_all, v_all, z_all, keep, K_cv)
+            for i, coord in enumerate((x, y, z)):  # keep: |p - center| <= half on every axis
+                np.subtract(coord, center[i], out=tmp)
+                np.abs(tmp, out=tmp)
+                np.less_equal(tmp, half, out=keep if i == 0 else inside)
+                if i:
+                    keep &= inside
+            new_center = self._centre_of_mass(u, v, z, keep, K_inv)
             if new_center is not None and np.linalg.norm(new_center - center) < _CONVERGED_M:
                 return new_center
             center = new_center
@@ -173,11 +183,19 @@ class CenterOfMassLocalizer(EstimatorBase):
         v: np.ndarray,
         z: np.ndarray,
         keep: np.ndarray,
-        K_cv: np.ndarray,  # noqa: N803
+        K_inv: np.ndarray,  # noqa: N803
     ) -> np.ndarray | None:
         """Mean pixel and median depth of the kept pixels, back-projected (or None)."""
         if np.count_nonzero(keep) < self.min_pixels:
             return None
-        z_c = float(np.median(z[keep]))
         pixel = np.array([u[keep].mean(), v[keep].mean(), 1.0])
-        return np.linalg.solve(K_cv, pixel) * z_c
+        return K_inv @ pixel * _median(z[keep])
+
+
+def _median(a: np.ndarray) -> float:
+    """``np.median`` of a 1-D float array without NaN (its partition and mean, without checks)."""
+    k = len(a) // 2
+    if len(a) % 2:
+        return float(np.partition(a, k)[k])
+    part = np.partition(a, (k - 1, k))
+    return float((part[k - 1] + part[k]) / 2.0)

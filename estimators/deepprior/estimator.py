@@ -89,6 +89,7 @@ class RefinedLocalizer(EstimatorBase):
         from handsim.estimators.com import CenterOfMassLocalizer
 
         from .checkpoint import InvalidCheckpoint, load_model
+        from .models import inference_forward
 
         if detector not in DETECTORS:
             raise InvalidCheckpoint(
@@ -102,6 +103,7 @@ class RefinedLocalizer(EstimatorBase):
         self.cube_m, self.size = CUBE_M, 64
         if checkpoint is not None:
             self.model, config = load_model(checkpoint, device)
+            self._forward = inference_forward(self.model)
             self.cube_m = float(config["cube_m"])
             self.size = int(config["model"]["size"])
         self.checkpoint = None if checkpoint is None else str(checkpoint)
@@ -113,8 +115,22 @@ class RefinedLocalizer(EstimatorBase):
         )
 
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
-        """Apply the refinement CNN ``iterations`` times from ``center`` (metres)."""
-        return self.refine_batch([depth_m], K[None], np.asarray(center, np.float64)[None])[0]
+        """Apply the refinement CNN ``iterations`` times from ``center`` (metres).
+
+        The same arithmetic as :meth:`refine_batch` for one frame, without its batching.
+        """
+        import torch
+
+        c = np.array(center, dtype=np.float64)
+        if self.model is None:
+            return c
+        with torch.inference_mode():
+            for _ in range(self.iterations):
+                M = crop_matrix(c, K, self.cube_m, self.size)  # noqa: N806
+                x = crop_depth(depth_m, M, c[2], self.cube_m, self.size)
+                off = self._forward(_as_input(x[None, None], self.device))
+                c += off[0].double().cpu().numpy() * (self.cube_m / 2.0)
+        return c
 
     def refine_batch(
         self,
@@ -156,7 +172,7 @@ class RefinedLocalizer(EstimatorBase):
                     ]
                 )
                 with torch.inference_mode():
-                    off = self.model(_as_input(x[:, None], self.device))
+                    off = self._forward(_as_input(x[:, None], self.device))
                 c[start : idx.stop] += off.double().cpu().numpy() * (self.cube_m / 2.0)
         return c
 
@@ -185,7 +201,9 @@ class DeepPriorEstimator(EstimatorBase):
         detector: the localizer's first centre (:data:`DETECTORS`): ``"plane"`` (default,
             works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
             to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
-        threads: torch CPU threads (``None``: leave torch's setting).
+        threads: CPU threads of torch and of OpenCV (process-wide settings; ``None``: leave
+            theirs). On a CPU shared with other jobs, 1 is fastest: threads that wait for
+            each other cost more than they gain on one frame's small arrays.
         canonical_side: mirror left hands into the right-hand frame the network works in;
             ``None`` (default): the checkpoint's ``canonical_side`` flag (``False`` when it has
             none: checkpoints trained before the flag saw both sides as they came).
@@ -217,6 +235,7 @@ class DeepPriorEstimator(EstimatorBase):
         import torch
 
         from .checkpoint import InvalidCheckpoint, load_model
+        from .models import inference_forward
 
         if canonical_side is not None and not isinstance(canonical_side, bool):
             raise InvalidCheckpoint(
@@ -225,10 +244,14 @@ class DeepPriorEstimator(EstimatorBase):
             )
 
         if threads is not None:
+            import cv2
+
             torch.set_num_threads(int(threads))
+            cv2.setNumThreads(int(threads))
         self.checkpoint = str(checkpoint)
         self.device = device
         self.model, config = load_model(checkpoint, device)
+        self._forward = inference_forward(self.model)
         self.cube_m = float(config["cube_m"])
         self.size = int(config["model"]["size"])
         stored = config.get("canonical_side", False)
@@ -283,7 +306,7 @@ class DeepPriorEstimator(EstimatorBase):
         M = crop_matrix(center, K, self.cube_m, self.size)  # noqa: N806
         x = crop_depth(depth_m, M, center[2], self.cube_m, self.size)
         with torch.inference_mode():
-            y = self.model(_as_input(x[None, None], self.device))
+            y = self._forward(_as_input(x[None, None], self.device))
         return denormalize_keypoints(
             y[0].double().cpu().numpy().reshape(21, 3), center, self.cube_m
         )

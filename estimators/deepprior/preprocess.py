@@ -11,7 +11,7 @@ moves that centre towards the middle-finger MCP.
 
 The RANSAC is our own, vectorised over hypotheses: it scores all hypotheses at once on a random
 subsample of the measured points and refits the winner by least squares on its inliers of the
-whole image (about 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
+whole image (well under 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
 ``z = f(x, y)`` (a plane seen edge-on is not a function of x, y) and refits a regressor per
 trial (about 100x slower), which does not fit the inference budget.
 
@@ -135,7 +135,23 @@ def fit_plane_ransac(
         The :class:`PlaneFit` refitted by least squares on all its inliers, or ``None`` for
         fewer than 3 points.
     """
-    pts = np.asarray(points_m, dtype=np.float64)
+    fit = _fit_plane(
+        np.asarray(points_m, dtype=np.float64), threshold_m, hypotheses, subsample, rng
+    )
+    if fit is None:
+        return None
+    n, d, inl = fit
+    return PlaneFit(normal=n, offset_m=d, inliers=int(np.count_nonzero(inl)))
+
+
+def _fit_plane(
+    pts: np.ndarray,
+    threshold_m: float,
+    hypotheses: int,
+    subsample: int,
+    rng: np.random.Generator | int | None,
+) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """:func:`fit_plane_ransac` on (N, 3) float64 points: ``(normal, offset, inlier mask)``."""
     if len(pts) < 3:
         return None
     rng = np.random.default_rng(rng)
@@ -144,12 +160,17 @@ def fit_plane_ransac(
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(normals, axis=1)
     ok = norm > 1e-12
-    if not np.any(ok):
-        return None
-    normals = normals[ok] / norm[ok, None]
-    offsets = -np.einsum("hk,hk->h", normals, tri[ok, 0])
-    scores = (np.abs(sub @ normals.T + offsets) < threshold_m).sum(axis=0)
-    best = int(np.argmax(scores))
+    if not ok.all():
+        if not ok.any():
+            return None
+        normals, norm, tri = normals[ok], norm[ok], tri[ok]
+    normals /= norm[:, None]
+    offsets = -np.einsum("hk,hk->h", normals, tri[:, 0])
+    # In place: the (subsample, hypotheses) distances are the fit's largest array.
+    dist = sub @ normals.T
+    dist += offsets
+    np.abs(dist, out=dist)
+    best = int(np.argmax(np.count_nonzero(dist < threshold_m, axis=0)))
     n, d = normals[best], offsets[best]
     inl = np.abs(pts @ n + d) < threshold_m
     if np.count_nonzero(inl) >= 3:  # least-squares refit: smallest singular vector
@@ -158,7 +179,7 @@ def fit_plane_ransac(
         n = np.linalg.svd(q - mean, full_matrices=False)[2][-1]
         d = -float(n @ mean)
         inl = np.abs(pts @ n + d) < threshold_m
-    return PlaneFit(normal=n, offset_m=float(d), inliers=int(np.count_nonzero(inl)))
+    return n, float(d), inl
 
 
 def remove_plane(
@@ -188,30 +209,42 @@ def remove_plane(
     Returns:
         (H, W) float32 depth copy, metres.
     """
-    out = np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
+    depth_m = np.asarray(depth_m)
+    if depth_m.dtype == np.float32:  # one OpenCV pass each: > max_depth_m, <= 0, NaN -> 0
+        out = cv2.threshold(depth_m, max_depth_m, 0, cv2.THRESH_TOZERO_INV)[1]
+        out = cv2.patchNaNs(cv2.threshold(out, 0, 0, cv2.THRESH_TOZERO)[1], 0)
+    else:
+        out = np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
     # The fit runs on every second pixel of every second row; the test on every pixel.
-    v, u = np.nonzero(out[::2, ::2])
-    if len(v) < 3:
+    half = np.ascontiguousarray(out[::2, ::2])
+    vu = cv2.findNonZero((half > 0).view(np.uint8))  # row-major, as np.nonzero
+    if vu is None or len(vu) < 3:
         return out
-    pts = _back_project(out, K, 2 * v, 2 * u)
-    fit = fit_plane_ransac(pts, threshold_m=threshold_m, rng=rng)
-    if fit is None or fit.inliers < min_fraction * len(pts):
+    vu = vu.reshape(-1, 2)
+    pts = _back_project(out, K, 2 * vu[:, 1], 2 * vu[:, 0])
+    fit = _fit_plane(pts, threshold_m, 64, 1024, rng)
+    if fit is None or np.count_nonzero(fit[2]) < min_fraction * len(pts):
         return out
-    inl = pts[np.abs(pts @ fit.normal + fit.offset_m) < threshold_m]
+    n, d, inl_mask = fit
+    inl = pts[inl_mask]
     sub = inl[:: max(1, len(inl) // 2000)]
     spread = np.linalg.svd(sub - sub.mean(axis=0), compute_uv=False) / math.sqrt(len(sub))
     if spread[1] < min_spread_m:
         return out
-    n = fit.normal if fit.offset_m >= 0 else -fit.normal  # the camera (origin) on + side
-    d = abs(fit.offset_m)
+    if d < 0:  # the camera (origin) on the + side
+        n, d = -n, -d
     h, w = out.shape
-    ray_dot = (
-        n[0] * (np.arange(w) - K[0, 2]) / K[0, 0]
-        + (n[1] * (np.arange(h) - K[1, 2]) / K[1, 1])[:, None]
-        + n[2]
+    # n . ray(u, v) * depth + d: the signed distance of every pixel's point, in place.
+    dist = np.add.outer(
+        n[1] * (np.arange(h) - K[1, 2]) / K[1, 1], n[0] * (np.arange(w) - K[0, 2]) / K[0, 0]
     )
+    dist += n[2]
+    dist *= out
+    dist += d
     # Drop the plane and everything behind it (seen past the table's edge: the floor).
-    out[(out * ray_dot + d < threshold_m) & (out > 0)] = 0
+    drop = dist < threshold_m
+    drop &= out > 0
+    out[drop] = 0
     return out
 
 
@@ -242,20 +275,19 @@ def nearest_blob_com(
     if np.count_nonzero(measured) < min_pixels:
         return None
     z_min = float(depth_m[measured].min())
-    slab = measured & (depth_m <= z_min + cube_m)
-    n, labels = cv2.connectedComponents(slab.astype(np.uint8), connectivity=8)
+    slab = measured
+    slab &= depth_m <= z_min + cube_m
+    n, labels = cv2.connectedComponents(slab.view(np.uint8), connectivity=8)
     if n <= 1:
         return None
-    lab = labels[slab]
-    sizes = np.bincount(lab, minlength=n)
-    nearest = np.full(n, np.inf)
-    np.minimum.at(nearest, lab, depth_m[slab])
-    nearest[sizes < min_pixels] = np.inf
-    nearest[0] = np.inf
-    if not np.isfinite(nearest).any():
+    sizes = np.bincount(labels.ravel(), minlength=n)
+    sizes[0] = -1  # the background
+    sizes[sizes < min_pixels] = -1
+    best = int(np.argmax(sizes))
+    if sizes[best] < 0:
         return None
-    blob = labels == int(np.argmax(np.where(np.isfinite(nearest), sizes, -1)))
-    v, u = np.nonzero(blob)
+    uv = cv2.findNonZero((labels == best).view(np.uint8)).reshape(-1, 2)
+    u, v = uv[:, 0], uv[:, 1]
     z = float(np.median(depth_m[v, u]))
     return np.array([(u.mean() - K[0, 2]) * z / K[0, 0], (v.mean() - K[1, 2]) * z / K[1, 1], z])
 
@@ -315,16 +347,20 @@ def crop_matrix(
     Returns:
         (2, 3) float64 matrix ``M``: ``crop = M @ (u, v, 1)``.
     """
-    c = np.asarray(center_cam, dtype=np.float64)
-    uc = K[0, 0] * c[0] / c[2] + K[0, 2]
-    vc = K[1, 1] * c[1] / c[2] + K[1, 2]
-    sx = size * c[2] / (K[0, 0] * cube_m)
-    sy = size * c[2] / (K[1, 1] * cube_m)
+    cx, cy, cz = (float(c) for c in center_cam)
+    fx, fy = float(K[0, 0]), float(K[1, 1])
+    uc = fx * cx / cz + float(K[0, 2])
+    vc = fy * cy / cz + float(K[1, 2])
+    sx = size * cz / (fx * cube_m)
+    sy = size * cz / (fy * cube_m)
     cos, sin = math.cos(angle_rad), math.sin(angle_rad)
-    R = np.array([[cos, sin], [-sin, cos]])  # noqa: N806 (v points down: CCW on screen)
-    A = np.diag([sx, sy]) @ R  # noqa: N806
-    t = np.array([(size - 1) / 2.0, (size - 1) / 2.0]) - A @ np.array([uc, vc])
-    return np.hstack([A, t[:, None]])
+    # diag(sx, sy) @ R, R = [[cos, sin], [-sin, cos]] (v points down: CCW on screen); in
+    # Python floats, as this runs several times per frame at inference.
+    a00, a01, a10, a11 = sx * cos, sx * sin, -sy * sin, sy * cos
+    mid = (size - 1) / 2.0
+    return np.array(
+        [[a00, a01, mid - (a00 * uc + a01 * vc)], [a10, a11, mid - (a10 * uc + a11 * vc)]]
+    )
 
 
 def crop_depth(
@@ -346,7 +382,7 @@ def crop_depth(
     Returns:
         (size, size) float32 normalized depth.
     """
-    crop = cv2.warpAffine(
+    norm = cv2.warpAffine(
         np.ascontiguousarray(depth_m, dtype=np.float32),
         M,
         (size, size),
@@ -354,9 +390,12 @@ def crop_depth(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0.0,
     )
-    norm = (crop - np.float32(center_z_m)) / np.float32(cube_m / 2.0)
-    norm[(crop <= 0) | (norm > 1.0)] = 1.0
-    np.clip(norm, -1.0, 1.0, out=norm)
+    far = norm <= 0  # missing, before normalizing in place
+    norm -= np.float32(center_z_m)
+    norm /= np.float32(cube_m / 2.0)
+    far |= norm > 1.0
+    norm[far] = 1.0
+    np.maximum(norm, -1.0, out=norm)
     return norm
 
 

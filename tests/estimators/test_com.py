@@ -214,3 +214,52 @@ def test_hand_alone_is_segmented_exactly_from_depth():
     mask_com = np.linalg.solve(frame.K, [u.mean(), v.mean(), 1.0]) * np.median(frame.depth[hand])
     est = CenterOfMassLocalizer().predict(frame.depth, frame.K)
     assert np.linalg.norm(est.center_cam - mask_com) < 1e-4
+
+
+def _ref_localize(depth_m, K_cv, cube_m=0.25, max_depth_m=1.5, min_pixels=100):  # noqa: N803
+    """The centre of mass as first written (np.linalg.solve, (N, 3) points): the reference."""
+
+    def com(u, v, z, keep):
+        if np.count_nonzero(keep) < min_pixels:
+            return None
+        pixel = np.array([u[keep].mean(), v[keep].mean(), 1.0])
+        return np.linalg.solve(K_cv, pixel) * float(np.median(z[keep]))
+
+    measured = (depth_m > 0) & (depth_m <= max_depth_m)
+    if np.count_nonzero(measured) < min_pixels:
+        return None
+    keep = measured & (depth_m <= float(depth_m[measured].min()) + cube_m)
+    v, u = np.nonzero(measured)
+    z = depth_m[v, u].astype(np.float64)
+    rays = np.linalg.solve(K_cv, np.stack([u, v, np.ones_like(u)]).astype(float))
+    points = (rays * z).T
+    center = com(u, v, z, keep[v, u])
+    for _ in range(10):
+        if center is None:
+            return None
+        new = com(u, v, z, np.all(np.abs(points - center) <= cube_m / 2, axis=1))
+        if new is not None and np.linalg.norm(new - center) < 1e-4:
+            return new
+        center = new
+    return center
+
+
+def test_the_fast_centre_of_mass_equals_the_reference():
+    """K^-1 products and in-place cube tests give the reference's centres to float rounding."""
+    rng = np.random.default_rng(11)
+    loc = CenterOfMassLocalizer()
+    K = ICVL.K.copy()  # noqa: N806
+    K[0, 1] = 0.5  # with skew
+    for i in range(12):
+        center = rng.normal([0.0, 0.0, 0.6], [0.05, 0.05, 0.15])
+        depth = _sphere(ICVL, center, rng.uniform(0.03, 0.09), rng.choice([0.0, 1.2, 2.0]))
+        depth += rng.normal(0, 0.004, depth.shape).astype(np.float32) * (depth > 0)
+        depth[rng.random(depth.shape) < 0.1] = 0
+        if i % 3 == 0:  # a nearer object beside the sphere
+            depth[:40, :60] = center[2] - 0.1
+        for k in (ICVL.K, K):
+            expected = _ref_localize(depth, k)
+            got = loc.localize(depth, k)
+            assert (got is None) == (expected is None)
+            if expected is not None:
+                np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)

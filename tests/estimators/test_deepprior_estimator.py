@@ -62,3 +62,38 @@ def test_without_tracking_every_frame_is_detected(tmp_path):
     assert len(calls) == 2
     tracker, _ = _estimator(tmp_path, track=True)
     np.testing.assert_array_equal(tracker.predict(_hand(), K_CV).keypoints_cam, first)
+
+
+def test_one_frame_refinement_equals_the_batched_one(tmp_path):
+    """RefinedLocalizer.refine (one frame, unbatched) gives refine_batch's centres.
+
+    Exactly at batch 1 (the same arithmetic); to float32 rounding of the network in batches.
+    """
+    from handsim.estimators.deepprior.estimator import RefinedLocalizer
+
+    config = {"model": {"arch": "localizer", "size": 32, "fc": 16}, "cube_m": 0.25}
+    torch.manual_seed(1)
+    C.save_checkpoint(
+        tmp_path / "l.pt", {"model": build_model(config["model"]).state_dict()}, config
+    )
+    loc = RefinedLocalizer(tmp_path / "l.pt", iterations=3, detector="com")
+    depths = [_hand(u0) for u0 in (18, 22, 30, 40)]
+    starts = np.array([loc.base.localize(d, K_CV) for d in depths])
+    Ks = np.repeat(K_CV[None], 4, axis=0)  # noqa: N806
+    one = np.array([loc.refine(d, K_CV, c) for d, c in zip(depths, starts, strict=True)])
+    np.testing.assert_array_equal(one, loc.refine_batch(depths, Ks, starts, batch_size=1))
+    np.testing.assert_allclose(one, loc.refine_batch(depths, Ks, starts), rtol=0, atol=1e-7)
+    assert np.abs(one - starts).max() > 1e-3  # the network moved them
+
+
+def test_threads_sets_torch_and_opencv(tmp_path):
+    """threads=N sets both libraries' CPU threads (the preprocessing runs in OpenCV)."""
+    import cv2
+
+    before = torch.get_num_threads(), cv2.getNumThreads()
+    try:
+        _estimator(tmp_path, threads=1)
+        assert (torch.get_num_threads(), cv2.getNumThreads()) == (1, 1)
+    finally:
+        torch.set_num_threads(before[0])
+        cv2.setNumThreads(before[1])

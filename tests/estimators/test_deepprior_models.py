@@ -13,6 +13,7 @@ from handsim.estimators.deepprior.models import (
     Localizer,
     PriorLayer,
     build_model,
+    inference_forward,
 )
 from handsim.estimators.deepprior.preprocess import fit_pca
 
@@ -181,3 +182,45 @@ def test_a_broken_checkpoint_is_refused_naming_it(tmp_path, damage, message):
     torch.save(state, path)
     with pytest.raises(InvalidCheckpoint, match=message):
         load_model(path)
+
+
+@pytest.mark.parametrize(
+    "config",
+    [
+        {"arch": "shallow", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "deep", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "deep", "size": 64, "fc": 32, "prior_dim": 0},
+        {"arch": "multiscale", "size": 64, "fc": 32, "prior_dim": 8},
+        {"arch": "resnet", "size": 64, "fc": 32, "prior_dim": 8, "width": 0.125},
+        {"arch": "localizer", "size": 32, "fc": 16},
+    ],
+)
+def test_inference_forward_equals_the_module_forward(config):
+    """The unrolled inference pass gives exactly the eval-mode module's output."""
+    torch.manual_seed(0)
+    net = build_model(config)
+    for m in net.modules():  # non-trivial batch-norm statistics
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.5, 0.5)
+            m.running_var.uniform_(0.5, 2.0)
+    net = net.eval().to(memory_format=torch.channels_last)
+    x = torch.randn(3, 1, config["size"], config["size"]).contiguous(
+        memory_format=torch.channels_last
+    )
+    with torch.inference_mode():
+        assert torch.equal(inference_forward(net)(x), net(x))
+    with pytest.raises(ValueError, match="needs a model in eval mode"):
+        inference_forward(net.train())
+
+
+@pytest.mark.parametrize("name", sorted(C.SHIPPED))
+def test_every_shipped_network_loads_in_float32_and_predicts(name):
+    """The shipped weights (float16 or float32 on disk) load as float32 and give finite output."""
+    model, config = C.load_model(name)
+    assert config["canonical_side"] is True
+    assert all(p.dtype == torch.float32 for p in model.parameters())
+    size = int(config["model"]["size"])
+    with torch.inference_mode():
+        out = model(torch.zeros(1, 1, size, size))
+    assert out.shape == (1, 3 if name == "localizer" else 63)
+    assert torch.isfinite(out).all()

@@ -176,3 +176,131 @@ def test_pca_is_not_whitened_and_reconstructs():
     np.testing.assert_allclose(coeffs @ comp + pca["mean"], X, atol=1e-9)
     # Not whitened: the coefficients' variances are the eigenvalues, not 1.
     assert not np.allclose(coeffs.var(axis=0), 1.0, atol=0.1)
+
+
+# The localization and crop before they were made faster (in place, OpenCV passes): the
+# reference the fast versions must equal (bit for bit where no arithmetic was reordered).
+
+
+def _ref_remove_plane(depth_m, K, threshold_m=0.008, min_fraction=0.2, min_spread_m=0.06):  # noqa: N803
+    out = np.where((depth_m > 0) & (depth_m <= 1.5), depth_m, 0).astype(np.float32)
+    v, u = np.nonzero(out[::2, ::2])
+    if len(v) < 3:
+        return out
+    v, u = 2 * v, 2 * u
+    z = out[v, u].astype(np.float64)
+    pts = np.stack([(u - K[0, 2]) * z / K[0, 0], (v - K[1, 2]) * z / K[1, 1], z], axis=1)
+    rng = np.random.default_rng(0)
+    sub = pts[rng.integers(0, len(pts), size=min(1024, len(pts)))]
+    tri = pts[rng.integers(0, len(pts), size=(64, 3))]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(normals, axis=1)
+    ok = norm > 1e-12
+    if not np.any(ok):
+        return out
+    normals = normals[ok] / norm[ok, None]
+    offsets = -np.einsum("hk,hk->h", normals, tri[ok, 0])
+    best = int(np.argmax((np.abs(sub @ normals.T + offsets) < threshold_m).sum(axis=0)))
+    n, d = normals[best], offsets[best]
+    inl = np.abs(pts @ n + d) < threshold_m
+    if np.count_nonzero(inl) >= 3:
+        q = pts[inl]
+        n = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)[2][-1]
+        d = -float(n @ q.mean(axis=0))
+        inl = np.abs(pts @ n + d) < threshold_m
+    if np.count_nonzero(inl) < min_fraction * len(pts):
+        return out
+    s = pts[inl][:: max(1, np.count_nonzero(inl) // 2000)]
+    if np.linalg.svd(s - s.mean(axis=0), compute_uv=False)[1] / math.sqrt(len(s)) < min_spread_m:
+        return out
+    n, d = (n, d) if d >= 0 else (-n, -d)
+    h, w = out.shape
+    ray_dot = (
+        n[0] * (np.arange(w) - K[0, 2]) / K[0, 0]
+        + (n[1] * (np.arange(h) - K[1, 2]) / K[1, 1])[:, None]
+        + n[2]
+    )
+    out[(out * ray_dot + d < threshold_m) & (out > 0)] = 0
+    return out
+
+
+def _ref_nearest_blob_com(depth_m, K, cube_m=0.25, min_pixels=100):  # noqa: N803
+    import cv2
+
+    measured = depth_m > 0
+    if np.count_nonzero(measured) < min_pixels:
+        return None
+    slab = measured & (depth_m <= float(depth_m[measured].min()) + cube_m)
+    n, labels = cv2.connectedComponents(slab.astype(np.uint8), connectivity=8)
+    sizes = np.bincount(labels[slab], minlength=n)
+    sizes[0] = 0
+    if n <= 1 or sizes.max() < min_pixels:
+        return None
+    v, u = np.nonzero(labels == int(np.argmax(sizes)))
+    z = float(np.median(depth_m[v, u]))
+    return np.array([(u.mean() - K[0, 2]) * z / K[0, 0], (v.mean() - K[1, 2]) * z / K[1, 1], z])
+
+
+def _scenes():
+    """Depth images that take every branch: tables (removed), palms alone, noise, blobs."""
+    rng = np.random.default_rng(7)
+    for tilt, z in ((0.3, 0.8), (-0.2, 0.7), (0.0, 1.2)):
+        depth, _, _ = _table_and_box(table_z=z, tilt=tilt)
+        yield depth
+        noisy = depth + rng.normal(0, 0.003, depth.shape).astype(np.float32)
+        noisy[rng.random(depth.shape) < 0.2] = 0
+        yield noisy
+        alone = depth.copy()
+        alone[depth != np.float32(0.55)] = 0
+        yield alone
+    for _ in range(4):  # blobs of equal and different sizes at random depths, specks
+        depth = np.zeros((H, W), np.float32)
+        for _ in range(rng.integers(1, 5)):
+            v, u = rng.integers(0, H - 30), rng.integers(0, W - 30)
+            s = rng.integers(5, 30)
+            depth[v : v + s, u : u + s] = rng.uniform(0.3, 1.0)
+        depth[rng.random(depth.shape) < 0.002] = rng.uniform(0.2, 1.4)
+        yield depth
+    odd = rng.uniform(-0.5, 2.0, (H, W)).astype(np.float32)  # out of range, NaN, inf, -0
+    for value, fraction in ((0.0, 0.3), (np.nan, 0.01), (np.inf, 0.01), (1.5, 0.01), (-0.0, 0.01)):
+        odd[rng.random(odd.shape) < fraction] = value
+    yield odd
+    yield np.zeros((H, W), np.float32)
+
+
+def test_fast_plane_removal_and_blob_equal_the_reference_bit_for_bit():
+    """remove_plane and nearest_blob_com give exactly the reference's results."""
+    for i, depth in enumerate(_scenes()):
+        cleaned = P.remove_plane(depth, K)
+        expected = _ref_remove_plane(depth, K)
+        np.testing.assert_array_equal(cleaned, expected, err_msg=f"scene {i}")
+        np.testing.assert_array_equal(np.signbit(cleaned), np.signbit(expected))
+        if not np.isfinite(depth).all():
+            continue  # the blob's input is cleaned depth
+        com, ref = P.nearest_blob_com(cleaned, K), _ref_nearest_blob_com(cleaned, K)
+        assert (com is None) == (ref is None), i
+        if ref is not None:
+            np.testing.assert_array_equal(com, ref, err_msg=f"scene {i}")
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 33.0, -150.0])
+def test_crop_matrix_and_crop_equal_the_reference(angle_deg):
+    """The scalar crop matrix equals diag(s) @ R with its translation; the crop follows."""
+    rng = np.random.default_rng(8)
+    depth = rng.uniform(0.3, 0.9, (H, W)).astype(np.float32)
+    depth[rng.random(depth.shape) < 0.2] = 0
+    for _ in range(10):
+        c = rng.normal([0.0, 0.0, 0.5], [0.05, 0.05, 0.1])
+        a = math.radians(angle_deg)
+        sx, sy = 128 * c[2] / (K[0, 0] * 0.25), 128 * c[2] / (K[1, 1] * 0.25)
+        A = np.diag([sx, sy]) @ np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])  # noqa: N806
+        uc = K[:2, :2].diagonal() * c[:2] / c[2] + K[:2, 2]
+        ref = np.hstack([A, (63.5 - A @ uc)[:, None]])
+        M = P.crop_matrix(c, K, 0.25, 128, a)  # noqa: N806
+        np.testing.assert_allclose(M, ref, rtol=1e-14, atol=1e-12)
+        import cv2
+
+        crop = cv2.warpAffine(depth, ref, (128, 128), flags=cv2.INTER_NEAREST)
+        norm = (crop - np.float32(c[2])) / np.float32(0.125)
+        norm[(crop <= 0) | (norm > 1.0)] = 1.0
+        np.testing.assert_array_equal(P.crop_depth(depth, M, c[2], 0.25, 128), np.clip(norm, -1, 1))
