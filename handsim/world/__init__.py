@@ -4,7 +4,8 @@
 module                   holds
 =======================  ==========================================================================
 :mod:`.objects`          the object type (:class:`YCBObject`, :class:`Symmetry`), :func:`add_object`
-:mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts and shapes)
+:mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts, colours, symmetries)
+:mod:`.ycbv_shapes`      the shapes of the 21 YCB-Video objects (meshes, collision pieces)
 :mod:`.meshing`          lofts, revolutions, signed distances, marching tetrahedra, decimation
 :mod:`.registry`         :data:`OBJECTS` and :func:`get_object`
 :mod:`.mesh_import`      :func:`load_object`: user meshes (OBJ/PLY/STL/GLB)

@@ -5,7 +5,8 @@ mass and inertia, model points for ADD/ADI, the diameter, the 8 bounding-box cor
 symmetries and a stable resting pose, all in SI units (metres, kilograms) in the object frame.
 This module holds the object type (:class:`YCBObject`, :class:`ObjectSpec`, :class:`Symmetry`)
 and :func:`add_object`, which puts any object into a ``mujoco.MjSpec``. The 21 shapes are
-made in :mod:`handsim.world.ycbv` (from primitives meshed by :mod:`handsim.world.meshing`),
+made in :mod:`handsim.world.ycbv_shapes` (from primitives meshed by
+:mod:`handsim.world.meshing`), with their facts in :mod:`handsim.world.ycbv`,
 registered in :mod:`handsim.world.registry` (:data:`OBJECTS`, :func:`get_object`), and user
 meshes are imported by :mod:`handsim.world.mesh_import` (:func:`load_object`).
 
