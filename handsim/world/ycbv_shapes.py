@@ -61,7 +61,8 @@ from handsim.world.meshing import (
     _smooth_union,
     _spheres,
 )
-from handsim.world.objects import _MM, NO_SYMMETRY, Symmetry, _Geometry, _rot
+from handsim.world.objects import _MM, _Geometry
+from handsim.world.symmetry import NO_SYMMETRY, Symmetry, _rot
 
 if TYPE_CHECKING:
     import trimesh
