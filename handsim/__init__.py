@@ -69,7 +69,7 @@ from handsim.metrics import (
 )
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.world.mesh_import import load_object
-from handsim.world.objects import Symmetry, YCBObject, add_object
+from handsim.world.objects import YCBObject, add_object
 from handsim.world.registry import OBJECT_NAMES, OBJECTS, get_object
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import (
@@ -84,6 +84,7 @@ from handsim.world.scene import (
     third_person_camera,
 )
 from handsim.world.sensors import StructuredLight, TimeOfFlight, sensor_model
+from handsim.world.symmetry import Symmetry
 
 __version__ = "0.1.0"
 

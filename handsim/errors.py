@@ -17,6 +17,7 @@ __all__ = [
     "InvalidEstimatorInput",
     "InvalidEstimatorParams",
     "EstimatorStateError",
+    "InvalidObjectParams",
 ]
 
 
@@ -58,3 +59,7 @@ class InvalidEstimatorParams(HandSimError, ValueError):
 
 class EstimatorStateError(HandSimError, RuntimeError):
     """An estimator was called out of order (an oracle's ``predict`` before ``observe_truth``)."""
+
+
+class InvalidObjectParams(HandSimError, ValueError):
+    """An object parameter (mass, scale, name, option) is invalid."""

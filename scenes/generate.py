@@ -348,7 +348,7 @@ Derivation:
 _OBJECTS_README = f"""# objects
 
 The 21 YCB-Video objects as handsim approximates them (shapes made from primitives at the
-real extents and masses; `handsim/world/ycbv.py`), one folder each:
+real extents and masses; `handsim/world/ycbv.py`, `ycbv_shapes.py`), one folder each:
 `<name>/<name>.xml`, `<name>/scene.xml`, `<name>/assets/*.obj`.
 
 Names (`<name>` e.g. `005_tomato_soup_can`): body `obj_<name>`, free joint `obj_<name>_root`,

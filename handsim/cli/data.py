@@ -34,7 +34,7 @@ __all__ = ["add_parser", "EXPORTS"]
 
 EXPORTS = ("hand-labels", "bop", "minari")
 """Export formats of ``handsim export``."""
-# handsim.world.objects.SYMMETRY_MODALITIES, spelled out so that parsing imports no mesh code.
+# handsim.world.symmetry.SYMMETRY_MODALITIES, spelled out so that parsing imports no mesh code.
 _SYMMETRIES = ("texture", "depth")
 
 

@@ -38,7 +38,6 @@ from handsim.errors import HandSimError
 from handsim.hand.keypoints import FORMATS, KEYPOINT_NAMES, format_flags, to_format
 from handsim.viz import project_points
 from handsim.world.camera import CameraIntrinsics, camera_preset
-from handsim.world.objects import SYMMETRY_MODALITIES, SymmetryModality
 from handsim.world.registry import OBJECTS, get_object
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import (
@@ -49,6 +48,7 @@ from handsim.world.scene import (
     Scene,
     SceneSpec,
 )
+from handsim.world.symmetry import SYMMETRY_MODALITIES, SymmetryModality
 
 __all__ = [
     "InvalidExport",

@@ -67,7 +67,7 @@ from handsim.metrics._common import (
     _thresholds,
 )
 from handsim.world.camera import CameraIntrinsics
-from handsim.world.objects import SYMMETRY_MODALITIES, Symmetry, SymmetryModality
+from handsim.world.symmetry import SYMMETRY_MODALITIES, Symmetry, SymmetryModality
 
 # Object pose -----------------------------------------------------------------------------------
 

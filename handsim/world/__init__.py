@@ -3,8 +3,10 @@
 =======================  ==========================================================================
 module                   holds
 =======================  ==========================================================================
-:mod:`.objects`          the object type (:class:`YCBObject`, :class:`Symmetry`), :func:`add_object`
-:mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts and shapes)
+:mod:`.objects`          the object type (:class:`YCBObject`), :func:`add_object`
+:mod:`.symmetry`         :class:`Symmetry`: an object's symmetries (BOP style)
+:mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts, colours, symmetries)
+:mod:`.ycbv_shapes`      the shapes of the 21 YCB-Video objects (meshes, collision pieces)
 :mod:`.meshing`          lofts, revolutions, signed distances, marching tetrahedra, decimation
 :mod:`.registry`         :data:`OBJECTS` and :func:`get_object`
 :mod:`.mesh_import`      :func:`load_object`: user meshes (OBJ/PLY/STL/GLB)
@@ -19,7 +21,7 @@ module                   holds
 
 from handsim.world.camera import CAMERA_PRESETS, CameraIntrinsics, camera_preset
 from handsim.world.mesh_import import load_object
-from handsim.world.objects import NO_SYMMETRY, ObjectSpec, Symmetry, YCBObject, add_object
+from handsim.world.objects import ObjectSpec, YCBObject, add_object
 from handsim.world.registry import OBJECT_NAMES, OBJECTS, get_object
 from handsim.world.render import DepthRenderer
 from handsim.world.scene import (
@@ -34,6 +36,7 @@ from handsim.world.scene import (
     third_person_camera,
 )
 from handsim.world.sensors import StructuredLight, TimeOfFlight, sensor_model
+from handsim.world.symmetry import NO_SYMMETRY, Symmetry
 
 __all__ = [
     "CAMERA_PRESETS",

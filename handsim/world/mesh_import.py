@@ -18,22 +18,21 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from handsim._validate import boolean, choice, integer, real_array, real_scalar, show
+from handsim.errors import InvalidObjectParams
 from handsim.world.meshing import _hull
 from handsim.world.objects import (
     _NAME_RE,
     MESH_FORMATS,
     N_MODEL_POINTS,
-    NO_SYMMETRY,
     SIZE_RANGE_M,
     InvalidMesh,
-    InvalidObjectParams,
     MeshImportWarning,
-    Symmetry,
     YCBObject,
     _check_rgba,
     _check_sampling,
     _finalize,
 )
+from handsim.world.symmetry import NO_SYMMETRY, Symmetry
 
 if TYPE_CHECKING:
     # trimesh loads when a mesh is read, not on `import handsim`.

@@ -3,9 +3,11 @@
 Every object is a frozen :class:`YCBObject`: a watertight visual mesh, convex collision pieces,
 mass and inertia, model points for ADD/ADI, the diameter, the 8 bounding-box corners, the
 symmetries and a stable resting pose, all in SI units (metres, kilograms) in the object frame.
-This module holds the object type (:class:`YCBObject`, :class:`ObjectSpec`, :class:`Symmetry`)
-and :func:`add_object`, which puts any object into a ``mujoco.MjSpec``. The 21 shapes are
-made in :mod:`handsim.world.ycbv` (from primitives meshed by :mod:`handsim.world.meshing`),
+This module holds the object type (:class:`YCBObject`, :class:`ObjectSpec`) and
+:func:`add_object`, which puts any object into a ``mujoco.MjSpec``; their symmetries are
+:class:`~handsim.world.symmetry.Symmetry` (:mod:`handsim.world.symmetry`). The 21 shapes are
+made in :mod:`handsim.world.ycbv_shapes` (from primitives meshed by
+:mod:`handsim.world.meshing`), with their facts in :mod:`handsim.world.ycbv`,
 registered in :mod:`handsim.world.registry` (:data:`OBJECTS`, :func:`get_object`), and user
 meshes are imported by :mod:`handsim.world.mesh_import` (:func:`load_object`).
 
@@ -62,8 +64,14 @@ from typing import TYPE_CHECKING, Any, Literal
 import mujoco
 import numpy as np
 
-from handsim._validate import real_array, show, to_real_array
-from handsim.errors import HandSimError
+from handsim._validate import to_real_array
+from handsim.errors import HandSimError, InvalidObjectParams
+from handsim.world.symmetry import (
+    NO_SYMMETRY,
+    SYMMETRY_MODALITIES,
+    Symmetry,
+    SymmetryModality,
+)
 
 if TYPE_CHECKING:
     # trimesh and scipy.spatial load where objects are built, not on `import handsim`.
@@ -93,10 +101,6 @@ class InvalidMesh(HandSimError, ValueError):
     """A mesh is empty, non-finite, of an absurd size or in an unsupported format."""
 
 
-class InvalidObjectParams(HandSimError, ValueError):
-    """An object parameter (mass, scale, name, option) is invalid."""
-
-
 class MeshImportWarning(UserWarning):
     """An imported mesh needed a fallback (no CoACD, not watertight)."""
 
@@ -119,197 +123,6 @@ COLLISION_GROUP = 3
 _MM = 1e-3
 _NAME_RE = re.compile(r"^[A-Za-z0-9_]+$")
 _FRICTION = (1.0, 0.005, 0.0001)
-
-
-# Symmetries ----------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Symmetry:
-    """The symmetries of an object's shape, in the object frame (BOP ``models_info`` style).
-
-    Args:
-        kind: ``"none"``, ``"continuous"`` (rotation by any angle about ``axis``) or
-            ``"discrete"`` (the rigid transforms in ``discrete``).
-        axis: unit axis of a continuous symmetry, object frame; ``None`` otherwise.
-        offset_m: a point on the continuous axis, metres, object frame.
-        discrete: (K, 4, 4) float64 rigid transforms (object frame to itself, metres), the
-            group elements other than the identity; (0, 4, 4) unless ``kind == "discrete"``.
-    """
-
-    kind: Literal["none", "continuous", "discrete"] = "none"
-    """``none``, ``continuous`` or ``discrete``."""
-    axis: tuple[float, float, float] | None = None
-    """Unit axis of a continuous symmetry (object frame), else ``None``."""
-    offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """A point on the continuous axis, metres."""
-    discrete: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 4, 4)))
-    """(K, 4, 4) non-identity symmetry transforms, metres."""
-
-    def __post_init__(self) -> None:
-        kinds = ("none", "continuous", "discrete")
-        if not isinstance(self.kind, str) or self.kind not in kinds:
-            raise InvalidObjectParams(
-                f"symmetry kind must be one of {kinds}, got {show(self.kind)}"
-            )
-        discrete = real_array("discrete", self.discrete, InvalidObjectParams)
-        if discrete.size % 16 or (discrete.ndim != 3 and discrete.size):
-            raise InvalidObjectParams(
-                f"discrete must be a (K, 4, 4) array of transforms, got shape {discrete.shape}"
-            )
-        discrete = discrete.reshape(-1, 4, 4).copy()
-        offset = real_array("offset_m", self.offset_m, InvalidObjectParams, max_abs=1000.0)
-        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
-            raise InvalidObjectParams(f"offset_m must be 3 finite numbers, got {self.offset_m!r}")
-        if self.kind == "continuous":
-            axis = real_array(
-                "axis", self.axis if self.axis is not None else (), InvalidObjectParams
-            )
-            if axis.shape != (3,) or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
-                raise InvalidObjectParams(
-                    f"a continuous symmetry needs a finite non-zero 3-vector axis, got "
-                    f"{self.axis!r}"
-                )
-            object.__setattr__(self, "axis", tuple(float(a) for a in axis / np.linalg.norm(axis)))
-        elif self.axis is not None:
-            raise InvalidObjectParams(f"axis is only for kind='continuous', got kind={self.kind!r}")
-        if self.kind == "discrete" and len(discrete) == 0:
-            raise InvalidObjectParams("a discrete symmetry needs at least one (4, 4) transform")
-        if self.kind != "discrete" and len(discrete) > 0:
-            raise InvalidObjectParams(f"discrete transforms given with kind={self.kind!r}")
-        for t in discrete:
-            r = t[:3, :3]
-            if not (
-                np.allclose(r @ r.T, np.eye(3), atol=1e-6)
-                and np.isclose(np.linalg.det(r), 1.0, atol=1e-6)
-                and np.allclose(t[3], (0, 0, 0, 1))
-            ):
-                raise InvalidObjectParams(f"a symmetry transform is not a rigid motion:\n{t}")
-        discrete.setflags(write=False)
-        object.__setattr__(self, "discrete", discrete)
-        object.__setattr__(self, "offset_m", tuple(float(v) for v in offset))
-
-    @classmethod
-    def continuous(
-        cls, axis: Sequence[float], offset_m: Sequence[float] = (0.0, 0.0, 0.0)
-    ) -> Symmetry:
-        """Rotation by any angle about ``axis`` through ``offset_m`` (object frame, metres)."""
-        return cls(kind="continuous", axis=tuple(axis), offset_m=tuple(offset_m))
-
-    @classmethod
-    def from_rotations(
-        cls, generators: Sequence[np.ndarray], center_m: Sequence[float] = (0.0, 0.0, 0.0)
-    ) -> Symmetry:
-        """The finite group generated by rotations about ``center_m``.
-
-        Args:
-            generators: 3x3 rotation matrices (object frame).
-            center_m: (3,) fixed point of the rotations, metres.
-        """
-        group = _close_group([np.asarray(g, dtype=np.float64) for g in generators])
-        center = np.asarray(center_m, dtype=np.float64)
-        out = []
-        for r in group:
-            if np.allclose(r, np.eye(3), atol=1e-9):
-                continue
-            t = np.eye(4)
-            t[:3, :3] = r
-            t[:3, 3] = center - r @ center
-            out.append(t)
-        return cls(kind="discrete", discrete=np.array(out))
-
-    def __repr__(self) -> str:
-        if self.kind == "continuous":
-            return f"Symmetry(continuous, axis={self.axis}, offset_m={self.offset_m})"
-        if self.kind == "discrete":
-            return f"Symmetry(discrete, {len(self.discrete)} non-identity transforms)"
-        return "Symmetry(none)"
-
-    def transforms(self, n_continuous: int = 36) -> np.ndarray:
-        """All symmetry transforms, the identity first (BOP ``get_symmetry_transformations``).
-
-        Args:
-            n_continuous: number of rotation steps a continuous symmetry is discretized into.
-
-        Returns:
-            (M, 4, 4) float64 rigid transforms, metres; ``M = 1`` without symmetry,
-            ``K + 1`` for a discrete one, ``n_continuous`` for a continuous one.
-        """
-        if self.kind == "continuous":
-            if n_continuous < 1:
-                raise InvalidObjectParams(f"n_continuous must be >= 1, got {n_continuous}")
-            axis = np.asarray(self.axis)
-            offset = np.asarray(self.offset_m)
-            out = np.tile(np.eye(4), (n_continuous, 1, 1))
-            from scipy.spatial.transform import Rotation
-
-            for i in range(n_continuous):
-                r = Rotation.from_rotvec(axis * (2.0 * np.pi * i / n_continuous)).as_matrix()
-                out[i, :3, :3] = r
-                out[i, :3, 3] = offset - r @ offset
-            return out
-        return np.concatenate([np.eye(4)[None], self.discrete])
-
-    def moved(self, translation_m: np.ndarray) -> Symmetry:
-        """The same symmetry after the object is translated by ``translation_m`` (3,), metres."""
-        shift = np.eye(4)
-        shift[:3, 3] = translation_m
-        if self.kind == "continuous":
-            return Symmetry.continuous(self.axis, np.asarray(self.offset_m) + translation_m)
-        if self.kind == "discrete":
-            inv = np.linalg.inv(shift)
-            return Symmetry(
-                kind="discrete", discrete=np.array([shift @ t @ inv for t in self.discrete])
-            )
-        return self
-
-    def to_bop(self) -> dict[str, list]:
-        """The BOP ``models_info`` entries (millimetres, flattened row-major 4x4 transforms)."""
-        info: dict[str, list] = {}
-        if self.kind == "continuous":
-            info["symmetries_continuous"] = [
-                {"axis": list(self.axis), "offset": [v / _MM for v in self.offset_m]}
-            ]
-        elif self.kind == "discrete":
-            flat = []
-            for t in self.discrete:
-                t_mm = t.copy()
-                t_mm[:3, 3] /= _MM
-                flat.append([float(v) for v in t_mm.ravel()])
-            info["symmetries_discrete"] = flat
-        return info
-
-
-NO_SYMMETRY = Symmetry()
-"""An object without symmetries."""
-
-SymmetryModality = Literal["texture", "depth"]
-SYMMETRY_MODALITIES: tuple[str, ...] = ("texture", "depth")
-"""What a symmetry is judged on: the textured appearance (colour, BOP's ycbv symmetries) or
-the shape alone (depth)."""
-
-
-def _close_group(generators: list[np.ndarray]) -> list[np.ndarray]:
-    group = [np.eye(3)]
-    frontier = [np.eye(3)]
-    while frontier:
-        new = []
-        for a in frontier:
-            for g in generators:
-                c = g @ a
-                if not any(np.allclose(c, b, atol=1e-9) for b in group):
-                    group.append(c)
-                    new.append(c)
-        frontier = new
-        if len(group) > 120:
-            raise InvalidObjectParams("symmetry generators do not form a finite group")
-    return group
-
-
-def _rot(axis: str, deg: float) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_euler(axis, deg, degrees=True).as_matrix()
 
 
 # The object ----------------------------------------------------------------------------------

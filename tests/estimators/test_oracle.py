@@ -11,7 +11,7 @@ from handsim.estimator import Estimator, PrivilegedEstimator, estimate_errors, h
 from handsim.estimators import OracleEstimator
 from handsim.frame import FrameRenderer, ObjectLabel
 from handsim.world.camera import camera_preset
-from handsim.world.objects import Symmetry
+from handsim.world.symmetry import Symmetry
 
 ICVL = camera_preset("icvl")
 DEPTH = np.zeros((ICVL.height, ICVL.width), np.float32)

@@ -20,7 +20,7 @@ from handsim.estimator import (
     validate_depth_input,
 )
 from handsim.frame import ObjectLabel
-from handsim.world.objects import Symmetry
+from handsim.world.symmetry import Symmetry
 
 K = np.array([[241.42, 0.0, 160.0], [0.0, 241.42, 120.0], [0.0, 0.0, 1.0]])
 

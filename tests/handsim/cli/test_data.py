@@ -113,8 +113,8 @@ def test_export_bop_symmetry_subprocess(dataset, tmp_path):
     import sys
 
     from handsim.cli.data import _SYMMETRIES
-    from handsim.world.objects import SYMMETRY_MODALITIES
     from handsim.world.registry import OBJECTS
+    from handsim.world.symmetry import SYMMETRY_MODALITIES
 
     assert _SYMMETRIES == SYMMETRY_MODALITIES
     out = tmp_path / "bop"

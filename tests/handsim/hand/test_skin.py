@@ -10,13 +10,8 @@ from handsim.frame import FrameRenderer
 from handsim.hand.model import FOREARM_GEOM, UPPER_ARM_GEOM, Hand, HandParams
 from handsim.hand.pose import DIGITS, JOINT_LIMITS, JOINT_NAMES, HandPose
 from handsim.hand.pose_sources import gesture
-from handsim.hand.skin import (
-    build_skin,
-    collision_gap_m,
-    digit_volume_m3,
-    joint_crease_depth_m,
-    skin_deviation_m,
-)
+from handsim.hand.skin import build_skin, skin_deviation_m
+from handsim.hand.skin_measure import collision_gap_m, digit_volume_m3, joint_crease_depth_m
 from handsim.world.camera import camera_preset
 from handsim.world.scene import SEGMENT_LABELS, CameraSpec, Scene, SceneSpec
 
@@ -282,3 +277,16 @@ def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_
     (left,) = tmp_path.glob("palm-*.npz")
     with np.load(left) as kept:
         np.testing.assert_array_equal(kept["vertices"], newest[0].vertices)
+
+
+def test_the_measures_stay_importable_from_skin():
+    """The measuring functions moved to skin_measure; the old import path gives the same ones."""
+    import handsim.hand.skin as skin
+    import handsim.hand.skin_measure as skin_measure
+    from handsim.hand.skin import collision_gap_m as old_path
+
+    assert old_path is skin_measure.collision_gap_m
+    for name in skin_measure.__all__:
+        assert getattr(skin, name) is getattr(skin_measure, name), name
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_measure'"):
+        _ = skin.no_such_measure

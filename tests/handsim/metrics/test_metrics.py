@@ -47,8 +47,8 @@ from handsim.metrics import (
     ycbv_auc,
 )
 from handsim.world.camera import CameraIntrinsics
-from handsim.world.objects import NO_SYMMETRY, Symmetry
 from handsim.world.registry import get_object
+from handsim.world.symmetry import NO_SYMMETRY, Symmetry
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # 512 px focal length: offsets of k / 512 m at z = 1 m shift pixels by exactly k.

@@ -467,6 +467,19 @@ def test_symmetry_validation(kwargs, match):
         Symmetry(**kwargs)
 
 
+def test_symmetry_names_stay_importable_from_objects():
+    """The names moved to handsim.world.symmetry (and handsim.errors) are the objects' own."""
+    import handsim.errors
+    import handsim.world.objects as objects
+    import handsim.world.symmetry as symmetry
+
+    for name in symmetry.__all__:
+        assert name in objects.__all__
+        assert getattr(objects, name) is getattr(symmetry, name), name
+    assert objects.InvalidObjectParams is handsim.errors.InvalidObjectParams
+    assert issubclass(handsim.errors.InvalidObjectParams, HandSimError)
+
+
 # MuJoCo -----------------------------------------------------------------------------------------
 
 
