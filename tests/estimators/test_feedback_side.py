@@ -1,0 +1,135 @@
+"""The feedback loop's side-canonical frame: training crops, the synthesizer, the estimator."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from handsim.data.generation import GenerationConfig, generate
+from handsim.estimators.deepprior.checkpoint import InvalidCheckpoint, save_checkpoint
+from handsim.estimators.deepprior.data import load_frames
+from handsim.estimators.deepprior.preprocess import (
+    MIDDLE_MCP,
+    mirror_depth,
+    mirror_intrinsics,
+    mirror_points,
+)
+from handsim.estimators.feedback.models import build_feedback_model
+from handsim.estimators.feedback.synth import RendererSynthesizer
+from handsim.estimators.feedback.train import FeedbackTrainConfig, _images
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """12 clean hand-only frames, one per episode, both sides."""
+    out = tmp_path_factory.mktemp("side")
+    config = GenerationConfig(
+        frames=12, frames_per_shard=12, frames_per_episode=1, seed=7,
+        num_objects_range=(0, 0), viewpoints=("third_person",), sensor="none",
+        hand_length_range_m=(0.18, 0.18),
+    )  # fmt: skip
+    generate(config, out)
+    return out
+
+
+def _updater(path, canonical_side=True):
+    """An updater checkpoint with random (non-zero) weights: its updates are not zero."""
+    torch.manual_seed(0)
+    model_config = {"arch": "updater", "size": 128, "fc": 16, "filters": 2}
+    model = build_feedback_model(model_config)
+    with torch.no_grad():
+        model.head[-1].weight.normal_(0, 0.05)
+    config = {"model": model_config, "cube_m": 0.25, "kind": "updater", "iterations": 2,
+              "synthesizer": "renderer", "canonical_side": canonical_side}  # fmt: skip
+    save_checkpoint(path, {"model": model.state_dict()}, config)
+    return path
+
+
+def test_training_crops_are_right_hands_the_renderer_draws(data):
+    """Canonical training images: left frames mirrored, drawn as right hands at the truth."""
+    frames = load_frames(data, canonical_side=True)
+    assert frames.is_left.any() and not frames.is_left.all()
+    centers = frames.keypoints_cam[:, MIDDLE_MCP]
+    images = _images(frames, centers, FeedbackTrainConfig())
+    assert not images.left.any()  # every hand is drawn as a right hand
+    assert np.isnan(images.lengths).all()  # the size is fitted, as at inference
+    with RendererSynthesizer() as synth:
+        for i in np.flatnonzero(frames.is_left)[:3]:
+            crops, _ = synth(images.truth[i : i + 1], centers[i : i + 1], images.K[i],
+                             frames.hand_length_m[i], images.left[i : i + 1])  # fmt: skip
+            hand = crops[0] < 1.0
+            diff_mm = np.abs(crops[0] - images.crops[i])[hand] * 0.25 / 2 * 1000
+            assert hand.sum() > 500
+            assert np.median(diff_mm) < 2.0, i
+            # A left hand drawn there does not match: the side matters.
+            wrong, _ = synth(images.truth[i : i + 1], centers[i : i + 1], images.K[i],
+                             frames.hand_length_m[i], np.array([True]))  # fmt: skip
+            both = (wrong[0] < 1.0) | hand
+            assert np.median(np.abs(wrong[0] - images.crops[i])[both]) * 125 > 2 * np.median(
+                diff_mm
+            )
+
+
+def test_a_left_frame_and_its_mirror_give_mirrored_updates(data, tmp_path):
+    """A left frame, and its mirror image seen as a right hand: every update mirrored."""
+    from handsim.estimators import FeedbackEstimator
+
+    torch.set_num_threads(1)
+    frames = load_frames(data)
+    est = FeedbackEstimator(_updater(tmp_path / "u.pt"), iterations=2)
+    assert est.canonical_side
+    i = int(np.flatnonzero(frames.is_left)[0])
+    depth, K = frames.depth(i), frames.K[i]  # noqa: N806
+    est.set_side(True)
+    left = est.predict_iterations(depth, K)
+    est.set_side(False)
+    right = est.predict_iterations(mirror_depth(depth), mirror_intrinsics(K, depth.shape[1]))
+    assert len(left) == 3
+    assert np.abs(left[2] - left[0]).max() > 1e-3  # the updates move the pose
+    for a, b in zip(left, right, strict=True):
+        np.testing.assert_allclose(a, mirror_points(b), atol=1e-5)
+    # The updates bring the pose back in the frame as seen: near the left hand, not its mirror.
+    truth = frames.keypoints_cam[i]
+    assert (
+        np.linalg.norm(left[0] - truth, axis=1).mean()
+        < np.linalg.norm(mirror_points(left[0]) - truth, axis=1).mean()
+    )
+    est.close()
+
+
+def test_an_updater_of_another_frame_than_the_predictor_is_refused(tmp_path):
+    """A non-canonical updater behind the canonical DeepPrior++ says what to do."""
+    from handsim.estimators import FeedbackEstimator
+
+    with pytest.raises(InvalidCheckpoint, match="canonical_side=False, the predictor"):
+        FeedbackEstimator(_updater(tmp_path / "u.pt", canonical_side=False))
+
+
+def test_evaluate_command_reports_each_update_per_set(tmp_path):
+    """`python -m handsim.estimators.feedback.evaluate` on a tiny benchmark: per set, per bucket."""
+    bench = tmp_path / "bench"
+    made = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "benchmark", "make", "--out", str(bench),
+         "--frames-per-set", "2", "-q"], capture_output=True, text=True,
+    )  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    out = tmp_path / "it.json"
+    cmd = [sys.executable, "-m", "handsim.estimators.feedback.evaluate", "--updater",
+           str(_updater(tmp_path / "u.pt")), "--bench", str(bench), "--iterations", "1",
+           "--sets", "hand_third_person", "hand_object", "--out", str(out)]  # fmt: skip
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    report = json.loads(out.read_text())
+    assert set(report["sets"]) == {"hand_third_person", "hand_object"}
+    for s in report["sets"].values():
+        assert s["frames"] == 2
+        assert len(s["mean_error_mm"]) == (2 if s["missed"] < 2 else 0)
+    assert report["iterations"] == 1 and len(report["by_occlusion"]) == 5
+    assert sum(b["frames"] for b in report["by_occlusion"]) == 4
+    assert "hand_object" in run.stdout and "frames/s" in run.stdout
+    bad = subprocess.run([*cmd[:-5], "--sets", "nope", "--out", str(out)],
+                         capture_output=True, text=True)  # fmt: skip
+    assert bad.returncode == 2 and "has no set nope" in bad.stderr
