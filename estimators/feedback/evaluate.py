@@ -27,14 +27,19 @@ import numpy as np
 from handsim.errors import HandSimError
 
 from ..deepprior.data import load_frames
+from ..deepprior.preprocess import MIDDLE_MCP
 
 __all__ = ["bench_iteration_errors", "iteration_errors", "main"]
 
 
 def _errors(
-    estimator: Any, frames: Any, iterations: int | None
+    estimator: Any, frames: Any, iterations: int | None, true_center: bool = False
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Per-frame mean joint errors (mm) after each iteration (NaN rows: no hand blob)."""
+    """Per-frame mean joint errors (mm) after each iteration (NaN rows: no hand blob).
+
+    ``true_center``: crop at the true middle MCP instead of the localizer's centre (a control
+    that takes the localizer's error out).
+    """
     k = estimator.iterations if iterations is None else int(iterations)
     rows = np.full((len(frames), k + 1), np.nan)
     elapsed = 0.0
@@ -42,7 +47,8 @@ def _errors(
         depth, K = frames.depth(i), frames.K[i]  # noqa: N806
         estimator.set_side(bool(frames.is_left[i]))
         t0 = time.perf_counter()
-        poses = estimator.predict_iterations(depth, K, iterations=k)
+        center = frames.keypoints_cam[i, MIDDLE_MCP] if true_center else None
+        poses = estimator.predict_iterations(depth, K, center, iterations=k)
         elapsed += time.perf_counter() - t0
         if poses is None:
             continue
@@ -97,6 +103,7 @@ def bench_iteration_errors(
     sets: list[str] | None = None,
     iterations: int | None = None,
     max_frames: int | None = None,
+    true_center: bool = False,
 ) -> dict[str, Any]:
     """:func:`iteration_errors` on the sets of a handsim-bench folder, per set and occlusion.
 
@@ -106,6 +113,7 @@ def bench_iteration_errors(
         sets: the sets (default: all of the folder's).
         iterations: updates (default: the estimator's).
         max_frames: at most this many frames per set.
+        true_center: crop at the true middle MCP, not at the localizer's centre (a control).
 
     Returns:
         ``sets`` (name -> summary), ``by_occlusion`` (the summaries of the occlusion buckets of
@@ -127,7 +135,7 @@ def bench_iteration_errors(
     per_set, all_rows, all_occ, elapsed = {}, [], [], 0.0
     for name in names:
         frames = load_frames(bench / str(listed[name]["folder"]), max_frames=max_frames)
-        rows, _, seconds = _errors(estimator, frames, iterations)
+        rows, _, seconds = _errors(estimator, frames, iterations, true_center)
         per_set[name] = _summary(rows)
         all_rows.append(rows)
         all_occ.append(frames.occlusion)
@@ -163,6 +171,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--synthesizer", choices=("renderer", "learned"), default="renderer")
     parser.add_argument("--synthesizer-checkpoint", default=None)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
+    parser.add_argument(
+        "--true-center",
+        action="store_true",
+        help="crop at the true middle MCP instead of the localizer's centre (a control)",
+    )
     args = parser.parse_args(argv)
     import torch
 
@@ -177,12 +190,13 @@ def main(argv: list[str] | None = None) -> int:
         )
         iterations = 3 if args.iterations is None else args.iterations
         report = bench_iteration_errors(
-            est, args.bench, sets=args.sets, iterations=iterations, max_frames=args.max_frames
-        )
+            est, args.bench, sets=args.sets, iterations=iterations, max_frames=args.max_frames,
+            true_center=args.true_center,
+        )  # fmt: skip
     except HandSimError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    report["estimator"] = est.info()
+    report["estimator"] = {**est.info(), "true_center": args.true_center}
     est.close()
     Path(args.out).write_text(json.dumps(report, indent=2) + "\n")
     for name, s in {**report["sets"], "all": report["all"]}.items():

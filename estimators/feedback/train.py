@@ -44,6 +44,7 @@ from ..deepprior.train import open_run
 
 __all__ = [
     "SYNTHESIZERS",
+    "updater_optimizer",
     "FeedbackTrainConfig",
     "InvalidFeedbackConfig",
     "feedback_loss",
@@ -508,6 +509,18 @@ def _pose_error_mm(poses: np.ndarray, truth: np.ndarray, cube_m: float) -> float
     return float(d.mean() * cube_m / 2.0 * 1000.0)
 
 
+def updater_optimizer(model: Any, config: FeedbackTrainConfig) -> Any:
+    """AdamW: weight decay decoupled from Adam's scaling.
+
+    The updater's last layer starts at zero, so at first no gradient reaches the layers below
+    it; with Adam's L2 decay their only gradient is the decay term, which Adam scales up to
+    full ``lr`` steps: every weight below the last layer shrank towards zero within an epoch.
+    """
+    import torch
+
+    return torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+
+
 def train_updater(
     data: list[str | os.PathLike[str]],
     out: str | os.PathLike[str],
@@ -592,7 +605,7 @@ def train_updater(
     start_all = np.concatenate(pool_start).astype(np.float32)
 
     model = build_feedback_model(config.model_config()).to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    optimizer = updater_optimizer(model, config)
     ckpt_config = {
         "model": config.model_config(), "cube_m": config.cube_m, "kind": "updater",
         "synthesizer": config.synthesizer, "iterations": config.iterations,

@@ -133,3 +133,32 @@ def test_evaluate_command_reports_each_update_per_set(tmp_path):
     bad = subprocess.run([*cmd[:-5], "--sets", "nope", "--out", str(out)],
                          capture_output=True, text=True)  # fmt: skip
     assert bad.returncode == 2 and "has no set nope" in bad.stderr
+
+
+def test_the_updaters_layers_keep_their_weights_while_its_last_layer_is_zero():
+    """No gradient reaches the layers below the zero last layer: weight decay must not eat them.
+
+    (Adam's L2 decay, scaled up by Adam to full steps, took them to zero within an epoch.)
+    """
+    from handsim.estimators.feedback.train import updater_optimizer
+
+    torch.manual_seed(0)
+    model = build_feedback_model({"arch": "updater", "size": 32, "fc": 8, "filters": 2})
+    before = model.path[2].weight.detach().clone()
+    optimizer = updater_optimizer(model, FeedbackTrainConfig(lr=1e-3, weight_decay=1e-4))
+    d = torch.rand(4, 1, 32, 32)
+    for _ in range(200):
+        loss = model(d, d).square().sum()  # zero output: zero gradient everywhere
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    after = model.path[2].weight.detach()
+    assert float((after - before).abs().max()) < 1e-3 * float(before.abs().mean())
+    old = torch.optim.Adam(model.parameters(), lr=1e-3, weight_decay=1e-4)
+    for _ in range(200):
+        loss = model(d, d).square().sum()
+        old.zero_grad()
+        loss.backward()
+        old.step()
+    # The control: Adam with L2 decay shrinks them.
+    assert float(model.path[2].weight.detach().abs().mean()) < 0.5 * float(before.abs().mean())
