@@ -14,7 +14,7 @@
 # crops at the shipped localizer's centres, starting poses from the shipped DeepPrior++ there,
 # the renderer synthesizer (every pool entry's crop is rendered once and cached in the run
 # folder). Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], THREADS [1],
-# EPOCHS [14], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
+# EPOCHS [4], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
 # poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
 # BENCH [OUT/bench], STAGES [data updater bench].
 # Every stage resumes: run the same command again after an interruption (generate keeps
@@ -27,7 +27,7 @@ HANDSIM=${HANDSIM:-handsim}
 THREADS=${THREADS:-1}
 THIRD_FRAMES=${THIRD_FRAMES:-2500}
 OBJECT_FRAMES=${OBJECT_FRAMES:-2500}
-EPOCHS=${EPOCHS:-14}
+EPOCHS=${EPOCHS:-4}
 FILTERS=${FILTERS:-16}
 FC=${FC:-256}
 BATCH=${BATCH:-64}

@@ -162,3 +162,17 @@ def test_the_updaters_layers_keep_their_weights_while_its_last_layer_is_zero():
         old.step()
     # The control: Adam with L2 decay shrinks them.
     assert float(model.path[2].weight.detach().abs().mean()) < 0.5 * float(before.abs().mean())
+
+
+def test_benchmark_run_feedback_says_that_no_updater_is_shipped(tmp_path):
+    """`handsim benchmark run --estimator feedback` needs shipped updater weights; none are."""
+    from handsim.estimators.feedback.checkpoint import SHIPPED_UPDATER
+
+    assert not SHIPPED_UPDATER.is_file()
+    run = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "benchmark", "run", "--estimator", "feedback",
+         "--bench", str(tmp_path), "--out", str(tmp_path / "r")],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 2
+    assert "feedback: no shipped updater" in run.stderr and "handsim train updater" in run.stderr
