@@ -1,13 +1,14 @@
 """Does the updater learn a correction? Loss and architecture controls on a run's cached pool.
 
     python benchmarks/feedback_learning_check.py RUN_DIR DATA_DIR [DATA_DIR ...] \
-        --loss hinge|mse [--bn] [--steps 1000] [--lr 1e-3]
+        --loss hinge|mse [--bn] [--no-truth] [--steps 1000] [--lr 1e-3]
 
 Reads a ``handsim train updater`` run folder (its crop centres, its first pool chunk of
 rendered starting poses and the pool in its ``last.pt``) and trains a fresh updater of the
 run's size on the same batches (seed 0) with one thing changed at a time: the loss (the
 paper's hinge, or the squared distance to the truth) and batch normalization after each
-convolution (``--bn``). Every 100 steps it prints the mean joint error of the predictor's
+convolution (``--bn``), and whether the truth's starting poses (where the update must be zero)
+are trained on (``--no-truth``). Every 100 steps it prints the mean joint error of the predictor's
 starting poses of the last 500 training frames before and after one update; those 500
 predictor starts are never trained on (the same frames' other starts are).
 """
@@ -41,7 +42,11 @@ def main() -> int:
     parser.add_argument("data", nargs="+")
     parser.add_argument("--loss", choices=("hinge", "mse"), required=True)
     parser.add_argument("--bn", action="store_true", help="batch norm after each convolution")
+    parser.add_argument(
+        "--no-truth", action="store_true", help="leave the truth's starts (zero update) out"
+    )
     parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--save", type=Path, default=None, help="write the updater here (.pt)")
     parser.add_argument("--lr", type=float, default=1e-3)
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -66,6 +71,8 @@ def main() -> int:
     # The pool's second block is the predictor's starts; its last 500 are held out.
     held = np.arange(2 * n_frames - 500, 2 * n_frames)
     trainable = np.setdiff1d(np.arange(len(idx)), held)
+    if args.no_truth:  # the pool's first block: the truth of every frame
+        trainable = trainable[trainable >= n_frames]
     rng = np.random.default_rng(0)
 
     def batch(b: np.ndarray) -> tuple[torch.Tensor, ...]:
@@ -103,6 +110,15 @@ def main() -> int:
                 f"(normalized), {time.time() - t0:.0f} s",
                 flush=True,
             )
+    if args.save is not None:
+        if args.bn:
+            raise SystemExit("--save: the estimator's updater has no batch norm; drop --bn")
+        from handsim.estimators.deepprior.checkpoint import save_checkpoint
+
+        config = {"model": run.model_config(), "cube_m": run.cube_m, "kind": "updater",
+                  "synthesizer": run.synthesizer, "iterations": 1,
+                  "canonical_side": run.canonical_side}  # fmt: skip
+        save_checkpoint(args.save, {"model": model.state_dict()}, config)
     return 0
 
 

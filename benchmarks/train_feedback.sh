@@ -16,6 +16,8 @@
 # folder). Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], THREADS [1],
 # EPOCHS [4], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
 # poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
+# TRUTH_STARTS [0] (1: the truth itself is a starting pose, as in the paper; with it the updater
+# learned to make no update here, docs/feedback.md),
 # BENCH [OUT/bench], STAGES [data updater bench].
 # Every stage resumes: run the same command again after an interruption (generate keeps
 # complete shards, train restarts after its last finished epoch with its pool and its cached
@@ -34,6 +36,7 @@ BATCH=${BATCH:-64}
 SIGMA_MM=${SIGMA_MM:-15}
 ITERATIONS=${ITERATIONS:-3}
 VAL_FRAMES=${VAL_FRAMES:-300}
+TRUTH_STARTS=${TRUTH_STARTS:-0}
 BENCH=${BENCH:-$OUT/bench}
 STAGES=${STAGES:-"data updater bench"}
 mkdir -p "$OUT"
@@ -70,7 +73,8 @@ if has updater; then
   stamp "train the updater"
   $HANDSIM train updater --data "${DATA[@]}" --out "$OUT/updater" --epochs "$EPOCHS" \
     --filters "$FILTERS" --fc "$FC" --batch-size "$BATCH" --perturb-sigma-mm "$SIGMA_MM" \
-    --iterations "$ITERATIONS" --max-val-frames "$VAL_FRAMES" --threads "$THREADS" -q
+    --iterations "$ITERATIONS" --max-val-frames "$VAL_FRAMES" --threads "$THREADS" -q \
+    $([[ $TRUTH_STARTS == 1 ]] || echo --no-truth-starts)
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"

@@ -91,6 +91,8 @@ class FeedbackTrainConfig:
         localizer: the updater's crop centres: this localizer's refined centres (a shipped
             name or a path), as the estimator crops at inference; ``None``: the middle MCP
             plus the offset above.
+        truth_starts: the truth itself is a starting pose of every image (the paper's pool;
+            its update must be zero). Its perturbations are starting poses either way.
         canonical_side: the updater works in the right-hand frame (left frames mirrored, as
             DeepPrior++ with ``canonical_side``; the renderer draws right hands).
         max_frames: use at most this many training frames (0: all).
@@ -118,6 +120,7 @@ class FeedbackTrainConfig:
     offset_sigma_m: float = 0.005
     localizer: str | None = "localizer"
     canonical_side: bool = True
+    truth_starts: bool = True
     max_frames: int = 0
     max_val_frames: int = 0
     seed: int = 0
@@ -601,6 +604,8 @@ def train_updater(
         for _ in range(config.perturbations):
             pool_idx.append(np.arange(n))
             pool_start.append((base + rng.normal(0, sigma, base.shape)).astype(np.float32))
+    if not config.truth_starts:  # drop the first block, the truth (its perturbations stay)
+        pool_idx, pool_start, heads = pool_idx[1:], pool_start[1:], heads[1:]
     idx_all = np.concatenate(pool_idx)
     start_all = np.concatenate(pool_start).astype(np.float32)
 

@@ -61,6 +61,7 @@ _FEEDBACK_OPTIONS = {
     "--perturbations": "perturbations",
     "--iterations": "iterations",
     "--max-val-frames": "max_val_frames",
+    "--no-truth-starts": "no_truth_starts",
 }
 
 
@@ -106,6 +107,7 @@ def _train_feedback(args: argparse.Namespace) -> int:
         localizer=None if localizer == "none" else localizer,
         max_frames=args.max_frames,
         max_val_frames=given("max_val_frames", defaults.max_val_frames),
+        truth_starts=not args.no_truth_starts,
         seed=args.seed,
     )
     _check_device(args.device)
@@ -409,6 +411,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=integer(1, 20),
         default=None,
         help="updater: updates in validation, the estimator's default (default: 2)",
+    )
+    fb.add_argument(
+        "--no-truth-starts",
+        action="store_const",
+        const=True,
+        default=None,
+        help="updater: leave the truth out of the starting poses (its perturbations stay)",
     )
     fb.add_argument(
         "--max-val-frames",

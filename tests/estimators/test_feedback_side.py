@@ -176,3 +176,44 @@ def test_benchmark_run_feedback_says_that_no_updater_is_shipped(tmp_path):
     )  # fmt: skip
     assert run.returncode == 2
     assert "feedback: no shipped updater" in run.stderr and "handsim train updater" in run.stderr
+
+
+def test_the_pool_without_the_truth_keeps_its_perturbations(data, tmp_path):
+    """truth_starts=False drops the truth's block of the pool and nothing else."""
+    from handsim.estimators.feedback.train import train_updater
+
+    torch.set_num_threads(1)
+    tiny = dict(kind="updater", epochs=1, batch_size=8, size=32, fc=8, filters=2,
+                predictor=None, max_frames=8, seed=1, localizer=None)  # fmt: skip
+    quiet = {"progress": False, "log": lambda s: None}
+    runs = {}
+    for truth in (True, False):
+        config = FeedbackTrainConfig(**tiny, truth_starts=truth)
+        metrics = train_updater([data], tmp_path / str(truth), config, **quiet)
+        runs[truth] = torch.load(tmp_path / str(truth) / "last.pt", weights_only=True)
+        assert metrics["starts"] == (["truth"] if truth else [])
+    n = 8
+    assert len(runs[True]["pool_start"]) == 2 * n and len(runs[False]["pool_start"]) == n
+    torch.testing.assert_close(runs[False]["pool_start"], runs[True]["pool_start"][n:])
+
+
+def test_cli_updater_options_of_the_side_canonical_recipe(data, tmp_path):
+    """`handsim train updater` takes --no-truth-starts, --localizer none, --max-val-frames."""
+    common = ["--data", str(data), "--epochs", "1", "--max-frames", "8", "--batch-size", "4",
+              "--size", "32", "--fc", "8", "--threads", "1", "-q"]  # fmt: skip
+    out = tmp_path / "u"
+    run = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "train", "updater", "--out", str(out), *common,
+         "--filters", "2", "--predictor", "none", "--localizer", "none", "--no-truth-starts",
+         "--max-val-frames", "2"], capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    config = json.loads((out / "run.json").read_text())["config"]
+    assert config["truth_starts"] is False and config["localizer"] is None
+    assert config["max_val_frames"] == 2 and config["canonical_side"] is True
+    assert json.loads(run.stdout)["val_frames"] == 2
+    bad = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "train", "deepprior++", "--out", str(tmp_path / "d"),
+         *common[:2], "--no-truth-starts"], capture_output=True, text=True,
+    )  # fmt: skip
+    assert bad.returncode == 2 and "--no-truth-starts: not allowed with deepprior++" in bad.stderr
