@@ -133,6 +133,16 @@ def test_evaluate_command_reports_each_update_per_set(tmp_path):
     bad = subprocess.run([*cmd[:-5], "--sets", "nope", "--out", str(out)],
                          capture_output=True, text=True)  # fmt: skip
     assert bad.returncode == 2 and "has no set nope" in bad.stderr
+    # The shipped feedback estimator by name in `handsim benchmark run`.
+    run = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "benchmark", "run", "--estimator", "feedback",
+         "--bench", str(bench), "--episodes", "0", "--out", str(tmp_path / "r"), "-q"],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    result = json.loads((tmp_path / "r" / "benchmark.json").read_text())
+    assert result["estimator"]["spec"] == "feedback"
+    assert result["offline"]["all"]["n_frames"] == 12
 
 
 def test_the_updaters_layers_keep_their_weights_while_its_last_layer_is_zero():
@@ -164,18 +174,21 @@ def test_the_updaters_layers_keep_their_weights_while_its_last_layer_is_zero():
     assert float(model.path[2].weight.detach().abs().mean()) < 0.5 * float(before.abs().mean())
 
 
-def test_benchmark_run_feedback_says_that_no_updater_is_shipped(tmp_path):
-    """`handsim benchmark run --estimator feedback` needs shipped updater weights; none are."""
+def test_the_shipped_updater_fits_its_budget_and_the_predictors_frame():
+    """float16, at most 4 MB, side-canonical as DeepPrior++; `feedback` loads it."""
+    from handsim.estimators import FeedbackEstimator
     from handsim.estimators.feedback.checkpoint import SHIPPED_UPDATER
 
-    assert not SHIPPED_UPDATER.is_file()
-    run = subprocess.run(
-        [sys.executable, "-m", "handsim.cli", "benchmark", "run", "--estimator", "feedback",
-         "--bench", str(tmp_path), "--out", str(tmp_path / "r")],
-        capture_output=True, text=True,
-    )  # fmt: skip
-    assert run.returncode == 2
-    assert "feedback: no shipped updater" in run.stderr and "handsim train updater" in run.stderr
+    assert SHIPPED_UPDATER.stat().st_size <= 4 * 1024 * 1024
+    state = torch.load(SHIPPED_UPDATER, weights_only=True)
+    assert all(v.dtype == torch.float16 for v in state["model"].values())
+    est = FeedbackEstimator()  # the shipped updater
+    assert (
+        est.canonical_side
+        and est.iterations
+        == json.loads(SHIPPED_UPDATER.with_suffix(".json").read_text())["iterations"]
+    )
+    est.close()
 
 
 def test_the_pool_without_the_truth_keeps_its_perturbations(data, tmp_path):
