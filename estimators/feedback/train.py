@@ -16,7 +16,8 @@ the pixels where either crop shows something).
 true pose ``P`` is ``max(0, |P'' - P| - lambda |P' - P|)`` with ``P'' = P' + updater(D,
 synth(P'))`` (normalized poses, ``lambda = 0.6``): an update must bring the pose at least
 ``1 - lambda`` of the way closer. Each image starts with a pool of starting poses: the truth
-(the update must be zero), the predictor's output, and Gaussian perturbations of both; every
+(the update must be zero; ``truth_starts=False`` leaves it out), the predictor's output, and
+Gaussian perturbations of both; every
 second epoch, the updater's own outputs ``P''`` of a sample of the pool are added, with poses
 drawn from the current error distribution (a Gaussian fitted to ``P'' - P``). Each pool entry's
 synthesized crop is made once, when it is added (the synthesizer is fixed).
