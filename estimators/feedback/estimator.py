@@ -8,6 +8,10 @@ current pose: handsim's renderer (``renderer``, the exact hand model; the retarg
 warm-started from the previous iteration) or the learned synthesizer (``learned``). The hand's
 length (unknown: fitted to each pose) and side (:meth:`FeedbackEstimator.set_side`) tell the
 renderer which hand to draw.
+
+Side: an updater trained side-canonical (its config's ``canonical_side``, as DeepPrior++'s)
+gets a left hand's frame mirrored into the right-hand frame before the whole pipeline; the
+renderer then draws the right hand that mirrors it, and the keypoints are mirrored back.
 """
 
 from __future__ import annotations
@@ -20,7 +24,14 @@ import numpy as np
 
 from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
 
-from ..deepprior.preprocess import crop_depth, crop_matrix, denormalize_keypoints
+from ..deepprior.preprocess import (
+    crop_depth,
+    crop_matrix,
+    denormalize_keypoints,
+    mirror_depth,
+    mirror_intrinsics,
+    mirror_points,
+)
 
 __all__ = ["FeedbackEstimator"]
 
@@ -29,7 +40,8 @@ class FeedbackEstimator(EstimatorBase):
     """DeepPrior++ refined by the feedback loop (Oberweger et al., ICCV 2015).
 
     Args:
-        updater: the updater's checkpoint (a ``handsim train updater`` run folder or ``.pt``).
+        updater: the updater's checkpoint: ``"feedback"`` (the shipped weights), a ``handsim
+            train updater`` run folder or a ``.pt``.
         predictor: the first pose's network (``"deepprior++"``: shipped weights, or a path).
         localizer: the refinement CNN's checkpoint, or ``None``.
         synthesizer: ``"renderer"`` or ``"learned"``.
@@ -47,7 +59,7 @@ class FeedbackEstimator(EstimatorBase):
 
     def __init__(
         self,
-        updater: str | os.PathLike[str],
+        updater: str | os.PathLike[str] = "feedback",
         *,
         predictor: str | os.PathLike[str] = "deepprior++",
         localizer: str | os.PathLike[str] | None = "localizer",
@@ -73,6 +85,13 @@ class FeedbackEstimator(EstimatorBase):
             raise InvalidCheckpoint(
                 f"updater {updater} works on {size} px crops of a {config['cube_m']} m cube, the "
                 f"predictor on {self.first.size} px of {self.first.cube_m} m; train them alike"
+            )
+        self.canonical_side = bool(config.get("canonical_side", False))
+        if self.canonical_side != self.first.canonical_side:
+            raise InvalidCheckpoint(
+                f"updater {updater} has canonical_side={self.canonical_side}, the predictor "
+                f"{predictor} {self.first.canonical_side}: the updater must work in the "
+                "predictor's frame (train it with that predictor)"
             )
         if iterations is not None and (not isinstance(iterations, int) or iterations < 0):
             raise InvalidCheckpoint(f"iterations must be an int >= 0; received {iterations!r}")
@@ -101,20 +120,45 @@ class FeedbackEstimator(EstimatorBase):
         self,
         depth_m: np.ndarray,
         K: np.ndarray,  # noqa: N803
-        center: np.ndarray,
+        center: np.ndarray | None = None,
         iterations: int | None = None,
-    ) -> list[np.ndarray]:
+    ) -> list[np.ndarray] | None:
         """(21, 3) keypoints, metres, after 0 (the predictor), 1, ..., k updates.
 
         Args:
-            depth_m: (H, W) float32 depth, metres (unchecked).
+            depth_m: (H, W) float32 depth, metres (unchecked), as the camera saw it.
             K: (3, 3) intrinsics.
-            center: (3,) crop centre, metres (e.g. the localizer's).
+            center: (3,) crop centre, metres, in the frame as seen (default: the localizer's).
             iterations: updates (default: :attr:`iterations`).
+
+        Returns:
+            k + 1 keypoint arrays in the frame as seen, or ``None`` when the localizer finds
+            no hand blob.
         """
+        mirror = self.canonical_side and self.is_left
+        if mirror:  # the left hand as the right hand it mirrors
+            K = mirror_intrinsics(K, depth_m.shape[1])  # noqa: N806
+            depth_m = mirror_depth(depth_m)
+            center = None if center is None else mirror_points(center)
+        if center is None:
+            center = self.first.localizer.localize(depth_m, K)
+            if center is None:
+                return None
+        poses = self._iterate(depth_m, K, np.asarray(center, np.float64), iterations)
+        return [mirror_points(p) for p in poses] if mirror else poses
+
+    def _iterate(
+        self,
+        depth_m: np.ndarray,
+        K: np.ndarray,  # noqa: N803
+        center: np.ndarray,
+        iterations: int | None,
+    ) -> list[np.ndarray]:
+        """The loop in the network's frame (mirrored for a canonical left hand)."""
         import torch
 
         k = self.iterations if iterations is None else int(iterations)
+        draw_left = np.array([self.is_left and not self.canonical_side])
         cube, size = self.first.cube_m, self.first.size
         x = crop_depth(depth_m, crop_matrix(center, K, cube, size), center[2], cube, size)
         d = torch.from_numpy(x[None, None]).to(self.device)
@@ -124,9 +168,7 @@ class FeedbackEstimator(EstimatorBase):
         out = [pose]
         warm = None
         for _ in range(k):
-            crops, warm = self.synth(
-                pose, center[None], K, self.hand_length_m, np.array([self.is_left]), warm
-            )
+            crops, warm = self.synth(pose, center[None], K, self.hand_length_m, draw_left, warm)
             with torch.inference_mode():
                 y = torch.from_numpy(crops[:, None]).to(self.device)
                 pose = pose + self.updater(d, y).float().cpu().numpy()
@@ -144,10 +186,8 @@ class FeedbackEstimator(EstimatorBase):
             ``Estimate(keypoints_cam=(21, 3) metres)`` after :attr:`iterations` updates.
         """
         depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
-        center = self.first.localizer.localize(depth_m, K_cv)
-        if center is None:
-            return Estimate(valid=False)
-        return Estimate(keypoints_cam=self.predict_iterations(depth_m, K_cv, center)[-1])
+        poses = self.predict_iterations(depth_m, K_cv)
+        return Estimate(valid=False) if poses is None else Estimate(keypoints_cam=poses[-1])
 
     def close(self) -> None:
         """Free the synthesizer's renderers."""
@@ -160,4 +200,5 @@ class FeedbackEstimator(EstimatorBase):
             "updater": self.updater_checkpoint,
             "synthesizer": self.synthesizer_kind,
             "iterations": self.iterations,
+            "updater_canonical_side": self.canonical_side,
         }

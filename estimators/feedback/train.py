@@ -16,7 +16,8 @@ the pixels where either crop shows something).
 true pose ``P`` is ``max(0, |P'' - P| - lambda |P' - P|)`` with ``P'' = P' + updater(D,
 synth(P'))`` (normalized poses, ``lambda = 0.6``): an update must bring the pose at least
 ``1 - lambda`` of the way closer. Each image starts with a pool of starting poses: the truth
-(the update must be zero), the predictor's output, and Gaussian perturbations of both; every
+(the update must be zero; ``truth_starts=False`` leaves it out), the predictor's output, and
+Gaussian perturbations of both; every
 second epoch, the updater's own outputs ``P''`` of a sample of the pool are added, with poses
 drawn from the current error distribution (a Gaussian fitted to ``P'' - P``). Each pool entry's
 synthesized crop is made once, when it is added (the synthesizer is fixed).
@@ -44,6 +45,7 @@ from ..deepprior.train import open_run
 
 __all__ = [
     "SYNTHESIZERS",
+    "updater_optimizer",
     "FeedbackTrainConfig",
     "InvalidFeedbackConfig",
     "feedback_loss",
@@ -86,8 +88,17 @@ class FeedbackTrainConfig:
         iterations: most updates applied in validation (updater); the number (0 to this) with
             the lowest validation error is saved with ``best.pt``, the estimator's default.
         offset_sigma_m: standard deviation of the crop centre's offset from the middle MCP,
-            metres (one draw per frame; as the localizer's error at inference).
+            metres (one draw per frame; with ``localizer=None`` and for the synthesizer).
+        localizer: the updater's crop centres: this localizer's refined centres (a shipped
+            name or a path), as the estimator crops at inference; ``None``: the middle MCP
+            plus the offset above.
+        truth_starts: the truth itself is a starting pose of every image (the paper's pool;
+            its update must be zero). Its perturbations are starting poses either way.
+        canonical_side: the updater works in the right-hand frame (left frames mirrored, as
+            DeepPrior++ with ``canonical_side``; the renderer draws right hands).
         max_frames: use at most this many training frames (0: all).
+        max_val_frames: validate the updater on at most this many frames, evenly spaced over
+            the validation split (0: all).
         seed: random seed.
     """
 
@@ -108,7 +119,11 @@ class FeedbackTrainConfig:
     perturbations: int = 1
     iterations: int = 2
     offset_sigma_m: float = 0.005
+    localizer: str | None = "localizer"
+    canonical_side: bool = True
+    truth_starts: bool = True
     max_frames: int = 0
+    max_val_frames: int = 0
     seed: int = 0
 
     def model_config(self) -> dict[str, Any]:
@@ -149,6 +164,7 @@ class FeedbackTrainConfig:
             "offset_sigma_m": (self.offset_sigma_m, 0.0, 0.5),
             "perturbations": (self.perturbations, 0, 100),
             "iterations": (self.iterations, 1, 20),
+            "max_val_frames": (self.max_val_frames, 0, 10**9),
         }
         for name, (value, lo, hi) in ranges.items():
             if not lo <= value <= hi:
@@ -195,19 +211,22 @@ def frame_sides(
 # Shared run machinery ---------------------------------------------------------------------------
 
 
-def _frames(
-    data: list, config: FeedbackTrainConfig
-) -> tuple[FrameSet, FrameSet, np.ndarray, np.ndarray]:
+def _subset(frames: FrameSet, idx: np.ndarray) -> FrameSet:
+    fields = {f.name: getattr(frames, f.name)[idx] for f in dataclasses.fields(frames)}
+    return FrameSet(**fields)
+
+
+def _frames(data: list, config: FeedbackTrainConfig) -> tuple[FrameSet, FrameSet]:
+    """Training and validation frames (left hands mirrored with ``canonical_side``)."""
     max_frames = config.max_frames or None
-    train = load_frames(data, "train", max_frames=max_frames)
+    canonical = config.kind == "updater" and config.canonical_side
+    train = load_frames(data, "train", max_frames=max_frames, canonical_side=canonical)
     val_max = None if max_frames is None else max(8, max_frames // 8)
-    val = load_frames(data, "val", max_frames=val_max)
-    return (
-        train,
-        val,
-        frame_sides(data, "train", max_frames=max_frames),
-        frame_sides(data, "val", max_frames=val_max),
-    )
+    val = load_frames(data, "val", max_frames=val_max, canonical_side=canonical)
+    if config.kind == "updater" and 0 < config.max_val_frames < len(val):
+        # Evenly spaced, so that every folder of --data is validated on.
+        val = _subset(val, np.linspace(0, len(val) - 1, config.max_val_frames).round().astype(int))
+    return train, val
 
 
 def _centers(frames: FrameSet, config: FeedbackTrainConfig, salt: int) -> np.ndarray:
@@ -306,7 +325,7 @@ def train_synthesizer(
     out = Path(out)
     open_run(out, config, data, InvalidFeedbackConfig)
     torch.manual_seed(config.seed)
-    train_frames, val_frames, _, _ = _frames(data, config)
+    train_frames, val_frames = _frames(data, config)
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
     flags = {"rotation": True, "scale": False, "translation": True}
     train_set = CropDataset(
@@ -388,13 +407,61 @@ class _Images:
     left: np.ndarray  # (N,) bool
 
 
-def _images(frames: FrameSet, left: np.ndarray, config: FeedbackTrainConfig, salt: int) -> _Images:
-    centers = _centers(frames, config, salt)
+def _images(frames: FrameSet, centers: np.ndarray, config: FeedbackTrainConfig) -> _Images:
     truth = normalize_keypoints(frames.keypoints_cam, centers, config.cube_m).reshape(-1, 63)
+    # As at inference the hand's size is unknown (fitted to each pose), and a mirrored left
+    # hand is drawn as the right hand it mirrors.
     return _Images(
         _crops(frames, centers, config), truth.astype(np.float32), centers,
-        frames.K, frames.hand_length_m, np.asarray(left, bool),
+        frames.K, np.full(len(frames), np.nan), frames.is_left & ~frames.mirrored,
     )  # fmt: skip
+
+
+def _updater_centers(
+    frames: FrameSet, config: FeedbackTrainConfig, out: Path, split: str, salt: int
+) -> np.ndarray:
+    """The localizer's refined centres (cached in the run folder), or the offset middle MCP."""
+    from ..deepprior.train import localizer_centers
+
+    if config.localizer is None:
+        return _centers(frames, config, salt)
+    path = out / f"centers_{split}.npy"
+    if path.is_file():
+        centers = np.load(path)
+        if centers.shape == (len(frames), 3):
+            return centers
+    # A frame without a hand blob gets the true middle MCP (the estimator would miss it).
+    centers, _ = localizer_centers(frames, config.localizer)
+    np.save(path, centers)
+    return centers
+
+
+def _pool_crops(
+    out: Path,
+    synth: Any,
+    images: _Images,
+    idx: np.ndarray,
+    start: np.ndarray,
+    have: np.ndarray | None = None,
+) -> np.ndarray:
+    """The synthesized crops of pool entries ``idx``/``start``: cached chunks, then the rest.
+
+    Chunk files ``pool_OFFSET.npy`` hold the crops of the entries from OFFSET on; a resumed run
+    reads them instead of rendering its pool again (minutes on a CPU). A chunk written by a run
+    killed before its checkpoint starts at the pool's end and is rendered over. ``have``: the
+    crops of the first entries, already in memory.
+    """
+    parts = [] if have is None else [have]
+    done = sum(len(p) for p in parts)
+    while done < len(idx) and (out / f"pool_{done:08d}.npy").is_file():
+        part = np.load(out / f"pool_{done:08d}.npy")
+        parts.append(part[: len(idx) - done])
+        done += len(parts[-1])
+    if done < len(idx):
+        new = _synthesize(synth, images, idx[done:], start[done:])
+        np.save(out / f"pool_{done:08d}.npy", new)
+        parts.append(new)
+    return np.concatenate(parts)
 
 
 def _predict(predictor: Any, crops: np.ndarray, batch_size: int) -> np.ndarray:
@@ -446,6 +513,18 @@ def _pose_error_mm(poses: np.ndarray, truth: np.ndarray, cube_m: float) -> float
     return float(d.mean() * cube_m / 2.0 * 1000.0)
 
 
+def updater_optimizer(model: Any, config: FeedbackTrainConfig) -> Any:
+    """AdamW: weight decay decoupled from Adam's scaling.
+
+    The updater's last layer starts at zero, so at first no gradient reaches the layers below
+    it; with Adam's L2 decay their only gradient is the decay term, which Adam scales up to
+    full ``lr`` steps: every weight below the last layer shrank towards zero within an epoch.
+    """
+    import torch
+
+    return torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+
+
 def train_updater(
     data: list[str | os.PathLike[str]],
     out: str | os.PathLike[str],
@@ -479,10 +558,14 @@ def train_updater(
     out = Path(out)
     open_run(out, config, data, InvalidFeedbackConfig)
     torch.manual_seed(config.seed)
-    train_frames, val_frames, train_left, val_left = _frames(data, config)
+    train_frames, val_frames = _frames(data, config)
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
-    train_img = _images(train_frames, train_left, config, 1)
-    val_img = _images(val_frames, val_left, config, 2)
+    t0 = time.perf_counter()
+    train_img = _images(
+        train_frames, _updater_centers(train_frames, config, out, "train", 1), config
+    )
+    val_img = _images(val_frames, _updater_centers(val_frames, config, out, "val", 2), config)
+    log(f"crop centres in {time.perf_counter() - t0:.1f} s")
     synth = make_synthesizer(
         config.synthesizer, config.synthesizer_checkpoint, cube_m=config.cube_m,
         size=config.size, device=device,
@@ -502,6 +585,12 @@ def train_updater(
                 f"predictor {config.predictor} crops {pconfig['model']['size']} px of a "
                 f"{pconfig['cube_m']} m cube; give the updater the same --size and --cube-mm"
             )
+        if bool(pconfig.get("canonical_side", False)) != config.canonical_side:
+            raise InvalidFeedbackConfig(
+                f"predictor {config.predictor} has canonical_side="
+                f"{bool(pconfig.get('canonical_side', False))}, the updater "
+                f"{config.canonical_side}; the updater must see the predictor's frame"
+            )
         starts_base.append(_predict(predictor, train_img.crops, config.batch_size))
         val_starts = _predict(predictor, val_img.crops, config.batch_size)
         heads.append("predictor")
@@ -516,14 +605,17 @@ def train_updater(
         for _ in range(config.perturbations):
             pool_idx.append(np.arange(n))
             pool_start.append((base + rng.normal(0, sigma, base.shape)).astype(np.float32))
+    if not config.truth_starts:  # drop the first block, the truth (its perturbations stay)
+        pool_idx, pool_start, heads = pool_idx[1:], pool_start[1:], heads[1:]
     idx_all = np.concatenate(pool_idx)
     start_all = np.concatenate(pool_start).astype(np.float32)
 
     model = build_feedback_model(config.model_config()).to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    optimizer = updater_optimizer(model, config)
     ckpt_config = {
         "model": config.model_config(), "cube_m": config.cube_m, "kind": "updater",
         "synthesizer": config.synthesizer, "iterations": config.iterations,
+        "canonical_side": config.canonical_side,
     }  # fmt: skip
     last = out / "last.pt"
     start_epoch, best, history, elapsed = 0, math.inf, [], 0.0
@@ -534,7 +626,7 @@ def train_updater(
         idx_all = state["pool_idx"].numpy()
         start_all = state["pool_start"].numpy()
     t0 = time.perf_counter()
-    synth_all = _synthesize(synth, train_img, idx_all, start_all)
+    synth_all = _pool_crops(out, synth, train_img, idx_all, start_all)
     log(f"pool: {len(idx_all)} starting poses synthesized in {time.perf_counter() - t0:.1f} s")
     # Steps per epoch grow with the pool; the schedule runs on epochs.
     for epoch in range(start_epoch, config.epochs):
@@ -581,13 +673,9 @@ def train_updater(
             drawn = train_img.truth[drawn_idx] + grow.multivariate_normal(
                 err.mean(axis=0), cov, size=len(pick), method="eigh"
             )
-            new_idx = np.concatenate([i, drawn_idx])
-            new_start = np.concatenate([updated, drawn]).astype(np.float32)
-            synth_all = np.concatenate(
-                [synth_all, _synthesize(synth, train_img, new_idx, new_start)]
-            )
-            idx_all = np.concatenate([idx_all, new_idx])
-            start_all = np.concatenate([start_all, new_start])
+            idx_all = np.concatenate([idx_all, i, drawn_idx])
+            start_all = np.concatenate([start_all, updated, drawn]).astype(np.float32)
+            synth_all = _pool_crops(out, synth, train_img, idx_all, start_all, synth_all)
             entry["pool"] = int(len(idx_all))
         per_iter = _run_updates(
             model, synth, val_img, val_starts, config.iterations, config.batch_size

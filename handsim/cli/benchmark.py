@@ -645,7 +645,22 @@ def _make(args: argparse.Namespace) -> int:
 def _estimator_arg(text: str) -> Any:
     from handsim.cli.closed_loop import estimator_arg
 
+    if text == "feedback":
+        return _feedback_spec()
     return text if text == "deepprior" else estimator_arg(text)
+
+
+def _feedback_spec() -> Any:
+    """The feedback estimator with its shipped updater, built once now to fail early."""
+    from handsim.cli.estimators import EstimatorSpec
+    from handsim.errors import HandSimError
+    from handsim.estimators import FeedbackEstimator
+
+    try:
+        FeedbackEstimator().close()
+    except HandSimError as err:
+        raise argparse.ArgumentTypeError(f"feedback: {err}") from None
+    return EstimatorSpec("feedback", FeedbackEstimator, {})
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -699,7 +714,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_quiet(make)
     make.set_defaults(func=_make)
 
-    names = (*ESTIMATORS, "deepprior")
+    names = (*ESTIMATORS, "deepprior", "feedback")
     run = actions.add_parser(
         "run",
         help="run an estimator on the benchmark: table, JSON, plots, closed loop",

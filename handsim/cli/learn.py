@@ -60,6 +60,8 @@ _FEEDBACK_OPTIONS = {
     "--perturb-sigma-mm": "perturb_sigma_mm",
     "--perturbations": "perturbations",
     "--iterations": "iterations",
+    "--max-val-frames": "max_val_frames",
+    "--no-truth-starts": "no_truth_starts",
 }
 
 
@@ -70,7 +72,10 @@ def _train_feedback(args: argparse.Namespace) -> int:
         train_updater,
     )
 
-    for option, value in (("--localizer", args.localizer), ("--init", args.init)):
+    checks = [("--init", args.init)]
+    if args.kind == "synthesizer":
+        checks.append(("--localizer", args.localizer))
+    for option, value in checks:
         if value is not None:
             args.parser.error(f"argument {option}: not allowed with {args.kind} (DeepPrior only)")
     defaults = FeedbackTrainConfig()
@@ -80,6 +85,7 @@ def _train_feedback(args: argparse.Namespace) -> int:
         return default if value is None else value
 
     predictor = given("predictor", defaults.predictor)
+    localizer = given("localizer", defaults.localizer)
     config = FeedbackTrainConfig(
         kind=args.kind,
         epochs=args.epochs,
@@ -98,7 +104,10 @@ def _train_feedback(args: argparse.Namespace) -> int:
         perturbations=given("perturbations", defaults.perturbations),
         iterations=given("iterations", defaults.iterations),
         offset_sigma_m=given("offset_sigma_mm", 5.0) / 1000.0,
+        localizer=None if localizer == "none" else localizer,
         max_frames=args.max_frames,
+        max_val_frames=given("max_val_frames", defaults.max_val_frames),
+        truth_starts=not args.no_truth_starts,
         seed=args.seed,
     )
     _check_device(args.device)
@@ -314,7 +323,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="CKPT",
         help="crop pose training frames at this localizer's refined centres "
-        "(default: at the true middle MCP)",
+        "(default: at the true middle MCP; updater: the shipped localizer, none: at the true "
+        "middle MCP plus --offset-sigma-mm)",
     )
     tr.add_argument(
         "--init",
@@ -401,6 +411,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         type=integer(1, 20),
         default=None,
         help="updater: updates in validation, the estimator's default (default: 2)",
+    )
+    fb.add_argument(
+        "--no-truth-starts",
+        action="store_const",
+        const=True,
+        default=None,
+        help="updater: leave the truth out of the starting poses (its perturbations stay)",
+    )
+    fb.add_argument(
+        "--max-val-frames",
+        type=non_negative_int,
+        default=None,
+        help="updater: validate on at most this many frames (default: 0, all)",
     )
     add_quiet(tr)
     tr.set_defaults(func=_train, parser=tr)

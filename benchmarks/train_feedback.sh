@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Data, training and evaluation of the feedback loop's updater behind the shipped DeepPrior++.
+#
+#   bash benchmarks/train_feedback.sh OUT_DIR
+#
+# Data: the realistic presets of DeepPrior++'s recipe (benchmarks/train_deepprior.sh), both
+# sides, with seeds of their own: DeepPrior++ was trained on the recipe's seeds 0-5, and on its
+# own training frames its error is smaller than the one the updater must correct.
+#   third   hand-only (third person), structured light                THIRD_FRAMES  [2500]
+#   object  hand-object (grasps in contact, 1-3 objects), structured light OBJECT_FRAMES [2500]
+# Seeds 10 and 14 (handsim-bench-v1 uses 2601-2606).
+#
+# The updater: side-canonical (left frames mirrored into the right-hand frame, as DeepPrior++),
+# crops at the shipped localizer's centres, starting poses from the shipped DeepPrior++ there,
+# the renderer synthesizer (every pool entry's crop is rendered once and cached in the run
+# folder). Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], THREADS [1],
+# EPOCHS [4], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
+# poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
+# TRUTH_STARTS [0] (1: the truth itself is a starting pose, as in the paper; with it the updater
+# learned to make no update here, docs/feedback.md),
+# BENCH [OUT/bench], STAGES [data updater bench].
+# Every stage resumes: run the same command again after an interruption (generate keeps
+# complete shards, train restarts after its last finished epoch with its pool and its cached
+# crops, benchmark make keeps complete sets).
+set -euo pipefail
+OUT=${1:?usage: train_feedback.sh OUT_DIR}
+PYTHON=${PYTHON:-python3}
+HANDSIM=${HANDSIM:-handsim}
+THREADS=${THREADS:-1}
+THIRD_FRAMES=${THIRD_FRAMES:-2500}
+OBJECT_FRAMES=${OBJECT_FRAMES:-2500}
+EPOCHS=${EPOCHS:-4}
+FILTERS=${FILTERS:-16}
+FC=${FC:-256}
+BATCH=${BATCH:-64}
+SIGMA_MM=${SIGMA_MM:-15}
+ITERATIONS=${ITERATIONS:-3}
+VAL_FRAMES=${VAL_FRAMES:-300}
+TRUTH_STARTS=${TRUTH_STARTS:-0}
+BENCH=${BENCH:-$OUT/bench}
+STAGES=${STAGES:-"data updater bench"}
+mkdir -p "$OUT"
+has() { [[ " $STAGES " == *" $1 "* ]]; }
+stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
+
+# name preset frames seed sensor: the preset's config with these frames, seed and sensor.
+SETS=()
+add_set() {
+  [[ $3 -gt 0 ]] || return 0
+  $PYTHON - "$2" "$3" "$4" "$5" "$OUT/$1.json" <<'PY'
+import json, sys
+from handsim.data.config import PRESETS, GenerationConfig
+preset, frames, seed, sensor, path = sys.argv[1:]
+config = GenerationConfig.from_mapping(PRESETS[preset], frames=int(frames), seed=int(seed),
+                                       sensor=sensor)
+with open(path, "w") as f:
+    json.dump(config.to_json(), f, indent=1)
+PY
+  SETS+=("$1")
+}
+add_set third hand-only "$THIRD_FRAMES" 10 structured_light
+add_set object hand-object "$OBJECT_FRAMES" 14 structured_light
+DATA=()
+for s in "${SETS[@]}"; do DATA+=("$OUT/data/$s"); done
+
+if has data; then
+  for s in "${SETS[@]}"; do
+    stamp "generate $s ($OUT/$s.json)"
+    $HANDSIM generate --config "$OUT/$s.json" --workers 1 --out "$OUT/data/$s" -q >/dev/null
+  done
+fi
+if has updater; then
+  stamp "train the updater"
+  $HANDSIM train updater --data "${DATA[@]}" --out "$OUT/updater" --epochs "$EPOCHS" \
+    --filters "$FILTERS" --fc "$FC" --batch-size "$BATCH" --perturb-sigma-mm "$SIGMA_MM" \
+    --iterations "$ITERATIONS" --max-val-frames "$VAL_FRAMES" --threads "$THREADS" -q \
+    $([[ $TRUTH_STARTS == 1 ]] || echo --no-truth-starts)
+fi
+if has bench; then
+  stamp "handsim-bench: make $BENCH"
+  $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
+  stamp "handsim-bench: the feedback estimator, offline"
+  $HANDSIM benchmark run \
+    --estimator "handsim.estimators:FeedbackEstimator:{\"updater\": \"$OUT/updater/best.pt\"}" \
+    --bench "$BENCH" --episodes 0 --out "$OUT/bench_feedback" -q
+  stamp "error after each update, per set and occlusion bucket"
+  $PYTHON -m handsim.estimators.feedback.evaluate --updater "$OUT/updater/best.pt" \
+    --bench "$BENCH" --out "$OUT/iterations.json"
+fi
+stamp done
