@@ -647,7 +647,7 @@ def _estimator_arg(text: str) -> Any:
 
     if text == "feedback":
         return _feedback_spec()
-    return text if text == "deepprior" else estimator_arg(text)
+    return estimator_arg(text)
 
 
 def _feedback_spec() -> Any:
@@ -714,7 +714,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_quiet(make)
     make.set_defaults(func=_make)
 
-    names = (*ESTIMATORS, "deepprior", "feedback")
+    names = (*ESTIMATORS, "feedback")
     run = actions.add_parser(
         "run",
         help="run an estimator on the benchmark: table, JSON, plots, closed loop",

@@ -40,6 +40,7 @@ BUILTIN_ESTIMATORS: dict[str, str] = {
     "oracle": "handsim.estimators:OracleEstimator (ground truth + noise, dropout, latency)",
     "com": "handsim.estimators:CenterOfMassLocalizer (hand centre from the depth image)",
     "deepprior++": "handsim.estimators:DeepPriorEstimator (shipped DeepPrior++ weights, torch)",
+    "deepprior": "handsim.estimators:DeepPriorEstimator (shipped DeepPrior `deep` weights, torch)",
 }
 """Built-in estimator names of ``--estimator`` and what they are."""
 

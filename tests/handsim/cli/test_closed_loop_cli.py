@@ -51,3 +51,26 @@ def test_closed_loop_video_plots_and_strict_json(tmp_path, capsys):
         assert frames[0].std() > 10
         assert str(path) in captured.out
     assert mode["media"]["worst_frame"] is None  # no keypoints, no keypoint error
+
+
+@pytest.mark.parametrize("name", ["deepprior", "deepprior++"])
+def test_closed_loop_shipped_networks_by_name(tmp_path, name):
+    """Both shipped pose networks run in the loop by their built-in names, as a user types them."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("torch")
+    result = subprocess.run(
+        [sys.executable, "-m", "handsim.cli", "closed-loop", "--env", "handsim/HandPose-v0"]
+        + ["--episodes", "1", "--sensor", "none", "--estimator", name, "-q"]
+        + ["--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr
+    report = _strict((tmp_path / "closed_loop.json").read_text())
+    assert report["estimator"]["checkpoint"] == name
+    mode = report["modes"]["feedback_off"]
+    assert mode["n_frames_with_keypoints"] == mode["n_frames"] > 0
+    assert mode["kp_mean_mm"] > 0 and mode["f_tau_auc"] is not None

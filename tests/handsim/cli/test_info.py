@@ -35,6 +35,6 @@ def test_info_json_is_strict_and_complete(capsys):
     assert [o["name"] for o in info["objects"]] == list(OBJECT_NAMES)
     assert [c["name"] for c in info["cameras"]] == list(CAMERA_PRESETS)
     assert info["sensors"] == list(SENSORS)
-    assert [e["name"] for e in info["estimators"]] == ["oracle", "com", "deepprior++"]
+    assert [e["name"] for e in info["estimators"]] == ["oracle", "com", "deepprior++", "deepprior"]
     assert list(info["hand"]["joint_limits_deg"]) == list(JOINT_NAMES)
     assert info["hand"]["nv"] == 27
