@@ -14,7 +14,7 @@
 # crops at the shipped localizer's centres, starting poses from the shipped DeepPrior++ there,
 # the renderer synthesizer (every pool entry's crop is rendered once and cached in the run
 # folder). Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], THREADS [1],
-# EPOCHS [4], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
+# EPOCHS [8], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
 # poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
 # TRUTH_STARTS [0] (1: the truth itself is a starting pose, as in the paper; with it the updater
 # learned to make no update here, docs/feedback.md),
@@ -29,7 +29,7 @@ HANDSIM=${HANDSIM:-handsim}
 THREADS=${THREADS:-1}
 THIRD_FRAMES=${THIRD_FRAMES:-2500}
 OBJECT_FRAMES=${OBJECT_FRAMES:-2500}
-EPOCHS=${EPOCHS:-4}
+EPOCHS=${EPOCHS:-8}
 FILTERS=${FILTERS:-16}
 FC=${FC:-256}
 BATCH=${BATCH:-64}
