@@ -43,21 +43,8 @@ mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
 
-# name preset frames seed sensor: the preset's config with these frames, seed and sensor.
-SETS=()
-add_set() {
-  [[ $3 -gt 0 ]] || return 0
-  $PYTHON - "$2" "$3" "$4" "$5" "$OUT/$1.json" <<'PY'
-import json, sys
-from handsim.data.config import PRESETS, GenerationConfig
-preset, frames, seed, sensor, path = sys.argv[1:]
-config = GenerationConfig.from_mapping(PRESETS[preset], frames=int(frames), seed=int(seed),
-                                       sensor=sensor)
-with open(path, "w") as f:
-    json.dump(config.to_json(), f, indent=1)
-PY
-  SETS+=("$1")
-}
+# add_set name preset frames seed sensor (benchmarks/preset_sets.sh)
+source "$(dirname "${BASH_SOURCE[0]}")/preset_sets.sh"
 add_set third hand-only "$THIRD_FRAMES" 10 structured_light
 add_set object hand-object "$OBJECT_FRAMES" 14 structured_light
 DATA=()
