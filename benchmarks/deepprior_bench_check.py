@@ -22,8 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handsim.data.manifest import Manifest
-from handsim.data.shards import ShardReader
+from handsim.benchmark import valid_frames
 from handsim.estimators.deepprior.estimator import DeepPriorEstimator
 from handsim.estimators.deepprior.preprocess import (
     mirror_depth,
@@ -33,19 +32,6 @@ from handsim.estimators.deepprior.preprocess import (
 
 INDEX_MCP, MIDDLE_MCP, LITTLE_MCP = 5, 9, 17
 MODES = ("pipeline", "unmirrored", "true_centre")
-
-
-def _frames(folder: Path):
-    manifest = Manifest.read(folder)
-    for record in sorted(manifest.shards.values(), key=lambda s: s.name):
-        reader = ShardReader(folder / record.name)
-        try:
-            for i in range(len(reader)):
-                arrays = reader[i]
-                if bool(arrays["valid"]):
-                    yield arrays
-        finally:
-            reader.close()
 
 
 def _palm_width_mm(keypoints_m: np.ndarray) -> float:
@@ -113,7 +99,7 @@ def main() -> None:
         f"{'palm pred/true mm':>18s} {'|rel|':>6s}"
     )
     for name in sets:
-        frames = list(_frames(args.bench / name))
+        frames = list(valid_frames(args.bench / name))
         if args.max_frames:
             frames = frames[: args.max_frames]
         result["sets"][name] = {}

@@ -1,10 +1,12 @@
 """``handsim benchmark make`` / ``run``: handsim-bench, one fixed table for every estimator.
 
-``make`` builds the versioned test sets (:data:`SETS`, each a dataset folder of ``handsim
-generate`` made from a fixed seed) and ``benchmark.json`` naming the version
-(:data:`VERSION`). A folder that holds another version is refused: a versioned set never
-changes, a new one gets a new name. Rerunning ``make`` into its own folder resumes it (complete
-shards are kept) and checks nothing changed.
+``make`` builds the versioned test sets (:data:`~handsim.benchmark.SETS`, each a dataset
+folder of ``handsim generate`` made from a fixed seed) and ``benchmark.json`` naming the version
+(:data:`~handsim.benchmark.VERSION`) and every set's content digest. A folder that holds another
+version is refused, and so is a set whose digest is not the one its version records
+(:func:`~handsim.benchmark.make_benchmark`): a versioned set never changes, a new one gets a
+new name. Rerunning ``make`` into its own folder resumes it (complete shards are kept) and
+checks nothing changed.
 
 ``run`` runs one estimator on every frame of every set, each frame on its own (``reset()``
 before it; the side of the hand, ``is_left``, goes to an estimator's optional ``set_side``;
@@ -12,8 +14,9 @@ oracles get the truth through ``observe_truth``) and
 then, unless ``--episodes 0``, ``handsim/Grasp-v0`` with the estimator in the loop, feedback
 off and on (:func:`~handsim.envs.closed_loop.evaluate_closed_loop`). It writes
 ``benchmark.json`` (strict JSON: ``null`` for a figure that does not exist, e.g. keypoint
-errors of a localizer), ``table.md``, ``f_tau.png``, ``error_by_set.png`` and the closed-loop
-report under ``closed_loop/``.
+errors of a localizer; the digests of the sets it ran on, ``set_digests``, and whether they
+are the version's, ``set_digests_match``), ``table.md``, ``f_tau.png``, ``error_by_set.png``
+and the closed-loop report under ``closed_loop/``.
 
 Offline figures per set: mean and median keypoint error (mm, over the frames with keypoints),
 the area under F(tau) (fraction of frames whose largest joint error is within tau, tau in
@@ -24,7 +27,6 @@ without an estimate; pooled, per side, per occlusion bucket and per joint.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import math
 import time
@@ -33,6 +35,16 @@ from typing import Any
 
 import numpy as np
 
+from handsim.benchmark import (
+    DIGESTS,
+    SETS,
+    VERSION,
+    BenchmarkError,
+    make_benchmark,
+    read_benchmark,
+    set_digest,
+    valid_frames,
+)
 from handsim.cli._args import (
     add_quiet,
     integer,
@@ -41,7 +53,6 @@ from handsim.cli._args import (
     progress_bar,
     strict_json,
 )
-from handsim.errors import HandSimError
 
 __all__ = [
     "VERSION",
@@ -53,8 +64,8 @@ __all__ = [
     "add_parser",
 ]
 
-VERSION = "handsim-bench-v1"
-"""The version ``make`` builds. Never change a set under it: a new set is a new version."""
+# The name the feedback evaluation (estimators/feedback/evaluate.py) imports.
+_read_benchmark = read_benchmark
 
 OCCLUSION_EDGES = (0.0, 0.1, 0.3, 0.5, 0.7, 1.0)
 """Occlusion buckets of the report (hand occlusion ratio)."""
@@ -64,189 +75,13 @@ CLOSED_LOOP_ENV = "handsim/Grasp-v0"
 CLOSED_LOOP_SEED = 0
 """First seed of the closed-loop episodes."""
 
-_HAND_ONLY = {"num_objects_range": (0, 0), "frames_per_episode": 5}
-
-
-@dataclasses.dataclass(frozen=True)
-class BenchSet:
-    """One test set of the benchmark.
-
-    Attributes:
-        name: folder name.
-        what: one line for the report.
-        frames: frames of the set.
-        config: :class:`~handsim.data.config.GenerationConfig` fields besides ``frames``.
-    """
-
-    name: str
-    what: str
-    frames: int
-    config: dict[str, Any]
-
-
-SETS: tuple[BenchSet, ...] = (
-    BenchSet(
-        "hand_third_person",
-        "hand alone, third person, structured light",
-        300,
-        {**_HAND_ONLY, "viewpoints": ("third_person",), "seed": 2601},
-    ),
-    BenchSet(
-        "hand_egocentric",
-        "hand alone, egocentric, structured light",
-        300,
-        {**_HAND_ONLY, "viewpoints": ("egocentric",), "seed": 2602},
-    ),
-    BenchSet(
-        "hand_object",
-        "hand grasping 1-3 objects (in contact), structured light",
-        300,
-        {"source": "grasp", "num_objects_range": (1, 3), "frames_per_episode": 5, "seed": 2603},
-    ),
-    BenchSet(
-        "occlusion",
-        "hand behind objects, 4 occlusion buckets 0.1-0.95 in equal parts",
-        100,
-        {
-            "source": "grasp",
-            "num_objects_range": (2, 4),
-            "viewpoints": ("through_object",),
-            "distance_range_m": (0.4, 0.7),
-            "occlusion_buckets": ((0.1, 0.3, 0.5, 0.7, 0.95), (0.25, 0.25, 0.25, 0.25)),
-            "max_fraction_below_min_visible": 0.05,
-            "frames_per_episode": 5,
-            "seed": 2604,
-        },
-    ),
-    BenchSet(
-        "sensor_none",
-        "hand alone, third person, noise-free depth",
-        150,
-        {**_HAND_ONLY, "viewpoints": ("third_person",), "sensor": "none", "seed": 2605},
-    ),
-    BenchSet(
-        "sensor_tof",
-        "hand alone, third person, time of flight",
-        150,
-        {**_HAND_ONLY, "viewpoints": ("third_person",), "sensor": "tof", "seed": 2606},
-    ),
-)
-"""The sets of :data:`VERSION`. Every set has both sides (``left_fraction`` 0.5), the ICVL
-camera (320 x 240) and one shard per 100 frames; the three sensor models are the
-``structured_light`` of ``hand_third_person`` and the two ``sensor_*`` sets."""
-
-
-class BenchmarkError(HandSimError, ValueError):
-    """A benchmark folder is not one, holds another version, or cannot be made."""
-
-
-def _version_name(frames_per_set: int | None) -> str:
-    # A resized benchmark is not the benchmark: it carries its size in its name.
-    return VERSION if frames_per_set is None else f"{VERSION}-n{frames_per_set}"
-
-
-def _configs(frames_per_set: int | None) -> dict[str, Any]:
-    from handsim.data.config import GenerationConfig
-
-    out = {}
-    for s in SETS:
-        frames = s.frames if frames_per_set is None else frames_per_set
-        out[s.name] = GenerationConfig(frames=frames, frames_per_shard=min(frames, 100), **s.config)
-    return out
-
-
-def make_benchmark(
-    out: str | Path, *, frames_per_set: int | None = None, quiet: bool = True
-) -> dict[str, Any]:
-    """Build (or resume) the benchmark's test sets in ``out``.
-
-    Args:
-        out: benchmark folder (created).
-        frames_per_set: every set this many frames instead of its own (tests); the version
-            name then says so (``handsim-bench-v1-nN``).
-        quiet: no progress bars.
-
-    Returns:
-        The ``benchmark.json`` record.
-
-    Raises:
-        BenchmarkError: if ``out`` holds another version or other files.
-    """
-    from handsim.data.generation import generate
-
-    out = Path(out)
-    name = _version_name(frames_per_set)
-    record_path = out / "benchmark.json"
-    if record_path.is_file():
-        try:
-            held = json.loads(record_path.read_text()).get("version")
-        except (json.JSONDecodeError, AttributeError):
-            held = None
-        if held != name:
-            raise BenchmarkError(
-                f"{out} holds {held!r}, not {name!r}: a versioned set is never changed; make "
-                "this version in a new --out folder"
-            )
-    elif out.is_dir() and any(out.iterdir()):
-        raise BenchmarkError(
-            f"{out} is not empty and holds no benchmark.json; give a new or empty --out folder"
-        )
-    out.mkdir(parents=True, exist_ok=True)
-    configs = _configs(frames_per_set)
-    record = {
-        "version": name,
-        "sets": {
-            s.name: {"what": s.what, "frames": configs[s.name].frames, "folder": s.name}
-            for s in SETS
-        },
-    }
-    # Written first: a killed make is resumed (and a different version refused) by name.
-    record_path.write_text(json.dumps(record, indent=2) + "\n")
-    total = sum(c.frames for c in configs.values())
-    done = 0
-    with progress_bar(total, "benchmark make", "frame", enabled=not quiet) as bar:
-        for s in SETS:
-            generate(configs[s.name], out / s.name, progress=None)
-            done += configs[s.name].frames
-            bar.update(configs[s.name].frames)
-    return record
-
-
-def _read_benchmark(folder: Path) -> dict[str, Any]:
-    path = folder / "benchmark.json"
-    try:
-        record = json.loads(path.read_text())
-        sets = record["sets"]
-        version = record["version"]
-    except (OSError, json.JSONDecodeError, KeyError, TypeError):
-        raise BenchmarkError(
-            f"--bench {folder} is not a benchmark folder (no readable benchmark.json); make one "
-            "with `handsim benchmark make --out DIR`"
-        ) from None
-    if not str(version).startswith(VERSION):
-        raise BenchmarkError(
-            f"--bench {folder} holds {version!r}; this handsim runs {VERSION}: make it with "
-            "`handsim benchmark make --out DIR`"
-        )
-    return {"version": version, "sets": sets}
-
 
 def _frames(folder: Path) -> Any:
     """Every valid frame of a dataset folder: (arrays, Frame) in shard order."""
     from handsim.data.arrays import arrays_to_frame
-    from handsim.data.manifest import Manifest
-    from handsim.data.shards import ShardReader
 
-    manifest = Manifest.read(folder)
-    for record in sorted(manifest.shards.values(), key=lambda s: s.name):
-        reader = ShardReader(folder / record.name)
-        try:
-            for i in range(len(reader)):
-                arrays = reader[i]
-                if bool(arrays["valid"]):
-                    yield arrays, arrays_to_frame(arrays)
-        finally:
-            reader.close()
+    for arrays in valid_frames(folder):
+        yield arrays, arrays_to_frame(arrays)
 
 
 def _run_set(folder: Path, estimator: Any) -> dict[str, np.ndarray]:
@@ -400,6 +235,7 @@ def _table(result: dict[str, Any]) -> str:
     off = result["offline"]
     lines = [
         f"{result['benchmark']} · {result['estimator'].get('spec', result['estimator']['name'])}",
+        _digest_line(result),
         "",
         "| set | frames | mean mm | median mm | AUC F(τ) 0-80 mm | centre mm | no estimate |",
         "|---|---:|---:|---:|---:|---:|---:|",
@@ -429,6 +265,18 @@ def _table(result: dict[str, Any]) -> str:
             f"in-loop keypoint error {_mm(_finite(loop['kp_mean_mm_feedback_on']))}.",
         ]
     return "\n".join(lines) + "\n"
+
+
+def _digest_line(result: dict[str, Any]) -> str:
+    match = result.get("set_digests_match")
+    if match is None:
+        return "Sets: no recorded digests to check them against (a folder made before them)."
+    if match:
+        return f"Sets: the content digests {result['benchmark']} records."
+    return (
+        f"Sets: NOT those of {result['benchmark']} (their content digests differ): these "
+        "figures compare only with runs on the same sets (benchmark.json, set_digests)."
+    )
 
 
 def _mm(value: Any) -> str:
@@ -479,6 +327,22 @@ def _plots(result: dict[str, Any], out: Path) -> list[Path]:
     return paths
 
 
+def _digests(bench: Path, record: dict[str, Any]) -> tuple[dict[str, str], bool | None]:
+    """The sets' digests as found now, and whether they are those the version names.
+
+    Compared with :data:`~handsim.benchmark.DIGESTS` for a recorded version, else with the
+    digests ``make`` wrote into the folder; ``None`` where neither has them (a folder made
+    before digests were recorded).
+    """
+    found = {name: set_digest(bench / str(info["folder"])) for name, info in record["sets"].items()}
+    expected = DIGESTS.get(record["version"]) or {
+        name: info.get("digest") for name, info in record["sets"].items()
+    }
+    if any(expected.get(name) is None for name in found):
+        return found, None
+    return found, all(found[name] == expected[name] for name in found)
+
+
 def run_benchmark(
     bench: str | Path,
     make_estimator: Any,
@@ -508,13 +372,16 @@ def run_benchmark(
     from handsim.estimator import describe_estimator
 
     bench, out = Path(bench), Path(out)
-    record = _read_benchmark(bench)
+    record = read_benchmark(bench)
     out.mkdir(parents=True, exist_ok=True)
     offline = _offline(bench, record["sets"], make_estimator, quiet)
+    digests, match = _digests(bench, record)
     loop = _closed_loop(make_estimator, episodes, out, quiet) if episodes else None
     result = {
         "benchmark": record["version"],
         "bench_folder": str(bench),
+        "set_digests": digests,
+        "set_digests_match": match,
         "estimator": {**naming, "describe": describe_estimator(make_estimator())[0]},
         "offline": offline,
         "closed_loop": loop,
@@ -561,6 +428,7 @@ def compare_runs(runs: list[str | Path], out: str | Path) -> str:
         raise BenchmarkError(
             f"results of one benchmark version compare; received {', '.join(versions)}"
         )
+    _check_same_sets(runs, results)
     sets = list(results[0]["offline"]["sets"])
     head = ["estimator", *sets, "all", "AUC", "centre mm", "loop success (on/off)"]
     lines = [
@@ -608,6 +476,26 @@ def compare_runs(runs: list[str | Path], out: str | Path) -> str:
     return table
 
 
+def _check_same_sets(runs: list[str | Path], results: list[dict[str, Any]]) -> None:
+    """Refuse results measured on different sets (results from before digests pass)."""
+    with_digests = [
+        (run, r["set_digests"])
+        for run, r in zip(runs, results, strict=True)
+        if r.get("set_digests")
+    ]
+    if not with_digests:
+        return
+    first_run, first = with_digests[0]
+    for run, digests in with_digests[1:]:
+        differ = sorted(k for k in set(first) | set(digests) if first.get(k) != digests.get(k))
+        if differ:
+            raise BenchmarkError(
+                f"{first_run} and {run} were measured on different sets (content digests "
+                f"differ for {', '.join(differ)}): their figures do not compare; run both "
+                "estimators on one made benchmark"
+            )
+
+
 def _name(estimator: dict[str, Any]) -> str:
     name = str(estimator.get("spec", estimator.get("name", "?")))
     if "noise_mm" in estimator:
@@ -626,7 +514,10 @@ def _cell(stats: dict[str, Any]) -> str:
 
 def _make(args: argparse.Namespace) -> int:
     start = time.perf_counter()
-    record = make_benchmark(args.out, frames_per_set=args.frames_per_set, quiet=args.quiet)
+    n = args.frames_per_set
+    total = sum(s.frames for s in SETS) if n is None else n * len(SETS)
+    with progress_bar(total, "benchmark make", "frame", enabled=not args.quiet) as bar:
+        record = make_benchmark(args.out, frames_per_set=args.frames_per_set, progress=bar.update)
     frames = sum(s["frames"] for s in record["sets"].values())
     print(
         strict_json(
@@ -635,6 +526,7 @@ def _make(args: argparse.Namespace) -> int:
                 "out": str(args.out),
                 "frames": frames,
                 "sets": {k: v["frames"] for k, v in record["sets"].items()},
+                "digests": {k: v["digest"] for k, v in record["sets"].items()},
                 "seconds": round(time.perf_counter() - start, 1),
             }
         )
@@ -704,7 +596,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         description=f"Build the {VERSION} test sets from fixed seeds: "
         + "; ".join(f"{s.name} ({s.frames} frames: {s.what})" for s in SETS)
         + ". Both sides in every set. The same command gives bit-identical sets; rerunning it "
-        "resumes a killed make; a folder holding another version is refused.",
+        "resumes a killed make; a folder holding another version is refused, and so is a set "
+        "whose content digest differs from the one the version records (a generator change "
+        "needs a new version).",
     )
     make.add_argument("--out", required=True, type=Path, metavar="DIR", help="benchmark folder")
     # Tests build a tiny benchmark (its version name carries its size): not for users.

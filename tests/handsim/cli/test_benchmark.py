@@ -1,6 +1,7 @@
 """`handsim benchmark make / run`: versioned, bit-identical sets; one table, strict JSON."""
 
 import json
+import shutil
 import subprocess
 import sys
 
@@ -8,6 +9,8 @@ import h5py
 import numpy as np
 import pytest
 
+import handsim.benchmark
+from handsim.cli import benchmark as cli_benchmark
 from handsim.cli.benchmark import (
     SETS,
     BenchmarkError,
@@ -19,6 +22,17 @@ from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
 
 N = 2  # frames per set of the tiny benchmark
+
+# The digests of the tiny benchmark: a fast alarm for a generator change (the real sets,
+# handsim.benchmark.DIGESTS, are checked by the slow test in tests/handsim/test_benchmark.py).
+TINY_DIGESTS = {
+    "hand_third_person": "sha256:aac35532418393562b39b2cfa4a531dcadb840177e47e0b279a41b8530cb8dad",
+    "hand_egocentric": "sha256:d842892221a79cf103148711d755e997c9733bb27ce5eb036a9df1bdaf6c5ed4",
+    "hand_object": "sha256:a04b536f6074a10a4f7d18d75e9e105e2995b7a5fe5eba4ed174d8b193c59bd8",
+    "occlusion": "sha256:7767c5bc1d48830051a2d08281bc778f8b484aace7e5f5202687721d896ef69c",
+    "sensor_none": "sha256:c24229acc476f3ff8cd796abb51de2bc6b3ea0651627440ff5c2ed17f83c47cf",
+    "sensor_tof": "sha256:2a45563d64eddb9627df7b019c4fd7a3f61a750a01e70aea8544cd229b552585",
+}
 
 
 def _cli(*args, cwd=None):
@@ -48,7 +62,67 @@ def bench(tmp_path_factory):
     summary = _strict(result.stdout)
     assert summary["version"] == f"handsim-bench-v1-n{N}"
     assert summary["sets"] == {s.name: N for s in SETS}
+    record = json.loads((out / "benchmark.json").read_text())
+    assert summary["digests"] == {k: v["digest"] for k, v in record["sets"].items()}
     return out
+
+
+def test_the_tiny_sets_are_the_recorded_ones(bench):
+    """The generator still makes the sets it made: a change needs a new benchmark version."""
+    record = json.loads((bench / "benchmark.json").read_text())
+    found = {k: v["digest"] for k, v in record["sets"].items()}
+    assert found == TINY_DIGESTS, (
+        "the generator's frames changed: handsim-bench-v1's sets change with them, so give "
+        "them a new version (handsim.benchmark.VERSION, DIGESTS; docs/benchmark.md) and "
+        f"record the tiny sets' digests here: {found}"
+    )
+
+
+def test_cli_module_reexports_the_benchmark_sets():
+    """The sets and make moved to handsim.benchmark; the old import path gives the same objects."""
+    for name in ("VERSION", "SETS", "BenchmarkError", "make_benchmark"):
+        assert getattr(cli_benchmark, name) is getattr(handsim.benchmark, name)
+    assert cli_benchmark._read_benchmark is handsim.benchmark.read_benchmark
+
+
+def test_make_refuses_a_set_whose_digest_is_not_the_recorded_one(bench, tmp_path, monkeypatch):
+    """A version's recorded digest that the made set does not have: refused, both named."""
+    copy = tmp_path / "b"
+    shutil.copytree(bench, copy)
+    wrong = "sha256:" + "0" * 64
+    monkeypatch.setitem(handsim.benchmark.DIGESTS, f"handsim-bench-v1-n{N}", {"hand_object": wrong})
+    found = handsim.benchmark.set_digest(copy / "hand_object")
+    with pytest.raises(
+        BenchmarkError,
+        match=rf"set 'hand_object' of handsim-bench-v1-n{N} is not the set this version names: "
+        rf"expected digest {wrong} \(recorded for handsim-bench-v1-n{N} in handsim.benchmark\), "
+        rf"found {found}\. A versioned set never changes: if the generator changed .* give "
+        r"the new sets a new version",
+    ):
+        make_benchmark(copy, frames_per_set=N)
+
+
+def test_make_cli_refuses_sets_other_than_its_folder_recorded(bench, tmp_path):
+    """A resumed make checks the sets against the digests its folder recorded (exit 2).
+
+    A tampered shard is remade by ``generate`` (its file hash is in the manifest), so the
+    folder's record is what differs here: as when a make killed under one generator is resumed
+    under another.
+    """
+    copy = tmp_path / "b"
+    shutil.copytree(bench, copy)
+    record = json.loads((copy / "benchmark.json").read_text())
+    found = record["sets"]["sensor_tof"]["digest"]
+    record["sets"]["sensor_tof"]["digest"] = "sha256:" + "2" * 64
+    (copy / "benchmark.json").write_text(json.dumps(record))
+    result = _cli("benchmark", "make", "--out", str(copy), "--frames-per-set", str(N), "-q")
+    assert result.returncode == 2, result.stderr
+    assert (
+        f"set 'sensor_tof' of handsim-bench-v1-n{N} is not the set this version names: "
+        f"expected digest sha256:{'2' * 64} (recorded in {copy / 'benchmark.json'} when it was "
+        f"made), found {found}"
+    ) in result.stderr
+    assert "Traceback" not in result.stderr
 
 
 def test_make_is_bit_identical_on_repeat(bench, tmp_path):
@@ -97,8 +171,12 @@ def test_run_exact_oracle_cli_table_json_plots_and_closed_loop(bench, tmp_path):
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert "| **all** | 12 | 0.0 | 0.0 | 1.000 | 0.0 | 0 |" in result.stdout
+    assert "Sets: the content digests handsim-bench-v1-n2 records." in result.stdout
     report = _strict((out / "benchmark.json").read_text())
     assert report["benchmark"] == "handsim-bench-v1-n2"
+    made = json.loads((bench / "benchmark.json").read_text())["sets"]
+    assert report["set_digests"] == {k: v["digest"] for k, v in made.items()}
+    assert report["set_digests_match"] is True
     assert set(report["offline"]["sets"]) == {s.name for s in SETS}
     for s in report["offline"]["sets"].values():
         assert s["n_frames"] == N and s["mean_mm"] == 0.0 and s["auc_f_tau"] == 1.0
@@ -167,4 +245,13 @@ def test_compare_puts_runs_in_one_table(bench, tmp_path):
     other["benchmark"] = "handsim-bench-v2"
     (tmp_path / "b" / "benchmark.json").write_text(json.dumps(other))
     with pytest.raises(BenchmarkError, match="results of one benchmark version compare"):
+        compare_runs([tmp_path / "a", tmp_path / "b"], tmp_path / "d")
+    # Results of one version measured on different sets do not compare either.
+    other["benchmark"] = f"handsim-bench-v1-n{N}"
+    other["set_digests"] = {**other["set_digests"], "occlusion": "sha256:" + "1" * 64}
+    (tmp_path / "b" / "benchmark.json").write_text(json.dumps(other))
+    with pytest.raises(
+        BenchmarkError,
+        match=r"were measured on different sets \(content digests differ for occlusion\)",
+    ):
         compare_runs([tmp_path / "a", tmp_path / "b"], tmp_path / "d")
