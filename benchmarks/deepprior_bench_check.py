@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handsim.benchmark import valid_frames
+from handsim.cli.benchmark_sets import valid_frames
 from handsim.estimators.deepprior.estimator import DeepPriorEstimator
 from handsim.estimators.deepprior.preprocess import (
     mirror_depth,

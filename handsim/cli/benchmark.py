@@ -1,12 +1,12 @@
 """``handsim benchmark make`` / ``run``: handsim-bench, one fixed table for every estimator.
 
-``make`` builds the versioned test sets (:data:`~handsim.benchmark.SETS`, each a dataset
-folder of ``handsim generate`` made from a fixed seed) and ``benchmark.json`` naming the version
-(:data:`~handsim.benchmark.VERSION`) and every set's content digest. A folder that holds another
-version is refused, and so is a set whose digest is not the one its version records
-(:func:`~handsim.benchmark.make_benchmark`): a versioned set never changes, a new one gets a
-new name. Rerunning ``make`` into its own folder resumes it (complete shards are kept) and
-checks nothing changed.
+``make`` builds the versioned test sets (:data:`~handsim.cli.benchmark_sets.SETS`, each a
+dataset folder of ``handsim generate`` made from a fixed seed) and ``benchmark.json`` naming the
+version (:data:`~handsim.cli.benchmark_sets.VERSION`) and every set's content digest. A folder
+that holds another version is refused, and so is a set whose digest is not the one its version
+records (:func:`~handsim.cli.benchmark_sets.make_benchmark`): a versioned set never changes, a
+new one gets a new name. Rerunning ``make`` into its own folder resumes it (complete shards are
+kept) and checks nothing changed.
 
 ``run`` runs one estimator on every frame of every set, each frame on its own (``reset()``
 before it; the side of the hand, ``is_left``, goes to an estimator's optional ``set_side``;
@@ -35,7 +35,15 @@ from typing import Any
 
 import numpy as np
 
-from handsim.benchmark import (
+from handsim.cli._args import (
+    add_quiet,
+    integer,
+    number,
+    probability,
+    progress_bar,
+    strict_json,
+)
+from handsim.cli.benchmark_sets import (
     DIGESTS,
     SETS,
     VERSION,
@@ -44,14 +52,6 @@ from handsim.benchmark import (
     read_benchmark,
     set_digest,
     valid_frames,
-)
-from handsim.cli._args import (
-    add_quiet,
-    integer,
-    number,
-    probability,
-    progress_bar,
-    strict_json,
 )
 
 __all__ = [
@@ -330,8 +330,8 @@ def _plots(result: dict[str, Any], out: Path) -> list[Path]:
 def _digests(bench: Path, record: dict[str, Any]) -> tuple[dict[str, str], bool | None]:
     """The sets' digests as found now, and whether they are those the version names.
 
-    Compared with :data:`~handsim.benchmark.DIGESTS` for a recorded version, else with the
-    digests ``make`` wrote into the folder; ``None`` where neither has them (a folder made
+    Compared with :data:`~handsim.cli.benchmark_sets.DIGESTS` for a recorded version, else with
+    the digests ``make`` wrote into the folder; ``None`` where neither has them (a folder made
     before digests were recorded).
     """
     found = {name: set_digest(bench / str(info["folder"])) for name, info in record["sets"].items()}

@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-import handsim.benchmark
+import handsim.cli.benchmark_sets
 from handsim.cli import benchmark as cli_benchmark
 from handsim.cli.benchmark import (
     SETS,
@@ -24,7 +24,7 @@ from handsim.data.shards import ShardReader
 N = 2  # frames per set of the tiny benchmark
 
 # The digests of the tiny benchmark: a fast alarm for a generator change (the real sets,
-# handsim.benchmark.DIGESTS, are checked by the slow test in tests/handsim/test_benchmark.py).
+# handsim.cli.benchmark_sets.DIGESTS, are checked by a slow test in test_benchmark_sets.py).
 TINY_DIGESTS = {
     "hand_third_person": "sha256:aac35532418393562b39b2cfa4a531dcadb840177e47e0b279a41b8530cb8dad",
     "hand_egocentric": "sha256:d842892221a79cf103148711d755e997c9733bb27ce5eb036a9df1bdaf6c5ed4",
@@ -73,16 +73,16 @@ def test_the_tiny_sets_are_the_recorded_ones(bench):
     found = {k: v["digest"] for k, v in record["sets"].items()}
     assert found == TINY_DIGESTS, (
         "the generator's frames changed: handsim-bench-v1's sets change with them, so give "
-        "them a new version (handsim.benchmark.VERSION, DIGESTS; docs/benchmark.md) and "
-        f"record the tiny sets' digests here: {found}"
+        "them a new version (handsim.cli.benchmark_sets: VERSION, DIGESTS; docs/benchmark.md) "
+        f"and record the tiny sets' digests here: {found}"
     )
 
 
 def test_cli_module_reexports_the_benchmark_sets():
-    """The sets and make moved to handsim.benchmark; the old import path gives the same objects."""
+    """The sets and make moved to benchmark_sets; the old import path gives the same objects."""
     for name in ("VERSION", "SETS", "BenchmarkError", "make_benchmark"):
-        assert getattr(cli_benchmark, name) is getattr(handsim.benchmark, name)
-    assert cli_benchmark._read_benchmark is handsim.benchmark.read_benchmark
+        assert getattr(cli_benchmark, name) is getattr(handsim.cli.benchmark_sets, name)
+    assert cli_benchmark._read_benchmark is handsim.cli.benchmark_sets.read_benchmark
 
 
 def test_make_refuses_a_set_whose_digest_is_not_the_recorded_one(bench, tmp_path, monkeypatch):
@@ -90,12 +90,15 @@ def test_make_refuses_a_set_whose_digest_is_not_the_recorded_one(bench, tmp_path
     copy = tmp_path / "b"
     shutil.copytree(bench, copy)
     wrong = "sha256:" + "0" * 64
-    monkeypatch.setitem(handsim.benchmark.DIGESTS, f"handsim-bench-v1-n{N}", {"hand_object": wrong})
-    found = handsim.benchmark.set_digest(copy / "hand_object")
+    monkeypatch.setitem(
+        handsim.cli.benchmark_sets.DIGESTS, f"handsim-bench-v1-n{N}", {"hand_object": wrong}
+    )
+    found = handsim.cli.benchmark_sets.set_digest(copy / "hand_object")
     with pytest.raises(
         BenchmarkError,
         match=rf"set 'hand_object' of handsim-bench-v1-n{N} is not the set this version names: "
-        rf"expected digest {wrong} \(recorded for handsim-bench-v1-n{N} in handsim.benchmark\), "
+        rf"expected digest {wrong} \(recorded for handsim-bench-v1-n{N} in "
+        r"handsim.cli.benchmark_sets\), "
         rf"found {found}\. A versioned set never changes: if the generator changed .* give "
         r"the new sets a new version",
     ):

@@ -1,4 +1,4 @@
-"""handsim.benchmark: the sets' content digests (strict on images, labels to 1e-6), and v1."""
+"""handsim.cli.benchmark_sets: the sets' content digests (images exact, labels to 1e-6), v1."""
 
 import shutil
 
@@ -6,8 +6,8 @@ import h5py
 import numpy as np
 import pytest
 
-from handsim import benchmark
-from handsim.benchmark import (
+from handsim.cli import benchmark_sets as benchmark
+from handsim.cli.benchmark_sets import (
     DIGEST_FLOAT_STEP,
     DIGESTS,
     SETS,

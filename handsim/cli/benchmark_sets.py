@@ -228,9 +228,9 @@ def _refuse(name: str, set_name: str, expected: str, found: str, where: str) -> 
         f"set {set_name!r} of {name} is not the set this version names: expected digest "
         f"{expected} ({where}), found {found}. A versioned set never changes: if the generator "
         f"changed (poses, objects, views, rendering, sensor noise), give the new sets a new "
-        f"version name (handsim.benchmark.VERSION) and record their digests in "
-        f"handsim.benchmark.DIGESTS; to compare with results of {name}, make it with the handsim "
-        f"release that recorded them"
+        f"version name (handsim.cli.benchmark_sets.VERSION) and record their digests in "
+        f"handsim.cli.benchmark_sets.DIGESTS; to compare with results of {name}, make it with the "
+        f"handsim release that recorded them"
     )
 
 
@@ -314,7 +314,7 @@ def make_benchmark(
         found = set_digest(out / s.name)
         entry = record["sets"][s.name]
         if recorded is not None and s.name in recorded:
-            expected, where = recorded[s.name], f"recorded for {name} in handsim.benchmark"
+            expected, where = recorded[s.name], f"recorded for {name} in handsim.cli.benchmark_sets"
         elif "digest" in entry:
             expected, where = entry["digest"], f"recorded in {record_path} when it was made"
         else:
