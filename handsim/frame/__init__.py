@@ -5,6 +5,7 @@ module                   holds
 =======================  ==========================================================================
 :mod:`.record`           :class:`.Frame`, :class:`.ObjectLabel`, :class:`.Contact`, occluder codes
 :mod:`.renderer`         :class:`.FrameRenderer`: the rules its labels follow, their tolerances
+:mod:`.silhouettes`      the object silhouettes behind ``visib_fract`` (rendered alone, reused)
 =======================  ==========================================================================
 """
 

@@ -654,3 +654,16 @@ def test_the_package_exports_the_record_and_the_renderer():
     for module in (record, renderer):
         for name in module.__all__:
             assert getattr(handsim.frame, name) is getattr(module, name), name
+
+
+def test_renderer_still_exports_the_silhouette_names_as_the_same_objects():
+    """The silhouettes' machinery moved to handsim.frame.silhouettes; renderer re-exports it."""
+    from handsim.frame import renderer, silhouettes
+
+    names = ("_Mask", "_pixel_box", "_HIDDEN_GROUP", "_KERNEL_3X3", "_OCCLUSION_MARGIN_M")
+    for name in (*names, "_PALM_LABEL", "_ObjectSilhouettes"):
+        assert getattr(renderer, name) is getattr(silhouettes, name), name
+    for method in ("_render_only", "_moved_px", "_silhouettes"):
+        assert getattr(renderer.FrameRenderer, method) is getattr(
+            silhouettes._ObjectSilhouettes, method
+        )
