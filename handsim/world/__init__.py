@@ -7,6 +7,7 @@ module                   holds
 :mod:`.symmetry`         :class:`Symmetry`: an object's symmetries (BOP style)
 :mod:`.ycbv`             the recipes of the 21 YCB-Video objects (facts, colours, symmetries)
 :mod:`.ycbv_shapes`      the shapes of the 21 YCB-Video objects (meshes, collision pieces)
+:mod:`.ycbv_vessels`     the open vessels among them: bowl, mug, pitcher base
 :mod:`.meshing`          lofts, revolutions, signed distances, marching tetrahedra, decimation
 :mod:`.registry`         :data:`OBJECTS` and :func:`get_object`
 :mod:`.mesh_import`      :func:`load_object`: user meshes (OBJ/PLY/STL/GLB)
