@@ -2,7 +2,7 @@
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
 [--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
-[--intent-params JSON] [--intent-oracle none|posture|flex|spread]
+[--closure-assist on|off] [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
 [--episodes 20] [--out FILE]``.
 
@@ -105,6 +105,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         ),
         grasp_intent=args.grasp_intent == "on",
         intent_params=json.loads(args.intent_params),
+        closure_assist=args.closure_assist == "on",
     )
     quiet: dict[str, Any] = {
         "on": {},
@@ -116,6 +117,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         quiet["correction_s"] = None
     stages = []
     intent_s: list[float] = []
+    assist_s: list[float] = []
+    assisted: list[bool] = []
     start = time.perf_counter()
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
@@ -138,6 +141,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 
             metrics = loop.run(op, seed, on_step=on_step).metrics
             intent_s.append(metrics["intent_grasp_s"])
+            assist_s.append(metrics["closure_assist_s"])
+            assisted.append(metrics["success_assisted"])
             lift = max(lifts)
             if metrics["success"]:
                 stage = "success"
@@ -157,6 +162,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "stages": dict(counts),
         "per_seed": stages,
         "intent_grasp_s": round(float(np.mean(intent_s)), 2),
+        "closure_assist_s": round(float(np.mean(assist_s)), 2),
+        "assisted_successes": int(np.sum(assisted)),
         "wall_s": round(time.perf_counter() - start, 1),
     }
 
@@ -171,6 +178,7 @@ def main() -> None:
     p.add_argument("--beta", type=float, default=1.0)
     p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
+    p.add_argument("--closure-assist", choices=("on", "off"), default="off")
     p.add_argument("--intent-params", default="{}", help="e.g. '{\"press_rad\": 0.2}'")
     p.add_argument("--intent-oracle", choices=("none", "posture", "flex", "spread"), default="none")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")

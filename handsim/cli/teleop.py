@@ -228,6 +228,14 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "angles averaged since the grasp began); nothing is attached (default: off)",
     )
     p.add_argument(
+        "--closure-assist",
+        choices=("on", "off"),
+        default="off",
+        help="with --grasp-intent on: each digit of the grasp closes toward the object until "
+        "it touches, instead of following the tracked flexion; nothing is attached (default: "
+        "off)",
+    )
+    p.add_argument(
         "--seed",
         type=seed,
         default=0,
@@ -291,6 +299,7 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         grip_hold=args.grip_hold == "on",
         pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
         grasp_intent=args.grasp_intent == "on",
+        closure_assist=args.closure_assist == "on",
         record=record,
         seed=args.seed,
     )
@@ -309,6 +318,8 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
         "tracking_error_mm",
         "grip_hold_s",
         "intent_grasp_s",
+        "closure_assist_s",
+        "success_assisted",
         "intent_onsets",
         "steps",
         "dropped_frames",
@@ -527,6 +538,7 @@ def _sweep(args: argparse.Namespace) -> int:
             grip_hold=args.grip_hold == "on",
             pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
             grasp_intent=args.grasp_intent == "on",
+            closure_assist=args.closure_assist == "on",
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )
