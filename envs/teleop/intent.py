@@ -30,12 +30,22 @@ for a physical hand:
 - **release** (the lower threshold): the tracked closure opens more than ``band`` above its
   running mean during the grasp (time constant ``hold_s``: the user lets go), or no digit
   has touched an object for ``release_s`` (the object is gone). The tracked angles come back
-  over ``blend_s`` (linearly, from the intent posture).
+  over ``blend_s`` (linearly, from the target last applied).
+
+- **closure assist** (``close_s`` > 0; ``TeleopConfig(closure_assist=True)``): as VR SDKs'
+  hand grab with finger auto-closure, each digit of the object's grasp type (the grasp
+  expert's recipe for it: a tripod's thumb, index and middle, a wrap's five) that does not
+  touch the object yet closes from its physical angles along the type's closing path (its
+  preshape to its closed posture in ``close_s``, on to the joint limits) until it touches;
+  from its contact it presses by ``press_rad`` (the position actuator's stiffness times it,
+  within its force limit). The tracked flexion no longer drives those digits.
 
 The wrist is not touched: the intent drives the fingers only. Nothing is attached: the
 object is held by the fingers' position actuators pressing on it, so a success with the
 intent is a physical grasp. The seconds in grasp intent and the number of onsets and releases
-are in the loop's metrics (``intent_grasp_s``, ``intent_onsets``, ``intent_releases``). A
+are in the loop's metrics (``intent_grasp_s``, ``intent_onsets``, ``intent_releases``), and
+the seconds the closure assist drove a digit (``closure_assist_s``, per digit
+``closure_assist_digit_s``), with ``success_assisted`` for a success while it did. A
 scene without objects (Press-v0) never grasps: the intent passes the tracked angles unchanged.
 """
 
@@ -82,7 +92,7 @@ running mean during the grasp; ``onset_margin``: a grasp starts when the tracked
 at most this much above the physical hand's (palm sizes: the noise biases the tracked
 closure up by about 0.03 at 10 mm per axis); ``release_s``: seconds off every object that
 release a grasp; ``blend_s``: seconds over which the tracked angles come back after a
-release (from the intent posture); ``press_rad``: how far past its contact flexion a digit
+release (from the target last applied); ``press_rad``: how far past its contact flexion a digit
 on the object is held during a grasp, rad (0: the intent posture instead); ``close_s``:
 closure assist (0: off): while it grasps, each digit of the object's grasp type that does
 not touch yet closes along the type's closing path (its preshape to its closed posture in

@@ -125,13 +125,13 @@ def test_release_blends_from_the_applied_target_without_a_jump():
 def test_loop_reports_assisted_closure_and_press_is_unchanged():
     """The loop reports the assist per digit and whether a success was assisted.
 
-    The replayed grasp expert (Grasp-v0, seed 4: the wood block, four fingers and thumb) grasps
+    The replayed grasp expert (Grasp-v0, seed 8: the wood block, four fingers and thumb) grasps
     with the assist; Press-v0 (no objects) runs step for step as without it.
     """
-    stream = stream_from_expert("handsim/Grasp-v0", 4)
+    stream = stream_from_expert("handsim/Grasp-v0", 8)
     config = TeleopConfig(grasp_intent=True, closure_assist=True)
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
-        m = loop.run(stream, 4).metrics
+        m = loop.run(stream, 8).metrics
     assert m["config"]["closure_assist"] is True
     assert m["closure_assist_s"] > 0.5
     assert set(m["closure_assist_digit_s"]) == {"thumb", "index", "middle", "ring", "little"}
