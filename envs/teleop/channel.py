@@ -20,7 +20,7 @@ import numpy as np
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import make_filter
 from handsim.envs.teleop.grip import DIGITS, GripStabiliser
-from handsim.envs.teleop.intent import CLOSE_S, GraspIntent, make_grasp_intent
+from handsim.envs.teleop.intent import CLOSE_S, NOISE_GATE_RAD, GraspIntent, make_grasp_intent
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.errors import InvalidKeypoints
 from handsim.hand.pose import HandPose
@@ -63,6 +63,7 @@ class HandChannel:
         intent_params = dict(config.intent_params)
         if getattr(config, "closure_assist", False):
             intent_params.setdefault("close_s", CLOSE_S)
+            intent_params.setdefault("noise_gate_rad", NOISE_GATE_RAD)
         self.intent: GraspIntent | None = (
             make_grasp_intent(scene, dt_s, **intent_params) if config.grasp_intent else None
         )

@@ -159,7 +159,10 @@ class TeleopConfig:
         closure_assist: with the grasp intent, each digit of the object's grasp type that
             does not touch it yet closes toward it at the type's pace until it touches, then
             presses from its contact (``close_s`` of the intent's parameters:
-            :data:`~handsim.envs.teleop.intent.CLOSE_S` unless given). Nothing is attached;
+            :data:`~handsim.envs.teleop.intent.CLOSE_S` unless given); and the intent starts
+            only while the tracked flexion is noisy (``noise_gate_rad``:
+            :data:`~handsim.envs.teleop.intent.NOISE_GATE_RAD` unless given; with clean
+            tracking the operator's own fingers grasp). Nothing is attached;
             the seconds the assist drove a digit are ``closure_assist_s`` (per digit:
             ``closure_assist_digit_s``) and a success while it did is ``success_assisted``.
         record: keep the per-step arrays for :func:`write_rollout`.

@@ -129,7 +129,10 @@ def test_loop_reports_assisted_closure_and_press_is_unchanged():
     with the assist; Press-v0 (no objects) runs step for step as without it.
     """
     stream = stream_from_expert("handsim/Grasp-v0", 8)
-    config = TeleopConfig(grasp_intent=True, closure_assist=True)
+    # Replayed without noise: the gate (no grasp with clean tracking) is opened for the test.
+    config = TeleopConfig(
+        grasp_intent=True, closure_assist=True, intent_params={"noise_gate_rad": 0.0}
+    )
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         m = loop.run(stream, 8).metrics
     assert m["config"]["closure_assist"] is True
@@ -156,3 +159,43 @@ def test_closure_assist_needs_the_grasp_intent_and_a_valid_close_s():
     assert CLOSE_S > 0
     with pytest.raises(InvalidFilter, match="close_s must be a finite number >= 0"):
         _intent([[False] * 5], np.zeros(21), close_s=-1.0)
+
+
+def test_noise_gate_keeps_the_intent_off_with_clean_tracking():
+    """``noise_gate_rad``: with smooth tracked angles no grasp starts; with noisy ones it does.
+
+    The noise estimate is the RMS second difference over sqrt(6): white noise of 0.3 rad per
+    joint reads about 0.3 rad; a closure of 1 rad in 0.4 s, under 0.02 rad.
+    """
+    touch = [[True, True, False, False, False]]
+    smooth = _intent(touch, np.full(21, 0.1), close_s=0.5, noise_gate_rad=0.05)
+    closing = np.where(_FLEX, 1.0, 0.0)
+    for k in range(40):
+        target = np.r_[np.zeros(6), min(k / 20, 1.0) * closing]
+        np.testing.assert_array_equal(smooth(target, _keypoints(0.6), None), target)
+    assert not smooth.grasping and smooth.onsets == 0 and smooth.noise_rad < 0.02
+    rng = np.random.default_rng(3)
+    noisy = _intent(touch, np.full(21, 0.1), close_s=0.5, noise_gate_rad=0.05)
+    for _ in range(100):
+        noisy(np.r_[np.zeros(6), 0.5 * closing + rng.normal(0, 0.3, 21)], _keypoints(0.6), None)
+    assert noisy.grasping and noisy.onsets == 1
+    assert noisy.noise_rad == pytest.approx(0.3, rel=0.25)
+
+
+def test_closure_assist_config_sets_the_pace_and_the_gate():
+    """``closure_assist=True`` gives the intent CLOSE_S and NOISE_GATE_RAD unless given."""
+    from handsim.envs.teleop.channel import HandChannel
+    from handsim.envs.teleop.intent import NOISE_GATE_RAD
+
+    env = gym.make("handsim/Grasp-v0", obs_mode="state", control_mode="pose")
+    env.reset(seed=0)
+    scene = env.unwrapped.scene
+    rng = np.random.default_rng(0)
+    cfg = TeleopConfig(grasp_intent=True, closure_assist=True)
+    channel = HandChannel(cfg, scene, 0.02, rng)
+    assert channel.intent.close_s == CLOSE_S and channel.intent.noise_gate_rad == NOISE_GATE_RAD
+    cfg = TeleopConfig(grasp_intent=True, closure_assist=True, intent_params={"close_s": 0.3})
+    assert HandChannel(cfg, scene, 0.02, rng).intent.close_s == 0.3
+    plain = HandChannel(TeleopConfig(grasp_intent=True), scene, 0.02, rng).intent
+    assert plain.close_s == 0.0 and plain.noise_gate_rad == 0.0
+    env.close()
