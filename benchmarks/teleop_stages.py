@@ -2,9 +2,9 @@
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
 [--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
-[--intent-params JSON] [--intent-oracle none|posture|flex|spread]
+[--closure-assist on|off] [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
-[--episodes 20] [--out FILE]``.
+[--episodes 20] [--trace SEED] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
@@ -17,7 +17,9 @@ Each failure is put in the stage it ended in: ``approach`` (the expert still
 reaching or approaching), ``closure`` (the object never rose 2 cm), ``lift`` (it rose, but
 not to 9.5 cm) or ``hold`` (lifted, then dropped, slipped or turned). Prints and writes
 (``benchmarks/results/teleop_stages.json`` by default, one entry per configuration) the
-success rate, the stage counts and the wall time.
+success rate, the stage counts and the wall time. ``--trace SEED`` prints, every 4th control
+step of that seed's episode, the expert's phase, whether the hand is in grasp intent, which
+digits touch an object (thumb to little) and how far the target object has moved, mm.
 """
 
 from __future__ import annotations
@@ -105,6 +107,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         ),
         grasp_intent=args.grasp_intent == "on",
         intent_params=json.loads(args.intent_params),
+        closure_assist=args.closure_assist == "on",
     )
     quiet: dict[str, Any] = {
         "on": {},
@@ -116,15 +119,33 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         quiet["correction_s"] = None
     stages = []
     intent_s: list[float] = []
+    assist_s: list[float] = []
+    assisted: list[bool] = []
     start = time.perf_counter()
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
+        intent_flag: list[bool] = [False]
+        if args.trace is not None:
+            from handsim.envs.teleop.intent import GraspIntent
+
+            traced_call = GraspIntent.__call__
+
+            def flagged(self: Any, target: np.ndarray, tracked: Any, data: Any) -> np.ndarray:
+                out = traced_call(self, target, tracked, data)
+                intent_flag[0] = self.grasping
+                return out
+
+            GraspIntent.__call__ = flagged  # type: ignore[method-assign]
         for seed in range(args.episodes):
             op = ReactiveOperator(
                 loop.env, seed, display_latency_s=args.latency * loop.control_dt, **quiet
             )
             lifts: list[float] = []
             phase: list[str] = []
+            start_pos = np.zeros(3)
+            if seed == args.trace:
+                loop.env.reset(seed=seed)  # the object's start
+                start_pos = base._object_pose(base.target_instance)[:3, 3].copy()
 
             def on_step(
                 i: int,
@@ -132,12 +153,26 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 op: Any = op,
                 lifts: list = lifts,
                 phase: list = phase,
+                seed: int = seed,
+                start_pos: np.ndarray = start_pos,
             ) -> None:
                 lifts.append(float(base._task_info()["lift_m"]))
                 phase[:] = [op._expert.phase]
+                if seed == args.trace and i % 4 == 0:
+                    from handsim.envs.teleop.grip import DigitContacts
+
+                    moved = base._object_pose(base.target_instance)[:3, 3] - start_pos
+                    touch = DigitContacts(base.scene).touching(base.scene.data).astype(int)
+                    print(
+                        f"trace step {i:4d} {phase[0]:8s} intent {int(intent_flag[0])} "
+                        f"touching {''.join(map(str, touch))} object moved "
+                        f"{np.round(moved * 1e3, 1).tolist()} mm"
+                    )
 
             metrics = loop.run(op, seed, on_step=on_step).metrics
             intent_s.append(metrics["intent_grasp_s"])
+            assist_s.append(metrics["closure_assist_s"])
+            assisted.append(metrics["success_assisted"])
             lift = max(lifts)
             if metrics["success"]:
                 stage = "success"
@@ -157,6 +192,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "stages": dict(counts),
         "per_seed": stages,
         "intent_grasp_s": round(float(np.mean(intent_s)), 2),
+        "closure_assist_s": round(float(np.mean(assist_s)), 2),
+        "assisted_successes": int(np.sum(assisted)),
         "wall_s": round(time.perf_counter() - start, 1),
     }
 
@@ -171,12 +208,14 @@ def main() -> None:
     p.add_argument("--beta", type=float, default=1.0)
     p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
+    p.add_argument("--closure-assist", choices=("on", "off"), default="off")
     p.add_argument("--intent-params", default="{}", help="e.g. '{\"press_rad\": 0.2}'")
     p.add_argument("--intent-oracle", choices=("none", "posture", "flex", "spread"), default="none")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
     p.add_argument("--correction", choices=("on", "off"), default="on")
     p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")
     p.add_argument("--episodes", type=int, default=20)
+    p.add_argument("--trace", type=int, default=None, help="print this seed's steps")
     p.add_argument("--out", default="benchmarks/results/teleop_stages.json")
     args = p.parse_args()
     result = run(args)

@@ -19,8 +19,8 @@ import numpy as np
 
 from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import make_filter
-from handsim.envs.teleop.grip import GripStabiliser
-from handsim.envs.teleop.intent import GraspIntent, make_grasp_intent
+from handsim.envs.teleop.grip import DIGITS, GripStabiliser
+from handsim.envs.teleop.intent import CLOSE_S, NOISE_GATE_RAD, GraspIntent, make_grasp_intent
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.errors import InvalidKeypoints
 from handsim.hand.pose import HandPose
@@ -60,8 +60,12 @@ class HandChannel:
             else None
         )
         self.retargeter = Retargeter(scene.hand.params)
+        intent_params = dict(config.intent_params)
+        if getattr(config, "closure_assist", False):
+            intent_params.setdefault("close_s", CLOSE_S)
+            intent_params.setdefault("noise_gate_rad", NOISE_GATE_RAD)
         self.intent: GraspIntent | None = (
-            make_grasp_intent(scene, dt_s, **config.intent_params) if config.grasp_intent else None
+            make_grasp_intent(scene, dt_s, **intent_params) if config.grasp_intent else None
         )
         self.grip: GripStabiliser | None = (
             GripStabiliser(types.SimpleNamespace(scene=scene), dt_s) if config.grip_hold else None
@@ -125,12 +129,21 @@ class HandChannel:
         action = self.intent(self.target, tracked, data) if self.intent is not None else self.target
         return self.grip(action, data) if self.grip is not None else action
 
-    def metrics(self, dt_s: float) -> dict[str, float]:
-        """``grip_hold_s``, ``intent_grasp_s``, ``intent_onsets``, ``intent_releases``."""
+    def assisted(self) -> bool:
+        """The grasp intent's closure assist drives a digit of this hand now."""
+        return self.intent is not None and self.intent.assisted()
+
+    def metrics(self, dt_s: float) -> dict[str, Any]:
+        """The hand's assist metrics: ``grip_hold_s``, ``intent_*`` and ``closure_assist_*``."""
         intent = self.intent
+        digit_steps = intent.assist_steps if intent is not None else np.zeros(len(DIGITS))
         return {
             "grip_hold_s": self.grip.held_steps * dt_s if self.grip is not None else 0.0,
             "intent_grasp_s": intent.grasp_steps * dt_s if intent is not None else 0.0,
             "intent_onsets": intent.onsets if intent is not None else 0,
             "intent_releases": intent.releases if intent is not None else 0,
+            "closure_assist_s": intent.any_assist_steps * dt_s if intent is not None else 0.0,
+            "closure_assist_digit_s": {
+                d: float(n * dt_s) for d, n in zip(DIGITS, digit_steps, strict=True)
+            },
         }

@@ -78,8 +78,12 @@ class DigitContacts:
                 if name.startswith(prefix + digit):
                     self._geom_digit[g] = d
         self._is_object = np.zeros(model.ngeom, dtype=bool)
-        for body_name, _ in getattr(scene, "objects", ()):
-            self._is_object[model.geom_bodyid == model.body(body_name).id] = True
+        # Object geoms -> index into scene.objects (-1: not an object).
+        self._geom_object = np.full(model.ngeom, -1, dtype=np.int16)
+        for k, (body_name, _) in enumerate(getattr(scene, "objects", ())):
+            on_body = model.geom_bodyid == model.body(body_name).id
+            self._is_object[on_body] = True
+            self._geom_object[on_body] = k
 
     def touching(self, data: Any) -> np.ndarray:
         """(5,) bool: each digit (DIGITS order) touches an object now."""
@@ -91,6 +95,19 @@ class DigitContacts:
                 keep = (digits >= 0) & self._is_object[pairs[:, b]]
                 out[digits[keep]] = True
         return out
+
+    def touched_object(self, data: Any) -> int:
+        """The index (into ``scene.objects``) of the object most digits touch; -1 if none."""
+        counts: dict[int, set[int]] = {}
+        if data.ncon:
+            pairs = np.asarray(data.contact.geom[: data.ncon])
+            for a, b in ((0, 1), (1, 0)):
+                digits = self._geom_digit[pairs[:, a]]
+                objects = self._geom_object[pairs[:, b]]
+                for d, k in zip(digits.tolist(), objects.tolist(), strict=True):
+                    if d >= 0 and k >= 0:
+                        counts.setdefault(k, set()).add(d)
+        return max(counts, key=lambda k: len(counts[k])) if counts else -1
 
 
 class GripStabiliser:

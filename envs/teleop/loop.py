@@ -156,6 +156,15 @@ class TeleopConfig:
             ``intent_onsets`` and ``intent_releases``.
         intent_params: its parameters (keys of
             :data:`~handsim.envs.teleop.intent.INTENT_DEFAULTS`).
+        closure_assist: with the grasp intent, each digit of the object's grasp type that
+            does not touch it yet closes toward it at the type's pace until it touches, then
+            presses from its contact (``close_s`` of the intent's parameters:
+            :data:`~handsim.envs.teleop.intent.CLOSE_S` unless given); and the intent starts
+            only while the tracked flexion is noisy (``noise_gate_rad``:
+            :data:`~handsim.envs.teleop.intent.NOISE_GATE_RAD` unless given; with clean
+            tracking the operator's own fingers grasp). Nothing is attached;
+            the seconds the assist drove a digit are ``closure_assist_s`` (per digit:
+            ``closure_assist_digit_s``) and a success while it did is ``success_assisted``.
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -172,6 +181,7 @@ class TeleopConfig:
     pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
     grasp_intent: bool = False
     intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
+    closure_assist: bool = False
     record: bool = False
     seed: int = 0
 
@@ -201,6 +211,11 @@ class TeleopConfig:
         if unknown:
             raise InvalidTeleopConfig(
                 f"intent_params {unknown} are not valid; choose from {', '.join(INTENT_DEFAULTS)}"
+            )
+        if self.closure_assist and not self.grasp_intent:
+            raise InvalidTeleopConfig(
+                "closure_assist acts while the grasp intent grasps: set grasp_intent=True with "
+                "it (CLI: --grasp-intent on --closure-assist on)"
             )
 
     def label(self) -> str:
@@ -483,6 +498,7 @@ class TeleopLoop:
         record = cfg.record
         data = base.scene.data
         first_success = None
+        success_assisted = False
         unintended = math.nan
         n_done = 0
         start_wall = time.perf_counter()
@@ -552,6 +568,7 @@ class TeleopLoop:
                 unintended = float(info["unintended_presses"])
             if first_success is None and rec["success"][-1]:
                 first_success = i
+                success_assisted = hand.assisted()
             if on_step is not None:
                 on_step(
                     i,
@@ -600,6 +617,8 @@ class TeleopLoop:
             "estimator": repr(self.estimator) if cfg.mode == "camera" else None,
             "success": bool(first_success is not None),
             "time_to_success_s": first_success * dt if first_success is not None else math.nan,
+            # A success while the closure assist drove a digit (still a physical grasp).
+            "success_assisted": bool(success_assisted),
             "penetration_max_mm": float(penetration.max() * 1e3) if n_done else math.nan,
             "penetration_mean_mm": (
                 float(penetration[touching].mean() * 1e3) if touching.any() else 0.0

@@ -50,11 +50,13 @@ SWEEP_COLUMNS: tuple[str, ...] = (
     "grip_hold_s",
     "intent_grasp_s",
     "intent_onsets",
+    "closure_assist_s",
+    "assisted_success_rate",
     "steps_per_s",
 )
 """Columns of the sweep table (means over the episodes of a grid point; NaN-aware)."""
 
-_MEANS = SWEEP_COLUMNS[6:]
+_MEANS = tuple(c for c in SWEEP_COLUMNS[6:] if c != "assisted_success_rate")
 
 
 def run_sweep(
@@ -75,6 +77,7 @@ def run_sweep(
     grip_hold: bool = True,
     pose_filter: bool | str = False,
     grasp_intent: bool = False,
+    closure_assist: bool = False,
     filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
@@ -100,6 +103,7 @@ def run_sweep(
         pose_filter: the loop's joint-space pose filter (:attr:`TeleopConfig.pose_filter`:
             ``False``, ``True`` or ``"wrist"``).
         grasp_intent: the loop's grasp intent (:attr:`TeleopConfig.grasp_intent`).
+        closure_assist: its closure assist (:attr:`TeleopConfig.closure_assist`).
         filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
@@ -138,6 +142,7 @@ def run_sweep(
                 grip_hold=grip_hold,
                 pose_filter=pose_filter,
                 grasp_intent=grasp_intent,
+                closure_assist=closure_assist,
                 seed=seed,
             )
             if filt not in loops:
@@ -166,6 +171,10 @@ def run_sweep(
                 "filter": filt,
                 "episodes": len(details),
                 "success_rate": float(np.mean([d["success"] for d in details])),
+                # Successes while the closure assist drove a digit (physical grasps still).
+                "assisted_success_rate": float(
+                    np.mean([d.get("success_assisted", False) for d in details])
+                ),
             }
             for key in _MEANS:
                 values = np.array([d[key] for d in details], dtype=np.float64)
@@ -182,6 +191,7 @@ def run_sweep(
         "grip_hold": bool(grip_hold),
         "pose_filter": pose_filter if isinstance(pose_filter, str) else bool(pose_filter),
         "grasp_intent": bool(grasp_intent),
+        "closure_assist": bool(closure_assist),
         "filter_params": filter_params or {},
         "episodes": episodes,
         "seed": seed,

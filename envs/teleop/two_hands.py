@@ -372,6 +372,7 @@ class TwoHandTeleopLoop(TeleopLoop):
         success: list[bool] = []
         rec: dict[str, list] = {"qpos": [], "mocap_pos": [], "mocap_quat": []}
         first_success, unintended, n_done = None, math.nan, 0
+        success_assisted = False
         start_wall = time.perf_counter()
         window, warned = (start_wall, 0), False
         info: dict[str, Any] = {}
@@ -413,6 +414,7 @@ class TwoHandTeleopLoop(TeleopLoop):
                 unintended = float(info["unintended_presses"])
             if first_success is None and success[-1]:
                 first_success = i
+                success_assisted = any(ch.hand.assisted() for ch in channels)
             if on_step is not None:
                 first = channels[0]
                 on_step(
@@ -487,6 +489,7 @@ class TwoHandTeleopLoop(TeleopLoop):
             "estimator": None,
             "success": first_success is not None,
             "time_to_success_s": first_success * dt if first_success is not None else math.nan,
+            "success_assisted": bool(success_assisted),
             "unintended_presses": unintended,
             "steps": n_done,
             "control_dt_s": dt,

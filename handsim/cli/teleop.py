@@ -242,6 +242,14 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "angles averaged since the grasp began); nothing is attached (default: off)",
     )
     p.add_argument(
+        "--closure-assist",
+        choices=("on", "off"),
+        default="off",
+        help="with --grasp-intent on: each digit of the grasp closes toward the object until "
+        "it touches, instead of following the tracked flexion; nothing is attached (default: "
+        "off)",
+    )
+    p.add_argument(
         "--seed",
         type=seed,
         default=0,

@@ -73,6 +73,7 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         grip_hold=args.grip_hold == "on",
         pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
         grasp_intent=args.grasp_intent == "on",
+        closure_assist=args.closure_assist == "on",
         record=record,
         seed=args.seed,
     )
@@ -91,6 +92,8 @@ def _print_metrics(metrics: dict[str, Any]) -> None:
         "tracking_error_mm",
         "grip_hold_s",
         "intent_grasp_s",
+        "closure_assist_s",
+        "success_assisted",
         "intent_onsets",
         "steps",
         "dropped_frames",
@@ -309,6 +312,7 @@ def _sweep(args: argparse.Namespace) -> int:
             grip_hold=args.grip_hold == "on",
             pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
             grasp_intent=args.grasp_intent == "on",
+            closure_assist=args.closure_assist == "on",
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )

@@ -287,3 +287,35 @@ def test_replay_and_sweep_take_the_grasp_intent_and_the_wrist_pose_filter(tmp_pa
     assert report["grasp_intent"] is True and report["pose_filter"] == "wrist"
     assert report["rows"][0]["intent_grasp_s"] == 0.0
     assert "intent_s" in done.stdout
+
+
+def test_replay_takes_the_closure_assist_and_refuses_it_without_the_intent(tmp_path):
+    """`replay --grasp-intent on --closure-assist on` reports the assist; alone it is refused.
+
+    With 5 mm of noise: the assist's gate keeps the intent off with clean tracking.
+    """
+    stream = tmp_path / "grasp.npz"
+    cli = [sys.executable, "-m", "handsim.cli", "teleop"]
+    subprocess.run(
+        [*cli, "generate", str(stream), "--task", "grasp", "--seed", "8"],
+        check=True,
+        capture_output=True,
+    )
+    out = tmp_path / "replay"
+    done = subprocess.run(
+        [*cli, "replay", str(stream), "--task", "grasp", "--seed", "8", "--out", str(out)]
+        + ["--grasp-intent", "on", "--closure-assist", "on", "--noise-mm", "5"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((out / "teleop.json").read_text())
+    assert metrics["config"]["closure_assist"] is True
+    assert metrics["closure_assist_s"] > 0.2 and "closure_assist_s" in done.stdout
+    refused = subprocess.run(
+        [*cli, "replay", str(stream), "--task", "grasp", "--closure-assist", "on"],
+        capture_output=True,
+        text=True,
+    )
+    assert refused.returncode != 0
+    assert "--grasp-intent on --closure-assist on" in refused.stderr
