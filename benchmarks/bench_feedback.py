@@ -1,0 +1,158 @@
+"""The feedback estimator on one CPU core: frames/s per frame and batched, both synthesizers.
+
+Measured in one run, on this machine, with ``torch.set_num_threads(1)`` and
+``cv2.setNumThreads(1)``, on the frames of one handsim-bench set (default
+``hand_third_person``, the first ``--frames``), the whole pipeline (plane removal, refined
+localizer, crop, DeepPrior++, k updates) with the shipped updater:
+
+- per frame: ``FeedbackEstimator.predict`` on each frame in turn;
+- batched: ``FeedbackEstimator.predict_batch`` on batches of ``--batch`` frames of one side
+  (the frames grouped by side, as the estimator's side is set per batch);
+
+for ``renderer`` (each update retargets and renders crop by crop: on a CPU it does not batch)
+and ``learned`` (a network: one call per batch and update), with 0 to ``--iterations``
+updates. Speed does not depend on the weights: the learned synthesizer has random weights of
+the documented config (filters 16, FC 1024) unless ``--synthesizer-checkpoint`` is given. Each
+variant runs once untimed on a few frames first (the renderer builds its scene on first use).
+The ratios (batched / per frame; each update count against 0 updates) come from this one run;
+the load average is recorded before and after.
+
+Usage: ``python benchmarks/bench_feedback.py --bench BENCH [--frames 128] [--batch 32]
+[--iterations 3]``. Writes ``benchmarks/results/bench_feedback.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def _random_synthesizer(folder: Path, fc: int, filters: int) -> str:
+    """A learned synthesizer of random weights (128 px, 0.25 m) saved under ``folder``."""
+    import torch
+
+    from handsim.estimators.deepprior.checkpoint import save_checkpoint
+    from handsim.estimators.feedback.models import build_feedback_model
+
+    torch.manual_seed(0)
+    model_config = {"arch": "synthesizer", "size": 128, "fc": fc, "filters": filters}
+    model = build_feedback_model(model_config)
+    path = folder / "synthesizer.pt"
+    config = {"model": model_config, "cube_m": 0.25, "kind": "synthesizer"}
+    save_checkpoint(path, {"model": model.state_dict()}, config)
+    return str(path)
+
+
+def _per_frame(est, depths, Ks, left) -> float:  # noqa: N803
+    """Seconds for ``predict`` on every frame."""
+    t0 = time.perf_counter()
+    for d, k, s in zip(depths, Ks, left, strict=True):
+        est.set_side(bool(s))
+        est.predict(d, k)
+    return time.perf_counter() - t0
+
+
+def _batched(est, depths, Ks, left, batch: int) -> float:  # noqa: N803
+    """Seconds for ``predict_batch`` on batches of ``batch`` frames of one side."""
+    import numpy as np
+
+    t0 = time.perf_counter()
+    for side in (False, True):
+        idx = np.flatnonzero(left == side)
+        est.set_side(side)
+        for s in range(0, len(idx), batch):
+            i = idx[s : s + batch]
+            est.predict_batch(depths[i], Ks[i])
+    return time.perf_counter() - t0
+
+
+def main() -> None:
+    """Measure and write ``benchmarks/results/bench_feedback.json``."""
+    import cv2
+    import numpy as np
+    import torch
+
+    from handsim.cli.benchmark import _read_benchmark
+    from handsim.estimators import FeedbackEstimator
+    from handsim.estimators.deepprior.data import load_frames
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--bench", required=True, help="a `handsim benchmark make` folder")
+    parser.add_argument("--set", default="hand_third_person", help="the bench set's frames")
+    parser.add_argument("--frames", type=int, default=128, help="frames timed")
+    parser.add_argument("--batch", type=int, default=32, help="frames per predict_batch call")
+    parser.add_argument("--iterations", type=int, default=3, help="most updates timed")
+    parser.add_argument("--synthesizer-checkpoint", default=None, help="a trained one")
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results/bench_feedback.json"))
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    cv2.setNumThreads(1)
+    bench = Path(args.bench)
+    folder = bench / str(_read_benchmark(bench)["sets"][args.set]["folder"])
+    frames = load_frames(folder, max_frames=args.frames)
+    depths = np.stack([frames.depth(i) for i in range(len(frames))])
+    Ks, left = frames.K, frames.is_left.astype(bool)  # noqa: N806
+    results: dict = {
+        "bench_set": args.set,
+        "frames": len(frames),
+        "left_frames": int(left.sum()),
+        "batch": args.batch,
+        "torch_threads": torch.get_num_threads(),
+        "opencv_threads": cv2.getNumThreads(),
+        "cpu_count": os.cpu_count(),
+        "load_average_1min_before": os.getloadavg()[0],
+        "fps": {},
+    }
+    fps = results["fps"]
+    with tempfile.TemporaryDirectory() as tmp:
+        ckpt = args.synthesizer_checkpoint or _random_synthesizer(Path(tmp), 1024, 16)
+        results["synthesizer_checkpoint"] = args.synthesizer_checkpoint or "random weights"
+        for synth in ("renderer", "learned"):
+            est = FeedbackEstimator(
+                synthesizer=synth, synthesizer_checkpoint=ckpt if synth == "learned" else None
+            )
+            for k in range(args.iterations + 1):
+                est.iterations = k
+                _per_frame(est, depths[:4], Ks[:4], left[:4])  # untimed warm-up
+                _batched(est, depths[:4], Ks[:4], left[:4], args.batch)
+                per_frame = len(frames) / _per_frame(est, depths, Ks, left)
+                batched = len(frames) / _batched(est, depths, Ks, left, args.batch)
+                fps[f"{synth} {k} updates"] = {
+                    "per_frame": per_frame,
+                    "batched": batched,
+                    "batched_over_per_frame": batched / per_frame,
+                }
+                print(
+                    f"{synth:8s} {k} updates: {per_frame:7.1f} frames/s per frame, "
+                    f"{batched:7.1f} batched ({batched / per_frame:.2f}x)",
+                    flush=True,
+                )
+            est.close()
+    # An update's cost: the time per frame it adds, from the largest update count.
+    k = args.iterations
+    results["ms_per_update"] = {
+        f"{synth} {mode}": 1000.0
+        * (1 / fps[f"{synth} {k} updates"][mode] - 1 / fps[f"{synth} 0 updates"][mode])
+        / max(k, 1)
+        for synth in ("renderer", "learned")
+        for mode in ("per_frame", "batched")
+    }
+    results["load_average_1min_after"] = os.getloadavg()[0]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=2) + "\n")
+    print(json.dumps(results["ms_per_update"], indent=2))
+    print(
+        f"load average {results['load_average_1min_before']:.2f} before, "
+        f"{results['load_average_1min_after']:.2f} after; written: {out}"
+    )
+
+
+if __name__ == "__main__":
+    main()
