@@ -14,8 +14,9 @@ and ``learned`` (a network: one call per batch and update), with 0 to ``--iterat
 updates. Speed does not depend on the weights: the learned synthesizer has random weights of
 the documented config (filters 16, FC 1024) unless ``--synthesizer-checkpoint`` is given. Each
 variant runs once untimed on a few frames first (the renderer builds its scene on first use).
-The ratios (batched / per frame; each update count against 0 updates) come from this one run;
-the load average is recorded before and after.
+The parts apart: each synthesizer's time per crop and the updater's per frame, at batch 1 and
+``--batch``. The ratios (batched / per frame) come from this one run; the load average is
+recorded before and after.
 
 Usage: ``python benchmarks/bench_feedback.py --bench BENCH [--frames 128] [--batch 32]
 [--iterations 3]``. Writes ``benchmarks/results/bench_feedback.json``.
@@ -72,6 +73,51 @@ def _batched(est, depths, Ks, left, batch: int) -> float:  # noqa: N803
     return time.perf_counter() - t0
 
 
+def _components(est_r, est_l, depths, Ks, batch: int) -> dict:  # noqa: N803
+    """Milliseconds per crop of each synthesizer and per frame of the updater, batch 1 and B.
+
+    On DeepPrior++'s first poses of the frames (right-hand frame, the localizer's centres;
+    the renderer's retargeting starts cold, as at the first update).
+    """
+    import numpy as np
+    import torch
+
+    from handsim.estimators.deepprior.preprocess import crop_depth, crop_matrix
+
+    first = est_r.first
+    found = [(i, first.localizer.localize(d, Ks[i])) for i, d in enumerate(depths)]
+    idx = np.array([i for i, c in found if c is not None])
+    centers = np.stack([c for _, c in found if c is not None])
+    Ks = Ks[idx]  # noqa: N806
+    cube, size = first.cube_m, first.size
+    x = np.stack(
+        [
+            crop_depth(depths[i], crop_matrix(c, k, cube, size), c[2], cube, size)
+            for i, c, k in zip(idx, centers, Ks, strict=True)
+        ]
+    )
+    d = torch.from_numpy(x[:, None])
+    with torch.inference_mode():
+        poses = first.model(d.contiguous(memory_format=torch.channels_last)).float().numpy()
+    n = len(idx)
+    out = {}
+    for b in (1, batch):
+        chunks = [slice(s, min(s + b, n)) for s in range(0, n, b)]
+        for name, est in (("renderer", est_r), ("learned", est_l)):
+            t0 = time.perf_counter()
+            for c in chunks:
+                est.synth(poses[c], centers[c], Ks[c], np.nan, np.zeros(c.stop - c.start, bool))
+            seconds = time.perf_counter() - t0
+            out[f"{name} synthesizer ms per crop, batch {b}"] = 1000 * seconds / n
+        y = torch.from_numpy(est_l.synth(poses, centers, Ks, np.nan)[0][:, None])
+        t0 = time.perf_counter()
+        with torch.inference_mode():
+            for c in chunks:
+                est_r.updater(d[c], y[c])
+        out[f"updater ms per frame, batch {b}"] = 1000 * (time.perf_counter() - t0) / n
+    return out
+
+
 def main() -> None:
     """Measure and write ``benchmarks/results/bench_feedback.json``."""
     import cv2
@@ -113,10 +159,17 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         ckpt = args.synthesizer_checkpoint or _random_synthesizer(Path(tmp), 1024, 16)
         results["synthesizer_checkpoint"] = args.synthesizer_checkpoint or "random weights"
-        for synth in ("renderer", "learned"):
-            est = FeedbackEstimator(
-                synthesizer=synth, synthesizer_checkpoint=ckpt if synth == "learned" else None
-            )
+        ests = {
+            "renderer": FeedbackEstimator(synthesizer="renderer"),
+            "learned": FeedbackEstimator(synthesizer="learned", synthesizer_checkpoint=ckpt),
+        }
+        _components(ests["renderer"], ests["learned"], depths[:4], Ks[:4], 2)  # warm-up
+        results["components"] = _components(
+            ests["renderer"], ests["learned"], depths, Ks, args.batch
+        )
+        for name, value in results["components"].items():
+            print(f"{name}: {value:.2f}", flush=True)
+        for synth, est in ests.items():
             for k in range(args.iterations + 1):
                 est.iterations = k
                 _per_frame(est, depths[:4], Ks[:4], left[:4])  # untimed warm-up
