@@ -15,11 +15,12 @@ updates. Speed does not depend on the weights: the learned synthesizer has rando
 the documented config (filters 16, FC 1024) unless ``--synthesizer-checkpoint`` is given. Each
 variant runs once untimed on a few frames first (the renderer builds its scene on first use).
 The parts apart: each synthesizer's time per crop and the updater's per frame, at batch 1 and
-``--batch``. The ratios (batched / per frame) come from this one run; the load average is
-recorded before and after.
+``--batch``. Every figure is the best of ``--repeats`` runs, the variants interleaved (on a
+shared machine the best run is the least disturbed; all runs are in the JSON); the ratios
+(batched / per frame) come from this one run; the load average is recorded before and after.
 
 Usage: ``python benchmarks/bench_feedback.py --bench BENCH [--frames 128] [--batch 32]
-[--iterations 3]``. Writes ``benchmarks/results/bench_feedback.json``.
+[--iterations 3] [--repeats 3]``. Writes ``benchmarks/results/bench_feedback.json``.
 """
 
 from __future__ import annotations
@@ -134,6 +135,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=128, help="frames timed")
     parser.add_argument("--batch", type=int, default=32, help="frames per predict_batch call")
     parser.add_argument("--iterations", type=int, default=3, help="most updates timed")
+    parser.add_argument("--repeats", type=int, default=3, help="runs of each; the best is kept")
     parser.add_argument("--synthesizer-checkpoint", default=None, help="a trained one")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results/bench_feedback.json"))
     args = parser.parse_args()
@@ -149,6 +151,7 @@ def main() -> None:
         "frames": len(frames),
         "left_frames": int(left.sum()),
         "batch": args.batch,
+        "repeats": args.repeats,
         "torch_threads": torch.get_num_threads(),
         "opencv_threads": cv2.getNumThreads(),
         "cpu_count": os.cpu_count(),
@@ -164,28 +167,40 @@ def main() -> None:
             "learned": FeedbackEstimator(synthesizer="learned", synthesizer_checkpoint=ckpt),
         }
         _components(ests["renderer"], ests["learned"], depths[:4], Ks[:4], 2)  # warm-up
-        results["components"] = _components(
-            ests["renderer"], ests["learned"], depths, Ks, args.batch
-        )
+        runs = [
+            _components(ests["renderer"], ests["learned"], depths, Ks, args.batch)
+            for _ in range(args.repeats)
+        ]
+        results["components"] = {key: min(r[key] for r in runs) for key in runs[0]}
+        results["components_all"] = runs
         for name, value in results["components"].items():
             print(f"{name}: {value:.2f}", flush=True)
-        for synth, est in ests.items():
-            for k in range(args.iterations + 1):
-                est.iterations = k
-                _per_frame(est, depths[:4], Ks[:4], left[:4])  # untimed warm-up
-                _batched(est, depths[:4], Ks[:4], left[:4], args.batch)
-                per_frame = len(frames) / _per_frame(est, depths, Ks, left)
-                batched = len(frames) / _batched(est, depths, Ks, left, args.batch)
-                fps[f"{synth} {k} updates"] = {
-                    "per_frame": per_frame,
-                    "batched": batched,
-                    "batched_over_per_frame": batched / per_frame,
-                }
-                print(
-                    f"{synth:8s} {k} updates: {per_frame:7.1f} frames/s per frame, "
-                    f"{batched:7.1f} batched ({batched / per_frame:.2f}x)",
-                    flush=True,
-                )
+        for est in ests.values():  # untimed warm-up of every path
+            est.iterations = 1
+            _per_frame(est, depths[:4], Ks[:4], left[:4])
+            _batched(est, depths[:4], Ks[:4], left[:4], args.batch)
+        rates: dict = {}
+        for _ in range(args.repeats):  # the variants interleaved, so that load hits all alike
+            for synth, est in ests.items():
+                for k in range(args.iterations + 1):
+                    est.iterations = k
+                    r = rates.setdefault(f"{synth} {k} updates", {"per_frame": [], "batched": []})
+                    r["per_frame"].append(len(frames) / _per_frame(est, depths, Ks, left))
+                    r["batched"].append(len(frames) / _batched(est, depths, Ks, left, args.batch))
+        for name, r in rates.items():
+            per_frame, batched = max(r["per_frame"]), max(r["batched"])
+            fps[name] = {
+                "per_frame": per_frame,
+                "batched": batched,
+                "batched_over_per_frame": batched / per_frame,
+                "all_repeats": r,
+            }
+            print(
+                f"{name:18s}: {per_frame:7.1f} frames/s per frame, {batched:7.1f} batched "
+                f"({batched / per_frame:.2f}x)",
+                flush=True,
+            )
+        for est in ests.values():
             est.close()
     # An update's cost: the time per frame it adds, from the largest update count.
     k = args.iterations
