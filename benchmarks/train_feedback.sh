@@ -18,15 +18,17 @@
 # poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
 # TRUTH_STARTS [0] (1: the truth itself is a starting pose, as in the paper; with it the updater
 # learned to make no update here, docs/feedback.md),
-# BENCH [OUT/bench], STAGES [data updater bench].
+# BENCH [OUT/bench], STAGES [data updater bench], UPDATER [OUT/updater] (the run folder; the
+# bench stage writes UPDATER/bench_feedback and UPDATER/iterations.json).
 #
 # The learned synthesizer instead of the renderer (SYNTH [renderer] | learned): the stage
 # `synthesizer` trains it on the hand-only set (the synthesizer, as the renderer, draws the hand
 # alone: an object is nothing it can know from the pose) into SYNTH_CHECKPOINT
 # [OUT/synthesizer] (SYNTH_EPOCHS [5], SYNTH_FRAMES [1500], SYNTH_FC [1024], filters FILTERS,
-# batch 32); the updater, same options otherwise, goes to OUT/updater_learned and is evaluated
-# with that synthesizer (OUT/bench_feedback_learned, OUT/iterations_learned.json). STAGES then defaults to [data synthesizer updater bench]; leave out
-# `synthesizer` to use another run (SYNTH_CHECKPOINT=runs/synth).
+# batch 32); the updater, same options otherwise, goes to UPDATER [OUT/updater_learned] and
+# is evaluated with that synthesizer. STAGES then defaults to [data synthesizer updater bench];
+# leave out `synthesizer` to use another run (SYNTH_CHECKPOINT=runs/synth
+# UPDATER=OUT/updater_synth STAGES="updater bench").
 # Every stage resumes: run the same command again after an interruption (generate keeps
 # complete shards, train restarts after its last finished epoch with its pool and its cached
 # crops, benchmark make keeps complete sets).
@@ -54,14 +56,12 @@ SYNTH_FC=${SYNTH_FC:-1024}
 case $SYNTH in
   renderer)
     STAGES=${STAGES:-"data updater bench"}
-    UPDATER=$OUT/updater
-    SUFFIX=
+    UPDATER=${UPDATER:-$OUT/updater}
     SYNTH_ARGS=()
     ;;
   learned)
     STAGES=${STAGES:-"data synthesizer updater bench"}
-    UPDATER=$OUT/updater_learned
-    SUFFIX=_learned
+    UPDATER=${UPDATER:-$OUT/updater_learned}
     SYNTH_ARGS=(--synthesizer learned --synthesizer-checkpoint "$SYNTH_CHECKPOINT")
     ;;
   *) echo "SYNTH must be renderer or learned; received '$SYNTH'" >&2; exit 2 ;;
@@ -103,9 +103,9 @@ if has bench; then
   ARGS="\"updater\": \"$UPDATER/best.pt\""
   [[ $SYNTH == learned ]] && ARGS+=", \"synthesizer\": \"learned\", \"synthesizer_checkpoint\": \"$SYNTH_CHECKPOINT\""
   $HANDSIM benchmark run --estimator "handsim.estimators:FeedbackEstimator:{$ARGS}" \
-    --bench "$BENCH" --episodes 0 --out "$OUT/bench_feedback$SUFFIX" -q
+    --bench "$BENCH" --episodes 0 --out "$UPDATER/bench_feedback" -q
   stamp "error after each update, per set and occlusion bucket"
   $PYTHON -m handsim.estimators.feedback.evaluate --updater "$UPDATER/best.pt" \
-    --bench "$BENCH" "${SYNTH_ARGS[@]}" --out "$OUT/iterations$SUFFIX.json"
+    --bench "$BENCH" "${SYNTH_ARGS[@]}" --out "$UPDATER/iterations.json"
 fi
 stamp done
