@@ -18,7 +18,17 @@
 # poses, per coordinate), ITERATIONS [3] (most updates tried on validation), VAL_FRAMES [300],
 # TRUTH_STARTS [0] (1: the truth itself is a starting pose, as in the paper; with it the updater
 # learned to make no update here, docs/feedback.md),
-# BENCH [OUT/bench], STAGES [data updater bench].
+# BENCH [OUT/bench], STAGES [data updater bench], UPDATER [OUT/updater] (the run folder; the
+# bench stage writes UPDATER/bench_feedback and UPDATER/iterations.json).
+#
+# The learned synthesizer instead of the renderer (SYNTH [renderer] | learned): the stage
+# `synthesizer` trains it on the hand-only set (the synthesizer, as the renderer, draws the hand
+# alone: an object is nothing it can know from the pose) into SYNTH_CHECKPOINT
+# [OUT/synthesizer] (SYNTH_EPOCHS [5], SYNTH_FRAMES [1500], SYNTH_FC [1024], filters FILTERS,
+# batch 32); the updater, same options otherwise, goes to UPDATER [OUT/updater_learned] and
+# is evaluated with that synthesizer. STAGES then defaults to [data synthesizer updater bench];
+# leave out `synthesizer` to use another run (SYNTH_CHECKPOINT=runs/synth
+# UPDATER=OUT/updater_synth STAGES="updater bench").
 # Every stage resumes: run the same command again after an interruption (generate keeps
 # complete shards, train restarts after its last finished epoch with its pool and its cached
 # crops, benchmark make keeps complete sets).
@@ -38,7 +48,24 @@ ITERATIONS=${ITERATIONS:-3}
 VAL_FRAMES=${VAL_FRAMES:-300}
 TRUTH_STARTS=${TRUTH_STARTS:-0}
 BENCH=${BENCH:-$OUT/bench}
-STAGES=${STAGES:-"data updater bench"}
+SYNTH=${SYNTH:-renderer}
+SYNTH_CHECKPOINT=${SYNTH_CHECKPOINT:-$OUT/synthesizer}
+SYNTH_EPOCHS=${SYNTH_EPOCHS:-5}
+SYNTH_FRAMES=${SYNTH_FRAMES:-1500}
+SYNTH_FC=${SYNTH_FC:-1024}
+case $SYNTH in
+  renderer)
+    STAGES=${STAGES:-"data updater bench"}
+    UPDATER=${UPDATER:-$OUT/updater}
+    SYNTH_ARGS=()
+    ;;
+  learned)
+    STAGES=${STAGES:-"data synthesizer updater bench"}
+    UPDATER=${UPDATER:-$OUT/updater_learned}
+    SYNTH_ARGS=(--synthesizer learned --synthesizer-checkpoint "$SYNTH_CHECKPOINT")
+    ;;
+  *) echo "SYNTH must be renderer or learned; received '$SYNTH'" >&2; exit 2 ;;
+esac
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
@@ -56,22 +83,29 @@ if has data; then
     $HANDSIM generate --config "$OUT/$s.json" --workers 1 --out "$OUT/data/$s" -q >/dev/null
   done
 fi
+if has synthesizer && [[ $SYNTH == learned ]]; then
+  stamp "train the learned synthesizer on $OUT/data/third"
+  $HANDSIM train synthesizer --data "$OUT/data/third" --out "$SYNTH_CHECKPOINT" \
+    --epochs "$SYNTH_EPOCHS" --filters "$FILTERS" --fc "$SYNTH_FC" --max-frames "$SYNTH_FRAMES" \
+    --batch-size 32 --threads "$THREADS" -q
+fi
 if has updater; then
-  stamp "train the updater"
-  $HANDSIM train updater --data "${DATA[@]}" --out "$OUT/updater" --epochs "$EPOCHS" \
+  stamp "train the updater ($SYNTH synthesizer): $UPDATER"
+  $HANDSIM train updater --data "${DATA[@]}" --out "$UPDATER" --epochs "$EPOCHS" \
     --filters "$FILTERS" --fc "$FC" --batch-size "$BATCH" --perturb-sigma-mm "$SIGMA_MM" \
     --iterations "$ITERATIONS" --max-val-frames "$VAL_FRAMES" --threads "$THREADS" -q \
-    $([[ $TRUTH_STARTS == 1 ]] || echo --no-truth-starts)
+    "${SYNTH_ARGS[@]}" $([[ $TRUTH_STARTS == 1 ]] || echo --no-truth-starts)
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
   stamp "handsim-bench: the feedback estimator, offline"
-  $HANDSIM benchmark run \
-    --estimator "handsim.estimators:FeedbackEstimator:{\"updater\": \"$OUT/updater/best.pt\"}" \
-    --bench "$BENCH" --episodes 0 --out "$OUT/bench_feedback" -q
+  ARGS="\"updater\": \"$UPDATER/best.pt\""
+  [[ $SYNTH == learned ]] && ARGS+=", \"synthesizer\": \"learned\", \"synthesizer_checkpoint\": \"$SYNTH_CHECKPOINT\""
+  $HANDSIM benchmark run --estimator "handsim.estimators:FeedbackEstimator:{$ARGS}" \
+    --bench "$BENCH" --episodes 0 --out "$UPDATER/bench_feedback" -q
   stamp "error after each update, per set and occlusion bucket"
-  $PYTHON -m handsim.estimators.feedback.evaluate --updater "$OUT/updater/best.pt" \
-    --bench "$BENCH" --out "$OUT/iterations.json"
+  $PYTHON -m handsim.estimators.feedback.evaluate --updater "$UPDATER/best.pt" \
+    --bench "$BENCH" "${SYNTH_ARGS[@]}" --out "$UPDATER/iterations.json"
 fi
 stamp done

@@ -22,7 +22,12 @@ from typing import Any
 
 import numpy as np
 
-from handsim.estimator import Estimate, EstimatorBase, validate_depth_input
+from handsim.estimator import (
+    Estimate,
+    EstimatorBase,
+    validate_batch_input,
+    validate_depth_input,
+)
 
 from ..deepprior.preprocess import (
     crop_depth,
@@ -144,36 +149,94 @@ class FeedbackEstimator(EstimatorBase):
             center = self.first.localizer.localize(depth_m, K)
             if center is None:
                 return None
-        poses = self._iterate(depth_m, K, np.asarray(center, np.float64), iterations)
-        return [mirror_points(p) for p in poses] if mirror else poses
+        poses = self._iterate(
+            depth_m[None], K[None], np.asarray(center, np.float64)[None], iterations
+        )
+        return [mirror_points(p[0]) for p in poses] if mirror else [p[0] for p in poses]
+
+    def predict_iterations_batch(
+        self,
+        depths_m: np.ndarray,
+        Ks: np.ndarray,  # noqa: N803
+        centers: np.ndarray | None = None,
+        iterations: int | None = None,
+    ) -> list[list[np.ndarray] | None]:
+        """:meth:`predict_iterations` for a batch of frames of the current side.
+
+        Each network (the localizer's refinement, the pose network, the updater, and the
+        learned synthesizer) runs once per batch and step; the renderer synthesizer draws the
+        crops one after the other (one OpenGL context, no batched rendering).
+
+        Args:
+            depths_m: (B, H, W) float32 depths, metres (unchecked), as the camera saw them.
+            Ks: (B, 3, 3) intrinsics.
+            centers: (B, 3) crop centres, metres (default: the localizer's).
+            iterations: updates (default: :attr:`iterations`).
+
+        Returns:
+            B entries: ``predict_iterations``' k + 1 keypoint arrays, or ``None`` for a frame
+            where the localizer finds no hand blob.
+        """
+        depths_m = np.asarray(depths_m)
+        Ks = np.asarray(Ks, np.float64)  # noqa: N806
+        mirror = self.canonical_side and self.is_left
+        if mirror:
+            Ks = mirror_intrinsics(Ks, depths_m.shape[2])  # noqa: N806
+            depths_m = mirror_depth(depths_m)
+            centers = None if centers is None else mirror_points(np.asarray(centers))
+        if centers is None:
+            loc = self.first.localizer
+            found = [loc.base.localize(d, k) for d, k in zip(depths_m, Ks, strict=True)]
+            keep = np.array([c is not None for c in found], bool)
+            centers = np.zeros((len(depths_m), 3))
+            if keep.any():
+                centers[keep] = loc.refine_batch(
+                    depths_m[keep], Ks[keep], np.stack([c for c in found if c is not None])
+                )
+        else:
+            centers = np.asarray(centers, np.float64).reshape(len(depths_m), 3)
+            keep = np.ones(len(depths_m), bool)
+        out: list[list[np.ndarray] | None] = [None] * len(depths_m)
+        if keep.any():
+            poses = self._iterate(depths_m[keep], Ks[keep], centers[keep], iterations)
+            for j, i in enumerate(np.flatnonzero(keep)):
+                frame = [p[j] for p in poses]
+                out[i] = [mirror_points(p) for p in frame] if mirror else frame
+        return out
 
     def _iterate(
         self,
-        depth_m: np.ndarray,
-        K: np.ndarray,  # noqa: N803
-        center: np.ndarray,
+        depths_m: np.ndarray,
+        Ks: np.ndarray,  # noqa: N803
+        centers: np.ndarray,
         iterations: int | None,
     ) -> list[np.ndarray]:
-        """The loop in the network's frame (mirrored for a canonical left hand)."""
+        """The loop on a batch, in the network's frame: k + 1 (B, 21, 3) keypoint arrays."""
         import torch
 
         k = self.iterations if iterations is None else int(iterations)
-        draw_left = np.array([self.is_left and not self.canonical_side])
+        b = len(centers)
+        draw_left = np.full(b, self.is_left and not self.canonical_side)
         cube, size = self.first.cube_m, self.first.size
-        x = crop_depth(depth_m, crop_matrix(center, K, cube, size), center[2], cube, size)
-        d = torch.from_numpy(x[None, None]).to(self.device)
+        x = np.stack(
+            [
+                crop_depth(d, crop_matrix(c, K, cube, size), c[2], cube, size)
+                for d, K, c in zip(depths_m, Ks, centers, strict=True)  # noqa: N806
+            ]
+        )
+        d = torch.from_numpy(x[:, None]).to(self.device)
         with torch.inference_mode():
             pose = self.first.model(d.contiguous(memory_format=torch.channels_last))
         pose = pose.float().cpu().numpy()
         out = [pose]
         warm = None
         for _ in range(k):
-            crops, warm = self.synth(pose, center[None], K, self.hand_length_m, draw_left, warm)
+            crops, warm = self.synth(pose, centers, Ks, self.hand_length_m, draw_left, warm)
             with torch.inference_mode():
                 y = torch.from_numpy(crops[:, None]).to(self.device)
                 pose = pose + self.updater(d, y).float().cpu().numpy()
             out.append(pose)
-        return [denormalize_keypoints(p.reshape(21, 3), center, cube) for p in out]
+        return [denormalize_keypoints(p.reshape(b, 21, 3), centers, cube) for p in out]
 
     def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
         """Estimate one frame (``Estimate(valid=False)`` when no hand blob is found).
@@ -188,6 +251,25 @@ class FeedbackEstimator(EstimatorBase):
         depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
         poses = self.predict_iterations(depth_m, K_cv)
         return Estimate(valid=False) if poses is None else Estimate(keypoints_cam=poses[-1])
+
+    def predict_batch(self, depths: np.ndarray, Ks: np.ndarray) -> list[Estimate]:  # noqa: N803
+        """Estimate a batch of frames of the current side (:meth:`predict_iterations_batch`).
+
+        Args:
+            depths: (B, H, W) float32 depths, metres, 0 = no measurement.
+            Ks: (B, 3, 3) intrinsics.
+
+        Returns:
+            B estimates (``Estimate(valid=False)`` where no hand blob is found).
+
+        Raises:
+            InvalidEstimatorInput: on an invalid batch.
+        """
+        depths_m, Ks_cv = validate_batch_input(depths, Ks)  # noqa: N806
+        poses = self.predict_iterations_batch(depths_m, Ks_cv)
+        return [
+            Estimate(valid=False) if p is None else Estimate(keypoints_cam=p[-1]) for p in poses
+        ]
 
     def close(self) -> None:
         """Free the synthesizer's renderers."""

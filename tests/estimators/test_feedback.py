@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from handsim.data.generation import GenerationConfig, generate
+from handsim.errors import InvalidEstimatorInput
 from handsim.estimators.deepprior.checkpoint import InvalidCheckpoint
 from handsim.estimators.deepprior.data import load_frames
 from handsim.estimators.deepprior.preprocess import crop_depth, crop_matrix, normalize_keypoints
@@ -244,6 +245,48 @@ def test_feedback_estimator(clean_data, tmp_path):
 
         train_synthesizer([clean_data], tmp_path / "s", s, progress=False, log=lambda x: None)
         FeedbackEstimator(tmp_path / "s")
+
+
+def _random_synthesizer(path):
+    """A learned synthesizer of random weights (128 px, 0.25 m), saved as a checkpoint."""
+    from handsim.estimators.deepprior.checkpoint import save_checkpoint
+
+    torch.manual_seed(0)
+    model_config = {"arch": "synthesizer", "size": 128, "fc": 8, "filters": 2}
+    model = build_feedback_model(model_config)
+    config = {"model": model_config, "cube_m": CUBE, "kind": "synthesizer"}
+    save_checkpoint(path, {"model": model.state_dict()}, config)
+    return str(path)
+
+
+@pytest.mark.parametrize("synthesizer", ["renderer", "learned"])
+def test_a_batch_gives_each_frames_own_updates(clean_data, tmp_path, synthesizer):
+    """A batch equals the per-frame path (both sides); a frame without a hand is invalid."""
+    from handsim.estimators import FeedbackEstimator
+
+    torch.set_num_threads(1)
+    ckpt = _random_synthesizer(tmp_path / "s.pt") if synthesizer == "learned" else None
+    est = FeedbackEstimator(synthesizer=synthesizer, synthesizer_checkpoint=ckpt, iterations=2)
+    frames = load_frames(clean_data, max_frames=3)
+    depths = np.stack([frames.depth(i) for i in range(3)] + [np.zeros_like(frames.depth(0))])
+    Ks = np.concatenate([frames.K[:3], frames.K[:1]])  # noqa: N806
+    for is_left in (False, True):
+        est.set_side(is_left)
+        batch = est.predict_iterations_batch(depths, Ks)
+        assert len(batch) == 4 and batch[3] is None
+        for i in range(3):
+            one = est.predict_iterations(depths[i], Ks[i])
+            assert len(batch[i]) == 3
+            for a, b in zip(batch[i], one, strict=True):
+                np.testing.assert_allclose(a, b, atol=1e-5)
+        # The updates move the pose (the shipped updater is trained), so the check has teeth.
+        assert np.abs(batch[0][2] - batch[0][0]).max() > 1e-3
+        estimates = est.predict_batch(depths, Ks)
+        assert [e.valid for e in estimates] == [True, True, True, False]
+        np.testing.assert_allclose(estimates[1].keypoints_cam, batch[1][-1])
+    with pytest.raises(InvalidEstimatorInput, match=r"Ks must be \(4, 3, 3\)"):
+        est.predict_batch(depths, Ks[:, :2])
+    est.close()
 
 
 def test_importing_the_package_does_not_import_torch():

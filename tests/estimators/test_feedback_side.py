@@ -1,6 +1,7 @@
 """The feedback loop's side-canonical frame: training crops, the synthesizer, the estimator."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -230,3 +231,31 @@ def test_cli_updater_options_of_the_side_canonical_recipe(data, tmp_path):
          *common[:2], "--no-truth-starts"], capture_output=True, text=True,
     )  # fmt: skip
     assert bad.returncode == 2 and "--no-truth-starts: not allowed with deepprior++" in bad.stderr
+
+
+def test_the_recipe_script_trains_the_learned_synthesizer_and_its_updater(data, tmp_path):
+    """`SYNTH=learned benchmarks/train_feedback.sh`: synthesizer, then the updater with it."""
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "train_feedback.sh"
+    out = tmp_path / "run"
+    (out / "data").mkdir(parents=True)
+    (out / "data" / "third").symlink_to(data)
+    env = {
+        **os.environ, "MUJOCO_GL": "egl", "PYTHON": sys.executable,
+        "HANDSIM": f"{sys.executable} -m handsim.cli", "SYNTH": "learned",
+        "STAGES": "synthesizer updater", "OBJECT_FRAMES": "0", "EPOCHS": "1", "FILTERS": "2",
+        "FC": "8", "SYNTH_FC": "8", "SYNTH_EPOCHS": "1", "SYNTH_FRAMES": "8", "BATCH": "4",
+        "VAL_FRAMES": "2", "ITERATIONS": "1",
+    }  # fmt: skip
+    run = subprocess.run(["bash", str(script), str(out)], env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert (out / "synthesizer" / "best.pt").is_file()
+    config = json.loads((out / "updater_learned" / "run.json").read_text())["config"]
+    assert config["synthesizer"] == "learned"
+    assert config["synthesizer_checkpoint"] == str(out / "synthesizer")
+    assert config["truth_starts"] is False and config["epochs"] == 1
+    assert (out / "updater_learned" / "best.pt").is_file()
+    bad = subprocess.run(["bash", str(script), str(out)], env={**env, "SYNTH": "gan"},
+                         capture_output=True, text=True)  # fmt: skip
+    assert bad.returncode == 2 and "SYNTH must be renderer or learned; received 'gan'" in bad.stderr
