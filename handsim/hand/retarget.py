@@ -300,8 +300,8 @@ class Retargeter:
             (:func:`~handsim.hand.pose_prior.default_pose_prior`): the fit becomes maximum a
             posteriori, ``sum_i |FK_i - kp_i|^2 / keypoint_sigma_m^2 + |W (angles - mu)|^2``,
             in place of the weak prior toward zero. Default ``None``: least squares.
-        keypoint_sigma_m: the keypoints' noise, metres per axis (required with a prior; 0
-            turns the prior off).
+        keypoint_sigma_m: the keypoints' noise, metres per axis (required with a prior; 0:
+            exact keypoints, the fit is the default least squares).
 
     Raises:
         InvalidPose: ``pose_prior`` is not a :class:`~handsim.hand.pose_prior.PosePrior`.
@@ -336,7 +336,8 @@ class Retargeter:
         # The prior in the solver's unit (1 mm residuals): (sigma / 1 mm)^2 Sigma^-1.
         self._prior_precision: np.ndarray | None = None
         self._prior_mean = np.zeros(NUM_ANGLES)
-        if pose_prior is not None:
+        # Noise-free keypoints (sigma 0) outweigh any prior: the plain fit, exactly.
+        if pose_prior is not None and self.keypoint_sigma_m > 0:
             weight = (self.keypoint_sigma_m / _POSITION_SIGMA_M) ** 2
             self._prior_precision = weight * pose_prior.precision
             self._prior_mean = pose_prior.mean_rad.copy()

@@ -69,6 +69,11 @@ def test_prior_alone_gives_its_mean():
     np.testing.assert_allclose(fitted.pose.wrist_pos, truth.wrist_pos, atol=1e-9)
     plain = Retargeter(params)(fk.keypoints(truth), mask=mask, check_side=False)
     np.testing.assert_allclose(plain.pose.angles, 0.0, atol=1e-6)
+    # sigma 0: exact keypoints outweigh the prior, the fit is least squares to the last bit.
+    exact = Retargeter(params, pose_prior=prior, keypoint_sigma_m=0.0)
+    for kp in (fk.keypoints(truth), fk.keypoints(truth) + 0.01):
+        a = exact(kp, check_side=False).pose.vector
+        np.testing.assert_array_equal(a, Retargeter(params)(kp, check_side=False).pose.vector)
 
 
 def test_map_fit_is_a_stationary_point_of_its_cost():
