@@ -37,3 +37,32 @@ def test_channel_retargets_with_the_prior_weighed_by_the_fault_noise():
     plain = HandChannel(TeleopConfig(), scene, 0.02, rng).retargeter
     assert plain.pose_prior is None and plain.keypoint_sigma_m is None
     env.close()
+
+
+def test_channel_with_the_prior_steadies_the_retargeted_flexion():
+    """A held grasp tracked with 10 mm of noise: the channel's targets shake 3 times less."""
+    from handsim.hand.kinematics import ForwardKinematics
+    from handsim.hand.pose import JOINT_NAMES, HandPose
+    from handsim.hand.pose_library import GRASP_TYPES
+
+    env = gym.make("handsim/Grasp-v0", obs_mode="state", control_mode="pose")
+    env.reset(seed=0)
+    scene = env.unwrapped.scene
+    fk = ForwardKinematics(scene.hand.params)
+    pose = HandPose(np.array([0.0, 0.0, 0.3]), np.zeros(3), GRASP_TYPES["tripod"].angles(0.6))
+    flex = np.array([n.endswith("_flex") for n in JOINT_NAMES])
+    stds = {}
+    for prior in (False, True):
+        faults = FaultConfig(noise_mm=10.0)
+        channel = HandChannel(
+            TeleopConfig(faults=faults, pose_prior=prior), scene, 0.02, np.random.default_rng(1)
+        )
+        times = dict.fromkeys(("faults", "filter", "retarget"), 0.0)
+        targets = []
+        for _ in range(40):
+            channel.track(fk.keypoints(pose), times, 0.0)
+            targets.append(channel.target[6:])
+        stds[prior] = np.std(targets[5:], axis=0)[flex].mean()
+    env.close()
+    # Measured: about 0.35 rad without the prior, 0.1 rad with it.
+    assert stds[True] < 0.5 * stds[False]
