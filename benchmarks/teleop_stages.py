@@ -2,7 +2,8 @@
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
 [--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
-[--closure-assist on|off] [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
+[--closure-assist on|off] [--pose-prior on|off] [--keypoint-sigma-mm MM]
+[--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
 [--episodes 20] [--trace SEED] [--out FILE]``.
 
@@ -108,6 +109,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         grasp_intent=args.grasp_intent == "on",
         intent_params=json.loads(args.intent_params),
         closure_assist=args.closure_assist == "on",
+        pose_prior=args.pose_prior == "on",
+        keypoint_sigma_mm=args.keypoint_sigma_mm,
     )
     quiet: dict[str, Any] = {
         "on": {},
@@ -209,6 +212,8 @@ def main() -> None:
     p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
     p.add_argument("--closure-assist", choices=("on", "off"), default="off")
+    p.add_argument("--pose-prior", choices=("on", "off"), default="off")
+    p.add_argument("--keypoint-sigma-mm", type=float, default=None, help="default: --noise-mm")
     p.add_argument("--intent-params", default="{}", help="e.g. '{\"press_rad\": 0.2}'")
     p.add_argument("--intent-oracle", choices=("none", "posture", "flex", "spread"), default="none")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")

@@ -46,6 +46,7 @@ from handsim.hand.pose import (
     HandPose,
     LimitViolation,
 )
+from handsim.hand.pose_prior import PosePrior, default_pose_prior
 from handsim.hand.pose_sources import (
     GESTURES,
     GRASP_TYPES,
@@ -124,6 +125,8 @@ __all__ = [
     "ForwardKinematics",
     "Retargeter",
     "RetargetResult",
+    "PosePrior",
+    "default_pose_prior",
     # metrics
     "evaluate_dexter_object",
     "evaluate_hand_poses",

@@ -24,9 +24,20 @@ from handsim.envs.teleop.intent import CLOSE_S, NOISE_GATE_RAD, GraspIntent, mak
 from handsim.envs.teleop.pose_filter import make_pose_filter
 from handsim.errors import InvalidKeypoints
 from handsim.hand.pose import HandPose
+from handsim.hand.pose_prior import default_pose_prior
 from handsim.hand.retarget import Retargeter, RetargetResult
 
 __all__ = ["HandChannel"]
+
+
+def _retargeter(config: Any, hand: Any, faults: FaultConfig | None) -> Retargeter:
+    """The loop's retargeter: least squares, or with ``config.pose_prior`` a MAP fit."""
+    if not getattr(config, "pose_prior", False):
+        return Retargeter(hand)
+    sigma_mm = config.keypoint_sigma_mm
+    if sigma_mm is None:
+        sigma_mm = (faults if faults is not None else config.faults).noise_mm
+    return Retargeter(hand, pose_prior=default_pose_prior(), keypoint_sigma_m=1e-3 * sigma_mm)
 
 
 class HandChannel:
@@ -59,7 +70,7 @@ class HandChannel:
             if config.pose_filter
             else None
         )
-        self.retargeter = Retargeter(scene.hand.params)
+        self.retargeter = _retargeter(config, scene.hand.params, faults)
         intent_params = dict(config.intent_params)
         if getattr(config, "closure_assist", False):
             intent_params.setdefault("close_s", CLOSE_S)

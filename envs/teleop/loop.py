@@ -165,6 +165,11 @@ class TeleopConfig:
             tracking the operator's own fingers grasp). Nothing is attached;
             the seconds the assist drove a digit are ``closure_assist_s`` (per digit:
             ``closure_assist_digit_s``) and a success while it did is ``success_assisted``.
+        pose_prior: retarget with a prior over natural postures (maximum a posteriori:
+            :func:`~handsim.hand.pose_prior.default_pose_prior`, the grasp taxonomy and the
+            gestures), the keypoints weighed by their noise ``keypoint_sigma_mm``.
+        keypoint_sigma_mm: the tracked keypoints' noise the prior is weighed against, mm
+            per axis (``None``: the faults' ``noise_mm``; 0 turns the prior off).
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -182,6 +187,8 @@ class TeleopConfig:
     grasp_intent: bool = False
     intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
     closure_assist: bool = False
+    pose_prior: bool = False
+    keypoint_sigma_mm: float | None = None
     record: bool = False
     seed: int = 0
 
@@ -211,6 +218,20 @@ class TeleopConfig:
         if unknown:
             raise InvalidTeleopConfig(
                 f"intent_params {unknown} are not valid; choose from {', '.join(INTENT_DEFAULTS)}"
+            )
+        sigma = self.keypoint_sigma_mm
+        if not isinstance(self.pose_prior, bool) or (
+            sigma is not None
+            and (
+                isinstance(sigma, bool)
+                or not isinstance(sigma, (int, float))
+                or not math.isfinite(sigma)
+                or sigma < 0
+            )
+        ):
+            raise InvalidTeleopConfig(
+                f"pose_prior must be True or False and keypoint_sigma_mm None (the faults' "
+                f"noise_mm) or a number >= 0 (mm); received {self.pose_prior!r} and {sigma!r}"
             )
         if self.closure_assist and not self.grasp_intent:
             raise InvalidTeleopConfig(

@@ -78,6 +78,8 @@ def run_sweep(
     pose_filter: bool | str = False,
     grasp_intent: bool = False,
     closure_assist: bool = False,
+    pose_prior: bool = False,
+    keypoint_sigma_mm: float | None = None,
     filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
@@ -104,6 +106,9 @@ def run_sweep(
             ``False``, ``True`` or ``"wrist"``).
         grasp_intent: the loop's grasp intent (:attr:`TeleopConfig.grasp_intent`).
         closure_assist: its closure assist (:attr:`TeleopConfig.closure_assist`).
+        pose_prior: retarget with the pose prior (:attr:`TeleopConfig.pose_prior`).
+        keypoint_sigma_mm: its keypoint noise (:attr:`TeleopConfig.keypoint_sigma_mm`;
+            ``None``: each cell's ``noise_mm``).
         filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
@@ -143,6 +148,8 @@ def run_sweep(
                 pose_filter=pose_filter,
                 grasp_intent=grasp_intent,
                 closure_assist=closure_assist,
+                pose_prior=pose_prior,
+                keypoint_sigma_mm=keypoint_sigma_mm,
                 seed=seed,
             )
             if filt not in loops:
@@ -192,6 +199,8 @@ def run_sweep(
         "pose_filter": pose_filter if isinstance(pose_filter, str) else bool(pose_filter),
         "grasp_intent": bool(grasp_intent),
         "closure_assist": bool(closure_assist),
+        "pose_prior": bool(pose_prior),
+        "keypoint_sigma_mm": keypoint_sigma_mm,
         "filter_params": filter_params or {},
         "episodes": episodes,
         "seed": seed,

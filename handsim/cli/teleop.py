@@ -250,6 +250,21 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "off)",
     )
     p.add_argument(
+        "--pose-prior",
+        choices=("on", "off"),
+        default="off",
+        help="retarget with a prior over natural hand postures (a maximum a posteriori fit; "
+        "the grasp taxonomy and gestures), the keypoints weighed by --keypoint-sigma-mm "
+        "(default: off)",
+    )
+    p.add_argument(
+        "--keypoint-sigma-mm",
+        type=number(0, 1000),
+        default=None,
+        help="with --pose-prior on: the tracked keypoints' noise, mm per axis, [0, 1000] "
+        "(default: the fault noise --noise-mm of the run or sweep cell)",
+    )
+    p.add_argument(
         "--seed",
         type=seed,
         default=0,

@@ -74,6 +74,8 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
         grasp_intent=args.grasp_intent == "on",
         closure_assist=args.closure_assist == "on",
+        pose_prior=args.pose_prior == "on",
+        keypoint_sigma_mm=args.keypoint_sigma_mm,
         record=record,
         seed=args.seed,
     )
@@ -313,6 +315,8 @@ def _sweep(args: argparse.Namespace) -> int:
             pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
             grasp_intent=args.grasp_intent == "on",
             closure_assist=args.closure_assist == "on",
+            pose_prior=args.pose_prior == "on",
+            keypoint_sigma_mm=args.keypoint_sigma_mm,
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )

@@ -8,6 +8,7 @@ module                   holds
 :mod:`.pose`             :class:`HandPose`, the 27-vector, joint names and limits
 :mod:`.kinematics`       NumPy forward kinematics of the 21 keypoints (batched)
 :mod:`.retarget`         21 keypoints of any hand size to a 27-DoF pose
+:mod:`.pose_prior`       a Gaussian over natural postures, for MAP retargeting
 :mod:`.pose_sources`     seeded poses: uniform, synergies, grasp taxonomy, gestures, motions
 :mod:`.keypoints`        the keypoint order and converters to and from other datasets' formats
 =======================  ==========================================================================
@@ -24,6 +25,7 @@ from handsim.hand.pose import (
     HandPose,
     LimitViolation,
 )
+from handsim.hand.pose_prior import PosePrior, default_pose_prior
 from handsim.hand.retarget import Retargeter, RetargetResult
 from handsim.hand.skeleton import HAND_SIZES, HandParams, Skeleton, build_skeleton, hand_params
 
@@ -49,4 +51,6 @@ __all__ = [
     "LimitViolation",
     "Retargeter",
     "RetargetResult",
+    "PosePrior",
+    "default_pose_prior",
 ]

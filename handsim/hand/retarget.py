@@ -18,6 +18,11 @@ outward are held; every step is clipped into the limits). A weak prior (1e-3 per
 toward zero keeps angles defined that the keypoints do not determine (a fully flexed finger's
 abduction, a finger with no keypoint). Options:
 
+- ``pose_prior`` and ``keypoint_sigma_m`` (constructor): a maximum a posteriori fit with a
+  Gaussian prior over natural postures (:mod:`~handsim.hand.pose_prior`) in place of the weak
+  prior; the keypoint residuals are weighed by the tracker's noise ``keypoint_sigma_m``, the
+  prior enters as 21 more residual rows ``W (angles - mu)`` (Jacobian ``W``).
+
 - ``fit_wrist`` (default on): the wrist position floats; off, it is pinned at the wrist
   keypoint (which must then be present).
 - ``fit_scale`` (default on): the scale floats; off, it is fixed at ``initial_scale`` or, by
@@ -62,6 +67,7 @@ from handsim.hand.pose import (
     HandPose,
     LimitViolation,
 )
+from handsim.hand.pose_prior import PosePrior
 from handsim.hand.skeleton import HandParams, Skeleton
 
 __all__ = ["Retargeter", "RetargetResult", "BONES"]
@@ -290,10 +296,51 @@ class Retargeter:
 
     Args:
         hand: the target hand (parameters or skeleton).
+        pose_prior: a Gaussian over natural postures
+            (:func:`~handsim.hand.pose_prior.default_pose_prior`): the fit becomes maximum a
+            posteriori, ``sum_i |FK_i - kp_i|^2 / keypoint_sigma_m^2 + |W (angles - mu)|^2``,
+            in place of the weak prior toward zero. Default ``None``: least squares.
+        keypoint_sigma_m: the keypoints' noise, metres per axis (required with a prior; 0:
+            exact keypoints, the fit is the default least squares).
+
+    Raises:
+        InvalidPose: ``pose_prior`` is not a :class:`~handsim.hand.pose_prior.PosePrior`.
+        InvalidKeypoints: a prior without a valid ``keypoint_sigma_m``.
     """
 
-    def __init__(self, hand: HandParams | Skeleton) -> None:
+    def __init__(
+        self,
+        hand: HandParams | Skeleton,
+        *,
+        pose_prior: PosePrior | None = None,
+        keypoint_sigma_m: float | None = None,
+    ) -> None:
         """Precompute the target hand's kinematics and flat-hand template."""
+        if pose_prior is not None and not isinstance(pose_prior, PosePrior):
+            raise InvalidPose(
+                f"pose_prior must be a PosePrior (e.g. default_pose_prior()) or None; received "
+                f"{type(pose_prior).__name__}"
+            )
+        if pose_prior is not None and (
+            isinstance(keypoint_sigma_m, bool)
+            or not isinstance(keypoint_sigma_m, (int, float))
+            or not np.isfinite(keypoint_sigma_m)
+            or keypoint_sigma_m < 0
+        ):
+            raise InvalidKeypoints(
+                "a pose prior weighs the keypoints by their noise: keypoint_sigma_m must be a "
+                f"number >= 0 (metres, per axis; e.g. 0.01); received {keypoint_sigma_m!r}"
+            )
+        self.pose_prior = pose_prior
+        self.keypoint_sigma_m = None if pose_prior is None else float(keypoint_sigma_m)
+        # The prior in the solver's unit (1 mm residuals): (sigma / 1 mm)^2 Sigma^-1.
+        self._prior_precision: np.ndarray | None = None
+        self._prior_mean = np.zeros(NUM_ANGLES)
+        # Noise-free keypoints (sigma 0) outweigh any prior: the plain fit, exactly.
+        if pose_prior is not None and self.keypoint_sigma_m > 0:
+            weight = (self.keypoint_sigma_m / _POSITION_SIGMA_M) ** 2
+            self._prior_precision = weight * pose_prior.precision
+            self._prior_mean = pose_prior.mean_rad.copy()
         self.fk = ForwardKinematics(hand)
         self.params = self.fk.skeleton.params
         self._chains = _ChainKinematics(self.fk.skeleton)
@@ -407,6 +454,15 @@ class Retargeter:
         lower = np.where(bounded, _LOWER, -np.inf)
         upper = np.where(bounded, _UPPER, np.inf)
 
+        precision = self._prior_precision
+        mean = self._prior_mean
+
+        def prior_cost(angles: np.ndarray) -> float:
+            if precision is None:
+                return _PRIOR_WEIGHT**2 * angles @ angles
+            d = angles - mean
+            return float(d @ precision @ d)
+
         m = idx.size
         jac = np.zeros((m, 3, _NX))
         jac[:, :, _T] = _EYE * inv_sigma
@@ -415,7 +471,7 @@ class Retargeter:
             q, dq = self._chains(st.angles, True)
             rq = q[idx] @ st.rot.T  # (m, 3)
             r = (st.t + st.s * rq - target) * inv_sigma
-            cost = float(np.dot(r.ravel(), r.ravel()) + _PRIOR_WEIGHT**2 * st.angles @ st.angles)
+            cost = float(np.dot(r.ravel(), r.ravel()) + prior_cost(st.angles))
             j = jac.copy()
             # d(exp(w) v)/dw = -[v]x for v = s R q.
             v = rq * (st.s * inv_sigma)
@@ -432,9 +488,14 @@ class Retargeter:
         all_free = bool(free.all())
         for iterations in range(1, max_iterations + 1):  # noqa: B007
             grad = jac_now.T @ r
-            grad[_A] += _PRIOR_WEIGHT**2 * state.angles
             hess = jac_now.T @ jac_now
-            hess[_A, _A][np.diag_indices(NUM_ANGLES)] += _PRIOR_WEIGHT**2
+            if precision is None:
+                grad[_A] += _PRIOR_WEIGHT**2 * state.angles
+                hess[_A, _A][np.diag_indices(NUM_ANGLES)] += _PRIOR_WEIGHT**2
+            else:
+                # The prior's residual rows W (angles - mu) have the Jacobian W.
+                grad[_A] += precision @ (state.angles - mean)
+                hess[_A, _A] += precision
             active = free
             if bounded:
                 held = ((state.angles <= _LOWER) & (grad[_A] > 0)) | (

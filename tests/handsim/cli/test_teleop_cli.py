@@ -319,3 +319,44 @@ def test_replay_takes_the_closure_assist_and_refuses_it_without_the_intent(tmp_p
     )
     assert refused.returncode != 0
     assert "--grasp-intent on --closure-assist on" in refused.stderr
+
+
+def test_replay_and_sweep_take_the_pose_prior(tmp_path):
+    """`replay --pose-prior on --keypoint-sigma-mm 8` and `sweep --pose-prior on`, as subprocesses.
+
+    The config records the prior; a negative sigma is refused with the valid range.
+    """
+    stream = tmp_path / "press.npz"
+    cli = [sys.executable, "-m", "handsim.cli", "teleop"]
+    subprocess.run(
+        [*cli, "generate", str(stream), "--task", "press", "--seed", "1"],
+        check=True,
+        capture_output=True,
+    )
+    out = tmp_path / "replay"
+    done = subprocess.run(
+        [*cli, "replay", str(stream), "--task", "press", "--seed", "1", "--out", str(out)]
+        + ["--noise-mm", "10", "--pose-prior", "on", "--keypoint-sigma-mm", "8"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    config = json.loads((out / "teleop.json").read_text())["config"]
+    assert config["pose_prior"] is True and config["keypoint_sigma_mm"] == 8.0
+    sweep = tmp_path / "sweep"
+    done = subprocess.run(
+        [*cli, "sweep", "--task", "press", "--noise-mm", "5", "--latency", "0"]
+        + ["--dropout", "0", "--filters", "none", "--episodes", "1", "--quiet"]
+        + ["--pose-prior", "on", "--out", str(sweep)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    report = json.loads((sweep / "sweep.json").read_text())
+    assert report["pose_prior"] is True and report["keypoint_sigma_mm"] is None
+    refused = subprocess.run(
+        [*cli, "replay", str(stream), "--pose-prior", "on", "--keypoint-sigma-mm", "-1"],
+        capture_output=True,
+        text=True,
+    )
+    assert refused.returncode != 0 and "--keypoint-sigma-mm" in refused.stderr
