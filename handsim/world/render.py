@@ -502,6 +502,10 @@ class DepthRenderer:
             self._context = self._gl = None
             return
         if self._context is not None:
+            # MjrContext.free deletes GL objects by name in the *current* context: make ours
+            # current, or another renderer's framebuffer and meshes (same names) are deleted.
+            if self._gl is not None:
+                self._gl.make_current()
             self._context.free()
             self._context = None
         if self._gl is not None:

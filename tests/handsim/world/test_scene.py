@@ -103,6 +103,29 @@ def test_renderers_sharing_a_context_render_what_separate_ones_render(scene):
     assert large.model.nmesh == small.model.nmesh != scene.model.nmesh
 
 
+def test_closing_a_renderer_leaves_another_renderer_intact(scene):
+    """A renderer closed while another one's context is current frees its own GL objects.
+
+    Two renderers in one process (an env's and a feedback estimator's synthesizer): closing
+    the first right after the second rendered once deleted the second's framebuffer and
+    meshes (GL names are per context, freed in the current one), so it returned stale images.
+    """
+    cam = scene.camera("third_person")
+    hand = Scene(SceneSpec(hand=hand_params(0.17), cameras=(cam,)))
+    with DepthRenderer(hand.model, cam.name, cam.intrinsics) as kept:
+        first = DepthRenderer(scene.model, cam.name, cam.intrinsics)
+        first.render(scene.data)
+        before = kept.render(hand.data)  # the kept renderer's context is now current
+        first.close()
+        after = kept.render(hand.data)
+        hand.set_hand_length(0.2)  # a changed scene must show in the next image
+        kept.upload_meshes(hand.hand_mesh_ids)
+        larger = kept.render(hand.data)
+    np.testing.assert_array_equal(before[0], after[0])
+    np.testing.assert_array_equal(before[1], after[1])
+    assert np.count_nonzero(larger[0]) > np.count_nonzero(before[0])
+
+
 def test_geom_labels_follow_bodies(scene):
     """Hand geoms carry their digit's label, object geoms their instance label."""
     model = scene.model

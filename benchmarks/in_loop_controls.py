@@ -1,0 +1,186 @@
+"""Controls for the learned estimators inside envs: the same frames, one thing changed at a time.
+
+Records the frames of an env's expert rollouts with the expert on the truth (feedback off,
+so every estimator sees the same frames), then runs fresh estimators on them offline:
+
+- ``grasp``: ``handsim/Grasp-v0`` (structured light, ICVL camera): DeepPrior++ (its estimate
+  made in the loop, one estimator over all episodes as ``handsim closed-loop`` runs it)
+  against the feedback estimator after 0, 1 and 2 updates, at the localizer's centre and at
+  the true middle-finger MCP, and with the hand's length given; per phase of the expert's
+  episode.
+- ``handpose``: ``handsim/HandPose-v0`` (no sensor noise, ICVL camera): the DeepPrior++
+  pipeline, cropped at the true MCP, at the first centre without the refinement CNN, after one
+  refinement step, with the arm's pixels removed, and with a flat wall 0.1 m behind the hand.
+
+Usage: ``python benchmarks/in_loop_controls.py grasp --seeds 0 1 2 3 4 --stride 3 --out
+grasp.json`` or ``python benchmarks/in_loop_controls.py handpose --seeds 0 --stride 5``.
+Figures are mean keypoint errors over the 21 joints, mm.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+import handsim.envs  # noqa: F401 (registers the envs)
+from handsim.envs.wrappers import EstimatorLoop
+from handsim.estimators import DeepPriorEstimator, FeedbackEstimator
+from handsim.estimators.deepprior.preprocess import MIDDLE_MCP
+
+
+def _error_mm(keypoints: np.ndarray | None, truth: np.ndarray) -> float:
+    if keypoints is None:
+        return float("nan")
+    return float(np.linalg.norm(keypoints - truth, axis=1).mean() * 1000.0)
+
+
+def record(env_id: str, env_kwargs: dict, estimator, seeds: list[int], stride: int) -> list[dict]:
+    """Frames of the expert on the truth, with the loop's own estimate of each."""
+    env = EstimatorLoop(gym.make(env_id, **env_kwargs), estimator, feedback=False)
+    frames = []
+    try:
+        for seed in seeds:
+            obs, info = env.reset(seed=seed)
+            expert = env.make_expert(np.random.default_rng(seed))
+            step, done = 0, False
+            while not done:
+                if step % stride == 0:
+                    base = env.unwrapped
+                    frame = base.frame
+                    estimate = info["estimate"]
+                    frames.append(
+                        {
+                            "seed": seed,
+                            "step": step,
+                            "phase": getattr(expert, "phase", "-"),
+                            "depth": obs["depth"].copy(),
+                            "segmentation": obs.get("segmentation"),
+                            "labels": base.scene.label_names,
+                            "K": base.obs_intrinsics.K.copy(),
+                            "truth": frame.keypoints_cam.copy(),
+                            "is_left": base.scene.hand.params.side == "left",
+                            "in_loop": estimate.keypoints_cam,
+                        }
+                    )
+                action = expert.act(env.expert_state()).vector
+                obs, _, terminated, truncated, info = env.step(action)
+                step += 1
+                done = terminated or truncated
+    finally:
+        env.close()
+    return frames
+
+
+def _table(frames: list[dict], columns: dict[str, Callable[[dict], float]]) -> dict:
+    errors = {name: np.array([f(fr) for fr in frames]) for name, f in columns.items()}
+    phases = list(dict.fromkeys(fr["phase"] for fr in frames))
+    out = {"all": {k: float(np.nanmean(v)) for k, v in errors.items()}, "n": len(frames)}
+    out["by_phase"] = {}
+    for phase in phases:
+        m = np.array([fr["phase"] == phase for fr in frames])
+        out["by_phase"][phase] = {"n": int(m.sum())}
+        out["by_phase"][phase].update({k: float(np.nanmean(v[m])) for k, v in errors.items()})
+    return out
+
+
+def grasp(seeds: list[int], stride: int) -> dict:
+    """Grasp-v0: DeepPrior++ (in the loop) against the feedback estimator on the same frames."""
+    kwargs = {"obs_mode": "depth", "sensor": "structured_light", "camera": "icvl"}
+    frames = record("handsim/Grasp-v0", kwargs, DeepPriorEstimator("deepprior++"), seeds, stride)
+    fb = FeedbackEstimator()
+    fb_length = FeedbackEstimator(hand_length_m=0.189)  # the envs' default hand
+    cache: dict[tuple, list] = {}
+
+    def updates(fr: dict, how: str) -> list:
+        key = (id(fr), how)
+        if key not in cache:
+            est = fb_length if how == "length" else fb
+            est.set_side(fr["is_left"])
+            centre = fr["truth"][MIDDLE_MCP] if how == "true_centre" else None
+            cache[key] = est.predict_iterations(fr["depth"], fr["K"], center=centre, iterations=2)
+        return cache[key]
+
+    columns: dict[str, Callable[[dict], float]] = {
+        "deepprior++_in_loop": lambda fr: _error_mm(fr["in_loop"], fr["truth"])
+    }
+    for how in ("localizer", "true_centre", "length"):
+        for k in range(3):
+            columns[f"feedback_{how}_{k}"] = lambda fr, how=how, k=k: _error_mm(
+                (updates(fr, how) or [None] * 3)[k], fr["truth"]
+            )
+    return _table(frames, columns)
+
+
+def handpose(seeds: list[int], stride: int) -> dict:
+    """HandPose-v0: where DeepPrior++'s crop centre goes, one change at a time."""
+    kwargs = {"obs_mode": "depth+segmentation", "sensor": "none", "camera": "icvl"}
+    est = DeepPriorEstimator("deepprior++")
+    frames = record("handsim/HandPose-v0", kwargs, est, seeds, stride)
+    loc = est.localizer
+
+    def pipeline(depth: np.ndarray, fr: dict) -> float:
+        est.reset()
+        return _error_mm(est.predict(depth, fr["K"]).keypoints_cam, fr["truth"])
+
+    def refined(fr: dict, steps: int) -> float:
+        c = loc.base.localize(fr["depth"], fr["K"])
+        for _ in range(steps):
+            c = loc.refine(fr["depth"], fr["K"], c)
+        return _error_mm(est.predict_at(fr["depth"], fr["K"], c), fr["truth"])
+
+    def without_arm(fr: dict) -> float:
+        depth = fr["depth"].copy()
+        depth[fr["segmentation"] == fr["labels"].index("arm")] = 0.0
+        return pipeline(depth, fr)
+
+    def wall(fr: dict) -> float:
+        depth = fr["depth"].copy()
+        z_wall = fr["truth"][:, 2].max() + 0.1
+        depth[(depth == 0) | (depth > z_wall)] = z_wall
+        return pipeline(depth, fr)
+
+    loc.iterations = 1  # refined() steps one at a time
+    columns = {
+        "first_centre": lambda fr: refined(fr, 0),
+        "one_refinement": lambda fr: refined(fr, 1),
+    }
+    result_one = _table(frames, columns)
+    loc.iterations = 3  # the shipped pipeline's
+    columns = {
+        "pipeline": lambda fr: pipeline(fr["depth"], fr),
+        "true_centre": lambda fr: _error_mm(
+            est.predict_at(fr["depth"], fr["K"], fr["truth"][MIDDLE_MCP]), fr["truth"]
+        ),
+        "without_arm": without_arm,
+        "wall_0.1m_behind": wall,
+    }
+    result = _table(frames, columns)
+    result["all"].update(result_one["all"])
+    for phase, row in result_one["by_phase"].items():
+        result["by_phase"][phase].update(row)
+    return result
+
+
+def main() -> None:
+    """Print the tables as JSON; ``--out`` writes them too."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("env", choices=("grasp", "handpose"))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    parser.add_argument("--stride", type=int, default=3, help="keep every N-th step")
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    result = (grasp if args.env == "grasp" else handpose)(args.seeds, args.stride)
+    result.update({"env": args.env, "seeds": args.seeds, "stride": args.stride})
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text + "\n")
+
+
+if __name__ == "__main__":
+    main()
