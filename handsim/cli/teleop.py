@@ -40,6 +40,7 @@ from handsim.cli.teleop_commands import (  # noqa: F401
     _filter_params,
     _finish,
     _generate,
+    _hand_options,
     _live,
     _measured_rate_hz,
     _print_metrics,

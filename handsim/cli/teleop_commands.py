@@ -60,6 +60,18 @@ def _estimator(args: argparse.Namespace) -> Any:
     return CenterOfMassLocalizer()
 
 
+def _hand_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The physical hand's options, shared by one loop and a sweep."""
+    return {
+        "grip_hold": args.grip_hold == "on",
+        "pose_filter": _POSE_FILTER_VALUES[args.pose_filter],
+        "grasp_intent": args.grasp_intent == "on",
+        "closure_assist": args.closure_assist == "on",
+        "pose_prior": args.pose_prior == "on",
+        "keypoint_sigma_mm": args.keypoint_sigma_mm,
+    }
+
+
 def _config(args: argparse.Namespace, record: bool = False) -> Any:
     from handsim.envs.teleop import TeleopConfig
 
@@ -70,12 +82,7 @@ def _config(args: argparse.Namespace, record: bool = False) -> Any:
         filter_params=_filter_params(args.filter, args),
         anchor=args.anchor,
         sensor=args.sensor,
-        grip_hold=args.grip_hold == "on",
-        pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
-        grasp_intent=args.grasp_intent == "on",
-        closure_assist=args.closure_assist == "on",
-        pose_prior=args.pose_prior == "on",
-        keypoint_sigma_mm=args.keypoint_sigma_mm,
+        **_hand_options(args),
         record=record,
         seed=args.seed,
     )
@@ -311,12 +318,7 @@ def _sweep(args: argparse.Namespace) -> int:
             estimator_factory=factory,
             base_faults=base if isinstance(base, FaultConfig) else None,
             operator=args.operator,
-            grip_hold=args.grip_hold == "on",
-            pose_filter=_POSE_FILTER_VALUES[args.pose_filter],
-            grasp_intent=args.grasp_intent == "on",
-            closure_assist=args.closure_assist == "on",
-            pose_prior=args.pose_prior == "on",
-            keypoint_sigma_mm=args.keypoint_sigma_mm,
+            **_hand_options(args),
             filter_params={f: _filter_params(f, args) for f in args.filters},
             progress=bar.update,
         )
