@@ -178,3 +178,21 @@ def test_rendering_works_when_mujoco_is_imported_first():
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
     )
     assert out.stdout.strip() == "True"
+
+
+def test_pyproject_lists_every_package():
+    """A wheel holds only the listed packages: each folder with an __init__.py is listed."""
+    import tomllib
+
+    root = CORE.parent
+    pyproject = root / "pyproject.toml"
+    if not pyproject.is_file():
+        pytest.skip("installed without the source tree")
+    setuptools = tomllib.loads(pyproject.read_text())["tool"]["setuptools"]
+    listed = set(setuptools["packages"])
+    found = set()
+    for name, folder in setuptools["package-dir"].items():
+        for init in (root / folder).rglob("__init__.py"):
+            rel = init.parent.relative_to(root / folder).parts
+            found.add(".".join((name, *rel)))
+    assert found - listed == set(), "packages missing from pyproject.toml's packages"
