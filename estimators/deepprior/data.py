@@ -13,6 +13,7 @@ distances, so they are the same in either frame.
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -85,34 +86,71 @@ class FrameSet:
         return self.depth_units[i].astype(np.float32) * np.float32(self.depth_scale_m[i])
 
 
+def _read_shard(
+    folder: str, name: str, splits: dict, split: str, sensor: str, canonical_side: bool
+) -> dict[str, np.ndarray] | None:
+    """The kept frames of one shard as :func:`load_frames`' parts, or ``None`` if none."""
+    import h5py
+
+    reader = ShardReader(Path(folder) / name)
+    try:
+        keep = split_mask(splits, reader.labels("episode"), split, f"--data {folder}")
+        keep &= reader.labels("valid").astype(bool)
+        if not keep.any():
+            return None
+        with h5py.File(reader.path, "r") as f:
+            depth = f["depth"][:]
+        depth, K = depth[keep], reader.labels("K")[keep]  # noqa: N806
+        kp = reader.labels("keypoints_cam")[keep]
+        left = reader.labels("is_left")[keep].astype(bool)
+        if canonical_side and left.any():
+            depth[left] = mirror_depth(depth[left])
+            K[left] = mirror_intrinsics(K[left], depth.shape[-1])
+            kp[left] = mirror_points(kp[left])
+        n = int(keep.sum())
+        return {
+            "depth": depth,
+            "scale": np.full(n, reader.depth_scale_mm / 1000.0),
+            "K": K,
+            "kp": kp,
+            "left": left,
+            "occ": reader.labels("hand_occlusion_ratio")[keep],
+            "length": reader.labels("hand_length_m")[keep],
+            "sensor": np.array([sensor] * n),
+        }
+    finally:
+        reader.close()
+
+
+def _read_shard_task(task: tuple) -> dict[str, np.ndarray] | None:
+    return _read_shard(*task)
+
+
 def load_frames(
     folders: str | os.PathLike[str] | Sequence[str | os.PathLike[str]],
     split: str = "all",
     *,
     max_frames: int | None = None,
     canonical_side: bool = False,
+    workers: int = 0,
 ) -> FrameSet:
     """Read every frame of a split (``train``/``val``/``test``/``all``, by episode).
 
     Splits are those of :class:`~handsim.data.torch_dataset.HandSimDataset`
     (:mod:`handsim.data.splits`: 10 % of a folder's episodes each for val and test).
     ``canonical_side=True`` stores the left hands' frames mirrored into the right-hand frame
-    (``mirrored`` says which).
+    (``mirrored`` says which). ``workers > 1`` reads (decompresses) the shards in that many
+    forked processes; the frames and their order are the same. With ``max_frames`` the
+    shards are read one after another, up to the shard that completes the count.
 
     Raises:
         InvalidTrainingData: if a folder is not a dataset or the split is empty.
         InvalidDatasetQuery: for a val / test split of a folder with too few episodes.
     """
-    import h5py
-
     if isinstance(folders, (str, os.PathLike)):
         folders = [folders]
-    keys = ("depth", "scale", "K", "kp", "occ", "length", "sensor", "left")
-    parts: dict[str, list[Any]] = {k: [] for k in keys}
-    total = 0
+    tasks = []
     for folder in folders:
-        if max_frames is not None and total >= max_frames:
-            break  # enough frames: do not decompress the rest
         try:
             manifest = Manifest.read(folder)
         except HandSimError as err:
@@ -120,38 +158,27 @@ def load_frames(
         splits = folder_splits(folder, manifest) if split != "all" else {}
         sensor = str(manifest.config.get("sensor", "unknown"))
         for record in sorted(manifest.shards.values(), key=lambda s: s.name):
+            tasks.append((str(folder), record.name, splits, split, sensor, canonical_side))
+    parallel = workers > 1 and max_frames is None and len(tasks) > 1
+    if parallel and "fork" in multiprocessing.get_all_start_methods():
+        # h5py decompresses under one lock per process: processes, not threads.
+        with multiprocessing.get_context("fork").Pool(min(workers, len(tasks))) as pool:
+            shards = [s for s in pool.map(_read_shard_task, tasks, chunksize=1) if s]
+    else:
+        shards, total = [], 0
+        for task in tasks:
             if max_frames is not None and total >= max_frames:
-                break
-            reader = ShardReader(Path(folder) / record.name)
-            keep = split_mask(splits, reader.labels("episode"), split, f"--data {folder}")
-            keep &= reader.labels("valid").astype(bool)
-            if not keep.any():
-                continue
-            with h5py.File(reader.path, "r") as f:
-                depth = f["depth"][:]
-            depth, K = depth[keep], reader.labels("K")[keep]  # noqa: N806
-            kp = reader.labels("keypoints_cam")[keep]
-            left = reader.labels("is_left")[keep].astype(bool)
-            if canonical_side and left.any():
-                depth[left] = mirror_depth(depth[left])
-                K[left] = mirror_intrinsics(K[left], depth.shape[-1])
-                kp[left] = mirror_points(kp[left])
-            parts["depth"].append(depth)
-            parts["scale"].append(np.full(keep.sum(), reader.depth_scale_mm / 1000.0))
-            parts["K"].append(K)
-            parts["kp"].append(kp)
-            parts["left"].append(left)
-            parts["occ"].append(reader.labels("hand_occlusion_ratio")[keep])
-            parts["length"].append(reader.labels("hand_length_m")[keep])
-            parts["sensor"].append(np.array([sensor] * int(keep.sum())))
-            total += int(keep.sum())
-            reader.close()
-    if not parts["K"]:
+                break  # enough frames: do not decompress the rest
+            part = _read_shard(*task)
+            if part is not None:
+                shards.append(part)
+                total += len(part["K"])
+    if not shards:
         raise InvalidTrainingData(
             f"no {split!r} frames in {', '.join(str(f) for f in folders)} (generate more "
             "frames: val and test are 10 % of the episodes each)"
         )
-    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    cat = {k: np.concatenate([s[k] for s in shards]) for k in shards[0]}
     n = len(cat["K"]) if max_frames is None else min(max_frames, len(cat["K"]))
     return FrameSet(
         depth_units=cat["depth"][:n],

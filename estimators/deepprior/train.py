@@ -178,11 +178,34 @@ def _check(config: TrainConfig) -> None:
 _FRAMES: FrameSet | None = None  # the frames of localizer_centers, inherited by forked workers
 
 
-def _plane_removed_coms(indices: range) -> list[np.ndarray | None]:
-    base = PlaneRemovedLocalizer()
+def _chunk_centers(
+    indices: range, checkpoint: str | None, iterations: int, device: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Crop centres and ``found`` of the frames ``indices`` (see :func:`localizer_centers`)."""
+    from .estimator import RefinedLocalizer
+
     f = _FRAMES
     assert f is not None
-    return [base.localize(f.depth(i), f.K[i]) for i in indices]
+    base = PlaneRemovedLocalizer()
+    coms = [base.localize(f.depth(i), f.K[i]) for i in indices]
+    found = np.array([c is not None for c in coms], dtype=bool)
+    centers = f.keypoints_cam[indices.start : indices.stop, MIDDLE_MCP].copy()
+    if found.any():
+        centers[found] = np.stack([c for c in coms if c is not None])
+        if checkpoint:
+            idx = np.flatnonzero(found) + indices.start
+            loc = RefinedLocalizer(checkpoint, iterations=iterations, device=device)
+            centers[found] = loc.refine_batch(
+                lambda j: f.depth(int(idx[j])), f.K[idx], centers[found]
+            )
+    return centers, found
+
+
+def _chunk_centers_cpu(task: tuple) -> tuple[np.ndarray, np.ndarray]:
+    import torch
+
+    torch.set_num_threads(1)  # one process per core
+    return _chunk_centers(*task, "cpu")
 
 
 def localizer_centers(
@@ -195,42 +218,37 @@ def localizer_centers(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop centres of every frame: the plane-removed CoM, refined by ``checkpoint`` if given.
 
+    Frames go in chunks of 256, each located and refined as one batch, so the centres do not
+    depend on ``workers`` (on one device).
+
     Args:
         frames: the frames.
         checkpoint: localizer checkpoint, or ``None`` for the plane-removed CoM alone.
         iterations: refinement steps.
-        workers: processes for the plane fits (0: this process; forked workers on Linux).
-        device: torch device of the refinement network (batched).
+        workers: processes (forked, on Linux) that fit the planes and run the refinement
+            network on the CPU, one thread each; 0 or 1: this process, on ``device``.
+        device: torch device of the refinement network when ``workers`` is 0 or 1.
 
     Returns:
         ``(centers (N, 3) metres, found (N,) bool)``; a frame without a blob gets the true
         middle MCP and ``found = False``.
     """
     global _FRAMES
-    from .estimator import RefinedLocalizer
-
     n = len(frames)
     chunks = [range(s, min(s + 256, n)) for s in range(0, n, 256)]
     _FRAMES = frames
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
+            tasks = [(c, checkpoint, iterations) for c in chunks]
             with multiprocessing.get_context("fork").Pool(workers) as pool:
-                coms = [c for part in pool.map(_plane_removed_coms, chunks) for c in part]
+                parts = pool.map(_chunk_centers_cpu, tasks, chunksize=1)
         else:
-            coms = [c for chunk in chunks for c in _plane_removed_coms(chunk)]
+            parts = [_chunk_centers(c, checkpoint, iterations, device) for c in chunks]
     finally:
         _FRAMES = None
-    found = np.array([c is not None for c in coms], dtype=bool)
-    centers = frames.keypoints_cam[:, MIDDLE_MCP].copy()
-    if found.any():
-        centers[found] = np.stack([c for c in coms if c is not None])
-    if checkpoint and found.any():
-        loc = RefinedLocalizer(checkpoint, iterations=iterations, device=device)
-        idx = np.flatnonzero(found)
-        centers[idx] = loc.refine_batch(
-            lambda j: frames.depth(int(idx[j])), frames.K[idx], centers[idx]
-        )
-    return centers, found
+    if not parts:
+        return np.zeros((0, 3)), np.zeros(0, dtype=bool)
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 def _augmented_poses(frames: FrameSet, config: TrainConfig, copies: int = 2) -> np.ndarray:
@@ -366,8 +384,9 @@ def train(
         out: run folder (created; an existing run with the same config is resumed).
         config: the run.
         device: torch device.
-        loader_workers: DataLoader processes that crop and augment (0: this process); they
-            also run the plane fits of the crop centres. The result does not depend on it.
+        loader_workers: DataLoader processes that crop and augment (0: this process); as many
+            processes read the shards and compute the crop centres (plane fits and the
+            localizer's refinement, on the CPU). On the CPU the result does not depend on it.
         amp: on CUDA, run the forward pass in bfloat16 (mixed precision; the loss and the
             weights stay float32). Ignored on the CPU.
         val_every: validate every this many epochs (and after the last).
@@ -402,12 +421,15 @@ def train(
 
     max_frames = config.max_frames or None
     canonical = config.canonical_side
-    train_frames = load_frames(data, "train", max_frames=max_frames, canonical_side=canonical)
+    train_frames = load_frames(
+        data, "train", max_frames=max_frames, canonical_side=canonical, workers=loader_workers
+    )
     val_frames = load_frames(
         data,
         "val",
         max_frames=None if max_frames is None else max(8, max_frames // 8),
         canonical_side=canonical,
+        workers=loader_workers,
     )
     log(f"frames: train {len(train_frames)}, val {len(val_frames)}")
     model_config = config.model_config()

@@ -205,3 +205,24 @@ def test_train_and_evaluate_cli_no_canonical_side_subprocess(sided_data, tmp_pat
     report = json.loads((out / "metrics.json").read_text())
     assert report["canonical_side"] is False
     assert report["by_side"]["left"]["n"] + report["by_side"]["right"]["n"] == 12
+
+
+def test_worker_processes_read_the_same_frames_and_centres(tmp_path):
+    """load_frames and localizer_centers with workers give what one process gives, bit for bit."""
+    from handsim.estimators.deepprior.train import localizer_centers
+
+    config = GenerationConfig(
+        frames=12, frames_per_shard=4, frames_per_episode=1, seed=12,
+        num_objects_range=(0, 0), viewpoints=("third_person",), left_fraction=0.5,
+    )  # fmt: skip
+    generate(config, tmp_path / "data")
+    serial = load_frames(tmp_path / "data", canonical_side=True)
+    forked = load_frames(tmp_path / "data", canonical_side=True, workers=3)
+    assert len(serial) == 12
+    for name in serial.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(forked, name), getattr(serial, name))
+    centers, found = localizer_centers(serial, "localizer")
+    centers_forked, found_forked = localizer_centers(serial, "localizer", workers=2)
+    assert found.any()
+    np.testing.assert_array_equal(found_forked, found)
+    np.testing.assert_array_equal(centers_forked, centers)
