@@ -13,6 +13,7 @@ distances, so they are the same in either frame.
 from __future__ import annotations
 
 import dataclasses
+import mmap
 import multiprocessing
 import os
 from collections.abc import Sequence
@@ -86,16 +87,30 @@ class FrameSet:
         return self.depth_units[i].astype(np.float32) * np.float32(self.depth_scale_m[i])
 
 
+def _shard_keep(reader: ShardReader, folder: str, splits: dict, split: str) -> np.ndarray:
+    keep = split_mask(splits, reader.labels("episode"), split, f"--data {folder}")
+    return keep & reader.labels("valid").astype(bool)
+
+
 def _read_shard(
-    folder: str, name: str, splits: dict, split: str, sensor: str, canonical_side: bool
+    folder: str,
+    name: str,
+    splits: dict,
+    split: str,
+    sensor: str,
+    canonical_side: bool,
+    depth_out: np.ndarray | None = None,
 ) -> dict[str, np.ndarray] | None:
-    """The kept frames of one shard as :func:`load_frames`' parts, or ``None`` if none."""
+    """The kept frames of one shard as :func:`load_frames`' parts, or ``None`` if none.
+
+    With ``depth_out`` (as many frames as the shard keeps) the depth images are written there
+    and left out of the parts.
+    """
     import h5py
 
     reader = ShardReader(Path(folder) / name)
     try:
-        keep = split_mask(splits, reader.labels("episode"), split, f"--data {folder}")
-        keep &= reader.labels("valid").astype(bool)
+        keep = _shard_keep(reader, folder, splits, split)
         if not keep.any():
             return None
         with h5py.File(reader.path, "r") as f:
@@ -108,7 +123,7 @@ def _read_shard(
             K[left] = mirror_intrinsics(K[left], depth.shape[-1])
             kp[left] = mirror_points(kp[left])
         n = int(keep.sum())
-        return {
+        parts = {
             "depth": depth,
             "scale": np.full(n, reader.depth_scale_mm / 1000.0),
             "K": K,
@@ -118,8 +133,66 @@ def _read_shard(
             "length": reader.labels("hand_length_m")[keep],
             "sensor": np.array([sensor] * n),
         }
+        if depth_out is not None:
+            depth_out[...] = parts.pop("depth")
+        return parts
     finally:
         reader.close()
+
+
+_DEPTH_OUT: np.ndarray | None = None  # load_frames' shared depth buffer, inherited by its workers
+
+
+def _shard_shape_task(task: tuple) -> tuple[int, tuple[int, ...]]:
+    """(kept frames, (H, W)) of one shard, without decompressing its images."""
+    import h5py
+
+    folder, name, splits, split = task[:4]
+    reader = ShardReader(Path(folder) / name)
+    try:
+        n = int(_shard_keep(reader, folder, splits, split).sum())
+        with h5py.File(reader.path, "r") as f:
+            return n, tuple(f["depth"].shape[1:])
+    finally:
+        reader.close()
+
+
+def _read_shard_into_task(item: tuple) -> dict[str, np.ndarray] | None:
+    task, start, stop = item
+    assert _DEPTH_OUT is not None
+    return _read_shard(*task, depth_out=_DEPTH_OUT[start:stop])
+
+
+def _read_parallel(
+    tasks: list[tuple], workers: int
+) -> tuple[list[dict[str, np.ndarray]], np.ndarray | None]:
+    """``(parts, depth)`` of every shard, read by ``workers`` forked processes.
+
+    The depth images (most of the bytes) go straight into an anonymous shared mapping made
+    before the readers fork, so they are neither pickled back nor concatenated again: memory
+    peaks at the data's size, not twice it. ``depth`` is that array (the parts hold no depth),
+    or ``None`` when the shards' images differ in size (the parts then hold their own).
+    """
+    global _DEPTH_OUT
+    fork = multiprocessing.get_context("fork")
+    with fork.Pool(min(workers, len(tasks))) as pool:
+        shapes = pool.map(_shard_shape_task, tasks, chunksize=4)
+    sizes = {shape for n, shape in shapes if n}
+    if len(sizes) != 1:  # no frames, or images of several sizes: nothing to share
+        with fork.Pool(min(workers, len(tasks))) as pool:
+            return [s for s in pool.map(_read_shard_task, tasks, chunksize=1) if s], None
+    (h, w), total = sizes.pop(), sum(n for n, _ in shapes)
+    buffer = mmap.mmap(-1, total * h * w * 2)
+    depth = np.frombuffer(buffer, dtype=np.uint16).reshape(total, h, w)
+    ends = np.cumsum([n for n, _ in shapes])
+    items = [(t, e - n, e) for t, (n, _), e in zip(tasks, shapes, ends, strict=True) if n]
+    _DEPTH_OUT = depth
+    try:
+        with fork.Pool(min(workers, len(items))) as pool:
+            parts = pool.map(_read_shard_into_task, items, chunksize=1)
+    finally:
+        _DEPTH_OUT = None
+    return [p for p in parts if p], depth
 
 
 def _read_shard_task(task: tuple) -> dict[str, np.ndarray] | None:
@@ -140,8 +213,9 @@ def load_frames(
     (:mod:`handsim.data.splits`: 10 % of a folder's episodes each for val and test).
     ``canonical_side=True`` stores the left hands' frames mirrored into the right-hand frame
     (``mirrored`` says which). ``workers > 1`` reads (decompresses) the shards in that many
-    forked processes; the frames and their order are the same. With ``max_frames`` the
-    shards are read one after another, up to the shard that completes the count.
+    forked processes, straight into one shared array; the frames and their order are the same.
+    With ``max_frames`` the shards are read one after another, up to the shard that completes
+    the count.
 
     Raises:
         InvalidTrainingData: if a folder is not a dataset or the split is empty.
@@ -160,10 +234,9 @@ def load_frames(
         for record in sorted(manifest.shards.values(), key=lambda s: s.name):
             tasks.append((str(folder), record.name, splits, split, sensor, canonical_side))
     parallel = workers > 1 and max_frames is None and len(tasks) > 1
+    depth = None
     if parallel and "fork" in multiprocessing.get_all_start_methods():
-        # h5py decompresses under one lock per process: processes, not threads.
-        with multiprocessing.get_context("fork").Pool(min(workers, len(tasks))) as pool:
-            shards = [s for s in pool.map(_read_shard_task, tasks, chunksize=1) if s]
+        shards, depth = _read_parallel(tasks, workers)
     else:
         shards, total = [], 0
         for task in tasks:
@@ -179,6 +252,8 @@ def load_frames(
             "frames: val and test are 10 % of the episodes each)"
         )
     cat = {k: np.concatenate([s[k] for s in shards]) for k in shards[0]}
+    if depth is not None:
+        cat["depth"] = depth
     n = len(cat["K"]) if max_frames is None else min(max_frames, len(cat["K"]))
     return FrameSet(
         depth_units=cat["depth"][:n],
