@@ -10,8 +10,12 @@ Each configuration runs ``--warmup`` steps, then ``--steps`` timed steps (synchr
 and after on CUDA). Figures are samples per second; the ratios between widths come from this
 one run.
 
+``--profile N`` also prints the N most expensive operators of a few steps of each
+configuration (``torch.profiler``; device time on CUDA), to find where a step's time goes.
+
 Usage: ``python benchmarks/bench_train_step.py [--device cuda] [--widths 0.25 1]
-[--batches 128 512] [--steps 30]``. Writes ``benchmarks/results/bench_train_step.json``.
+[--batches 128 512] [--steps 30] [--profile 15]``. Writes
+``benchmarks/results/bench_train_step.json``.
 
 Measured on one NVIDIA H200 (2026-11-28, torch 2.11.0+cu130, bf16): width 1 at 9 354 / 10 483
 samples/s (batch 128 / 512), width 0.25 at 10 783 / 14 732.
@@ -26,8 +30,10 @@ import time
 from pathlib import Path
 
 
-def step_rate(width: float, batch: int, device: str, steps: int, warmup: int) -> dict:
-    """Samples/s of one configuration."""
+def step_rate(
+    width: float, batch: int, device: str, steps: int, warmup: int, profile: int = 0
+) -> dict:
+    """Samples/s of one configuration (and its top ``profile`` operators, printed)."""
     import torch
 
     from handsim.estimators.deepprior.models import build_model
@@ -57,6 +63,23 @@ def step_rate(width: float, batch: int, device: str, steps: int, warmup: int) ->
         loss.item()  # as handsim train does each step
     sync()
     dt = (time.perf_counter() - t0) / steps
+    if profile:
+        from torch.profiler import ProfilerActivity
+        from torch.profiler import profile as torch_profile
+
+        activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if cuda else [])
+        with torch_profile(activities=activities) as prof:
+            for _ in range(5):
+                with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
+                    pred = model(x)
+                loss = loss_fn(pred.float(), y)
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                optimizer.step()
+                loss.item()
+            sync()
+        key = "cuda_time_total" if cuda else "cpu_time_total"
+        print(prof.key_averages().table(sort_by=key, row_limit=profile), flush=True)
     return {"width": width, "batch": batch, "ms_per_step": dt * 1e3, "samples_per_s": batch / dt}
 
 
@@ -71,6 +94,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=30)
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads")
+    parser.add_argument("--profile", type=int, default=0, help="print the top N operators")
     default_out = Path("benchmarks/results/bench_train_step.json")
     parser.add_argument("--out", type=Path, default=default_out)
     args = parser.parse_args()
@@ -85,7 +109,7 @@ def main() -> None:
     rows = []
     for width in args.widths:
         for batch in args.batches:
-            row = step_rate(width, batch, args.device, args.steps, args.warmup)
+            row = step_rate(width, batch, args.device, args.steps, args.warmup, args.profile)
             rows.append(row)
             print(
                 f"width {width:g}, batch {batch}: {row['ms_per_step']:.2f} ms/step, "
