@@ -5,7 +5,7 @@ Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropo
 [--closure-assist on|off] [--pose-prior on|off] [--keypoint-sigma-mm MM]
 [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
-[--episodes 20] [--trace SEED] [--out FILE]``.
+[--clean-from PHASE] [--episodes 20] [--trace SEED] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
@@ -41,11 +41,15 @@ from handsim.envs.teleop.operator import ReactiveOperator
 class _Clean:
     """A pose filter stand-in that puts the operator's own wrist or joints into the pose."""
 
-    def __init__(self, inner: Any, part: str, operator: dict[str, np.ndarray]) -> None:
-        self.inner, self.part, self.operator = inner, part, operator
+    def __init__(
+        self, inner: Any, part: str, operator: dict[str, Any], phases: tuple[str, ...] = ()
+    ) -> None:
+        self.inner, self.part, self.operator, self.phases = inner, part, operator, phases
 
     def __call__(self, pose: np.ndarray) -> np.ndarray:
         out = np.array(self.inner(pose) if self.inner is not None else pose)
+        if self.phases and self.operator.get("phase") not in self.phases:
+            return out
         truth = self.operator["pose"]
         if self.part == "wrist":
             out[:6] = truth[:6]
@@ -54,13 +58,84 @@ class _Clean:
         return out
 
 
+_PUSH_M = 0.015  # the object moved this far on the table: pushed, not grasped
+_CLOSING = ("close", "squeeze", "settle")
+
+
+def _observe(base: Any, phase: str, diag: dict[str, Any], state: dict[str, Any]) -> None:
+    """Per step: where the target is, which digits touch it, the wrist's error, by phase."""
+    from handsim.envs.teleop.grip import DigitContacts
+
+    if "contacts" not in diag:
+        diag["contacts"] = DigitContacts(base.scene)
+        diag["name"] = base.scene.objects[base.target_instance][1].name
+    pos = base._object_pose(base.target_instance)[:3, 3].copy()
+    diag.setdefault("start", pos)
+    moved = float(np.linalg.norm((pos - diag["start"])[:2]))
+    if phase in _CLOSING and "moved_at_close_m" not in diag:
+        diag["moved_at_close_m"] = moved
+    if phase == "lift" and "moved_at_lift_m" not in diag:
+        diag["moved_at_lift_m"] = moved
+    touch = diag["contacts"].touching(base.scene.data)
+    if touch.any() and "first_touch" not in diag:
+        diag["first_touch"] = (phase, [int(d) for d in np.flatnonzero(touch)])
+    physical = base.scene.binding.keypoints(base.scene.data)[0]
+    operator = state.get("operator_world")
+    if operator is not None and np.all(np.isfinite(operator[0])):
+        key = "approach" if phase in ("wait", "reach", "approach") else phase
+        diag.setdefault("wrist_err", {}).setdefault(key, []).append(
+            float(np.linalg.norm(physical - operator[0]))
+        )
+    info = base._task_info()
+    diag["slip_m"], diag["turn_rad"] = info["slip_m"], info["turn_rad"]
+    diag["moved_m"] = moved
+
+
+def _cause(stage: str, diag: dict[str, Any], lifts: list[float]) -> dict[str, Any]:
+    """The failure's cause from the episode's observations (``ok`` for a success)."""
+    at_close = diag.get("moved_at_close_m", diag.get("moved_m", 0.0))
+    at_lift = diag.get("moved_at_lift_m", diag.get("moved_m", 0.0))
+    if stage == "success":
+        cause = "ok"
+    elif at_close > _PUSH_M:
+        cause = "pushed before closure"
+    elif stage in ("approach", "closure"):
+        cause = "pushed during closure" if at_lift > _PUSH_M else "closed without a grasp"
+    elif stage == "lift":
+        cause = "slipped during lift"
+    elif lifts[-1] < 0.02:
+        cause = "dropped in hold"
+    else:
+        cause = "slip/turn in hold"
+    first = diag.get("first_touch")
+    wrist = {k: round(1e3 * float(np.mean(v)), 1) for k, v in diag.get("wrist_err", {}).items()}
+    return {
+        "cause": cause,
+        "object": diag.get("name"),
+        "moved_at_close_mm": round(1e3 * at_close, 1),
+        "moved_at_lift_mm": round(1e3 * at_lift, 1),
+        "first_touch": None if first is None else f"{first[0]}:{first[1]}",
+        "slip_mm": round(1e3 * float(diag.get("slip_m", np.nan)), 1),
+        "turn_deg": round(float(np.degrees(diag.get("turn_rad", np.nan))), 1),
+        "wrist_err_mm": wrist,
+    }
+
+
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """The episodes of one configuration: success rate, stage counts, wall time."""
     import handsim.envs.teleop.channel as channel_module
     from handsim.envs.teleop.pose_filter import make_pose_filter
     from handsim.hand.kinematics import ForwardKinematics
 
-    operator_pose: dict[str, np.ndarray] = {}
+    if args.grip_steady == "on":
+        import functools
+
+        from handsim.envs.teleop.grip import GripStabiliser
+
+        channel_module.GripStabiliser = functools.partial(  # type: ignore[misc]
+            GripStabiliser, steady=True
+        )
+    operator_pose: dict[str, Any] = {}
     if args.clean != "none" or args.intent_oracle != "none":
         # The operator's pose of this step: the one its keypoints are made from.
         keypoints = ForwardKinematics.keypoints
@@ -91,7 +166,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         def clean_filter(rate_hz: float, **params: Any) -> Any:
             params["wrist_only"] = args.pose_filter == "wrist"
             inner = make_pose_filter(rate_hz, **params) if use_filter else None
-            return _Clean(inner, args.clean, operator_pose)
+            order = ("wait", "reach", "approach", "close", "squeeze", "settle", "lift", "hold")
+            phases = order[order.index(args.clean_from) :] if args.clean_from else ()
+            return _Clean(inner, args.clean, operator_pose, phases)
 
         channel_module.make_pose_filter = clean_filter  # type: ignore[assignment]
     config = TeleopConfig(
@@ -124,6 +201,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     intent_s: list[float] = []
     assist_s: list[float] = []
     assisted: list[bool] = []
+    details: list[dict[str, Any]] = []
     start = time.perf_counter()
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
@@ -145,6 +223,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             )
             lifts: list[float] = []
             phase: list[str] = []
+            diag: dict[str, Any] = {}
             start_pos = np.zeros(3)
             if seed == args.trace:
                 loop.env.reset(seed=seed)  # the object's start
@@ -158,9 +237,12 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
                 phase: list = phase,
                 seed: int = seed,
                 start_pos: np.ndarray = start_pos,
+                diag: dict[str, Any] = diag,
             ) -> None:
                 lifts.append(float(base._task_info()["lift_m"]))
                 phase[:] = [op._expert.phase]
+                operator_pose["phase"] = phase[0]
+                _observe(base, phase[0], diag, state)
                 if seed == args.trace and i % 4 == 0:
                     from handsim.envs.teleop.grip import DigitContacts
 
@@ -188,12 +270,16 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             else:
                 stage = "hold"
             stages.append(stage)
+            detail = _cause(stage, diag, lifts)
+            details.append({"seed": seed, "stage": stage, **detail})
     counts = collections.Counter(stages)
     return {
         "config": {k: v for k, v in vars(args).items() if k != "out"},
         "success_rate": counts["success"] / len(stages),
         "stages": dict(counts),
         "per_seed": stages,
+        "causes": dict(collections.Counter(d["cause"] for d in details if d["stage"] != "success")),
+        "details": details,
         "intent_grasp_s": round(float(np.mean(intent_s)), 2),
         "closure_assist_s": round(float(np.mean(assist_s)), 2),
         "assisted_successes": int(np.sum(assisted)),
@@ -219,6 +305,13 @@ def main() -> None:
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
     p.add_argument("--correction", choices=("on", "off"), default="on")
     p.add_argument("--clean", choices=("none", "wrist", "fingers"), default="none")
+    p.add_argument(
+        "--clean-from",
+        choices=("close", "squeeze", "settle", "lift", "hold"),
+        default=None,
+        help="make --clean's part clean only from this phase of the operator's expert on",
+    )
+    p.add_argument("--grip-steady", choices=("on", "off"), default="off")
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--trace", type=int, default=None, help="print this seed's steps")
     p.add_argument("--out", default="benchmarks/results/teleop_stages.json")
