@@ -127,13 +127,13 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from handsim.envs.teleop.pose_filter import make_pose_filter
     from handsim.hand.kinematics import ForwardKinematics
 
-    if args.grip_steady == "on":
+    if args.grip_steady != "off":
         import functools
 
         from handsim.envs.teleop.grip import GripStabiliser
 
         channel_module.GripStabiliser = functools.partial(  # type: ignore[misc]
-            GripStabiliser, steady=True
+            GripStabiliser, steady=True if args.grip_steady == "on" else args.grip_steady
         )
     operator_pose: dict[str, Any] = {}
     if args.clean != "none" or args.intent_oracle != "none":
@@ -299,7 +299,12 @@ def main() -> None:
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
     p.add_argument("--closure-assist", choices=("on", "off"), default="off")
     p.add_argument("--pose-prior", choices=("on", "off"), default="off")
-    p.add_argument("--keypoint-sigma-mm", type=float, default=None, help="default: --noise-mm")
+    p.add_argument(
+        "--keypoint-sigma-mm",
+        type=lambda v: v if v == "auto" else float(v),
+        default=None,
+        help="a number or 'auto' (default: --noise-mm)",
+    )
     p.add_argument("--intent-params", default="{}", help="e.g. '{\"press_rad\": 0.2}'")
     p.add_argument("--intent-oracle", choices=("none", "posture", "flex", "spread"), default="none")
     p.add_argument("--motor-noise", choices=("on", "off", "wrist", "joints"), default="off")
@@ -311,7 +316,7 @@ def main() -> None:
         default=None,
         help="make --clean's part clean only from this phase of the operator's expert on",
     )
-    p.add_argument("--grip-steady", choices=("on", "off"), default="off")
+    p.add_argument("--grip-steady", choices=("on", "off", "hand"), default="off")
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--trace", type=int, default=None, help="print this seed's steps")
     p.add_argument("--out", default="benchmarks/results/teleop_stages.json")

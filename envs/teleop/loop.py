@@ -70,6 +70,7 @@ __all__ = [
     "read_rollout",
     "ROLLOUT_VERSION",
     "POSE_FILTERS",
+    "GRIP_STEADY",
     "MAX_CONTROL_RATE_HZ",
     "PHYSICS_DT_S",
     "BehindRealTime",
@@ -83,6 +84,8 @@ ANCHORS: tuple[str, ...] = ("none", "start")
 STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
 """The timed stages of a step."""
 ROLLOUT_VERSION = 1
+GRIP_STEADY: tuple[bool | str, ...] = (False, True, "hand")
+"""Values of :attr:`TeleopConfig.grip_steady`: off, held digits, the whole hand while held."""
 POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist")
 """Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only."""
 PHYSICS_DT_S = 0.002
@@ -142,6 +145,11 @@ class TeleopConfig:
             digit touching an object stops at its surface and opens only when the tracked
             digit clearly opens). Nothing is attached; the time it holds is ``grip_hold_s``
             in the metrics.
+        grip_steady: with the grip stabiliser, a held digit takes the running mean of its
+            targets (0.15 s) instead of each frame's (``True``; its flexion the press, which
+            rises as the mean closes, its spread joints the mean); ``"hand"``: while any digit
+            is held, the free digits take the running mean too; ``False`` (default): a
+            tracked target past the press comes through at once. Nothing is attached.
         pose_filter: smooth the retargeted pose in joint space
             (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part):
             ``False`` (off), ``True`` (the wrist and the fingers) or ``"wrist"`` (the wrist
@@ -169,7 +177,11 @@ class TeleopConfig:
             :func:`~handsim.hand.pose_prior.default_pose_prior`, the grasp taxonomy and the
             gestures), the keypoints weighed by their noise ``keypoint_sigma_mm``.
         keypoint_sigma_mm: the tracked keypoints' noise the prior is weighed against, mm
-            per axis (``None``: the faults' ``noise_mm``; 0 turns the prior off).
+            per axis (``None``: the faults' ``noise_mm``; 0 turns the prior off; ``"auto"``:
+            estimated from the tracked stream's own jitter,
+            :class:`~handsim.hand.pose_prior.KeypointNoiseEstimator`, looked at every
+            :data:`~handsim.envs.teleop.channel.SIGMA_UPDATE_FRAMES` frames; the plain fit
+            until known). The value in use at the end is the metric ``keypoint_sigma_mm``.
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -182,13 +194,14 @@ class TeleopConfig:
     sensor: str = "none"
     camera: str = "icvl"
     grip_hold: bool = True
+    grip_steady: bool | str = False
     pose_filter: bool | str = False
     pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
     grasp_intent: bool = False
     intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
     closure_assist: bool = False
     pose_prior: bool = False
-    keypoint_sigma_mm: float | None = None
+    keypoint_sigma_mm: float | str | None = None
     record: bool = False
     seed: int = 0
 
@@ -222,6 +235,7 @@ class TeleopConfig:
         sigma = self.keypoint_sigma_mm
         if not isinstance(self.pose_prior, bool) or (
             sigma is not None
+            and sigma != "auto"
             and (
                 isinstance(sigma, bool)
                 or not isinstance(sigma, (int, float))
@@ -231,7 +245,18 @@ class TeleopConfig:
         ):
             raise InvalidTeleopConfig(
                 f"pose_prior must be True or False and keypoint_sigma_mm None (the faults' "
-                f"noise_mm) or a number >= 0 (mm); received {self.pose_prior!r} and {sigma!r}"
+                f"noise_mm), 'auto' (estimated from the stream) or a number >= 0 (mm); "
+                f"received {self.pose_prior!r} and {sigma!r}"
+            )
+        if self.grip_steady not in GRIP_STEADY:
+            raise InvalidTeleopConfig(
+                f"grip_steady={self.grip_steady!r} is not valid; choose False (off), True (a "
+                "held digit takes its running mean) or 'hand' (every digit while one is held)"
+            )
+        if self.grip_steady and not self.grip_hold:
+            raise InvalidTeleopConfig(
+                "grip_steady acts on the grip stabiliser's held digits: set grip_hold=True "
+                "with it (CLI: --grip-hold on)"
             )
         if self.closure_assist and not self.grasp_intent:
             raise InvalidTeleopConfig(
