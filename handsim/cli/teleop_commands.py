@@ -64,6 +64,7 @@ def _hand_options(args: argparse.Namespace) -> dict[str, Any]:
     """The physical hand's options, shared by one loop and a sweep."""
     return {
         "grip_hold": args.grip_hold == "on",
+        "grip_steady": {"on": True, "off": False, "hand": "hand"}[args.grip_steady],
         "pose_filter": _POSE_FILTER_VALUES[args.pose_filter],
         "grasp_intent": args.grasp_intent == "on",
         "closure_assist": args.closure_assist == "on",
