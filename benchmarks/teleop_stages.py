@@ -1,24 +1,34 @@
 """Where grasps fail under tracking noise: the reactive operator, with one part made clean.
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
-[--filter none] [--beta 1] [--pose-filter on|off|wrist] [--grasp-intent on|off]
+[--filter none] [--beta 1] [--pose-filter on|off|wrist] [--pose-filter-params JSON]
+[--grasp-intent on|off]
 [--closure-assist on|off] [--pose-prior on|off] [--keypoint-sigma-mm MM]
 [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
-[--clean-from PHASE] [--episodes 20] [--trace SEED] [--out FILE]``.
+[--clean-from PHASE] [--grip-steady on|off|hand] [--episodes 20] [--trace SEED]
+[--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
 every retargeted (and, with the pose filter, filtered) pose by the operator's own, so only
 the fingers carry the tracking noise; ``--clean fingers`` the 21 joint angles, so only the
-wrist does. ``--intent-oracle`` (with ``--grasp-intent on``) replaces, while the hand is in
+wrist does; ``--clean-from PHASE`` only from that phase of the operator's expert on (the
+clean part replaces the pose filter's output: it has neither the noise nor the filter's
+lag). ``--intent-oracle`` (with ``--grasp-intent on``) replaces, while the hand is in
 grasp intent, the fingers' targets (``posture``), their flexion joints (``flex``) or their
 spread joints (``spread``) by the operator's own: what a perfect intent posture would give.
 Each failure is put in the stage it ended in: ``approach`` (the expert still
 reaching or approaching), ``closure`` (the object never rose 2 cm), ``lift`` (it rose, but
-not to 9.5 cm) or ``hold`` (lifted, then dropped, slipped or turned). Prints and writes
-(``benchmarks/results/teleop_stages.json`` by default, one entry per configuration) the
-success rate, the stage counts and the wall time. ``--trace SEED`` prints, every 4th control
+not to 9.5 cm) or ``hold`` (lifted, then dropped, slipped or turned), and given a cause
+from the episode's observations: ``pushed before closure`` (the object moved 15 mm on the
+table before the expert closed), ``closed without a grasp`` (it hardly moved and never rose
+2 cm), ``pushed during closure``, ``slipped during lift``, ``dropped in hold`` or
+``slip/turn in hold`` (held, but it slipped 1 cm or turned 10 deg in the hand). Prints and
+writes (``benchmarks/results/teleop_stages.json`` by default, one entry per configuration)
+the success rate, the stage and cause counts, per seed the object, the first digits to touch
+it (and in which phase), its slip and turn and the wrist's mean error per phase, and the wall
+time. ``--trace SEED`` prints, every 4th control
 step of that seed's episode, the expert's phase, whether the hand is in grasp intent, which
 digits touch an object (thumb to little) and how far the target object has moved, mm.
 """
@@ -183,6 +193,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             if args.pose_filter == "on" or (args.clean != "none" and args.pose_filter == "off")
             else ("wrist" if args.pose_filter == "wrist" else False)
         ),
+        pose_filter_params=json.loads(args.pose_filter_params),
         grasp_intent=args.grasp_intent == "on",
         intent_params=json.loads(args.intent_params),
         closure_assist=args.closure_assist == "on",
@@ -296,6 +307,7 @@ def main() -> None:
     p.add_argument("--filter", choices=("none", "one_euro"), default="none")
     p.add_argument("--beta", type=float, default=1.0)
     p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
+    p.add_argument("--pose-filter-params", default="{}", help="e.g. '{\"beta_joint\": 1}'")
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
     p.add_argument("--closure-assist", choices=("on", "off"), default="off")
     p.add_argument("--pose-prior", choices=("on", "off"), default="off")
