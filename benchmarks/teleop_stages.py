@@ -1,7 +1,7 @@
 """Where grasps fail under tracking noise: the reactive operator, with one part made clean.
 
 Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropout 0]
-[--filter none] [--beta 1] [--pose-filter on|off|wrist] [--pose-filter-params JSON]
+[--filter none] [--beta 1] [--pose-filter on|off|wrist|auto] [--pose-filter-params JSON]
 [--grasp-intent on|off]
 [--closure-assist on|off] [--pose-prior on|off] [--keypoint-sigma-mm MM]
 [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
@@ -191,7 +191,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         pose_filter=(
             True
             if args.pose_filter == "on" or (args.clean != "none" and args.pose_filter == "off")
-            else ("wrist" if args.pose_filter == "wrist" else False)
+            else (args.pose_filter if args.pose_filter in ("wrist", "auto") else False)
         ),
         pose_filter_params=json.loads(args.pose_filter_params),
         grasp_intent=args.grasp_intent == "on",
@@ -306,7 +306,7 @@ def main() -> None:
     p.add_argument("--dropout", type=float, default=0.0)
     p.add_argument("--filter", choices=("none", "one_euro"), default="none")
     p.add_argument("--beta", type=float, default=1.0)
-    p.add_argument("--pose-filter", choices=("on", "off", "wrist"), default="off")
+    p.add_argument("--pose-filter", choices=("on", "off", "wrist", "auto"), default="off")
     p.add_argument("--pose-filter-params", default="{}", help="e.g. '{\"beta_joint\": 1}'")
     p.add_argument("--grasp-intent", choices=("on", "off"), default="off")
     p.add_argument("--closure-assist", choices=("on", "off"), default="off")

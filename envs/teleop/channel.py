@@ -77,20 +77,27 @@ class HandChannel:
         self.smoother = make_filter(config.filter, rate_hz, **config.filter_params)
         self.pose_smoother = (
             make_pose_filter(
-                rate_hz, **config.pose_filter_params, wrist_only=config.pose_filter == "wrist"
+                rate_hz,
+                **config.pose_filter_params,
+                wrist_only=config.pose_filter == "wrist",
+                adaptive=config.pose_filter == "auto",
             )
             if config.pose_filter
             else None
         )
         self._hand_params = scene.hand.params
         self._prior = bool(getattr(config, "pose_prior", False))
-        self.sigma_m = _sigma_m(config, faults) if self._prior else 0.0
-        """The prior's keypoint noise now, metres per axis."""
+        # The noise-adaptive pose filter's cut-offs follow the keypoint noise.
+        self._adaptive = config.pose_filter == "auto"
+        self.sigma_m = _sigma_m(config, faults)
+        """The tracked keypoints' noise now, metres per axis (the prior's weight and the
+        adaptive pose filter's cut-offs)."""
         self.retargeter = _retargeter(self._hand_params, self._prior, self.sigma_m)
+        self._set_filter_noise()
         # "auto": the noise estimated from the tracked stream's own jitter.
         self.noise: KeypointNoiseEstimator | None = (
             KeypointNoiseEstimator()
-            if self._prior and getattr(config, "keypoint_sigma_mm", None) == "auto"
+            if getattr(config, "keypoint_sigma_mm", None) == "auto"
             else None
         )
         self._frames = 0
@@ -152,7 +159,14 @@ class HandChannel:
         relative, absolute = _SIGMA_CHANGE
         if sigma is not None and abs(sigma - self.sigma_m) > relative * self.sigma_m + absolute:
             self.sigma_m = sigma
-            self.retargeter = _retargeter(self._hand_params, True, sigma)
+            if self._prior:
+                self.retargeter = _retargeter(self._hand_params, True, sigma)
+            self._set_filter_noise()
+
+    def _set_filter_noise(self) -> None:
+        setter = getattr(self.pose_smoother, "set_keypoint_noise", None)
+        if self._adaptive and setter is not None:
+            setter(self.sigma_m)
 
     def _retarget(self, tracked: np.ndarray) -> RetargetResult | None:
         if np.all(np.isfinite(tracked), axis=1).sum() < 4:

@@ -86,8 +86,9 @@ STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget
 ROLLOUT_VERSION = 1
 GRIP_STEADY: tuple[bool | str, ...] = (False, True, "hand")
 """Values of :attr:`TeleopConfig.grip_steady`: off, held digits, the whole hand while held."""
-POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist")
-"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only."""
+POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist", "auto")
+"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only, the whole
+pose with cut-offs that follow the keypoint noise."""
 PHYSICS_DT_S = 0.002
 """The envs' physics step, seconds (500 Hz)."""
 MAX_CONTROL_RATE_HZ = 120.0
@@ -152,8 +153,12 @@ class TeleopConfig:
             tracked target past the press comes through at once. Nothing is attached.
         pose_filter: smooth the retargeted pose in joint space
             (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part):
-            ``False`` (off), ``True`` (the wrist and the fingers) or ``"wrist"`` (the wrist
-            only; the fingers as fitted).
+            ``False`` (off), ``True`` (the wrist and the fingers), ``"wrist"`` (the wrist
+            only; the fingers as fitted) or ``"auto"`` (the whole pose, its rest cut-offs
+            multiplied by ``(10 mm / sigma)^2``, in [1, 30], for keypoint noise ``sigma``:
+            ``keypoint_sigma_mm``, the faults' ``noise_mm`` when ``None``, estimated from the
+            stream with ``"auto"``; :meth:`PoseFilter.set_keypoint_noise
+            <handsim.envs.teleop.pose_filter.PoseFilter.set_keypoint_noise>`).
         pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
         grasp_intent: drive the fingers from a per-hand grasp intent while the hand grasps
             an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
@@ -223,7 +228,8 @@ class TeleopConfig:
         if self.pose_filter not in POSE_FILTERS:
             raise InvalidTeleopConfig(
                 f"pose_filter={self.pose_filter!r} is not valid; choose False (off), True (the "
-                "wrist and the fingers) or 'wrist' (the wrist only)"
+                "wrist and the fingers), 'wrist' (the wrist only) or 'auto' (the whole pose, "
+                "cut-offs following the keypoint noise)"
             )
         make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
         make_pose_filter(50.0, **self.pose_filter_params)

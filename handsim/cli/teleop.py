@@ -243,7 +243,9 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         choices=_POSE_FILTER_CHOICES,
         default="off",
         help="smooth the retargeted hand pose in joint space (One Euro per part: wrist "
-        "position, wrist rotation, joint angles; 'wrist': the wrist only; default: off)",
+        "position, wrist rotation, joint angles; 'wrist': the wrist only; 'auto': the whole "
+        "pose, its cut-offs raised as the keypoint noise (--keypoint-sigma-mm) falls below "
+        "10 mm; default: off)",
     )
     p.add_argument(
         "--grasp-intent",
@@ -286,7 +288,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     add_quiet(p)
 
 
-_POSE_FILTER_CHOICES = ("on", "off", "wrist")
+_POSE_FILTER_CHOICES = ("on", "off", "wrist", "auto")
 
 
 def _port_group(p: argparse.ArgumentParser, required: bool = True) -> None:

@@ -19,7 +19,12 @@ __all__: list[str] = []
 
 _HANDS = ("right", "left")
 _DEFAULT_LIVE_RATE_HZ = 90.0  # a headset's rate, when the stream cannot be measured
-_POSE_FILTER_VALUES: dict[str, bool | str] = {"on": True, "off": False, "wrist": "wrist"}
+_POSE_FILTER_VALUES: dict[str, bool | str] = {
+    "on": True,
+    "off": False,
+    "wrist": "wrist",
+    "auto": "auto",
+}
 
 
 def _faults(args: argparse.Namespace, **levels: Any) -> Any:
