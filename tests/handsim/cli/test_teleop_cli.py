@@ -363,7 +363,7 @@ def test_replay_and_sweep_take_the_pose_prior(tmp_path):
 
 
 def test_replay_and_sweep_take_the_steady_grip_and_an_estimated_sigma(tmp_path):
-    """`--grip-steady on --pose-prior on --keypoint-sigma-mm auto`, as subprocesses.
+    """`--grip-steady on --pose-prior on --keypoint-sigma-mm auto --pose-filter auto`, run.
 
     The config records both; the metrics hold the estimated noise (about the faults' 10 mm);
     a steady grip without the grip stabiliser is refused, naming the option that fits.
@@ -379,7 +379,7 @@ def test_replay_and_sweep_take_the_steady_grip_and_an_estimated_sigma(tmp_path):
     options = ["--grip-steady", "on", "--pose-prior", "on", "--keypoint-sigma-mm", "auto"]
     done = subprocess.run(
         [*cli, "replay", str(stream), "--task", "press", "--seed", "1", "--out", str(out)]
-        + ["--noise-mm", "10", *options],
+        + ["--noise-mm", "10", *options, "--pose-filter", "auto"],
         capture_output=True,
         text=True,
     )
@@ -387,6 +387,7 @@ def test_replay_and_sweep_take_the_steady_grip_and_an_estimated_sigma(tmp_path):
     metrics = json.loads((out / "teleop.json").read_text())
     assert metrics["config"]["grip_steady"] is True
     assert metrics["config"]["keypoint_sigma_mm"] == "auto"
+    assert metrics["config"]["pose_filter"] == "auto"
     assert 8.0 < metrics["keypoint_sigma_mm"] < 12.0
     sweep = tmp_path / "sweep"
     done = subprocess.run(
