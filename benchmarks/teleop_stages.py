@@ -137,14 +137,6 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from handsim.envs.teleop.pose_filter import make_pose_filter
     from handsim.hand.kinematics import ForwardKinematics
 
-    if args.grip_steady != "off":
-        import functools
-
-        from handsim.envs.teleop.grip import GripStabiliser
-
-        channel_module.GripStabiliser = functools.partial(  # type: ignore[misc]
-            GripStabiliser, steady=True if args.grip_steady == "on" else args.grip_steady
-        )
     operator_pose: dict[str, Any] = {}
     if args.clean != "none" or args.intent_oracle != "none":
         # The operator's pose of this step: the one its keypoints are made from.
@@ -194,6 +186,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             else (args.pose_filter if args.pose_filter in ("wrist", "auto") else False)
         ),
         pose_filter_params=json.loads(args.pose_filter_params),
+        grip_steady={"on": True, "off": False, "hand": "hand"}[args.grip_steady],
         grasp_intent=args.grasp_intent == "on",
         intent_params=json.loads(args.intent_params),
         closure_assist=args.closure_assist == "on",
