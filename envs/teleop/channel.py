@@ -21,7 +21,7 @@ from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import make_filter
 from handsim.envs.teleop.grip import DIGITS, GripStabiliser
 from handsim.envs.teleop.intent import CLOSE_S, NOISE_GATE_RAD, GraspIntent, make_grasp_intent
-from handsim.envs.teleop.pose_filter import make_pose_filter
+from handsim.envs.teleop.pose_filter import ADAPTIVE_REFERENCE_M, make_pose_filter
 from handsim.errors import InvalidKeypoints
 from handsim.hand.pose import HandPose
 from handsim.hand.pose_prior import KeypointNoiseEstimator, default_pose_prior
@@ -93,7 +93,6 @@ class HandChannel:
         """The tracked keypoints' noise now, metres per axis (the prior's weight and the
         adaptive pose filter's cut-offs)."""
         self.retargeter = _retargeter(self._hand_params, self._prior, self.sigma_m)
-        self._set_filter_noise()
         # "auto": the noise estimated from the tracked stream's own jitter.
         self.noise: KeypointNoiseEstimator | None = (
             KeypointNoiseEstimator()
@@ -101,6 +100,8 @@ class HandChannel:
             else None
         )
         self._frames = 0
+        self._sigma_known = self.noise is None
+        self._set_filter_noise()
         intent_params = dict(config.intent_params)
         if getattr(config, "closure_assist", False):
             intent_params.setdefault("close_s", CLOSE_S)
@@ -157,8 +158,10 @@ class HandChannel:
             return
         sigma = self.noise.sigma_m
         relative, absolute = _SIGMA_CHANGE
-        if sigma is not None and abs(sigma - self.sigma_m) > relative * self.sigma_m + absolute:
-            self.sigma_m = sigma
+        if sigma is None:
+            return
+        if not self._sigma_known or abs(sigma - self.sigma_m) > relative * self.sigma_m + absolute:
+            self.sigma_m, self._sigma_known = sigma, True
             if self._prior:
                 self.retargeter = _retargeter(self._hand_params, True, sigma)
             self._set_filter_noise()
@@ -166,7 +169,8 @@ class HandChannel:
     def _set_filter_noise(self) -> None:
         setter = getattr(self.pose_smoother, "set_keypoint_noise", None)
         if self._adaptive and setter is not None:
-            setter(self.sigma_m)
+            # Until the stream's noise is known the filter smooths as tuned (the most).
+            setter(self.sigma_m if self._sigma_known else ADAPTIVE_REFERENCE_M)
 
     def _retarget(self, tracked: np.ndarray) -> RetargetResult | None:
         if np.all(np.isfinite(tracked), axis=1).sum() < 4:

@@ -100,6 +100,8 @@ def test_noise_estimator_recovers_white_noise_on_a_moving_hand():
 def test_channel_estimates_the_prior_noise_from_the_stream():
     """``keypoint_sigma_mm="auto"``: the plain fit until the noise shows, then the prior.
 
+    The adaptive pose filter (``pose_filter="auto"``) smooths as tuned until then.
+
     Tracked with 10 mm of noise, after one second the prior is weighed for about 10 mm; with
     exact keypoints the fit stays the plain one (sigma 0).
     """
@@ -114,16 +116,22 @@ def test_channel_estimates_the_prior_noise_from_the_stream():
     pose = HandPose(np.array([0.0, 0.0, 0.3]), np.zeros(3), GRASP_TYPES["tripod"].angles(0.6))
     for noise_mm, expected_m in ((10.0, 0.01), (0.0, 0.0)):
         config = TeleopConfig(
-            faults=FaultConfig(noise_mm=noise_mm), pose_prior=True, keypoint_sigma_mm="auto"
+            faults=FaultConfig(noise_mm=noise_mm),
+            pose_prior=True,
+            keypoint_sigma_mm="auto",
+            pose_filter="auto",
         )
         channel = HandChannel(config, scene, 0.02, np.random.default_rng(1))
         assert channel.sigma_m == 0.0 and channel.retargeter.keypoint_sigma_m == 0.0
+        assert channel.pose_smoother.cutoff_scale == 1.0  # unknown noise: smoothed as tuned
         times = dict.fromkeys(("faults", "filter", "retarget"), 0.0)
         for _ in range(50):
             channel.track(fk.keypoints(pose), times, 0.0)
         assert channel.sigma_m == pytest.approx(expected_m, rel=0.15)
         assert channel.retargeter.keypoint_sigma_m == pytest.approx(expected_m, rel=0.15)
         assert channel.metrics(0.02)["keypoint_sigma_mm"] == pytest.approx(1e3 * expected_m, 0.15)
+        # The adaptive pose filter follows: as tuned at 10 mm, 30 times faster without noise.
+        assert channel.pose_smoother.cutoff_scale == pytest.approx(1.0 if noise_mm else 30.0, 0.3)
     assert TeleopConfig(pose_prior=True, keypoint_sigma_mm="auto").keypoint_sigma_mm == "auto"
     with pytest.raises(InvalidTeleopConfig, match="'auto' \\(estimated from the stream\\)"):
         TeleopConfig(pose_prior=True, keypoint_sigma_mm="guess")
