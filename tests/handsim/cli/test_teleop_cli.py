@@ -37,7 +37,7 @@ from handsim.cli import main
         (
             ["teleop", "sweep", "--help"],
             ["--noise-mm", "0,5,10", "--filters", "none,one_euro", "--episodes", "--out"]
-            + ["--grasp-intent", "--pose-filter", "{on,off,wrist}"],
+            + ["--grasp-intent", "--pose-filter", "{on,off,wrist,auto}"],
         ),
         (["teleop", "serve", "--help"], ["--port", "--websocket", "--replay"]),
         (["view", "--help"], ["--out", ".mp4 or .gif", "--every", "--rerun"]),
