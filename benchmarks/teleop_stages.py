@@ -6,8 +6,8 @@ Run: ``python benchmarks/teleop_stages.py [--noise-mm 10] [--latency 0] [--dropo
 [--closure-assist on|off] [--pose-prior on|off] [--keypoint-sigma-mm MM]
 [--intent-params JSON] [--intent-oracle none|posture|flex|spread]
 [--motor-noise on|off|wrist|joints] [--correction on|off] [--clean none|wrist|fingers]
-[--clean-from PHASE] [--grip-steady on|off|hand] [--episodes 20] [--trace SEED]
-[--out FILE]``.
+[--clean-from PHASE] [--grip-steady on|off|hand] [--angle-error] [--episodes 20]
+[--trace SEED] [--out FILE]``.
 
 Runs ``handsim/Grasp-v0`` with :class:`~handsim.envs.teleop.operator.ReactiveOperator` for
 seeds ``0 .. episodes - 1`` under the given faults. ``--clean wrist`` replaces the wrist of
@@ -31,6 +31,9 @@ it (and in which phase), its slip and turn and the wrist's mean error per phase,
 time. ``--trace SEED`` prints, every 4th control
 step of that seed's episode, the expert's phase, whether the hand is in grasp intent, which
 digits touch an object (thumb to little) and how far the target object has moved, mm.
+``--angle-error`` adds, per phase of the operator's expert, the flexion targets' error against
+the operator's own angles (after the retargeting and the pose filter, before the grip): each
+joint's bias and standard deviation, averaged over the joints.
 """
 
 from __future__ import annotations
@@ -131,6 +134,26 @@ def _cause(stage: str, diag: dict[str, Any], lifts: list[float]) -> dict[str, An
     }
 
 
+def _angle_error(errors: dict[str, list[np.ndarray]]) -> dict[str, dict[str, float]]:
+    """Per expert phase: the flexion targets' error against the operator's, rad.
+
+    ``bias``: the mean over joints of each joint's mean error's magnitude; ``std``: the mean
+    over joints of each joint's error's standard deviation (noise and lag).
+    """
+    from handsim.hand.pose import JOINT_NAMES
+
+    flex = np.array(["flex" in n for n in JOINT_NAMES])
+    out = {}
+    for phase, rows in errors.items():
+        e = np.array(rows)[:, flex]
+        out[phase] = {
+            "bias_rad": round(float(np.mean(np.abs(e.mean(axis=0)))), 3),
+            "std_rad": round(float(np.mean(e.std(axis=0))), 3),
+            "steps": len(rows),
+        }
+    return out
+
+
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """The episodes of one configuration: success rate, stage counts, wall time."""
     import handsim.envs.teleop.channel as channel_module
@@ -138,7 +161,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from handsim.hand.kinematics import ForwardKinematics
 
     operator_pose: dict[str, Any] = {}
-    if args.clean != "none" or args.intent_oracle != "none":
+    if args.clean != "none" or args.intent_oracle != "none" or args.angle_error:
         # The operator's pose of this step: the one its keypoints are made from.
         keypoints = ForwardKinematics.keypoints
 
@@ -207,6 +230,17 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     assisted: list[bool] = []
     details: list[dict[str, Any]] = []
     start = time.perf_counter()
+    errors: dict[str, list[np.ndarray]] = collections.defaultdict(list)
+    if args.angle_error:
+        action = channel_module.HandChannel.action
+
+        def measured(self: Any, tracked: Any, data: Any) -> np.ndarray:
+            # The channel's target (retargeted and filtered) against the operator's angles.
+            if "pose" in operator_pose and "phase" in operator_pose:
+                errors[operator_pose["phase"]].append(self.target[6:] - operator_pose["pose"][6:])
+            return action(self, tracked, data)
+
+        channel_module.HandChannel.action = measured  # type: ignore[method-assign]
     with TeleopLoop("handsim/Grasp-v0", config) as loop:
         base = loop.env.unwrapped
         intent_flag: list[bool] = [False]
@@ -287,6 +321,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "intent_grasp_s": round(float(np.mean(intent_s)), 2),
         "closure_assist_s": round(float(np.mean(assist_s)), 2),
         "assisted_successes": int(np.sum(assisted)),
+        "angle_error": _angle_error(errors),
         "wall_s": round(time.perf_counter() - start, 1),
     }
 
@@ -322,6 +357,11 @@ def main() -> None:
         help="make --clean's part clean only from this phase of the operator's expert on",
     )
     p.add_argument("--grip-steady", choices=("on", "off", "hand"), default="off")
+    p.add_argument(
+        "--angle-error",
+        action="store_true",
+        help="report per phase the flexion targets' error against the operator's angles",
+    )
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--trace", type=int, default=None, help="print this seed's steps")
     p.add_argument("--out", default="benchmarks/results/teleop_stages.json")
