@@ -21,23 +21,35 @@ from handsim.envs.teleop.faults import FaultConfig, FaultInjector
 from handsim.envs.teleop.filters import make_filter
 from handsim.envs.teleop.grip import DIGITS, GripStabiliser
 from handsim.envs.teleop.intent import CLOSE_S, NOISE_GATE_RAD, GraspIntent, make_grasp_intent
-from handsim.envs.teleop.pose_filter import make_pose_filter
+from handsim.envs.teleop.pose_filter import ADAPTIVE_REFERENCE_M, make_pose_filter
 from handsim.errors import InvalidKeypoints
 from handsim.hand.pose import HandPose
-from handsim.hand.pose_prior import default_pose_prior
+from handsim.hand.pose_prior import KeypointNoiseEstimator, default_pose_prior
 from handsim.hand.retarget import Retargeter, RetargetResult
 
 __all__ = ["HandChannel"]
 
 
-def _retargeter(config: Any, hand: Any, faults: FaultConfig | None) -> Retargeter:
-    """The loop's retargeter: least squares, or with ``config.pose_prior`` a MAP fit."""
-    if not getattr(config, "pose_prior", False):
-        return Retargeter(hand)
+SIGMA_UPDATE_FRAMES = 25
+"""With ``keypoint_sigma_mm="auto"``: frames between looks at the noise estimate."""
+_SIGMA_CHANGE = (0.25, 0.5e-3)  # refit the prior's weight past 25 % + 0.5 mm of change
+
+
+def _sigma_m(config: Any, faults: FaultConfig | None) -> float:
+    """The prior's keypoint noise, metres (``auto`` starts at 0: the plain fit)."""
     sigma_mm = config.keypoint_sigma_mm
+    if sigma_mm == "auto":
+        return 0.0
     if sigma_mm is None:
         sigma_mm = (faults if faults is not None else config.faults).noise_mm
-    return Retargeter(hand, pose_prior=default_pose_prior(), keypoint_sigma_m=1e-3 * sigma_mm)
+    return 1e-3 * float(sigma_mm)
+
+
+def _retargeter(hand: Any, pose_prior: bool, sigma_m: float) -> Retargeter:
+    """The loop's retargeter: least squares, or with ``pose_prior`` a MAP fit."""
+    if not pose_prior:
+        return Retargeter(hand)
+    return Retargeter(hand, pose_prior=default_pose_prior(), keypoint_sigma_m=sigma_m)
 
 
 class HandChannel:
@@ -65,12 +77,31 @@ class HandChannel:
         self.smoother = make_filter(config.filter, rate_hz, **config.filter_params)
         self.pose_smoother = (
             make_pose_filter(
-                rate_hz, **config.pose_filter_params, wrist_only=config.pose_filter == "wrist"
+                rate_hz,
+                **config.pose_filter_params,
+                wrist_only=config.pose_filter == "wrist",
+                adaptive=config.pose_filter == "auto",
             )
             if config.pose_filter
             else None
         )
-        self.retargeter = _retargeter(config, scene.hand.params, faults)
+        self._hand_params = scene.hand.params
+        self._prior = bool(getattr(config, "pose_prior", False))
+        # The noise-adaptive pose filter's cut-offs follow the keypoint noise.
+        self._adaptive = config.pose_filter == "auto"
+        self.sigma_m = _sigma_m(config, faults)
+        """The tracked keypoints' noise now, metres per axis (the prior's weight and the
+        adaptive pose filter's cut-offs)."""
+        self.retargeter = _retargeter(self._hand_params, self._prior, self.sigma_m)
+        # "auto": the noise estimated from the tracked stream's own jitter.
+        self.noise: KeypointNoiseEstimator | None = (
+            KeypointNoiseEstimator()
+            if getattr(config, "keypoint_sigma_mm", None) == "auto"
+            else None
+        )
+        self._frames = 0
+        self._sigma_known = self.noise is None
+        self._set_filter_noise()
         intent_params = dict(config.intent_params)
         if getattr(config, "closure_assist", False):
             intent_params.setdefault("close_s", CLOSE_S)
@@ -79,7 +110,13 @@ class HandChannel:
             make_grasp_intent(scene, dt_s, **intent_params) if config.grasp_intent else None
         )
         self.grip: GripStabiliser | None = (
-            GripStabiliser(types.SimpleNamespace(scene=scene), dt_s) if config.grip_hold else None
+            GripStabiliser(
+                types.SimpleNamespace(scene=scene),
+                dt_s,
+                steady=getattr(config, "grip_steady", False),
+            )
+            if config.grip_hold
+            else None
         )
         self.previous: HandPose | None = None
         self.scale: float | None = None
@@ -107,9 +144,33 @@ class HandChannel:
         tracked = self.smoother(tracked)
         t_filter = time.perf_counter()
         times["filter"] += t_filter - t_fault
+        if self.noise is not None:
+            self._update_sigma(tracked, dropped)
         result = self._retarget(tracked)
         times["retarget"] += time.perf_counter() - t_filter
         return tracked, dropped, result
+
+    def _update_sigma(self, tracked: np.ndarray, dropped: bool) -> None:
+        assert self.noise is not None
+        self.noise.update(tracked, dropped)
+        self._frames += 1
+        if self._frames % SIGMA_UPDATE_FRAMES:
+            return
+        sigma = self.noise.sigma_m
+        relative, absolute = _SIGMA_CHANGE
+        if sigma is None:
+            return
+        if not self._sigma_known or abs(sigma - self.sigma_m) > relative * self.sigma_m + absolute:
+            self.sigma_m, self._sigma_known = sigma, True
+            if self._prior:
+                self.retargeter = _retargeter(self._hand_params, True, sigma)
+            self._set_filter_noise()
+
+    def _set_filter_noise(self) -> None:
+        setter = getattr(self.pose_smoother, "set_keypoint_noise", None)
+        if self._adaptive and setter is not None:
+            # Until the stream's noise is known the filter smooths as tuned (the most).
+            setter(self.sigma_m if self._sigma_known else ADAPTIVE_REFERENCE_M)
 
     def _retarget(self, tracked: np.ndarray) -> RetargetResult | None:
         if np.all(np.isfinite(tracked), axis=1).sum() < 4:
@@ -149,6 +210,7 @@ class HandChannel:
         intent = self.intent
         digit_steps = intent.assist_steps if intent is not None else np.zeros(len(DIGITS))
         return {
+            "keypoint_sigma_mm": 1e3 * self.sigma_m,
             "grip_hold_s": self.grip.held_steps * dt_s if self.grip is not None else 0.0,
             "intent_grasp_s": intent.grasp_steps * dt_s if intent is not None else 0.0,
             "intent_onsets": intent.onsets if intent is not None else 0,

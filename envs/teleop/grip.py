@@ -53,6 +53,9 @@ _DIGIT_JOINTS = [
     np.array([i for i, n in enumerate(JOINT_NAMES) if n.startswith(d + "_")]) for d in DIGITS
 ]
 _DIGIT_FLEX = [np.array([i for i in idx if "flex" in JOINT_NAMES[i]]) for idx in _DIGIT_JOINTS]
+_DIGIT_SPREAD = [
+    np.array([i for i in idx if "flex" not in JOINT_NAMES[i]], dtype=int) for idx in _DIGIT_JOINTS
+]
 
 
 class DigitContacts:
@@ -128,8 +131,10 @@ class GripStabiliser:
         band_rad: float = GRIP_BAND_RAD,
         smooth_s: float = GRIP_SMOOTH_S,
         release_s: float = GRIP_RELEASE_S,
+        steady: bool | str = False,
     ) -> None:
         scene = base.scene
+        self.steady = steady if steady == "hand" else bool(steady)
         self._binding = scene.binding
         self._contacts = DigitContacts(scene)
         self.band_rad = float(band_rad)
@@ -188,8 +193,20 @@ class GripStabiliser:
             change = float(np.mean(mean[flex] - press))
             if change > 0.0 or change < -self.band_rad:
                 press = self._press[d] = np.maximum(mean[flex], contact[flex])
+            if self.steady:
+                # A held digit takes the running mean, not one frame's noise: the press (which
+                # rises as the mean closes) and its spread joints' mean.
+                angles[flex] = press
+                spread = _DIGIT_SPREAD[d]
+                angles[spread] = mean[spread]
+                continue
             # Past the surface the tracked digit presses; it never opens below the contact.
             angles[flex] = np.maximum(angles[flex], press)
         if any(c is not None for c in self._contact):
             self.held_steps += 1
+            if self.steady == "hand":
+                # While the hand holds, its free digits take the running mean too.
+                for d in range(len(DIGITS)):
+                    if self._contact[d] is None:
+                        angles[_DIGIT_JOINTS[d]] = mean[_DIGIT_JOINTS[d]]
         return out

@@ -32,9 +32,7 @@ arrays that :func:`write_rollout` saves for ``handsim view``.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
-import pathlib
 import time
 import warnings
 import weakref
@@ -53,6 +51,7 @@ from handsim.envs.teleop.filters import FILTERS, make_filter
 from handsim.envs.teleop.handedness import SIDE_CHECK_FRAMES, check_side, fully_tracked
 from handsim.envs.teleop.intent import INTENT_DEFAULTS
 from handsim.envs.teleop.pose_filter import make_pose_filter
+from handsim.envs.teleop.rollout import ROLLOUT_VERSION, read_rollout, write_rollout
 from handsim.envs.teleop.sampling import LiveSampler
 from handsim.envs.teleop.streams import InvalidStream, OperatorStream
 from handsim.errors import HandSimError
@@ -70,6 +69,7 @@ __all__ = [
     "read_rollout",
     "ROLLOUT_VERSION",
     "POSE_FILTERS",
+    "GRIP_STEADY",
     "MAX_CONTROL_RATE_HZ",
     "PHYSICS_DT_S",
     "BehindRealTime",
@@ -82,9 +82,11 @@ ANCHORS: tuple[str, ...] = ("none", "start")
 """``start``: move the stream so its first wrist is at the physical hand's start wrist."""
 STAGES: tuple[str, ...] = ("capture", "estimator", "faults", "filter", "retarget", "physics")
 """The timed stages of a step."""
-ROLLOUT_VERSION = 1
-POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist")
-"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only."""
+GRIP_STEADY: tuple[bool | str, ...] = (False, True, "hand")
+"""Values of :attr:`TeleopConfig.grip_steady`: off, held digits, the whole hand while held."""
+POSE_FILTERS: tuple[bool | str, ...] = (False, True, "wrist", "auto")
+"""Values of :attr:`TeleopConfig.pose_filter`: off, the whole pose, the wrist only, the whole
+pose with cut-offs that follow the keypoint noise."""
 PHYSICS_DT_S = 0.002
 """The envs' physics step, seconds (500 Hz)."""
 MAX_CONTROL_RATE_HZ = 120.0
@@ -142,10 +144,19 @@ class TeleopConfig:
             digit touching an object stops at its surface and opens only when the tracked
             digit clearly opens). Nothing is attached; the time it holds is ``grip_hold_s``
             in the metrics.
+        grip_steady: with the grip stabiliser, a held digit takes the running mean of its
+            targets (0.15 s) instead of each frame's (``True``; its flexion the press, which
+            rises as the mean closes, its spread joints the mean); ``"hand"``: while any digit
+            is held, the free digits take the running mean too; ``False`` (default): a
+            tracked target past the press comes through at once. Nothing is attached.
         pose_filter: smooth the retargeted pose in joint space
             (:class:`~handsim.envs.teleop.pose_filter.PoseFilter`, One Euro per part):
-            ``False`` (off), ``True`` (the wrist and the fingers) or ``"wrist"`` (the wrist
-            only; the fingers as fitted).
+            ``False`` (off), ``True`` (the wrist and the fingers), ``"wrist"`` (the wrist
+            only; the fingers as fitted) or ``"auto"`` (the whole pose, its rest cut-offs
+            multiplied by ``(10 mm / sigma)^2``, in [1, 30], for keypoint noise ``sigma``:
+            ``keypoint_sigma_mm``, the faults' ``noise_mm`` when ``None``, estimated from the
+            stream with ``"auto"``; :meth:`PoseFilter.set_keypoint_noise
+            <handsim.envs.teleop.pose_filter.PoseFilter.set_keypoint_noise>`).
         pose_filter_params: its parameters (e.g. ``{"min_cutoff_hz": 1.0}``).
         grasp_intent: drive the fingers from a per-hand grasp intent while the hand grasps
             an object (:class:`~handsim.envs.teleop.intent.GraspIntent`: a closure measure
@@ -169,7 +180,11 @@ class TeleopConfig:
             :func:`~handsim.hand.pose_prior.default_pose_prior`, the grasp taxonomy and the
             gestures), the keypoints weighed by their noise ``keypoint_sigma_mm``.
         keypoint_sigma_mm: the tracked keypoints' noise the prior is weighed against, mm
-            per axis (``None``: the faults' ``noise_mm``; 0 turns the prior off).
+            per axis (``None``: the faults' ``noise_mm``; 0 turns the prior off; ``"auto"``:
+            estimated from the tracked stream's own jitter,
+            :class:`~handsim.hand.pose_prior.KeypointNoiseEstimator`, looked at every
+            :data:`~handsim.envs.teleop.channel.SIGMA_UPDATE_FRAMES` frames; the plain fit
+            until known). The value in use at the end is the metric ``keypoint_sigma_mm``.
         record: keep the per-step arrays for :func:`write_rollout`.
         seed: seed of the faults and the sensor noise (episode ``s`` uses ``seed + s``).
     """
@@ -182,13 +197,14 @@ class TeleopConfig:
     sensor: str = "none"
     camera: str = "icvl"
     grip_hold: bool = True
+    grip_steady: bool | str = False
     pose_filter: bool | str = False
     pose_filter_params: dict[str, float] = dataclasses.field(default_factory=dict)
     grasp_intent: bool = False
     intent_params: dict[str, float] = dataclasses.field(default_factory=dict)
     closure_assist: bool = False
     pose_prior: bool = False
-    keypoint_sigma_mm: float | None = None
+    keypoint_sigma_mm: float | str | None = None
     record: bool = False
     seed: int = 0
 
@@ -210,7 +226,8 @@ class TeleopConfig:
         if self.pose_filter not in POSE_FILTERS:
             raise InvalidTeleopConfig(
                 f"pose_filter={self.pose_filter!r} is not valid; choose False (off), True (the "
-                "wrist and the fingers) or 'wrist' (the wrist only)"
+                "wrist and the fingers), 'wrist' (the wrist only) or 'auto' (the whole pose, "
+                "cut-offs following the keypoint noise)"
             )
         make_filter(self.filter, 50.0, **self.filter_params)  # raises InvalidFilter
         make_pose_filter(50.0, **self.pose_filter_params)
@@ -222,6 +239,7 @@ class TeleopConfig:
         sigma = self.keypoint_sigma_mm
         if not isinstance(self.pose_prior, bool) or (
             sigma is not None
+            and sigma != "auto"
             and (
                 isinstance(sigma, bool)
                 or not isinstance(sigma, (int, float))
@@ -231,7 +249,18 @@ class TeleopConfig:
         ):
             raise InvalidTeleopConfig(
                 f"pose_prior must be True or False and keypoint_sigma_mm None (the faults' "
-                f"noise_mm) or a number >= 0 (mm); received {self.pose_prior!r} and {sigma!r}"
+                f"noise_mm), 'auto' (estimated from the stream) or a number >= 0 (mm); "
+                f"received {self.pose_prior!r} and {sigma!r}"
+            )
+        if self.grip_steady not in GRIP_STEADY:
+            raise InvalidTeleopConfig(
+                f"grip_steady={self.grip_steady!r} is not valid; choose False (off), True (a "
+                "held digit takes its running mean) or 'hand' (every digit while one is held)"
+            )
+        if self.grip_steady and not self.grip_hold:
+            raise InvalidTeleopConfig(
+                "grip_steady acts on the grip stabiliser's held digits: set grip_hold=True "
+                "with it (CLI: --grip-hold on)"
             )
         if self.closure_assist and not self.grasp_intent:
             raise InvalidTeleopConfig(
@@ -698,68 +727,3 @@ def _estimate_world(estimate: Estimate, T_cam_from_world: np.ndarray) -> np.ndar
     if not estimate.valid or estimate.keypoints_cam is None:
         return np.full((21, 3), np.nan)
     return world_from_cam(np.asarray(T_cam_from_world), np.asarray(estimate.keypoints_cam))
-
-
-def write_rollout(
-    path: str | pathlib.Path, episode: TeleopEpisode, loop: TeleopLoop
-) -> pathlib.Path:
-    """Save a recorded episode for ``handsim view`` (compressed NPZ).
-
-    Keys: ``meta`` (JSON: version, env id, env kwargs, seed, control period, metrics, and
-    ``events``: the interaction events as dicts of
-    :class:`~handsim.envs.teleop.events.InteractionEvent`);
-    ``qpos`` (T, nq), ``mocap_pos`` (T, nmocap, 3), ``mocap_quat`` (T, nmocap, 4): the task's
-    state after each step; ``operator_world``, ``tracked_world``, ``physical_world`` (T, 21,
-    3) metres, world frame; ``dropped``, ``success``, ``intent`` (grasp intent) (T,) bool;
-    ``penetration_m`` (T,); and in
-    camera mode ``depth_mm`` (T, H, W) uint16 capture depth in mm, ``truth_cam`` and
-    ``estimate_cam`` (T, 21, 3) metres in the capture camera frame, ``K`` (3, 3) and
-    ``T_cam_from_world`` (4, 4).
-
-    Raises:
-        InvalidTeleopConfig: if the episode was not recorded (``TeleopConfig(record=True)``).
-    """
-    if not episode.arrays:
-        raise InvalidTeleopConfig(
-            "the episode has no arrays: run it with TeleopConfig(record=True)"
-        )
-    from handsim.envs.closed_loop import to_strict_json
-
-    p = pathlib.Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    meta = {
-        "version": ROLLOUT_VERSION,
-        "env_id": loop.env_id,
-        "env_kwargs": loop.env_kwargs,
-        "seed": episode.metrics["seed"],
-        "control_dt_s": episode.metrics["control_dt_s"],
-        "metrics": episode.metrics,
-        "events": [e.to_dict() for e in episode.events],
-    }
-    np.savez_compressed(p, meta=np.array(json.dumps(to_strict_json(meta))), **episode.arrays)
-    return p
-
-
-def read_rollout(path: str | pathlib.Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Read a rollout of :func:`write_rollout`: ``(meta, arrays)``.
-
-    Raises:
-        InvalidStream: for a missing file or one that is not a handsim rollout.
-    """
-    p = pathlib.Path(path)
-    if not p.is_file():
-        raise InvalidStream(f"rollout {str(p)!r} does not exist")
-    try:
-        with np.load(p, allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
-        meta = json.loads(str(arrays.pop("meta")))
-    except (OSError, ValueError, KeyError) as err:
-        raise InvalidStream(
-            f"{p} is not a handsim rollout (written by 'handsim teleop replay --rollout'): {err}"
-        ) from None
-    if meta.get("version") != ROLLOUT_VERSION or "qpos" not in arrays:
-        raise InvalidStream(
-            f"{p}: rollout version {meta.get('version')!r} is not "
-            f"{ROLLOUT_VERSION}, or it has no 'qpos'"
-        )
-    return meta, arrays

@@ -52,6 +52,7 @@ SWEEP_COLUMNS: tuple[str, ...] = (
     "intent_onsets",
     "closure_assist_s",
     "assisted_success_rate",
+    "keypoint_sigma_mm",
     "steps_per_s",
 )
 """Columns of the sweep table (means over the episodes of a grid point; NaN-aware)."""
@@ -75,11 +76,12 @@ def run_sweep(
     streams: Sequence[OperatorStream] | None = None,
     operator: str | None = None,
     grip_hold: bool = True,
+    grip_steady: bool | str = False,
     pose_filter: bool | str = False,
     grasp_intent: bool = False,
     closure_assist: bool = False,
     pose_prior: bool = False,
-    keypoint_sigma_mm: float | None = None,
+    keypoint_sigma_mm: float | str | None = None,
     filter_params: dict[str, dict[str, float]] | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
@@ -102,13 +104,14 @@ def run_sweep(
         operator: one of :data:`~handsim.envs.teleop.operator.OPERATORS` (default:
             ``replay`` with ``streams``, else ``reactive``).
         grip_hold: the loop's grip stabiliser (:attr:`TeleopConfig.grip_hold`).
+        grip_steady: its steady hold (:attr:`TeleopConfig.grip_steady`).
         pose_filter: the loop's joint-space pose filter (:attr:`TeleopConfig.pose_filter`:
             ``False``, ``True`` or ``"wrist"``).
         grasp_intent: the loop's grasp intent (:attr:`TeleopConfig.grasp_intent`).
         closure_assist: its closure assist (:attr:`TeleopConfig.closure_assist`).
         pose_prior: retarget with the pose prior (:attr:`TeleopConfig.pose_prior`).
         keypoint_sigma_mm: its keypoint noise (:attr:`TeleopConfig.keypoint_sigma_mm`;
-            ``None``: each cell's ``noise_mm``).
+            ``None``: each cell's ``noise_mm``; ``"auto"``: estimated from the stream).
         filter_params: parameters per filter name (e.g. ``{"one_euro": {"beta": 1.0}}``).
         progress: called with 1 after every episode.
 
@@ -145,6 +148,7 @@ def run_sweep(
                 filter=filt,
                 filter_params=dict((filter_params or {}).get(filt, {})),
                 grip_hold=grip_hold,
+                grip_steady=grip_steady,
                 pose_filter=pose_filter,
                 grasp_intent=grasp_intent,
                 closure_assist=closure_assist,
@@ -196,6 +200,7 @@ def run_sweep(
         "mode": mode,
         "operator": operator,
         "grip_hold": bool(grip_hold),
+        "grip_steady": grip_steady if isinstance(grip_steady, str) else bool(grip_steady),
         "pose_filter": pose_filter if isinstance(pose_filter, str) else bool(pose_filter),
         "grasp_intent": bool(grasp_intent),
         "closure_assist": bool(closure_assist),

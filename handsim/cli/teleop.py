@@ -79,6 +79,10 @@ _wait_s = number(0, 3600)
 _speed = number(0, 1000, lo_open=True)
 
 
+def _sigma_mm(text: str) -> float | str:
+    return "auto" if text == "auto" else _noise_mm(text)
+
+
 def _task(text: str) -> str:
     if text in TASKS:
         return TASKS[text]
@@ -228,11 +232,20 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
         "when the tracked digit clearly opens; nothing is attached (default: on)",
     )
     p.add_argument(
+        "--grip-steady",
+        choices=("on", "off", "hand"),
+        default="off",
+        help="with --grip-hold on: a held digit takes the running mean of its targets (0.15 s) "
+        "instead of each frame's; 'hand': every digit while one is held (default: off)",
+    )
+    p.add_argument(
         "--pose-filter",
         choices=_POSE_FILTER_CHOICES,
         default="off",
         help="smooth the retargeted hand pose in joint space (One Euro per part: wrist "
-        "position, wrist rotation, joint angles; 'wrist': the wrist only; default: off)",
+        "position, wrist rotation, joint angles; 'wrist': the wrist only; 'auto': the whole "
+        "pose, its cut-offs raised as the keypoint noise (--keypoint-sigma-mm) falls below "
+        "10 mm; default: off)",
     )
     p.add_argument(
         "--grasp-intent",
@@ -260,10 +273,11 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     )
     p.add_argument(
         "--keypoint-sigma-mm",
-        type=number(0, 1000),
+        type=_sigma_mm,
         default=None,
-        help="with --pose-prior on: the tracked keypoints' noise, mm per axis, [0, 1000] "
-        "(default: the fault noise --noise-mm of the run or sweep cell)",
+        help="with --pose-prior on: the tracked keypoints' noise, mm per axis, [0, 1000], or "
+        "'auto' (estimated from the tracked stream's jitter; for live streams) (default: the "
+        "fault noise --noise-mm of the run or sweep cell)",
     )
     p.add_argument(
         "--seed",
@@ -274,7 +288,7 @@ def _add_loop_options(p: argparse.ArgumentParser, *, grid: bool = False) -> None
     add_quiet(p)
 
 
-_POSE_FILTER_CHOICES = ("on", "off", "wrist")
+_POSE_FILTER_CHOICES = ("on", "off", "wrist", "auto")
 
 
 def _port_group(p: argparse.ArgumentParser, required: bool = True) -> None:

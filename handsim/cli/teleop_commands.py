@@ -19,7 +19,12 @@ __all__: list[str] = []
 
 _HANDS = ("right", "left")
 _DEFAULT_LIVE_RATE_HZ = 90.0  # a headset's rate, when the stream cannot be measured
-_POSE_FILTER_VALUES: dict[str, bool | str] = {"on": True, "off": False, "wrist": "wrist"}
+_POSE_FILTER_VALUES: dict[str, bool | str] = {
+    "on": True,
+    "off": False,
+    "wrist": "wrist",
+    "auto": "auto",
+}
 
 
 def _faults(args: argparse.Namespace, **levels: Any) -> Any:
@@ -64,6 +69,7 @@ def _hand_options(args: argparse.Namespace) -> dict[str, Any]:
     """The physical hand's options, shared by one loop and a sweep."""
     return {
         "grip_hold": args.grip_hold == "on",
+        "grip_steady": {"on": True, "off": False, "hand": "hand"}[args.grip_steady],
         "pose_filter": _POSE_FILTER_VALUES[args.pose_filter],
         "grasp_intent": args.grasp_intent == "on",
         "closure_assist": args.closure_assist == "on",

@@ -85,3 +85,50 @@ def test_bad_input_and_parameters_are_refused():
         make_pose_filter(50.0, beta_rot=-1.0)
     with pytest.raises(InvalidFilter, match="choose from min_cutoff_hz"):
         TeleopConfig(pose_filter_params={"cutoff": 1.0})
+
+
+def test_adaptive_cutoffs_follow_the_keypoint_noise():
+    """``adaptive``: the rest cut-offs times ``(10 mm / sigma)^2``, in [1, 30].
+
+    Half the noise raises the cut-offs 4 times, and the filtered angles shake as much as
+    with the full noise at the tuned cut-off (a first-order low-pass passes
+    ``sqrt(a / (2 - a))`` of white noise: 0.250 at 1 Hz, 0.496 at 4 Hz, at 50 Hz).
+    """
+    flt = PoseFilter(50.0, adaptive=True, beta_joint=0.0, d_cutoff_hz=1.0)
+    for sigma_m, scale in ((0.01, 1.0), (0.005, 4.0), (0.0, 30.0), (0.02, 1.0)):
+        flt.set_keypoint_noise(sigma_m)
+        assert flt.cutoff_scale == pytest.approx(scale)
+        assert flt.min_cutoff_hz == pytest.approx(scale) and flt.rot_cutoff_hz == pytest.approx(
+            scale
+        )
+    fixed = PoseFilter(50.0)
+    fixed.set_keypoint_noise(0.0)  # not adaptive: unchanged
+    assert fixed.cutoff_scale == 1.0 and fixed.min_cutoff_hz == 1.0
+    rng = np.random.default_rng(0)
+    shakes = []
+    for sigma_m in (0.01, 0.005):
+        flt = PoseFilter(50.0, adaptive=True, beta_joint=0.0)
+        flt.set_keypoint_noise(sigma_m)
+        noise = 100 * sigma_m * rng.standard_normal((4000, 27))  # angles' noise tracks sigma
+        out = np.array([flt(np.r_[np.zeros(6), n[6:]]) for n in noise])
+        shakes.append(np.std(out[200:, 6:]))
+    assert shakes[1] == pytest.approx(shakes[0], rel=0.1)
+
+
+def test_channel_sets_the_adaptive_filter_from_the_noise():
+    """``pose_filter="auto"``: the channel's filter is scaled for the faults' noise (5 mm: 4)."""
+    import gymnasium as gym
+
+    import handsim.envs  # noqa: F401 (registers the ids)
+    from handsim.envs.teleop import FaultConfig
+    from handsim.envs.teleop.channel import HandChannel
+    from handsim.envs.teleop.loop import InvalidTeleopConfig
+
+    env = gym.make("handsim/Grasp-v0", obs_mode="state", control_mode="pose")
+    env.reset(seed=0)
+    config = TeleopConfig(faults=FaultConfig(noise_mm=5.0), pose_filter="auto")
+    channel = HandChannel(config, env.unwrapped.scene, 0.02, np.random.default_rng(0))
+    assert channel.pose_smoother.cutoff_scale == pytest.approx(4.0)
+    env.close()
+    with pytest.raises(InvalidTeleopConfig, match="'wrist' \\(the wrist only\\) or 'auto'"):
+        TeleopConfig(pose_filter="adaptive")

@@ -37,7 +37,7 @@ from handsim.cli import main
         (
             ["teleop", "sweep", "--help"],
             ["--noise-mm", "0,5,10", "--filters", "none,one_euro", "--episodes", "--out"]
-            + ["--grasp-intent", "--pose-filter", "{on,off,wrist}"],
+            + ["--grasp-intent", "--pose-filter", "{on,off,wrist,auto}"],
         ),
         (["teleop", "serve", "--help"], ["--port", "--websocket", "--replay"]),
         (["view", "--help"], ["--out", ".mp4 or .gif", "--every", "--rerun"]),
@@ -360,3 +360,48 @@ def test_replay_and_sweep_take_the_pose_prior(tmp_path):
         text=True,
     )
     assert refused.returncode != 0 and "--keypoint-sigma-mm" in refused.stderr
+
+
+def test_replay_and_sweep_take_the_steady_grip_and_an_estimated_sigma(tmp_path):
+    """`--grip-steady on --pose-prior on --keypoint-sigma-mm auto --pose-filter auto`, run.
+
+    The config records both; the metrics hold the estimated noise (about the faults' 10 mm);
+    a steady grip without the grip stabiliser is refused, naming the option that fits.
+    """
+    stream = tmp_path / "press.npz"
+    cli = [sys.executable, "-m", "handsim.cli", "teleop"]
+    subprocess.run(
+        [*cli, "generate", str(stream), "--task", "press", "--seed", "1"],
+        check=True,
+        capture_output=True,
+    )
+    out = tmp_path / "replay"
+    options = ["--grip-steady", "on", "--pose-prior", "on", "--keypoint-sigma-mm", "auto"]
+    done = subprocess.run(
+        [*cli, "replay", str(stream), "--task", "press", "--seed", "1", "--out", str(out)]
+        + ["--noise-mm", "10", *options, "--pose-filter", "auto"],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((out / "teleop.json").read_text())
+    assert metrics["config"]["grip_steady"] is True
+    assert metrics["config"]["keypoint_sigma_mm"] == "auto"
+    assert metrics["config"]["pose_filter"] == "auto"
+    assert 8.0 < metrics["keypoint_sigma_mm"] < 12.0
+    sweep = tmp_path / "sweep"
+    done = subprocess.run(
+        [*cli, "sweep", "--task", "press", "--noise-mm", "5", "--latency", "0"]
+        + ["--dropout", "0", "--filters", "none", "--episodes", "1", "--quiet"]
+        + [*options[:2], "--out", str(sweep)],
+        capture_output=True,
+        text=True,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads((sweep / "sweep.json").read_text())["grip_steady"] is True
+    refused = subprocess.run(
+        [*cli, "replay", str(stream), "--grip-steady", "on", "--grip-hold", "off"],
+        capture_output=True,
+        text=True,
+    )
+    assert refused.returncode != 0 and "--grip-hold on" in refused.stderr
