@@ -23,8 +23,13 @@ Speed does not depend on the weights: every pose network is timed with random we
 config (the shipped localizer refines). The machine's load average is recorded (a shared
 machine is slower).
 
-Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100]``; without
-``--data`` it generates 60 hand-only frames in a temporary folder. Writes
+``--profile`` adds the time of each stage of one frame through the shipped pipeline
+(``DeepPriorEstimator``'s own steps, in its order: the input checks, plane removal, the blob,
+each refinement step's crop and network, the pose crop, the pose network, the keypoints),
+mean ms over the frames and repeats, beside the whole ``predict`` on the same frames.
+
+Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100] [--profile]``;
+without ``--data`` it generates 60 hand-only frames in a temporary folder. Writes
 ``benchmarks/results/bench_estimators.json``.
 """
 
@@ -89,6 +94,82 @@ def _estimator(config: dict, folder: Path, **kwargs):
     return DeepPriorEstimator(path, **kwargs)
 
 
+def _profile(checkpoint: str, items: list, repeat: int = 5) -> dict:
+    """Mean ms of each stage of the shipped pipeline on one frame, and of the whole predict.
+
+    The stages call what ``DeepPriorEstimator.predict`` calls, in its order (the blob after
+    :func:`remove_plane` as :func:`nearest_blob_com`; the localizer shares the box of the
+    measured pixels between the two, a few microseconds less).
+    """
+    import numpy as np
+    import torch
+
+    from handsim.estimator import validate_depth_input
+    from handsim.estimators.deepprior import preprocess as P
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator, _as_input
+
+    est = DeepPriorEstimator(checkpoint)
+    loc = est.localizer
+    clock = time.perf_counter
+
+    def stages(depth, K):  # noqa: N803
+        t = [clock()]
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        t.append(clock())
+        cleaned = P.remove_plane(depth_m, K_cv)
+        t.append(clock())
+        c = P.nearest_blob_com(cleaned, K_cv)
+        t.append(clock())
+        if c is None:
+            return None
+        with torch.inference_mode():
+            for _ in range(loc.iterations):
+                x = P.crop_depth(
+                    depth_m,
+                    P.crop_matrix(c, K_cv, loc.cube_m, loc.size),
+                    c[2],
+                    loc.cube_m,
+                    loc.size,
+                )
+                t.append(clock())
+                off = loc._forward(_as_input(x[None, None], loc.device))
+                c = c + off[0].double().cpu().numpy() * (loc.cube_m / 2.0)
+                t.append(clock())
+            x = P.crop_depth(
+                depth_m, P.crop_matrix(c, K_cv, est.cube_m, est.size), c[2], est.cube_m, est.size
+            )
+            t.append(clock())
+            y = est._forward(_as_input(x[None, None], est.device))[0].double().cpu().numpy()
+            t.append(clock())
+        P.denormalize_keypoints(y.reshape(21, 3), c, est.cube_m)
+        t.append(clock())
+        return np.diff(t)
+
+    names = ["checks", "plane removal", "blob"]
+    for i in range(loc.iterations):
+        names += [f"refine {i + 1} crop", f"refine {i + 1} network"]
+    names += ["pose crop", "pose network", "keypoints"]
+    for item in items[:3]:  # warm-up
+        stages(*item)
+        est.predict(*item)
+    rows, whole = [], []
+    for _ in range(repeat):
+        for depth, K in items:  # noqa: N806
+            row = stages(depth, K)
+            if row is not None:
+                rows.append(row)
+            start = clock()
+            est.predict(depth, K)
+            whole.append(clock() - start)
+    ms = 1000.0 * np.mean(rows, axis=0)
+    return {
+        "stages_ms": dict(zip(names, ms.round(4).tolist(), strict=True)),
+        "sum_of_stages_ms": float(ms.sum()),
+        "predict_ms": 1000.0 * float(np.mean(whole)),
+        "frames_timed": len(rows),
+    }
+
+
 def _loop(episodes: int) -> dict:
     """Grasp-v0 steps/s and mean keypoint error with DeepPrior++ in the loop, track off / on."""
     import gymnasium as gym
@@ -143,6 +224,11 @@ def main() -> None:
     parser.add_argument(
         "--loop-episodes", type=int, default=2, help="Grasp-v0 episodes per loop variant (0: none)"
     )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="also time each stage of the shipped DeepPrior and DeepPrior++ pipelines",
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -196,6 +282,8 @@ def main() -> None:
             est = _estimator(configs[net], Path(tmp), localizer=None, detector="com")
             fps[f"pipeline {name}"] = _rate(est.predict, items)
             ratios[name] = fps[f"pipeline {name}"] / TARGET_FPS["deepprior"]
+    if args.profile:
+        results["profile"] = {name: _profile(name, items) for name in ("deepprior", "deepprior++")}
     if args.loop_episodes:
         results["loop"] = _loop(args.loop_episodes)
         for name, value in results["loop"].items():

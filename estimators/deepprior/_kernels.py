@@ -20,6 +20,37 @@ _JIT = {"nogil": True, "cache": True}
 
 
 @numba.njit(**_JIT)
+def clip_depth(
+    depth_m: np.ndarray,
+    max_depth_m: np.float32,
+    out: np.ndarray,
+    rows: np.ndarray,
+    cols: np.ndarray,
+) -> None:
+    """Depth in ``(0, max_depth_m]``, +0 elsewhere, and the rows and columns that hold some.
+
+    NaN, inf and -0 become +0 (as OpenCV's two thresholds and patchNaNs did).
+
+    Args:
+        depth_m: (H, W) float32 depth, metres.
+        max_depth_m: farthest depth kept, metres.
+        out: (H, W) float32, written.
+        rows: (H,) bool, written: the row holds a kept depth.
+        cols: (W,) bool, set (not cleared) where the column holds a kept depth.
+    """
+    zero = np.float32(0.0)
+    for r in range(depth_m.shape[0]):
+        seen = False
+        for c in range(depth_m.shape[1]):
+            z = depth_m[r, c]
+            keep = (z > zero) & (z <= max_depth_m)
+            out[r, c] = z if keep else zero
+            seen |= keep
+            cols[c] |= keep
+        rows[r] = seen
+
+
+@numba.njit(**_JIT)
 def _scatter(pts: np.ndarray, mask: np.ndarray, step: int) -> tuple[np.ndarray, np.ndarray, int]:
     """Mean, 3 x 3 scatter matrix (centred) and count of every ``step``-th masked point.
 
@@ -88,6 +119,8 @@ def fit_plane(
     best_count, kept = -1, 0
     n = np.zeros(3)
     d = 0.0
+    # The scored points in three contiguous arrays: the count below vectorises.
+    sx, sy, sz = pts[sub, 0].copy(), pts[sub, 1].copy(), pts[sub, 2].copy()
     for h in range(tri.shape[0]):
         a, b, c = tri[h, 0], tri[h, 1], tri[h, 2]
         e0 = pts[b, 0] - pts[a, 0]
@@ -104,8 +137,8 @@ def fit_plane(
         n0, n1, n2 = n0 / norm, n1 / norm, n2 / norm
         off = -(n0 * pts[a, 0] + n1 * pts[a, 1] + n2 * pts[a, 2])
         count = 0
-        for s in sub:
-            count += abs(pts[s, 0] * n0 + pts[s, 1] * n1 + pts[s, 2] * n2 + off) < threshold_m
+        for i in range(len(sx)):
+            count += abs(sx[i] * n0 + sy[i] * n1 + sz[i] * n2 + off) < threshold_m
         if count > best_count:  # the first of equal counts, as argmax
             best_count = count
             n[0], n[1], n[2], d = n0, n1, n2, off
@@ -201,27 +234,50 @@ def half_points(
 
 
 @numba.njit(**_JIT)
-def count_and_min(depth_m: np.ndarray) -> tuple[int, float]:
-    """Number of measured (> 0) pixels and their smallest depth (``inf`` if none)."""
+def nearest_slab(depth_m: np.ndarray, cube_m: float) -> tuple[int, float, np.ndarray]:
+    """The measured pixels (> 0) and those of them within ``cube_m`` of the nearest.
+
+    The slab is ``0 < depth <= z_min + cube_m``, the bound rounded to the depth's dtype (as
+    NumPy compares a float32 array with a Python float).
+
+    Args:
+        depth_m: (H, W) float depth, metres, 0 = no measurement.
+        cube_m: slab depth, metres.
+
+    Returns:
+        ``(count, z_min, slab)``: the number of measured pixels, the nearest depth (``inf``
+        if none) and the (H, W) uint8 slab mask (1 inside).
+    """
     count = 0
     low = np.inf
     for r in range(depth_m.shape[0]):
         for c in range(depth_m.shape[1]):
             z = depth_m[r, c]
-            if z > 0:
-                count += 1
-                if z < low:
-                    low = z
-    return count, low
+            count += z > 0
+            low = min(low, z if z > 0 else np.inf)
+    bound = np.empty(1, depth_m.dtype)
+    bound[0] = np.float64(low) + cube_m
+    far = bound[0]
+    slab = np.empty(depth_m.shape, np.uint8)
+    for r in range(depth_m.shape[0]):
+        for c in range(depth_m.shape[1]):
+            z = depth_m[r, c]
+            slab[r, c] = (z > 0) & (z <= far)
+    return count, low, slab
 
 
 @numba.njit(**_JIT)
 def label_sizes(labels: np.ndarray, n: int) -> np.ndarray:
     """(n,) int64 pixel count of each label ``0 .. n - 1`` of a (H, W) label image."""
-    sizes = np.zeros(n, np.int64)
+    # Four partial counts (by column): neighbouring pixels of one blob do not wait on each
+    # other's increment.
+    partial = np.zeros((4, n), np.int64)
     for r in range(labels.shape[0]):
         for c in range(labels.shape[1]):
-            sizes[labels[r, c]] += 1
+            partial[c & 3, labels[r, c]] += 1
+    sizes = np.zeros(n, np.int64)
+    for k in range(4):
+        sizes += partial[k]
     return sizes
 
 

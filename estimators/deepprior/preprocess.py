@@ -197,28 +197,43 @@ def remove_plane(
     Returns:
         (H, W) float32 depth copy, metres.
     """
-    out = _clip(depth_m, max_depth_m)
-    return _remove_plane(out, K, threshold_m, min_fraction, min_spread_m, rng)[0]
+    out, box = _clip(depth_m, max_depth_m)
+    return _remove_plane(out, box, K, threshold_m, min_fraction, min_spread_m, rng)[0]
 
 
-def _clip(depth_m: np.ndarray, max_depth_m: float) -> np.ndarray:
-    """(H, W) float32 copy of depth with 0 outside ``(0, max_depth_m]`` and for NaN."""
+def _clip(depth_m: np.ndarray, max_depth_m: float) -> tuple[np.ndarray, tuple[slice, slice] | None]:
+    """Depth in ``(0, max_depth_m]`` (0 elsewhere and for NaN) and the box of those pixels.
+
+    Returns:
+        ``(out, box)``: (H, W) float32 copy, metres, and the box as (rows, columns) slices, or
+        ``None`` when no pixel is kept.
+    """
+    from ._kernels import clip_depth
+
     depth_m = np.asarray(depth_m)
-    if depth_m.dtype == np.float32:  # one OpenCV pass each: > max_depth_m, <= 0, NaN -> 0
-        out = cv2.threshold(depth_m, max_depth_m, 0, cv2.THRESH_TOZERO_INV)[1]
-        return cv2.patchNaNs(cv2.threshold(out, 0, 0, cv2.THRESH_TOZERO)[1], 0)
-    return np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
+    if depth_m.dtype != np.float32 or depth_m.ndim != 2:
+        out = np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
+        return out, _box(out > 0)
+    # One pass: the copy and the rows and columns that hold depth.
+    out = np.empty(depth_m.shape, np.float32)
+    rows, cols = np.empty(out.shape[0], bool), np.zeros(out.shape[1], bool)
+    clip_depth(depth_m, np.float32(max_depth_m), out, rows, cols)
+    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
+    if len(r) == 0:
+        return out, None
+    return out, (slice(int(r[0]), int(r[-1]) + 1), slice(int(c[0]), int(c[-1]) + 1))
 
 
 def _remove_plane(
     out: np.ndarray,
+    box: tuple[slice, slice] | None,
     K: np.ndarray,  # noqa: N803
     threshold_m: float,
     min_fraction: float,
     min_spread_m: float,
     rng: np.random.Generator | int | None,
 ) -> tuple[np.ndarray, tuple[slice, slice] | None]:
-    """:func:`remove_plane` on clipped depth, in place: ``(out, box of its measured pixels)``.
+    """:func:`remove_plane` on clipped depth and its box, in place: ``(out, box)``.
 
     The work is done on the measured pixels' bounding box (a hand alone covers a tenth of the
     image), with the same arithmetic per pixel as on the whole image.
@@ -226,7 +241,6 @@ def _remove_plane(
     from ._kernels import drop_plane, half_points, spread_m
 
     K = np.asarray(K, dtype=np.float64)  # noqa: N806
-    box = _box(out > 0)
     if box is None:
         return out, box
     rows, cols = box
@@ -282,6 +296,9 @@ def nearest_blob_com(
     Returns:
         (3,) centre in the camera frame, metres, or ``None`` if no blob is large enough.
     """
+    depth_m = np.asarray(depth_m)
+    if depth_m.dtype.kind != "f":  # as NumPy compares integers with a float: in float64
+        depth_m = depth_m.astype(np.float64)
     return _nearest_blob_com(depth_m, K, _box(depth_m > 0), cube_m, min_pixels)
 
 
@@ -296,17 +313,15 @@ def _nearest_blob_com(
 
     On the box, the blobs are the same and labelled in the same (raster) order.
     """
-    from ._kernels import blob_sums, count_and_min, label_sizes
+    from ._kernels import blob_sums, label_sizes, nearest_slab
 
     if box is None:
         return None
     depth = depth_m[box]
-    count, z_min = count_and_min(depth)
+    count, _, slab = nearest_slab(depth, float(cube_m))
     if count < min_pixels:
         return None
-    slab = depth > 0
-    slab &= depth <= float(z_min) + cube_m
-    n, labels = cv2.connectedComponents(slab.view(np.uint8), connectivity=8)
+    n, labels = cv2.connectedComponents(slab, connectivity=8)
     if n <= 1:
         return None
     sizes = label_sizes(labels, n)
@@ -355,7 +370,7 @@ class PlaneRemovedLocalizer(EstimatorBase):
         # remove_plane and nearest_blob_com, the blob searched in the box of the measured
         # pixels that the plane removal found.
         cleaned, box = _remove_plane(
-            _clip(depth_m, _MAX_DEPTH_M), K, self.threshold_m, self.min_fraction, _MIN_SPREAD_M, 0
+            *_clip(depth_m, _MAX_DEPTH_M), K, self.threshold_m, self.min_fraction, _MIN_SPREAD_M, 0
         )
         return _nearest_blob_com(cleaned, K, box, self.cube_m, _MIN_PIXELS)
 
