@@ -28,9 +28,14 @@ machine is slower).
 each refinement step's crop and network, the pose crop, the pose network, the keypoints),
 mean ms over the frames and repeats, beside the whole ``predict`` on the same frames.
 
-Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100] [--profile]``;
-without ``--data`` it generates 60 hand-only frames in a temporary folder. Writes
-``benchmarks/results/bench_estimators.json``.
+``--baseline REV`` times the whole pipeline (shipped DeepPrior, the paper's FC 1024 network)
+with the preprocessing module (detector and crop) of git revision ``REV`` and with the current
+one, alternating in rounds in this process: a before/after ratio that the machine's load
+weighs on equally.
+
+Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100] [--profile]
+[--baseline REV]``; without ``--data`` it generates 60 hand-only frames in a temporary folder.
+Writes ``benchmarks/results/bench_estimators.json``.
 """
 
 from __future__ import annotations
@@ -170,6 +175,57 @@ def _profile(checkpoint: str, items: list, repeat: int = 5) -> dict:
     }
 
 
+def _baseline(rev: str, estimators: dict, items: list, rounds: int = 8) -> dict:
+    """Whole-pipeline ms with ``rev``'s preprocess module and the current one, alternating."""
+    import importlib.util
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    from handsim.estimators.deepprior import estimator as E  # noqa: N812
+    from handsim.estimators.deepprior import preprocess as current
+
+    root = Path(__file__).resolve().parent.parent
+    source = subprocess.run(
+        ["git", "show", f"{rev}:estimators/deepprior/preprocess.py"],
+        cwd=root,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "preprocess_baseline.py"
+        path.write_text(source)
+        spec = importlib.util.spec_from_file_location("_preprocess_baseline", path)
+        old = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = old  # dataclasses look their module up
+        spec.loader.exec_module(old)
+    out = {}
+    for name, est in estimators.items():
+        times: dict[str, list[float]] = {"baseline": [], "current": []}
+        for _ in range(rounds):
+            for tag, module in (("baseline", old), ("current", current)):
+                est.localizer.base = module.PlaneRemovedLocalizer()
+                E.crop_depth, E.crop_matrix = module.crop_depth, module.crop_matrix
+                for item in items[:3]:  # warm-up
+                    est.predict(*item)
+                start = time.perf_counter()
+                for item in items:
+                    est.predict(*item)
+                times[tag].append((time.perf_counter() - start) / len(items))
+        E.crop_depth, E.crop_matrix = current.crop_depth, current.crop_matrix
+        est.localizer.base = current.PlaneRemovedLocalizer()
+        base_s, cur_s = float(np.median(times["baseline"])), float(np.median(times["current"]))
+        out[name] = {
+            "baseline_fps": 1.0 / base_s,
+            "current_fps": 1.0 / cur_s,
+            "speedup": base_s / cur_s,
+            "rounds": rounds,
+        }
+    return {"revision": rev, "pipelines": out}
+
+
 def _loop(episodes: int) -> dict:
     """Grasp-v0 steps/s and mean keypoint error with DeepPrior++ in the loop, track off / on."""
     import gymnasium as gym
@@ -229,6 +285,12 @@ def main() -> None:
         action="store_true",
         help="also time each stage of the shipped DeepPrior and DeepPrior++ pipelines",
     )
+    parser.add_argument(
+        "--baseline",
+        metavar="REV",
+        default=None,
+        help="also time the pipeline with git revision REV's preprocessing, alternating",
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -282,6 +344,15 @@ def main() -> None:
             est = _estimator(configs[net], Path(tmp), localizer=None, detector="com")
             fps[f"pipeline {name}"] = _rate(est.predict, items)
             ratios[name] = fps[f"pipeline {name}"] / TARGET_FPS["deepprior"]
+    if args.baseline:
+        from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+
+        with tempfile.TemporaryDirectory() as tmp:
+            pipelines = {
+                "deepprior (FC 512, as shipped)": DeepPriorEstimator("deepprior"),
+                "deepprior": _estimator(deep, Path(tmp)),
+            }
+            results["baseline"] = _baseline(args.baseline, pipelines, items)
     if args.profile:
         results["profile"] = {name: _profile(name, items) for name in ("deepprior", "deepprior++")}
     if args.loop_episodes:
