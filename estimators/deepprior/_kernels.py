@@ -182,12 +182,14 @@ def drop_plane(
         d: the plane's offset, metres (camera on the + side).
         threshold_m: inlier distance, metres.
     """
+    zero = np.float32(0.0)
     for r in range(depth_m.shape[0]):
         row = rows[r]
         for c in range(depth_m.shape[1]):
             z = depth_m[r, c]
-            if z > 0 and (row + cols[c] + n2) * np.float64(z) + d < threshold_m:
-                depth_m[r, c] = 0
+            # Without branches (the loop vectorises); a missing pixel stays 0.
+            near = (row + cols[c] + n2) * np.float64(z) + d < threshold_m
+            depth_m[r, c] = zero if near else z
 
 
 @numba.njit(**_JIT)

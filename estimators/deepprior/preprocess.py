@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from typing import Any
 
 import cv2
@@ -145,6 +146,25 @@ def fit_plane_ransac(
     return PlaneFit(normal=n, offset_m=d, inliers=int(np.count_nonzero(inl)))
 
 
+_THREAD = threading.local()
+
+
+def _generator(seed: np.random.Generator | int | None) -> np.random.Generator:
+    """``np.random.default_rng(seed)``, for an int seed without seeding again.
+
+    Seeding (SeedSequence's hashing) costs more than the fit's draws; this thread's bit
+    generator of the last int seed is reset to its seeded state instead (the same draws).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        return np.random.default_rng(seed)
+    cached = getattr(_THREAD, "generator", None)
+    if cached is None or cached[0] != seed:
+        bit_generator = np.random.PCG64(int(seed))
+        cached = _THREAD.generator = (int(seed), bit_generator, bit_generator.state)
+    cached[1].state = cached[2]
+    return np.random.Generator(cached[1])
+
+
 def _fit_plane(
     pts: np.ndarray,
     threshold_m: float,
@@ -157,7 +177,7 @@ def _fit_plane(
 
     if len(pts) < 3:
         return None
-    rng = np.random.default_rng(rng)
+    rng = _generator(rng)
     sub = rng.integers(0, len(pts), size=min(subsample, len(pts)))
     tri = rng.integers(0, len(pts), size=(hypotheses, 3))
     n, d, inl, kept = fit_plane(np.ascontiguousarray(pts), sub, tri, float(threshold_m))

@@ -356,6 +356,18 @@ def test_plane_fit_of_degenerate_points_is_none():
     assert P.fit_plane_ransac(line) is None
 
 
+def test_fit_generator_draws_as_default_rng():
+    """The reused generator of an int seed draws what np.random.default_rng(seed) draws."""
+    for seed in (0, 0, np.int64(7), 0, 123456789):
+        got = P._generator(seed).integers(0, 1000, size=(4, 3))
+        np.testing.assert_array_equal(got, np.random.default_rng(seed).integers(0, 1000, (4, 3)))
+    rng = np.random.default_rng(1)
+    assert P._generator(rng) is rng
+    assert isinstance(P._generator(None), np.random.Generator)
+    with pytest.raises(ValueError):
+        P._generator(-1)
+
+
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_median_equals_numpy(dtype):
     """The blob's median is np.median's value, odd and even counts, ties included."""
