@@ -35,15 +35,15 @@ def clip_depth(
         depth_m: (H, W) float32 depth, metres.
         max_depth_m: farthest depth kept, metres.
         out: (H, W) float32, written.
-        rows: (H,) bool, written: the row holds a kept depth.
-        cols: (W,) bool, set (not cleared) where the column holds a kept depth.
+        rows: (H,) uint8, written: 1 where the row holds a kept depth.
+        cols: (W,) uint8, set to 1 (not cleared) where the column holds a kept depth.
     """
     zero = np.float32(0.0)
     for r in range(depth_m.shape[0]):
-        seen = False
+        seen = np.uint8(0)
         for c in range(depth_m.shape[1]):
             z = depth_m[r, c]
-            keep = (z > zero) & (z <= max_depth_m)
+            keep = np.uint8((z > zero) & (z <= max_depth_m))  # uint8: the loop vectorises
             out[r, c] = z if keep else zero
             seen |= keep
             cols[c] |= keep

@@ -236,7 +236,7 @@ def _clip(depth_m: np.ndarray, max_depth_m: float) -> tuple[np.ndarray, tuple[sl
         return out, _box(out > 0)
     # One pass: the copy and the rows and columns that hold depth.
     out = np.empty(depth_m.shape, np.float32)
-    rows, cols = np.empty(out.shape[0], bool), np.zeros(out.shape[1], bool)
+    rows, cols = np.empty(out.shape[0], np.uint8), np.zeros(out.shape[1], np.uint8)
     clip_depth(depth_m, np.float32(max_depth_m), out, rows, cols)
     r, c = np.flatnonzero(rows), np.flatnonzero(cols)
     if len(r) == 0:
