@@ -23,7 +23,8 @@ Speed does not depend on the weights: every pose network is timed with random we
 config (the shipped localizer refines). The machine's load average is recorded (a shared
 machine is slower).
 
-``--profile`` adds the time of each stage of one frame through the shipped pipeline
+``--profile`` adds the time of each stage of one frame through the shipped DeepPrior and
+DeepPrior++ pipelines and DeepPrior's with the paper's FC 1024 network
 (``DeepPriorEstimator``'s own steps, in its order: the input checks, plane removal, the blob,
 each refinement step's crop and network, the pose crop, the pose network, the keypoints),
 median and mean ms over the frames and repeats, beside the whole ``predict`` on the same
@@ -100,7 +101,7 @@ def _estimator(config: dict, folder: Path, **kwargs):
     return DeepPriorEstimator(path, **kwargs)
 
 
-def _profile(checkpoint: str, items: list, repeat: int = 5) -> dict:
+def _profile(estimator, items: list, repeat: int = 5) -> dict:
     """Ms of each stage of the shipped pipeline on one frame, and of the whole predict.
 
     The stages call what ``DeepPriorEstimator.predict`` calls, in its order (the blob after
@@ -114,7 +115,7 @@ def _profile(checkpoint: str, items: list, repeat: int = 5) -> dict:
     from handsim.estimators.deepprior import preprocess as P
     from handsim.estimators.deepprior.estimator import DeepPriorEstimator, _as_input
 
-    est = DeepPriorEstimator(checkpoint)
+    est = DeepPriorEstimator(estimator) if isinstance(estimator, str) else estimator
     loc = est.localizer
     clock = time.perf_counter
 
@@ -359,6 +360,10 @@ def main() -> None:
             results["baseline"] = _baseline(args.baseline, pipelines, items)
     if args.profile:
         results["profile"] = {name: _profile(name, items) for name in ("deepprior", "deepprior++")}
+        with tempfile.TemporaryDirectory() as tmp:
+            results["profile"]["deepprior (paper's FC 1024)"] = _profile(
+                _estimator(deep, Path(tmp)), items
+            )
     if args.loop_episodes:
         results["loop"] = _loop(args.loop_episodes)
         for name, value in results["loop"].items():
