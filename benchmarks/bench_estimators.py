@@ -23,9 +23,21 @@ Speed does not depend on the weights: every pose network is timed with random we
 config (the shipped localizer refines). The machine's load average is recorded (a shared
 machine is slower).
 
-Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100]``; without
-``--data`` it generates 60 hand-only frames in a temporary folder. Writes
-``benchmarks/results/bench_estimators.json``.
+``--profile`` adds the time of each stage of one frame through the shipped DeepPrior and
+DeepPrior++ pipelines and DeepPrior's with the paper's FC 1024 network
+(``DeepPriorEstimator``'s own steps, in its order: the input checks, plane removal, the blob,
+each refinement step's crop and network, the pose crop, the pose network, the keypoints),
+median and mean ms over the frames and repeats, beside the whole ``predict`` on the same
+frames.
+
+``--baseline REV`` times the whole pipeline (shipped DeepPrior, the paper's FC 1024 network)
+with the preprocessing module (detector and crop) of git revision ``REV`` and with the current
+one, alternating in rounds in this process: a before/after ratio that the machine's load
+weighs on equally.
+
+Usage: ``python benchmarks/bench_estimators.py [--data DIR] [--frames 100] [--profile]
+[--baseline REV]``; without ``--data`` it generates 60 hand-only frames in a temporary folder.
+Writes ``benchmarks/results/bench_estimators.json``.
 """
 
 from __future__ import annotations
@@ -89,6 +101,136 @@ def _estimator(config: dict, folder: Path, **kwargs):
     return DeepPriorEstimator(path, **kwargs)
 
 
+def _profile(estimator, items: list, repeat: int = 5) -> dict:
+    """Ms of each stage of the shipped pipeline on one frame, and of the whole predict.
+
+    The stages call what ``DeepPriorEstimator.predict`` calls, in its order (the blob after
+    :func:`remove_plane` as :func:`nearest_blob_com`; the localizer shares the box of the
+    measured pixels between the two, a few microseconds less).
+    """
+    import numpy as np
+    import torch
+
+    from handsim.estimator import validate_depth_input
+    from handsim.estimators.deepprior import preprocess as P
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator, _as_input
+
+    est = DeepPriorEstimator(estimator) if isinstance(estimator, str) else estimator
+    loc = est.localizer
+    clock = time.perf_counter
+
+    def stages(depth, K):  # noqa: N803
+        t = [clock()]
+        depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
+        t.append(clock())
+        cleaned = P.remove_plane(depth_m, K_cv)
+        t.append(clock())
+        c = P.nearest_blob_com(cleaned, K_cv)
+        t.append(clock())
+        if c is None:
+            return None
+        with torch.inference_mode():
+            for _ in range(loc.iterations):
+                x = P.crop_depth(
+                    depth_m,
+                    P.crop_matrix(c, K_cv, loc.cube_m, loc.size),
+                    c[2],
+                    loc.cube_m,
+                    loc.size,
+                )
+                t.append(clock())
+                off = loc._forward(_as_input(x[None, None], loc.device))
+                c = c + off[0].double().cpu().numpy() * (loc.cube_m / 2.0)
+                t.append(clock())
+            x = P.crop_depth(
+                depth_m, P.crop_matrix(c, K_cv, est.cube_m, est.size), c[2], est.cube_m, est.size
+            )
+            t.append(clock())
+            y = est._forward(_as_input(x[None, None], est.device))[0].double().cpu().numpy()
+            t.append(clock())
+        P.denormalize_keypoints(y.reshape(21, 3), c, est.cube_m)
+        t.append(clock())
+        return np.diff(t)
+
+    names = ["checks", "plane removal", "blob"]
+    for i in range(loc.iterations):
+        names += [f"refine {i + 1} crop", f"refine {i + 1} network"]
+    names += ["pose crop", "pose network", "keypoints"]
+    for item in items[:3]:  # warm-up
+        stages(*item)
+        est.predict(*item)
+    rows, whole = [], []
+    for _ in range(repeat):
+        for depth, K in items:  # noqa: N806
+            row = stages(depth, K)
+            if row is not None:
+                rows.append(row)
+            start = clock()
+            est.predict(depth, K)
+            whole.append(clock() - start)
+    # Medians (a shared machine's preemptions land in the means) and means.
+    median, mean = 1000.0 * np.median(rows, axis=0), 1000.0 * np.mean(rows, axis=0)
+    return {
+        "stages_ms_median": dict(zip(names, median.round(4).tolist(), strict=True)),
+        "stages_ms_mean": dict(zip(names, mean.round(4).tolist(), strict=True)),
+        "sum_of_stage_medians_ms": float(median.sum()),
+        "predict_ms_median": 1000.0 * float(np.median(whole)),
+        "predict_ms_mean": 1000.0 * float(np.mean(whole)),
+        "frames_timed": len(rows),
+    }
+
+
+def _baseline(rev: str, estimators: dict, items: list, rounds: int = 8) -> dict:
+    """Whole-pipeline ms with ``rev``'s preprocess module and the current one, alternating."""
+    import importlib.util
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    from handsim.estimators.deepprior import estimator as E  # noqa: N812
+    from handsim.estimators.deepprior import preprocess as current
+
+    root = Path(__file__).resolve().parent.parent
+    source = subprocess.run(
+        ["git", "show", f"{rev}:estimators/deepprior/preprocess.py"],
+        cwd=root,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "preprocess_baseline.py"
+        path.write_text(source)
+        spec = importlib.util.spec_from_file_location("_preprocess_baseline", path)
+        old = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = old  # dataclasses look their module up
+        spec.loader.exec_module(old)
+    out = {}
+    for name, est in estimators.items():
+        times: dict[str, list[float]] = {"baseline": [], "current": []}
+        for _ in range(rounds):
+            for tag, module in (("baseline", old), ("current", current)):
+                est.localizer.base = module.PlaneRemovedLocalizer()
+                E.crop_depth, E.crop_matrix = module.crop_depth, module.crop_matrix
+                for item in items[:3]:  # warm-up
+                    est.predict(*item)
+                start = time.perf_counter()
+                for item in items:
+                    est.predict(*item)
+                times[tag].append((time.perf_counter() - start) / len(items))
+        E.crop_depth, E.crop_matrix = current.crop_depth, current.crop_matrix
+        est.localizer.base = current.PlaneRemovedLocalizer()
+        base_s, cur_s = float(np.median(times["baseline"])), float(np.median(times["current"]))
+        out[name] = {
+            "baseline_fps": 1.0 / base_s,
+            "current_fps": 1.0 / cur_s,
+            "speedup": base_s / cur_s,
+            "rounds": rounds,
+        }
+    return {"revision": rev, "pipelines": out}
+
+
 def _loop(episodes: int) -> dict:
     """Grasp-v0 steps/s and mean keypoint error with DeepPrior++ in the loop, track off / on."""
     import gymnasium as gym
@@ -143,6 +285,17 @@ def main() -> None:
     parser.add_argument(
         "--loop-episodes", type=int, default=2, help="Grasp-v0 episodes per loop variant (0: none)"
     )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="also time each stage of the shipped DeepPrior and DeepPrior++ pipelines",
+    )
+    parser.add_argument(
+        "--baseline",
+        metavar="REV",
+        default=None,
+        help="also time the pipeline with git revision REV's preprocessing, alternating",
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -196,6 +349,21 @@ def main() -> None:
             est = _estimator(configs[net], Path(tmp), localizer=None, detector="com")
             fps[f"pipeline {name}"] = _rate(est.predict, items)
             ratios[name] = fps[f"pipeline {name}"] / TARGET_FPS["deepprior"]
+    if args.baseline:
+        from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+
+        with tempfile.TemporaryDirectory() as tmp:
+            pipelines = {
+                "deepprior (FC 512, as shipped)": DeepPriorEstimator("deepprior"),
+                "deepprior": _estimator(deep, Path(tmp)),
+            }
+            results["baseline"] = _baseline(args.baseline, pipelines, items)
+    if args.profile:
+        results["profile"] = {name: _profile(name, items) for name in ("deepprior", "deepprior++")}
+        with tempfile.TemporaryDirectory() as tmp:
+            results["profile"]["deepprior (paper's FC 1024)"] = _profile(
+                _estimator(deep, Path(tmp)), items
+            )
     if args.loop_episodes:
         results["loop"] = _loop(args.loop_episodes)
         for name, value in results["loop"].items():

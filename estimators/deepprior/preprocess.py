@@ -1,6 +1,7 @@
 """Preprocessing of the learned estimators: localization, the 3D cube crop, augmentation, PCA.
 
-Pure NumPy and OpenCV (no torch), shared by training, evaluation and inference.
+NumPy, OpenCV and compiled loops (numba, :mod:`._kernels`; no torch), shared by training,
+evaluation and inference.
 
 **Localization on a table.** DeepPrior's centre of mass of the nearest depth slab assumes that
 the hand is the nearest thing in view. :func:`remove_plane` first fits the dominant plane of
@@ -9,11 +10,13 @@ then takes the largest connected blob of the nearest remaining depth slab and re
 centre of mass. A learned refinement (:class:`~handsim.estimators.deepprior.models.Localizer`)
 moves that centre towards the middle-finger MCP.
 
-The RANSAC is our own, vectorised over hypotheses: it scores all hypotheses at once on a random
-subsample of the measured points and refits the winner by least squares on its inliers of the
-whole image (well under 1 ms on a 320 x 240 image). scikit-learn's ``RANSACRegressor`` fits
+The RANSAC is our own, one compiled loop: it scores 64 three-point hypotheses on a random
+subsample of the measured points (every second pixel of every second row) and refits the
+winner by least squares on all its inliers. scikit-learn's ``RANSACRegressor`` fits
 ``z = f(x, y)`` (a plane seen edge-on is not a function of x, y) and refits a regressor per
-trial (about 100x slower), which does not fit the inference budget.
+trial (about 100x slower), which does not fit the inference budget. Both steps work on the
+bounding box of the measured pixels (a hand alone covers a tenth of a 320 x 240 image), with
+the same arithmetic per pixel as on the whole image.
 
 **Crop.** A cube of edge ``cube_m`` centred on ``center_cam`` is projected at the centre's
 depth to an axis-aligned pixel box, which is resampled with nearest-neighbour sampling to
@@ -41,6 +44,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 from typing import Any
 
 import cv2
@@ -97,12 +101,10 @@ class AugmentParams:
 
 # Localization ----------------------------------------------------------------------------------
 
-
-def _back_project(depth_m: np.ndarray, K: np.ndarray, v: np.ndarray, u: np.ndarray) -> np.ndarray:  # noqa: N803
-    z = depth_m[v, u].astype(np.float64)
-    x = (u - K[0, 2]) * z / K[0, 0]
-    y = (v - K[1, 2]) * z / K[1, 1]
-    return np.stack([x, y, z], axis=1)
+# Defaults of the plane removal and the blob (PlaneRemovedLocalizer uses them too).
+_MAX_DEPTH_M = 1.5
+_MIN_SPREAD_M = 0.06
+_MIN_PIXELS = 100
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,6 +146,25 @@ def fit_plane_ransac(
     return PlaneFit(normal=n, offset_m=d, inliers=int(np.count_nonzero(inl)))
 
 
+_THREAD = threading.local()
+
+
+def _generator(seed: np.random.Generator | int | None) -> np.random.Generator:
+    """``np.random.default_rng(seed)``, for an int seed without seeding again.
+
+    Seeding (SeedSequence's hashing) costs more than the fit's draws; this thread's bit
+    generator of the last int seed is reset to its seeded state instead (the same draws).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        return np.random.default_rng(seed)
+    cached = getattr(_THREAD, "generator", None)
+    if cached is None or cached[0] != seed:
+        bit_generator = np.random.PCG64(int(seed))
+        cached = _THREAD.generator = (int(seed), bit_generator, bit_generator.state)
+    cached[1].state = cached[2]
+    return np.random.Generator(cached[1])
+
+
 def _fit_plane(
     pts: np.ndarray,
     threshold_m: float,
@@ -152,34 +173,21 @@ def _fit_plane(
     rng: np.random.Generator | int | None,
 ) -> tuple[np.ndarray, float, np.ndarray] | None:
     """:func:`fit_plane_ransac` on (N, 3) float64 points: ``(normal, offset, inlier mask)``."""
+    from ._kernels import fit_plane
+
     if len(pts) < 3:
         return None
-    rng = np.random.default_rng(rng)
-    sub = pts[rng.integers(0, len(pts), size=min(subsample, len(pts)))]
-    tri = pts[rng.integers(0, len(pts), size=(hypotheses, 3))]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(normals, axis=1)
-    ok = norm > 1e-12
-    if not ok.all():
-        if not ok.any():
-            return None
-        normals, norm, tri = normals[ok], norm[ok], tri[ok]
-    normals /= norm[:, None]
-    offsets = -np.einsum("hk,hk->h", normals, tri[:, 0])
-    # In place: the (subsample, hypotheses) distances are the fit's largest array.
-    dist = sub @ normals.T
-    dist += offsets
-    np.abs(dist, out=dist)
-    best = int(np.argmax(np.count_nonzero(dist < threshold_m, axis=0)))
-    n, d = normals[best], offsets[best]
-    inl = np.abs(pts @ n + d) < threshold_m
-    if np.count_nonzero(inl) >= 3:  # least-squares refit: smallest singular vector
-        q = pts[inl]
-        mean = q.mean(axis=0)
-        n = np.linalg.svd(q - mean, full_matrices=False)[2][-1]
-        d = -float(n @ mean)
-        inl = np.abs(pts @ n + d) < threshold_m
-    return n, float(d), inl
+    rng = _generator(rng)
+    sub = rng.integers(0, len(pts), size=min(subsample, len(pts)))
+    tri = rng.integers(0, len(pts), size=(hypotheses, 3))
+    n, d, inl, kept = fit_plane(np.ascontiguousarray(pts), sub, tri, float(threshold_m))
+    return None if kept == 0 else (n, float(d), inl)
+
+
+def _box(mask: np.ndarray) -> tuple[slice, slice] | None:
+    """The bounding box of a (H, W) bool mask's True pixels as slices, or ``None`` if empty."""
+    x, y, w, h = cv2.boundingRect(mask.view(np.uint8))
+    return None if w == 0 else (slice(y, y + h), slice(x, x + w))
 
 
 def remove_plane(
@@ -188,8 +196,8 @@ def remove_plane(
     *,
     threshold_m: float = 0.008,
     min_fraction: float = 0.2,
-    min_spread_m: float = 0.06,
-    max_depth_m: float = 1.5,
+    min_spread_m: float = _MIN_SPREAD_M,
+    max_depth_m: float = _MAX_DEPTH_M,
     rng: np.random.Generator | int | None = 0,
 ) -> np.ndarray:
     """Depth with the dominant plane's pixels set to 0 (when the plane is large enough).
@@ -209,43 +217,80 @@ def remove_plane(
     Returns:
         (H, W) float32 depth copy, metres.
     """
+    out, box = _clip(depth_m, max_depth_m)
+    return _remove_plane(out, box, K, threshold_m, min_fraction, min_spread_m, rng)[0]
+
+
+def _clip(depth_m: np.ndarray, max_depth_m: float) -> tuple[np.ndarray, tuple[slice, slice] | None]:
+    """Depth in ``(0, max_depth_m]`` (0 elsewhere and for NaN) and the box of those pixels.
+
+    Returns:
+        ``(out, box)``: (H, W) float32 copy, metres, and the box as (rows, columns) slices, or
+        ``None`` when no pixel is kept.
+    """
+    from ._kernels import clip_depth
+
     depth_m = np.asarray(depth_m)
-    if depth_m.dtype == np.float32:  # one OpenCV pass each: > max_depth_m, <= 0, NaN -> 0
-        out = cv2.threshold(depth_m, max_depth_m, 0, cv2.THRESH_TOZERO_INV)[1]
-        out = cv2.patchNaNs(cv2.threshold(out, 0, 0, cv2.THRESH_TOZERO)[1], 0)
-    else:
+    if depth_m.dtype != np.float32 or depth_m.ndim != 2:
         out = np.where((depth_m > 0) & (depth_m <= max_depth_m), depth_m, 0).astype(np.float32)
-    # The fit runs on every second pixel of every second row; the test on every pixel.
-    half = np.ascontiguousarray(out[::2, ::2])
-    vu = cv2.findNonZero((half > 0).view(np.uint8))  # row-major, as np.nonzero
-    if vu is None or len(vu) < 3:
-        return out
-    vu = vu.reshape(-1, 2)
-    pts = _back_project(out, K, 2 * vu[:, 1], 2 * vu[:, 0])
+        return out, _box(out > 0)
+    # One pass: the copy and the rows and columns that hold depth.
+    out = np.empty(depth_m.shape, np.float32)
+    rows, cols = np.empty(out.shape[0], np.uint8), np.zeros(out.shape[1], np.uint8)
+    clip_depth(depth_m, np.float32(max_depth_m), out, rows, cols)
+    r, c = np.flatnonzero(rows), np.flatnonzero(cols)
+    if len(r) == 0:
+        return out, None
+    return out, (slice(int(r[0]), int(r[-1]) + 1), slice(int(c[0]), int(c[-1]) + 1))
+
+
+def _remove_plane(
+    out: np.ndarray,
+    box: tuple[slice, slice] | None,
+    K: np.ndarray,  # noqa: N803
+    threshold_m: float,
+    min_fraction: float,
+    min_spread_m: float,
+    rng: np.random.Generator | int | None,
+) -> tuple[np.ndarray, tuple[slice, slice] | None]:
+    """:func:`remove_plane` on clipped depth and its box, in place: ``(out, box)``.
+
+    The work is done on the measured pixels' bounding box (a hand alone covers a tenth of the
+    image), with the same arithmetic per pixel as on the whole image.
+    """
+    from ._kernels import drop_plane, half_points, spread_m
+
+    K = np.asarray(K, dtype=np.float64)  # noqa: N806
+    if box is None:
+        return out, box
+    rows, cols = box
+    # The fit runs on every second pixel of every second row of the image (even coordinates);
+    # the test on every pixel.
+    pts = half_points(
+        out, rows.start - rows.start % 2, rows.stop, cols.start - cols.start % 2, cols.stop, K
+    )
+    if len(pts) < 3:
+        return out, box
     fit = _fit_plane(pts, threshold_m, 64, 1024, rng)
     if fit is None or np.count_nonzero(fit[2]) < min_fraction * len(pts):
-        return out
+        return out, box
     n, d, inl_mask = fit
-    inl = pts[inl_mask]
-    sub = inl[:: max(1, len(inl) // 2000)]
-    spread = np.linalg.svd(sub - sub.mean(axis=0), compute_uv=False) / math.sqrt(len(sub))
-    if spread[1] < min_spread_m:
-        return out
+    # The spread of (at most ~4000) inliers, every k-th.
+    if spread_m(pts, inl_mask, max(1, int(np.count_nonzero(inl_mask)) // 2000)) < min_spread_m:
+        return out, box
     if d < 0:  # the camera (origin) on the + side
         n, d = -n, -d
-    h, w = out.shape
-    # n . ray(u, v) * depth + d: the signed distance of every pixel's point, in place.
-    dist = np.add.outer(
-        n[1] * (np.arange(h) - K[1, 2]) / K[1, 1], n[0] * (np.arange(w) - K[0, 2]) / K[0, 0]
+    # n . ray(u, v) * depth + d: the signed distance of every pixel's point. Drop the plane
+    # and everything behind it (seen past the table's edge: the floor), in place.
+    drop_plane(
+        out[box],
+        n[1] * (np.arange(rows.start, rows.stop) - K[1, 2]) / K[1, 1],
+        n[0] * (np.arange(cols.start, cols.stop) - K[0, 2]) / K[0, 0],
+        float(n[2]),
+        float(d),
+        float(threshold_m),
     )
-    dist += n[2]
-    dist *= out
-    dist += d
-    # Drop the plane and everything behind it (seen past the table's edge: the floor).
-    drop = dist < threshold_m
-    drop &= out > 0
-    out[drop] = 0
-    return out
+    return out, box
 
 
 def nearest_blob_com(
@@ -253,7 +298,7 @@ def nearest_blob_com(
     K: np.ndarray,  # noqa: N803
     *,
     cube_m: float = CUBE_M,
-    min_pixels: int = 100,
+    min_pixels: int = _MIN_PIXELS,
 ) -> np.ndarray | None:
     """Centre of mass of the largest connected blob of the nearest depth slab.
 
@@ -271,25 +316,57 @@ def nearest_blob_com(
     Returns:
         (3,) centre in the camera frame, metres, or ``None`` if no blob is large enough.
     """
-    measured = depth_m > 0
-    if np.count_nonzero(measured) < min_pixels:
+    depth_m = np.asarray(depth_m)
+    if depth_m.dtype.kind != "f":  # as NumPy compares integers with a float: in float64
+        depth_m = depth_m.astype(np.float64)
+    return _nearest_blob_com(depth_m, K, _box(depth_m > 0), cube_m, min_pixels)
+
+
+def _nearest_blob_com(
+    depth_m: np.ndarray,
+    K: np.ndarray,  # noqa: N803
+    box: tuple[slice, slice] | None,
+    cube_m: float,
+    min_pixels: int,
+) -> np.ndarray | None:
+    """:func:`nearest_blob_com` in a box that holds every measured pixel.
+
+    On the box, the blobs are the same and labelled in the same (raster) order.
+    """
+    from ._kernels import blob_sums, label_sizes, nearest_slab
+
+    if box is None:
         return None
-    z_min = float(depth_m[measured].min())
-    slab = measured
-    slab &= depth_m <= z_min + cube_m
-    n, labels = cv2.connectedComponents(slab.view(np.uint8), connectivity=8)
+    depth = depth_m[box]
+    count, _, slab = nearest_slab(depth, float(cube_m))
+    if count < min_pixels:
+        return None
+    n, labels = cv2.connectedComponents(slab, connectivity=8)
     if n <= 1:
         return None
-    sizes = np.bincount(labels.ravel(), minlength=n)
+    sizes = label_sizes(labels, n)
     sizes[0] = -1  # the background
     sizes[sizes < min_pixels] = -1
     best = int(np.argmax(sizes))
     if sizes[best] < 0:
         return None
-    uv = cv2.findNonZero((labels == best).view(np.uint8)).reshape(-1, 2)
-    u, v = uv[:, 0], uv[:, 1]
-    z = float(np.median(depth_m[v, u]))
-    return np.array([(u.mean() - K[0, 2]) * z / K[0, 0], (v.mean() - K[1, 2]) * z / K[1, 1], z])
+    su, sv, depths = blob_sums(labels, best, int(sizes[best]), depth)
+    z = float(_median(depths))
+    # The mean of the image's pixel coordinates: exact integer sums, one rounding.
+    count = len(depths)
+    u = (su + count * box[1].start) / count
+    v = (sv + count * box[0].start) / count
+    return np.array([(u - K[0, 2]) * z / K[0, 0], (v - K[1, 2]) * z / K[1, 1], z])
+
+
+def _median(values: np.ndarray) -> Any:
+    """``np.median`` of a 1-D float array (no NaN) without its checks: the same value."""
+    k = len(values) // 2
+    if len(values) % 2:
+        return np.partition(values, k)[k]
+    part = np.partition(values, (k - 1, k))
+    # np.median's mean of the two middle values, in the array's dtype.
+    return (part[k - 1] + part[k]) / values.dtype.type(2)
 
 
 class PlaneRemovedLocalizer(EstimatorBase):
@@ -310,10 +387,12 @@ class PlaneRemovedLocalizer(EstimatorBase):
 
     def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
         """(3,) centre, metres, camera frame, or ``None`` (unchecked input)."""
-        cleaned = remove_plane(
-            depth_m, K, threshold_m=self.threshold_m, min_fraction=self.min_fraction
+        # remove_plane and nearest_blob_com, the blob searched in the box of the measured
+        # pixels that the plane removal found.
+        cleaned, box = _remove_plane(
+            *_clip(depth_m, _MAX_DEPTH_M), K, self.threshold_m, self.min_fraction, _MIN_SPREAD_M, 0
         )
-        return nearest_blob_com(cleaned, K, cube_m=self.cube_m)
+        return _nearest_blob_com(cleaned, K, box, self.cube_m, _MIN_PIXELS)
 
     def predict(self, depth: np.ndarray, K: np.ndarray) -> Estimate:  # noqa: N803
         """``Estimate(center_cam=...)`` or ``Estimate(valid=False)`` (no blob)."""
@@ -382,6 +461,8 @@ def crop_depth(
     Returns:
         (size, size) float32 normalized depth.
     """
+    from ._kernels import normalize_crop
+
     norm = cv2.warpAffine(
         np.ascontiguousarray(depth_m, dtype=np.float32),
         M,
@@ -390,12 +471,7 @@ def crop_depth(
         borderMode=cv2.BORDER_CONSTANT,
         borderValue=0.0,
     )
-    far = norm <= 0  # missing, before normalizing in place
-    norm -= np.float32(center_z_m)
-    norm /= np.float32(cube_m / 2.0)
-    far |= norm > 1.0
-    norm[far] = 1.0
-    np.maximum(norm, -1.0, out=norm)
+    normalize_crop(norm, np.float32(center_z_m), np.float32(cube_m / 2.0))
     return norm
 
 

@@ -266,6 +266,23 @@ def _scenes():
         odd[rng.random(odd.shape) < fraction] = value
     yield odd
     yield np.zeros((H, W), np.float32)
+    # The work is done on the measured pixels' bounding box: boxes at odd rows and columns,
+    # on the image's borders and corners, one pixel wide, and tables cut by them.
+    for rows, cols in (
+        ((1, 36), (3, 40)),
+        ((0, 20), (0, 20)),
+        ((H - 17, H), (W - 31, W)),
+        ((101, 102), (7, 300)),
+        ((5, 235), (161, 162)),
+    ):
+        depth = np.zeros((H, W), np.float32)
+        depth[rows[0] : rows[1], cols[0] : cols[1]] = rng.uniform(0.4, 0.6)
+        yield depth
+    table, _, _ = _table_and_box()
+    for rows, cols in (((3, 201), (5, 317)), ((40, H), (0, 255))):
+        cut = np.zeros_like(table)
+        cut[rows[0] : rows[1], cols[0] : cols[1]] = table[rows[0] : rows[1], cols[0] : cols[1]]
+        yield cut
 
 
 def test_fast_plane_removal_and_blob_equal_the_reference_bit_for_bit():
@@ -281,6 +298,86 @@ def test_fast_plane_removal_and_blob_equal_the_reference_bit_for_bit():
         assert (com is None) == (ref is None), i
         if ref is not None:
             np.testing.assert_array_equal(com, ref, err_msg=f"scene {i}")
+
+
+def test_localizer_and_float64_depth_equal_the_reference_bit_for_bit():
+    """PlaneRemovedLocalizer (one box for both steps) and float64 input give the reference."""
+    loc = P.PlaneRemovedLocalizer()
+    for i, depth in enumerate(_scenes()):
+        if not np.isfinite(depth).all():
+            continue  # the localizer's input is checked depth
+        ref_clean = _ref_remove_plane(depth, K)
+        np.testing.assert_array_equal(P.remove_plane(depth.astype(np.float64), K), ref_clean)
+        ref = _ref_nearest_blob_com(ref_clean, K)
+        com = loc.localize(depth, K)
+        assert (com is None) == (ref is None), i
+        if ref is not None:
+            np.testing.assert_array_equal(com, ref, err_msg=f"scene {i}")
+            clean64 = ref_clean.astype(np.float64)
+            np.testing.assert_array_equal(
+                P.nearest_blob_com(clean64, K), _ref_nearest_blob_com(clean64, K)
+            )
+
+
+def test_plane_fit_equals_the_reference_to_rounding():
+    """The compiled RANSAC picks the reference's plane and refits it to rounding."""
+    rng = np.random.default_rng(3)
+    for tilt in (0.0, 0.3, 1.2):
+        n_true = np.array([0.0, math.sin(tilt), -math.cos(tilt)])
+        plane = rng.uniform(-0.3, 0.3, (3000, 3))
+        plane -= np.outer(plane @ n_true, n_true)  # on the plane through the origin
+        plane += 0.8 * np.array([0.0, 0.0, 1.0]) + rng.normal(0, 0.002, plane.shape)
+        clutter = rng.uniform([-0.3, -0.3, 0.3], [0.3, 0.3, 0.7], (1000, 3))
+        pts = np.vstack([plane, clutter])
+        fit = P.fit_plane_ransac(pts)
+        # The reference: NumPy's vectorised scoring and an SVD refit.
+        r = np.random.default_rng(0)
+        sub = pts[r.integers(0, len(pts), size=1024)]
+        tri = pts[r.integers(0, len(pts), size=(64, 3))]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        normals /= np.linalg.norm(normals, axis=1)[:, None]
+        offsets = -np.einsum("hk,hk->h", normals, tri[:, 0])
+        best = int(np.argmax((np.abs(sub @ normals.T + offsets) < 0.008).sum(axis=0)))
+        inl = np.abs(pts @ normals[best] + offsets[best]) < 0.008
+        q = pts[inl]
+        n = np.linalg.svd(q - q.mean(axis=0), full_matrices=False)[2][-1]
+        d = -float(n @ q.mean(axis=0))
+        sign = np.sign(n @ fit.normal)
+        np.testing.assert_allclose(fit.normal, sign * n, atol=1e-12)
+        assert fit.offset_m == pytest.approx(sign * d, abs=1e-12)
+        assert fit.inliers == np.count_nonzero(np.abs(pts @ n + d) < 0.008)
+        assert abs(fit.normal @ n_true) > 0.999
+
+
+def test_plane_fit_of_degenerate_points_is_none():
+    """Fewer than 3 points or only collinear triples give no plane."""
+    assert P.fit_plane_ransac(np.zeros((2, 3))) is None
+    line = np.outer(np.linspace(0.0, 1.0, 50), [1.0, 2.0, 3.0])
+    assert P.fit_plane_ransac(line) is None
+
+
+def test_fit_generator_draws_as_default_rng():
+    """The reused generator of an int seed draws what np.random.default_rng(seed) draws."""
+    for seed in (0, 0, np.int64(7), 0, 123456789):
+        got = P._generator(seed).integers(0, 1000, size=(4, 3))
+        np.testing.assert_array_equal(got, np.random.default_rng(seed).integers(0, 1000, (4, 3)))
+    rng = np.random.default_rng(1)
+    assert P._generator(rng) is rng
+    assert isinstance(P._generator(None), np.random.Generator)
+    with pytest.raises(ValueError):
+        P._generator(-1)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_median_equals_numpy(dtype):
+    """The blob's median is np.median's value, odd and even counts, ties included."""
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 4, 101, 1000):
+        for values in (rng.uniform(0.3, 0.9, n), rng.integers(0, 3, n) * 0.1):
+            v = values.astype(dtype)
+            got = P._median(v)
+            assert got.dtype == dtype
+            assert got == np.median(v)
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 33.0, -150.0])

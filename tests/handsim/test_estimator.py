@@ -335,3 +335,27 @@ def test_estimate_errors_and_hand_center_refuse_what_they_cannot_measure():
     kp[:] = 0.1
     kp[8] = np.nan  # a fingertip is not part of the centre
     np.testing.assert_allclose(hand_center(kp), [0.1, 0.1, 0.1])
+
+
+def test_validate_depth_input_accepts_and_refuses_as_the_per_pixel_check():
+    """The two-reduction depth check and the scalar K check decide as the reference masks."""
+    rng = np.random.default_rng(4)
+    for value in (np.nan, np.inf, -np.inf, -1e-30, -0.0, 0.0, 3.0, np.float32(1e38)):
+        for dtype in (np.float32, np.float64):
+            depth = rng.uniform(0.0, 2.0, (6, 7)).astype(dtype)
+            depth[rng.integers(6), rng.integers(7)] = value
+            ref_bad = ~np.isfinite(depth.astype(np.float32)) | (depth.astype(np.float32) < 0)
+            if ref_bad.any():
+                v, u = np.argwhere(ref_bad)[0]
+                with pytest.raises(InvalidEstimatorInput, match=rf"pixel \(v={v}, u={u}\)"):
+                    validate_depth_input(depth, K)
+            else:
+                validate_depth_input(depth, K)
+    for last in ([0.0, 0.0, 1.0], [1e-8, -1e-8, 1.00001], [2e-8, 0.0, 1.0], [0.0, 0.0, 1.0001]):
+        k = np.array(K, dtype=np.float64)
+        k[2] = last
+        if np.allclose(k[2], (0.0, 0.0, 1.0)):
+            validate_depth_input(np.ones((2, 2)), k)
+        else:
+            with pytest.raises(InvalidEstimatorInput, match=r"\[0, 0, 1\]\] with fx, fy > 0"):
+                validate_depth_input(np.ones((2, 2)), k)
