@@ -134,6 +134,8 @@ class RefinedLocalizer(EstimatorBase):
 
     def _offsets_m(self, depths: list[np.ndarray], Ks: Any, centers: np.ndarray) -> np.ndarray:  # noqa: N803
         """(B, 3) the network's moves of ``centers`` (B, 3), metres, one call."""
+        import torch
+
         x = np.stack(
             [
                 crop_depth(
@@ -142,7 +144,8 @@ class RefinedLocalizer(EstimatorBase):
                 for d, k, c in zip(depths, Ks, centers, strict=True)
             ]
         )
-        off = self._forward(_as_input(x[:, None], self.device))
+        with torch.inference_mode():
+            off = self._forward(_as_input(x[:, None], self.device))
         return off.double().cpu().numpy() * (self.cube_m / 2.0)
 
     def _unconverged(self, residual_m: np.ndarray) -> np.ndarray:
@@ -155,17 +158,14 @@ class RefinedLocalizer(EstimatorBase):
         The same arithmetic as :meth:`refine_batch` for one frame, without its batching.
         With :attr:`guard`, ``center`` itself when the refinement has not converged.
         """
-        import torch
-
         start = np.array(center, dtype=np.float64)
         c = start.copy()
         if self.model is None or self.iterations == 0:
             return c
-        with torch.inference_mode():
-            for _ in range(self.iterations):
-                c += self._offsets_m([depth_m], [K], c[None])[0]
-            if self.guard and self._unconverged(self._offsets_m([depth_m], [K], c[None]))[0]:
-                return start
+        for _ in range(self.iterations):
+            c += self._offsets_m([depth_m], [K], c[None])[0]
+        if self.guard and self._unconverged(self._offsets_m([depth_m], [K], c[None]))[0]:
+            return start
         return c
 
     def refine_batch(
@@ -187,24 +187,21 @@ class RefinedLocalizer(EstimatorBase):
             (N, 3) refined centres, metres (with :attr:`guard`, the starting centre of a frame
             whose refinement has not converged).
         """
-        import torch
-
         start = np.array(centers, dtype=np.float64)
         c = start.copy()
         if self.model is None or len(c) == 0 or self.iterations == 0:
             return c
         depth = depths_m if callable(depths_m) else depths_m.__getitem__
         steps = self.iterations + (1 if self.guard else 0)
-        with torch.inference_mode():
-            for step in range(steps):
-                for lo in range(0, len(c), batch_size):
-                    idx = range(lo, min(lo + batch_size, len(c)))
-                    off = self._offsets_m([depth(i) for i in idx], K[lo : idx.stop], c[idx])
-                    if step < self.iterations:
-                        c[lo : idx.stop] += off
-                    else:  # the guard's look at the refined centres
-                        lost = self._unconverged(off)
-                        c[lo : idx.stop][lost] = start[lo : idx.stop][lost]
+        for step in range(steps):
+            for lo in range(0, len(c), batch_size):
+                idx = range(lo, min(lo + batch_size, len(c)))
+                off = self._offsets_m([depth(i) for i in idx], K[lo : idx.stop], c[idx])
+                if step < self.iterations:
+                    c[lo : idx.stop] += off
+                else:  # the guard's look at the refined centres
+                    lost = self._unconverged(off)
+                    c[lo : idx.stop][lost] = start[lo : idx.stop][lost]
         return c
 
     def localize(self, depth_m: np.ndarray, K: np.ndarray) -> np.ndarray | None:  # noqa: N803
