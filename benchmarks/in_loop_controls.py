@@ -195,13 +195,10 @@ def _walk_rows(items, est: DeepPriorEstimator) -> dict:
         c = loc.base.localize(depth, K)
         if c is None:
             continue
-        path = [c]
-        for _ in range(loc.iterations):
-            path.append(path[-1] + loc._offsets_m([depth], [K], path[-1][None])[0])
-        move = loc._offsets_m([depth], [K], path[-1][None])[0]
+        path, move, lost = loc.path(depth, K, c)
         steps.append([np.linalg.norm(p - path[0]) for p in path[1:]])
         residual.append(np.linalg.norm(move))
-        kept = path[0] if loc._unconverged(move[None])[0] else path[-1]
+        kept = path[0] if lost else path[-1]
         err.append([np.linalg.norm(p - truth[MIDDLE_MCP]) for p in (path[0], path[-1], kept)])
     steps_mm, residual_mm = 1000 * np.array(steps), 1000 * np.array(residual)
     err_mm = 1000 * np.array(err)
@@ -215,7 +212,7 @@ def _walk_rows(items, est: DeepPriorEstimator) -> dict:
             str(k + 1): spread(steps_mm[:, k]) for k in range(steps_mm.shape[1])
         },
         "residual_mm": spread(residual_mm),
-        "guard_fires": int(np.count_nonzero(residual_mm > 1000 * loc.cube_m / 2)),
+        "guard_fires": int(np.count_nonzero(residual_mm > 1000 * loc.cube_m / 2)),  # as path()
         "mcp_error_mm_mean": {
             "detector": round(float(err_mm[:, 0].mean()), 1),
             "refined": round(float(err_mm[:, 1].mean()), 1),

@@ -152,6 +152,27 @@ class RefinedLocalizer(EstimatorBase):
         """(B,) bool: the move still asked for at the refined centre exceeds half the cube."""
         return np.linalg.norm(residual_m, axis=-1) > self.cube_m / 2.0
 
+    def path(
+        self,
+        depth_m: np.ndarray,
+        K: np.ndarray,  # noqa: N803
+        center: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, bool]:
+        """Where the refinement goes from ``center``: for measuring it and its guard.
+
+        Returns:
+            ``(centres, residual_m, lost)``: (iterations + 1, 3) ``center`` and each step's
+            centre, metres; (3,) the move the network still asks for at the last; whether
+            the guard keeps ``center`` (the move exceeds half the cube).
+        """
+        centres = [np.array(center, dtype=np.float64)]
+        if self.model is None:
+            return np.stack(centres), np.zeros(3), False
+        for _ in range(self.iterations):
+            centres.append(centres[-1] + self._offsets_m([depth_m], [K], centres[-1][None])[0])
+        residual_m = self._offsets_m([depth_m], [K], centres[-1][None])[0]
+        return np.stack(centres), residual_m, bool(self._unconverged(residual_m[None])[0])
+
     def refine(self, depth_m: np.ndarray, K: np.ndarray, center: np.ndarray) -> np.ndarray:  # noqa: N803
         """Apply the refinement CNN ``iterations`` times from ``center`` (metres).
 

@@ -194,6 +194,10 @@ def test_the_guard_keeps_the_centre_on_the_hand_when_the_refinement_walks(tmp_pa
     assert depth[int(round(v)), int(round(u))] > 0 and 0.44 < kept[2] < 0.70
     walked = free.refine(depth, K_CV, start)
     np.testing.assert_allclose(walked - start, [0.0, -0.3, 0.3], atol=1e-6)  # off the image
+    centres, residual_m, lost = guarded.path(depth, K_CV, start)
+    assert lost and centres.shape == (4, 3)
+    np.testing.assert_array_equal(centres[-1], walked)
+    np.testing.assert_allclose(residual_m, [0.0, -0.1, 0.1], atol=1e-7)
     starts = np.stack([start, start + [0.01, 0.0, 0.0]])
     batch = guarded.refine_batch([depth, depth], np.stack([K_CV, K_CV]), starts)
     np.testing.assert_array_equal(batch, starts)
@@ -214,6 +218,9 @@ def test_the_guard_is_a_no_op_where_the_refinement_converges(tmp_path):
         refined = free.refine(depth, K_CV, start)
         assert np.linalg.norm(refined - start) > 0.02  # it moved back towards the blob
         np.testing.assert_array_equal(guarded.refine(depth, K_CV, start), refined)
+        centres, residual_m, lost = guarded.path(depth, K_CV, start)
+        assert not lost and np.linalg.norm(residual_m) < 0.02  # converged
+        np.testing.assert_array_equal(centres[-1], refined)
     Ks = np.repeat(K_CV[None], 3, axis=0)  # noqa: N806
     np.testing.assert_array_equal(
         guarded.refine_batch(depths, Ks, starts), free.refine_batch(depths, Ks, starts)
