@@ -68,7 +68,7 @@ class RefinedLocalizer(EstimatorBase):
     """Hand centre: a first centre (:data:`DETECTORS`), then the refinement CNN, iterated.
 
     **Guard.** On a hand the iteration converges: after its steps the network asks for a
-    last move of a few millimetres (median 5 to 16 mm on the sets of handsim-bench-v1). Where
+    last move of a few millimetres (median 4.5 to 15.8 mm on the sets of handsim-bench-v1). Where
     an arm is in view with nothing behind it, the network can instead walk the centre up the
     arm, about 10 cm a step, and still ask for more than 14 cm at the end. With ``guard`` on
     (the default), the network is run once more at the refined centre; if it would move the
