@@ -9,12 +9,20 @@ so every estimator sees the same frames), then runs fresh estimators on them off
   the true middle-finger MCP, and with the hand's length given; per phase of the expert's
   episode.
 - ``handpose``: ``handsim/HandPose-v0`` (no sensor noise, ICVL camera): the DeepPrior++
-  pipeline, cropped at the true MCP, at the first centre without the refinement CNN, after one
-  refinement step, with the arm's pixels removed, and with a flat wall 0.1 m behind the hand.
+  pipeline (with the localizer's guard, the default, and without it), cropped at the true MCP,
+  at the first centre without the refinement CNN, after one refinement step, and, unguarded,
+  with the arm's pixels removed and with a flat wall 0.1 m behind the hand.
+- ``walk``: where the localizer's refinement goes, unguarded, on every set of a benchmark
+  (``--bench``) and on the HandPose-v0 frames: its displacement from the detector's centre
+  after each step, the move the network still asks for at the refined centre (the guard's
+  test: more than half the cube), how many frames the guard sends back to the detector's
+  centre, and the centre's distance from the true middle-finger MCP at the detector's centre,
+  refined and guarded (mm, median / 90th percentile / max, or mean).
 
 Usage: ``python benchmarks/in_loop_controls.py grasp --seeds 0 1 2 3 4 --stride 3 --out
-grasp.json`` or ``python benchmarks/in_loop_controls.py handpose --seeds 0 --stride 5``.
-Figures are mean keypoint errors over the 21 joints, mm.
+grasp.json``, ``python benchmarks/in_loop_controls.py handpose --seeds 0 --stride 5`` or
+``python benchmarks/in_loop_controls.py walk --bench BENCH --seeds 0 1 2 --stride 5``.
+Figures are mean keypoint errors over the 21 joints, mm, unless named otherwise.
 """
 
 from __future__ import annotations
@@ -29,7 +37,12 @@ import numpy as np
 import handsim.envs  # noqa: F401 (registers the envs)
 from handsim.envs.wrappers import EstimatorLoop
 from handsim.estimators import DeepPriorEstimator, FeedbackEstimator
-from handsim.estimators.deepprior.preprocess import MIDDLE_MCP
+from handsim.estimators.deepprior.preprocess import (
+    MIDDLE_MCP,
+    mirror_depth,
+    mirror_intrinsics,
+    mirror_points,
+)
 
 
 def _error_mm(keypoints: np.ndarray | None, truth: np.ndarray) -> float:
@@ -115,22 +128,27 @@ def grasp(seeds: list[int], stride: int) -> dict:
     return _table(frames, columns)
 
 
+def _handpose_frames(seeds: list[int], stride: int, estimator) -> list[dict]:
+    kwargs = {"obs_mode": "depth+segmentation", "sensor": "none", "camera": "icvl"}
+    return record("handsim/HandPose-v0", kwargs, estimator, seeds, stride)
+
+
 def handpose(seeds: list[int], stride: int) -> dict:
     """HandPose-v0: where DeepPrior++'s crop centre goes, one change at a time."""
-    kwargs = {"obs_mode": "depth+segmentation", "sensor": "none", "camera": "icvl"}
     est = DeepPriorEstimator("deepprior++")
-    frames = record("handsim/HandPose-v0", kwargs, est, seeds, stride)
-    loc = est.localizer
+    raw = DeepPriorEstimator("deepprior++", refine_guard=False)
+    frames = _handpose_frames(seeds, stride, est)
+    loc = raw.localizer
 
-    def pipeline(depth: np.ndarray, fr: dict) -> float:
-        est.reset()
-        return _error_mm(est.predict(depth, fr["K"]).keypoints_cam, fr["truth"])
+    def pipeline(depth: np.ndarray, fr: dict, which=raw) -> float:
+        which.reset()
+        return _error_mm(which.predict(depth, fr["K"]).keypoints_cam, fr["truth"])
 
     def refined(fr: dict, steps: int) -> float:
         c = loc.base.localize(fr["depth"], fr["K"])
         for _ in range(steps):
             c = loc.refine(fr["depth"], fr["K"], c)
-        return _error_mm(est.predict_at(fr["depth"], fr["K"], c), fr["truth"])
+        return _error_mm(raw.predict_at(fr["depth"], fr["K"], c), fr["truth"])
 
     def without_arm(fr: dict) -> float:
         depth = fr["depth"].copy()
@@ -151,12 +169,13 @@ def handpose(seeds: list[int], stride: int) -> dict:
     result_one = _table(frames, columns)
     loc.iterations = 3  # the shipped pipeline's
     columns = {
-        "pipeline": lambda fr: pipeline(fr["depth"], fr),
+        "pipeline": lambda fr: pipeline(fr["depth"], fr, est),
+        "pipeline_unguarded": lambda fr: pipeline(fr["depth"], fr),
         "true_centre": lambda fr: _error_mm(
-            est.predict_at(fr["depth"], fr["K"], fr["truth"][MIDDLE_MCP]), fr["truth"]
+            raw.predict_at(fr["depth"], fr["K"], fr["truth"][MIDDLE_MCP]), fr["truth"]
         ),
-        "without_arm": without_arm,
-        "wall_0.1m_behind": wall,
+        "without_arm_unguarded": without_arm,
+        "wall_0.1m_behind_unguarded": wall,
     }
     result = _table(frames, columns)
     result["all"].update(result_one["all"])
@@ -165,15 +184,83 @@ def handpose(seeds: list[int], stride: int) -> dict:
     return result
 
 
+def _walk_rows(items, est: DeepPriorEstimator) -> dict:
+    """The refinement's path on ``items`` ((depth, K, truth, is_left) each), unguarded."""
+    loc = est.localizer
+    steps, residual, err = [], [], []
+    for depth, K, truth, is_left in items:  # noqa: N806
+        if est.canonical_side and is_left:  # as the pipeline sees a left hand
+            depth, K = mirror_depth(depth), mirror_intrinsics(K, depth.shape[1])  # noqa: N806
+            truth = mirror_points(truth)
+        c = loc.base.localize(depth, K)
+        if c is None:
+            continue
+        path, move, lost = loc.path(depth, K, c)
+        steps.append([np.linalg.norm(p - path[0]) for p in path[1:]])
+        residual.append(np.linalg.norm(move))
+        kept = path[0] if lost else path[-1]
+        err.append([np.linalg.norm(p - truth[MIDDLE_MCP]) for p in (path[0], path[-1], kept)])
+    steps_mm, residual_mm = 1000 * np.array(steps), 1000 * np.array(residual)
+    err_mm = 1000 * np.array(err)
+
+    def spread(x: np.ndarray) -> list[float]:
+        return [round(float(v), 1) for v in np.percentile(x, [50, 90, 100])]
+
+    return {
+        "n": len(err),
+        "displacement_mm_after_step": {
+            str(k + 1): spread(steps_mm[:, k]) for k in range(steps_mm.shape[1])
+        },
+        "residual_mm": spread(residual_mm),
+        "guard_fires": int(np.count_nonzero(residual_mm > 1000 * loc.cube_m / 2)),  # as path()
+        "mcp_error_mm_mean": {
+            "detector": round(float(err_mm[:, 0].mean()), 1),
+            "refined": round(float(err_mm[:, 1].mean()), 1),
+            "guarded": round(float(err_mm[:, 2].mean()), 1),
+        },
+    }
+
+
+def walk(seeds: list[int], stride: int, bench: str | None) -> dict:
+    """The refinement's path on a benchmark's sets and on HandPose-v0's frames."""
+    from pathlib import Path
+
+    from handsim.cli.benchmark_sets import read_benchmark, valid_frames
+
+    est = DeepPriorEstimator("deepprior++", refine_guard=False)
+    out = {}
+    if bench:
+        for name, info in read_benchmark(bench)["sets"].items():
+            folder = Path(bench) / info["folder"]
+            items = (
+                (
+                    np.asarray(a["depth"]),
+                    np.asarray(a["K"], np.float64),
+                    np.asarray(a["keypoints_cam"], np.float64),
+                    bool(a["is_left"]),
+                )
+                for a in valid_frames(folder)
+            )
+            out[name] = _walk_rows(items, est)
+    frames = _handpose_frames(seeds, stride, est)
+    items = [(fr["depth"], fr["K"], fr["truth"], fr["is_left"]) for fr in frames]
+    out["HandPose-v0"] = _walk_rows(items, est)
+    return out
+
+
 def main() -> None:
     """Print the tables as JSON; ``--out`` writes them too."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("env", choices=("grasp", "handpose"))
+    parser.add_argument("env", choices=("grasp", "handpose", "walk"))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--stride", type=int, default=3, help="keep every N-th step")
+    parser.add_argument("--bench", default=None, help="walk: a handsim-bench folder")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
-    result = (grasp if args.env == "grasp" else handpose)(args.seeds, args.stride)
+    if args.env == "walk":
+        result = walk(args.seeds, args.stride, args.bench)
+    else:
+        result = (grasp if args.env == "grasp" else handpose)(args.seeds, args.stride)
     result.update({"env": args.env, "seeds": args.seeds, "stride": args.stride})
     text = json.dumps(result, indent=1)
     print(text)

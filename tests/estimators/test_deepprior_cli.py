@@ -305,3 +305,34 @@ def test_resuming_from_a_damaged_last_pt_names_the_file_and_the_fix(tiny_data, t
     error = f"handsim: error: cannot resume from {last}: it is not a readable checkpoint (not"
     assert error in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_closed_loop_cli_takes_the_refinement_guard(tmp_path):
+    """`handsim closed-loop --estimator ...DeepPriorEstimator:{"refine_guard": ...}`.
+
+    A value that is not a bool is one error line (exit 2) naming what is valid; ``false``
+    runs the loop unguarded (the repr in the report says so) on HandPose-v0, where the
+    refinement then walks up the arm (docs/deepprior.md: over 200 mm).
+    """
+    spec = "handsim.estimators:DeepPriorEstimator:"
+    cmd = [sys.executable, "-m", "handsim.cli", "closed-loop", "--env", "handsim/HandPose-v0",
+           "--episodes", "1", "--sensor", "none", "-q", "--out", str(tmp_path)]  # fmt: skip
+    bad = subprocess.run(
+        [*cmd, "--estimator", spec + '{"refine_guard": "no"}'],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert bad.returncode == 2, bad.stderr
+    assert "refine_guard must be True" in bad.stderr and "received 'no'" in bad.stderr
+    assert "Traceback" not in bad.stderr
+    ok = subprocess.run(
+        [*cmd, "--estimator", spec + '{"refine_guard": false, "threads": 1}'],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert ok.returncode == 0, ok.stderr
+    report = json.loads((tmp_path / "closed_loop.json").read_text())
+    assert "refine_guard=False" in report["estimator"]["repr"]
+    assert report["modes"]["feedback_off"]["kp_mean_mm"] > 150.0
