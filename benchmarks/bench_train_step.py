@@ -50,10 +50,7 @@ def step_rate(
         if cuda:
             torch.cuda.synchronize()
 
-    for i in range(warmup + steps):
-        if i == warmup:
-            sync()
-            t0 = time.perf_counter()
+    def step() -> None:
         with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
             pred = model(x)
         loss = loss_fn(pred.float(), y)
@@ -61,6 +58,12 @@ def step_rate(
         loss.backward()
         optimizer.step()
         loss.item()  # as handsim train does each step
+
+    for i in range(warmup + steps):
+        if i == warmup:
+            sync()
+            t0 = time.perf_counter()
+        step()
     sync()
     dt = (time.perf_counter() - t0) / steps
     if profile:
@@ -70,13 +73,7 @@ def step_rate(
         activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if cuda else [])
         with torch_profile(activities=activities) as prof:
             for _ in range(5):
-                with torch.autocast("cuda", dtype=torch.bfloat16, enabled=cuda):
-                    pred = model(x)
-                loss = loss_fn(pred.float(), y)
-                optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                optimizer.step()
-                loss.item()
+                step()
             sync()
         key = "cuda_time_total" if cuda else "cpu_time_total"
         print(prof.key_averages().table(sort_by=key, row_limit=profile), flush=True)
