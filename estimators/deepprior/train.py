@@ -30,6 +30,7 @@ recomputed (same weights, 485 validation frames).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 import multiprocessing
@@ -178,12 +179,18 @@ def _check(config: TrainConfig) -> None:
 _FRAMES: FrameSet | None = None  # the frames of localizer_centers, inherited by forked workers
 
 
+@functools.lru_cache(maxsize=2)
+def _refiner(checkpoint: str, iterations: int, device: str) -> Any:
+    """The localizer of one :func:`localizer_centers` call, loaded once, not per chunk."""
+    from .estimator import RefinedLocalizer
+
+    return RefinedLocalizer(checkpoint, iterations=iterations, device=device)
+
+
 def _chunk_centers(
     indices: range, checkpoint: str | None, iterations: int, device: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop centres and ``found`` of the frames ``indices`` (see :func:`localizer_centers`)."""
-    from .estimator import RefinedLocalizer
-
     f = _FRAMES
     assert f is not None
     base = PlaneRemovedLocalizer()
@@ -194,8 +201,7 @@ def _chunk_centers(
         centers[found] = np.stack([c for c in coms if c is not None])
         if checkpoint:
             idx = np.flatnonzero(found) + indices.start
-            loc = RefinedLocalizer(checkpoint, iterations=iterations, device=device)
-            centers[found] = loc.refine_batch(
+            centers[found] = _refiner(checkpoint, iterations, device).refine_batch(
                 lambda j: f.depth(int(idx[j])), f.K[idx], centers[found]
             )
     return centers, found
@@ -246,6 +252,7 @@ def localizer_centers(
             parts = [_chunk_centers(c, checkpoint, iterations, device) for c in chunks]
     finally:
         _FRAMES = None
+        _refiner.cache_clear()  # a checkpoint retrained at the same path is read again
     if not parts:
         return np.zeros((0, 3)), np.zeros(0, dtype=bool)
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
