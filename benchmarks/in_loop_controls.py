@@ -11,7 +11,8 @@ so every estimator sees the same frames), then runs fresh estimators on them off
 - ``handpose``: ``handsim/HandPose-v0`` (no sensor noise, ICVL camera): the DeepPrior++
   pipeline (with the localizer's guard, the default, and without it), cropped at the true MCP,
   at the first centre without the refinement CNN, after one refinement step, and, unguarded,
-  with the arm's pixels removed and with a flat wall 0.1 m behind the hand.
+  with the arm's pixels removed and with a flat wall 0.1 m behind the hand; ``--checkpoint``
+  picks the pose network (a run's ``best.pt``), e.g. to compare two trainings on these frames.
 - ``walk``: where the localizer's refinement goes, unguarded, on every set of a benchmark
   (``--bench``) and on the HandPose-v0 frames: its displacement from the detector's centre
   after each step, the move the network still asks for at the refined centre (the guard's
@@ -133,10 +134,14 @@ def _handpose_frames(seeds: list[int], stride: int, estimator) -> list[dict]:
     return record("handsim/HandPose-v0", kwargs, estimator, seeds, stride)
 
 
-def handpose(seeds: list[int], stride: int) -> dict:
-    """HandPose-v0: where DeepPrior++'s crop centre goes, one change at a time."""
-    est = DeepPriorEstimator("deepprior++")
-    raw = DeepPriorEstimator("deepprior++", refine_guard=False)
+def handpose(seeds: list[int], stride: int, checkpoint: str = "deepprior++") -> dict:
+    """HandPose-v0: where DeepPrior++'s crop centre goes, one change at a time.
+
+    The frames are recorded with the expert on the truth, so they are the same for every
+    ``checkpoint`` (a pose network behind the shipped localizer).
+    """
+    est = DeepPriorEstimator(checkpoint)
+    raw = DeepPriorEstimator(checkpoint, refine_guard=False)
     frames = _handpose_frames(seeds, stride, est)
     loc = raw.localizer
 
@@ -255,13 +260,21 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--stride", type=int, default=3, help="keep every N-th step")
     parser.add_argument("--bench", default=None, help="walk: a handsim-bench folder")
+    parser.add_argument(
+        "--checkpoint", default="deepprior++", help="handpose: the pose network (default: shipped)"
+    )
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if args.env == "walk":
         result = walk(args.seeds, args.stride, args.bench)
     else:
-        result = (grasp if args.env == "grasp" else handpose)(args.seeds, args.stride)
+    elif args.env == "grasp":
+        result = grasp(args.seeds, args.stride)
+    else:
+        result = handpose(args.seeds, args.stride, args.checkpoint)
     result.update({"env": args.env, "seeds": args.seeds, "stride": args.stride})
+    if args.env == "handpose":
+        result["checkpoint"] = args.checkpoint
     text = json.dumps(result, indent=1)
     print(text)
     if args.out:
