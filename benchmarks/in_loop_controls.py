@@ -267,7 +267,6 @@ def main() -> None:
     args = parser.parse_args()
     if args.env == "walk":
         result = walk(args.seeds, args.stride, args.bench)
-    else:
     elif args.env == "grasp":
         result = grasp(args.seeds, args.stride)
     else:
