@@ -19,13 +19,14 @@
 # THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
 # DPP_EPOCHS [30], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), DPP_AUGMENT [scale translation] (DeepPrior++'s online augmentations; `rotation`
-# adds the in-plane rotation, which cost 8 mm of validation error in the recipe's control), DEEP_FC [512] (units of the `deep` network's two fully connected layers; the
-# paper's 1024 makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
+# adds the in-plane rotation, which cost 8 mm of validation error in the recipe's control),
+# DEEP_FC [512] (units of the `deep` network's two fully connected layers; the paper's 1024
+# makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
 # networks, e.g. `localizer` for the shipped one); STAGES [data localizer dpp bench] picks the
-# stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU
-# shared with other jobs in about 40 minutes; on a GPU (`--amp`, bfloat16) raise the frames,
-# epochs and WIDTH. Every stage resumes: run the same command again after an interruption
+# stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU in about an
+# hour (DeepPrior++ alone: 32 min); on a GPU (`--amp`, bfloat16) raise the frames, epochs and
+# WIDTH. Every stage resumes: run the same command again after an interruption
 # (generate keeps complete shards, train restarts after its last finished epoch, benchmark
 # make keeps complete sets). The figures of docs/deepprior.md name the settings they were
 # made with.
