@@ -1,11 +1,15 @@
 """A DeepPrior++ checkpoint on handsim-bench sets: error, palm width, and its two controls.
 
     python benchmarks/deepprior_bench_check.py BENCH --checkpoint RUN/dpp/best.pt \
-        --localizer RUN/localizer/best.pt [--sets hand_third_person hand_object] --out check.json
+        --localizer RUN/localizer/best.pt [--detector plane|learned|CKPT] \
+        [--refine-iterations 3] \
+        [--sets hand_third_person hand_object] --out check.json
 
 For every set and every mode it prints the mean and median 3D keypoint error (mm, over the
 frames where a hand was found) and the palm width (index MCP to little MCP, mm), predicted
-against true, per side. Modes (one network, one change each):
+against true, per side; for ``pipeline`` also the crop centre's distance from the true middle
+MCP (mean, median, share over 50 mm: the localization's failures). Modes (one network, one
+change each):
 
 - ``pipeline``: the estimator as shipped (localizer, canonical side from the checkpoint);
 - ``unmirrored``: the same with ``canonical_side=False`` (left hands given as they come);
@@ -56,6 +60,15 @@ def _predict(est: DeepPriorEstimator, mode: str, arrays: dict) -> np.ndarray | N
     return est.predict_at(depth, K, centre)
 
 
+def _centre_error_mm(est: DeepPriorEstimator, arrays: dict) -> float:
+    """Distance of the pipeline's last crop centre from the true middle MCP, mm."""
+    centre = est._tracked
+    if est.canonical_side and bool(arrays["is_left"]):
+        centre = mirror_points(centre)
+    gt = np.asarray(arrays["keypoints_cam"], np.float64)[MIDDLE_MCP]
+    return float(np.linalg.norm(centre - gt) * 1000.0)
+
+
 def _summary(err: list[float], pw_pred: list[float], pw_true: list[float], n: int) -> dict:
     err_a = np.asarray(err)
     pred, true = np.asarray(pw_pred), np.asarray(pw_true)
@@ -79,6 +92,8 @@ def main() -> None:
     parser.add_argument("bench", type=Path)
     parser.add_argument("--checkpoint", default="deepprior++")
     parser.add_argument("--localizer", default="localizer")
+    parser.add_argument("--detector", default="plane", help="plane, com, learned or a CKPT")
+    parser.add_argument("--refine-iterations", type=int, default=3)
     parser.add_argument("--sets", nargs="+", default=None, help="default: every set")
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
     parser.add_argument("--max-frames", type=int, default=0, help="per set (0: all)")
@@ -86,14 +101,24 @@ def main() -> None:
     args = parser.parse_args()
 
     sets = args.sets or sorted(json.loads((args.bench / "benchmark.json").read_text())["sets"])
+    common = {
+        "localizer": args.localizer,
+        "detector": args.detector,
+        "refine_iterations": args.refine_iterations,
+        "threads": 1,
+    }
     ests = {
-        "pipeline": DeepPriorEstimator(args.checkpoint, localizer=args.localizer, threads=1),
-        "unmirrored": DeepPriorEstimator(
-            args.checkpoint, localizer=args.localizer, threads=1, canonical_side=False
-        ),
+        "pipeline": DeepPriorEstimator(args.checkpoint, **common),
+        "unmirrored": DeepPriorEstimator(args.checkpoint, canonical_side=False, **common),
     }
     ests["true_centre"] = ests["pipeline"]
-    result: dict = {"checkpoint": args.checkpoint, "localizer": args.localizer, "sets": {}}
+    result: dict = {
+        "checkpoint": args.checkpoint,
+        "localizer": args.localizer,
+        "detector": args.detector,
+        "refine_iterations": args.refine_iterations,
+        "sets": {},
+    }
     print(
         f"{'set':20s} {'mode':12s} {'side':5s} {'n':>4s} {'mean':>6s} {'median':>6s} "
         f"{'palm pred/true mm':>18s} {'|rel|':>6s}"
@@ -105,10 +130,13 @@ def main() -> None:
         result["sets"][name] = {}
         for mode in args.modes:
             rows: dict[str, list] = {s: [[], [], [], [0]] for s in ("all", "left", "right")}
+            centre_mm = []
             for arrays in frames:
                 gt = np.asarray(arrays["keypoints_cam"], np.float64)
                 side = "left" if bool(arrays["is_left"]) else "right"
                 kp = _predict(ests[mode], mode, arrays)
+                if mode == "pipeline" and kp is not None:
+                    centre_mm.append(_centre_error_mm(ests[mode], arrays))
                 for key in ("all", side):
                     rows[key][3][0] += 1
                     if kp is None:
@@ -118,6 +146,17 @@ def main() -> None:
                     rows[key][2].append(_palm_width_mm(gt))
             out = {s: _summary(r[0], r[1], r[2], r[3][0]) for s, r in rows.items()}
             result["sets"][name][mode] = out
+            if centre_mm:
+                c = np.asarray(centre_mm)
+                out["all"]["centre_error_mm"] = {
+                    "mean": float(c.mean()),
+                    "median": float(np.median(c)),
+                    "over_50mm": float((c > 50).mean()),
+                }
+                print(
+                    f"{name:20s} centre: mean {c.mean():.1f} median {np.median(c):.1f} mm, "
+                    f"{(c > 50).mean():.1%} over 50 mm"
+                )
             for s, o in out.items():
                 if o["mean_error_mm"] is None:
                     continue

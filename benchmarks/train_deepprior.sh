@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Data, training and evaluation of the shipped DeepPrior++ and localizer weights.
+# Data, training and evaluation of the shipped DeepPrior++, localizer and hand detector weights.
 #
 #   bash benchmarks/train_deepprior.sh OUT_DIR
 #
@@ -16,15 +16,18 @@
 #
 # Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], DEVICE [cuda if
 # torch sees one, else cpu], WORKERS [1] (generate workers; on CUDA also loader workers),
-# THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), LOC_EPOCHS [24],
+# THREADS [1] (torch CPU threads: on a shared CPU one thread is fastest), DET_EPOCHS [20]
+# (the whole-image hand detector, `detector.pt`), LOC_EPOCHS [24],
 # DPP_EPOCHS [30], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), DPP_AUGMENT [scale translation] (DeepPrior++'s online augmentations; `rotation`
 # adds the in-plane rotation, which cost 8 mm of validation error in the recipe's control),
 # DEEP_FC [512] (units of the `deep` network's two fully connected layers; the paper's 1024
 # makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
-# networks, e.g. `localizer` for the shipped one); STAGES [data localizer dpp bench] picks the
-# stages (also: deep, DeepPrior's `deep` network). The defaults fit a 2-core CPU in about an
+# networks, e.g. `localizer` for the shipped one); DETECTOR [plane] (the first centre of the
+# pose networks' training crops; the shipped DeepPrior++ was cropped at `plane` centres);
+# STAGES [data detector localizer dpp bench] picks the stages (also: deep, DeepPrior's `deep`
+# network). The defaults fit a 2-core CPU in about an
 # hour (DeepPrior++ alone: 32 min); on a GPU (`--amp`, bfloat16) raise the frames, epochs and
 # WIDTH. Every stage resumes: run the same command again after an interruption
 # (generate keeps complete shards, train restarts after its last finished epoch, benchmark
@@ -43,6 +46,7 @@ CLEAN_FRAMES=${CLEAN_FRAMES:-1000}
 EGO_FRAMES=${EGO_FRAMES:-2500}
 OBJECT_FRAMES=${OBJECT_FRAMES:-3500}
 ROLLOUT_FRAMES=${ROLLOUT_FRAMES:-0}
+DET_EPOCHS=${DET_EPOCHS:-20}
 LOC_EPOCHS=${LOC_EPOCHS:-24}
 DPP_EPOCHS=${DPP_EPOCHS:-30}
 DPP_AUGMENT=${DPP_AUGMENT:-scale translation}
@@ -52,8 +56,9 @@ WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
 BENCH=${BENCH:-$OUT/bench}
 EPISODES=${EPISODES:-5}
-STAGES=${STAGES:-"data localizer dpp bench"}
+STAGES=${STAGES:-"data detector localizer dpp bench"}
 LOCALIZER=${LOCALIZER:-$OUT/localizer/best.pt}
+DETECTOR=${DETECTOR:-plane}
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
@@ -79,6 +84,11 @@ if has data; then
       >/dev/null
   done
 fi
+if has detector; then
+  stamp "train the hand detector"
+  $HANDSIM train detector --data "${DATA[@]}" --out "$OUT/detector" --epochs "$DET_EPOCHS" \
+    --device "$DEVICE" --batch-size "$BATCH" --threads "$THREADS" -q >/dev/null
+fi
 if has localizer; then
   stamp "train the localizer"
   $HANDSIM train localizer --data "${DATA[@]}" --out "$OUT/localizer" --epochs "$LOC_EPOCHS" \
@@ -87,19 +97,24 @@ fi
 if has dpp; then
   stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
-    --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" "${COMMON[@]}" >/dev/null
+    --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$DETECTOR" \
+    "${COMMON[@]}" >/dev/null
 fi
 if has deep; then
   stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
-    --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" "${COMMON[@]}" >/dev/null
+    --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" --detector "$DETECTOR" \
+    "${COMMON[@]}" >/dev/null
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
   # spec CHECKPOINT [EXTRA_KWARGS]: the run's network behind the shipped pipeline class.
+  # The run's detector if it trained one, else the shipped one.
+  RUN_DETECTOR=learned
+  [[ -f $OUT/detector/best.pt ]] && RUN_DETECTOR=$OUT/detector/best.pt
   spec() {
-    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$LOCALIZER\", \"threads\": $THREADS${2:-}}"
+    echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$LOCALIZER\", \"detector\": \"$RUN_DETECTOR\", \"threads\": $THREADS${2:-}}"
   }
   stamp "handsim-bench: run DeepPrior++, $EPISODES closed-loop episodes"
   $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt")" --bench "$BENCH" \

@@ -9,6 +9,7 @@ __all__ = [
     "CenterOfMassLocalizer",
     "DeepPriorEstimator",
     "FeedbackEstimator",
+    "LearnedDetector",
     "OracleEstimator",
     "PlaneRemovedLocalizer",
     "RefinedLocalizer",
@@ -21,6 +22,7 @@ _LAZY_NAMES = {
     "OracleEstimator": "handsim.estimators.oracle",
     "DeepPriorEstimator": "handsim.estimators.deepprior.estimator",
     "FeedbackEstimator": "handsim.estimators.feedback.estimator",
+    "LearnedDetector": "handsim.estimators.deepprior.detector",
     "PlaneRemovedLocalizer": "handsim.estimators.deepprior.preprocess",
     "RefinedLocalizer": "handsim.estimators.deepprior.estimator",
 }

@@ -1,8 +1,8 @@
 """DeepPrior and DeepPrior++ (Oberweger et al.) trained on handsim data.
 
 Modules: :mod:`.preprocess` (localization, crop, augmentation, PCA; NumPy only),
-:mod:`.models`, :mod:`.data`, :mod:`.train`, :mod:`.evaluate`, :mod:`.checkpoint` and
-:mod:`.estimator` (torch). Importing this package does not import torch; the names below are
+:mod:`.models`, :mod:`.data`, :mod:`.train`, :mod:`.evaluate`, :mod:`.checkpoint`,
+:mod:`.detector` (the whole-image hand detector) and :mod:`.estimator` (torch). Importing this package does not import torch; the names below are
 loaded on first access.
 """
 
@@ -11,12 +11,13 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-__all__ = ["DeepPriorEstimator", "RefinedLocalizer", "PlaneRemovedLocalizer"]
+__all__ = ["DeepPriorEstimator", "RefinedLocalizer", "PlaneRemovedLocalizer", "LearnedDetector"]
 
 _LAZY_NAMES = {
     "DeepPriorEstimator": "handsim.estimators.deepprior.estimator",
     "RefinedLocalizer": "handsim.estimators.deepprior.estimator",
     "PlaneRemovedLocalizer": "handsim.estimators.deepprior.preprocess",
+    "LearnedDetector": "handsim.estimators.deepprior.detector",
 }
 
 

@@ -34,7 +34,12 @@ __all__ = [
 WEIGHTS_DIR = Path(__file__).parent / "weights"
 """Folder of the shipped weights."""
 
-SHIPPED = {"deepprior": "deepprior", "deepprior++": "deepprior_pp", "localizer": "localizer"}
+SHIPPED = {
+    "deepprior": "deepprior",
+    "deepprior++": "deepprior_pp",
+    "localizer": "localizer",
+    "detector": "detector",
+}
 """Shipped weights by name -> file stem in :data:`WEIGHTS_DIR`."""
 
 

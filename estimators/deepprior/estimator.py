@@ -58,10 +58,35 @@ def _fill(depth_m: np.ndarray, K: np.ndarray, center: np.ndarray, cube_m: float)
     return float(np.count_nonzero(crop < 1.0)) / crop.size
 
 
-DETECTORS = ("plane", "com")
+DETECTORS = ("plane", "com", "learned")
 """First hand centres: ``"plane"`` (RANSAC plane removal, then the nearest blob's centre of
-mass; works on a table) or ``"com"`` (DeepPrior's centre of mass of the nearest depth slab,
-cheaper, for a hand nearest to the camera)."""
+mass; works on a table), ``"com"`` (DeepPrior's centre of mass of the nearest depth slab,
+cheaper, for a hand nearest to the camera) or ``"learned"`` (the shipped whole-image hand
+detector, :class:`~.detector.LearnedDetector`: finds the hand behind an object or at the end of
+a forearm). A detector checkpoint's path is also accepted."""
+
+
+def _first_centre(detector: str | os.PathLike[str], device: str) -> Any:
+    """The detector object of a :data:`DETECTORS` name or a detector checkpoint path."""
+    from handsim.estimators.com import CenterOfMassLocalizer
+
+    from .checkpoint import InvalidCheckpoint
+    from .detector import LearnedDetector
+
+    if detector == "plane":
+        return PlaneRemovedLocalizer()
+    if detector == "com":
+        return CenterOfMassLocalizer()
+    if detector == "learned":
+        return LearnedDetector("detector", device)
+    if isinstance(detector, str | os.PathLike) and (
+        os.path.isdir(detector) or str(detector).endswith(".pt")
+    ):
+        return LearnedDetector(detector, device)
+    raise InvalidCheckpoint(
+        f"detector must be one of {', '.join(DETECTORS)} or a detector checkpoint (a .pt or a "
+        f"`handsim train detector` run folder); received {detector!r}"
+    )
 
 
 class RefinedLocalizer(EstimatorBase):
@@ -80,7 +105,8 @@ class RefinedLocalizer(EstimatorBase):
             ``None`` for the first centre alone.
         iterations: refinement steps.
         device: torch device.
-        detector: the first centre, ``"plane"`` or ``"com"``.
+        detector: the first centre (:data:`DETECTORS`, or a detector checkpoint path;
+            default ``"learned"``).
         guard: keep the first centre when the refinement has not converged (one more network
             call per frame); ``False``: the refined centre as it is.
 
@@ -95,26 +121,20 @@ class RefinedLocalizer(EstimatorBase):
         *,
         iterations: int = 3,
         device: str = "cpu",
-        detector: str = "plane",
+        detector: str | os.PathLike[str] = "learned",
         guard: bool = True,
     ) -> None:
-        from handsim.estimators.com import CenterOfMassLocalizer
-
-        from .checkpoint import InvalidCheckpoint, load_model
+        from .checkpoint import load_model
         from .models import inference_forward
 
-        if detector not in DETECTORS:
-            raise InvalidCheckpoint(
-                f"detector must be one of {', '.join(DETECTORS)}; received {detector!r}"
-            )
         if not isinstance(guard, bool):
             raise InvalidEstimatorParams(
                 f"guard must be True (keep the first centre when the refinement does not "
                 f"converge) or False; received {guard!r}"
             )
         self.guard = guard
-        self.detector = detector
-        self.base = PlaneRemovedLocalizer() if detector == "plane" else CenterOfMassLocalizer()
+        self.base = _first_centre(detector, device)
+        self.detector = str(detector)
         self.iterations = int(iterations)
         self.device = device
         self.model = None
@@ -249,9 +269,11 @@ class DeepPriorEstimator(EstimatorBase):
         refine_guard: keep the detector's centre when the refinement has not converged
             (:class:`RefinedLocalizer`'s ``guard``: it walked off the hand, e.g. up an arm).
         device: torch device (``"cpu"`` or ``"cuda"``).
-        detector: the localizer's first centre (:data:`DETECTORS`): ``"plane"`` (default,
-            works on a table) or ``"com"`` (DeepPrior's original detector, for a hand nearest
-            to the camera; with ``localizer=None`` the pipeline of the DeepPrior paper).
+        detector: the localizer's first centre (:data:`DETECTORS`): ``"learned"`` (default,
+            the whole-image hand detector: finds the hand behind an object or past a
+            forearm), ``"plane"`` (plane removal and the nearest blob; cheaper, for a hand
+            nearest to the camera on a table), ``"com"`` (DeepPrior's original detector; with
+            ``localizer=None`` the pipeline of the DeepPrior paper) or a detector checkpoint.
         threads: CPU threads of torch and of OpenCV (process-wide settings; ``None``: leave
             theirs). On a CPU shared with other jobs, 1 is fastest: threads that wait for
             each other cost more than they gain on one frame's small arrays.
@@ -280,7 +302,7 @@ class DeepPriorEstimator(EstimatorBase):
         refine_guard: bool = True,
         device: str = "cpu",
         threads: int | None = None,
-        detector: str = "plane",
+        detector: str | os.PathLike[str] = "learned",
         canonical_side: bool | None = None,
         is_left: bool = False,
         track: bool = False,

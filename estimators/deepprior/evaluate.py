@@ -1,11 +1,12 @@
 """Evaluation of a learned estimator on a dataset split (``handsim evaluate``).
 
-:func:`evaluate` runs the whole inference pipeline (plane removal, refined localizer, crop,
-network) on every frame of the split and writes ``metrics.json`` with ``mean_error_mm`` (mean
-keypoint error over all joints of the frames with an estimate) at its top level, the
-:func:`~handsim.metrics.evaluate_hand_poses` report (F(tau), PCK, AUCs, per joint), errors per
-occlusion bucket and per sensor, the localization error of every stage (centre of mass,
-plane-removed centre of mass, refined, each against the true middle-finger MCP), the pose
+:func:`evaluate` runs the whole inference pipeline (the detector's first centre, refined
+localizer, crop, network) on every frame of the split and writes ``metrics.json`` with
+``mean_error_mm`` (mean keypoint error over all joints of the frames with an estimate) at its
+top level, the :func:`~handsim.metrics.evaluate_hand_poses` report (F(tau), PCK, AUCs, per
+joint), errors per occlusion bucket and per sensor, the localization error of every stage
+(centre of mass, plane-removed centre of mass, the pipeline's detector, refined, each against
+the true middle-finger MCP), the pose
 error when the crop is centred by each of them and by the truth, and the inference time; and
 the plots ``f_tau.png``, ``pck.png``, ``error_by_occlusion.png``, ``error_by_joint.png``.
 
@@ -54,6 +55,7 @@ def evaluate(
     *,
     split: str = "test",
     localizer: str | None = "localizer",
+    detector: str = "learned",
     max_frames: int = 0,
     progress: bool = True,
     threads: int = 0,
@@ -68,7 +70,8 @@ def evaluate(
         data: dataset folders, or frames in memory (e.g. :func:`~.data.env_frames`).
         out: output folder.
         split: ``train``, ``val``, ``test`` or ``all``.
-        localizer: localizer checkpoint, or ``None`` for the plane-removed centre of mass.
+        localizer: localizer checkpoint, or ``None`` for the detector's centre alone.
+        detector: the pipeline's first centre (``RefinedLocalizer``'s ``detector``).
         max_frames: evaluate at most this many frames (0: all).
         progress: show a progress bar.
         threads: torch CPU threads (0: torch's default).
@@ -95,6 +98,7 @@ def evaluate(
     est = DeepPriorEstimator(
         estimator,
         localizer=localizer,
+        detector=detector,
         threads=threads or None,
         device=device,
         canonical_side=canonical_side,
@@ -112,11 +116,13 @@ def evaluate(
     loc_err = {
         "com": np.full(n, np.nan),
         "plane_removed_com": np.full(n, np.nan),
+        "detector": np.full(n, np.nan),  # the pipeline's first centre
         "refined": np.full(n, np.nan),
     }
     # The pose error when the crop is centred by each localizer (and by the truth).
-    pose_at = {k: np.full(n, np.nan) for k in ("com", "plane_removed_com", "ground_truth")}
-    com, base = CenterOfMassLocalizer(), PlaneRemovedLocalizer()
+    centres = ("com", "plane_removed_com", "detector", "ground_truth")
+    pose_at = {k: np.full(n, np.nan) for k in centres}
+    com, plane, first = CenterOfMassLocalizer(), PlaneRemovedLocalizer(), est.localizer.base
     times = []
     for i in tqdm(range(n), desc="evaluate", disable=not progress):
         depth, K = frames.depth(i), frames.K[i]  # noqa: N806
@@ -129,17 +135,22 @@ def evaluate(
                 pose_at["com"][i] = _mean_mm(est.predict_at(depth, K, c0), gt_i)
         if with_centres:
             pose_at["ground_truth"][i] = _mean_mm(est.predict_at(depth, K, mcp), gt_i)
+        cp = plane.localize(depth, K)
+        if cp is not None:
+            loc_err["plane_removed_com"][i] = np.linalg.norm(cp - mcp) * 1000.0
+            if with_centres:
+                pose_at["plane_removed_com"][i] = _mean_mm(est.predict_at(depth, K, cp), gt_i)
         t0 = time.perf_counter()
-        c1 = base.localize(depth, K)
+        c1 = first.localize(depth, K)
         if c1 is None:
             times.append(time.perf_counter() - t0)
             continue
         c2 = est.localizer.refine(depth, K, c1)
         pred[i] = est.predict_at(depth, K, c2)
         times.append(time.perf_counter() - t0)
-        loc_err["plane_removed_com"][i] = np.linalg.norm(c1 - mcp) * 1000.0
+        loc_err["detector"][i] = np.linalg.norm(c1 - mcp) * 1000.0
         if with_centres:
-            pose_at["plane_removed_com"][i] = _mean_mm(est.predict_at(depth, K, c1), gt_i)
+            pose_at["detector"][i] = _mean_mm(est.predict_at(depth, K, c1), gt_i)
         loc_err["refined"][i] = np.linalg.norm(c2 - mcp) * 1000.0
     found = np.all(np.isfinite(pred), axis=(1, 2))
     gt = frames.keypoints_cam

@@ -15,6 +15,10 @@ keypoints (:func:`~handsim.estimators.deepprior.preprocess.normalize_keypoints`,
 - :class:`Localizer`: the refinement CNN (three conv layers with max-pooling, two fully
   connected layers with dropout) that predicts the offset of the middle-finger MCP from the
   crop centre, normalized by half the cube.
+- :class:`HandDetector`: a fully convolutional network over the whole (downsampled) depth image
+  that scores, per cell of a coarse grid, whether the middle-finger MCP projects into it, with
+  the MCP's position in the cell and its depth
+  (:mod:`~handsim.estimators.deepprior.detector`).
 
 :func:`build_model` makes any of them from a JSON-able config dict (saved with checkpoints).
 """
@@ -35,6 +39,7 @@ __all__ = [
     "DeepPriorNet",
     "DeepPriorPP",
     "Localizer",
+    "HandDetector",
     "build_model",
     "inference_forward",
 ]
@@ -42,7 +47,7 @@ __all__ = [
 N_OUT = 21 * 3
 """Output values of a pose network: 21 keypoints x (x, y, z), normalized."""
 
-ARCHITECTURES = ("shallow", "deep", "multiscale", "resnet", "localizer")
+ARCHITECTURES = ("shallow", "deep", "multiscale", "resnet", "localizer", "detector")
 """Values of the ``arch`` config key."""
 
 
@@ -278,11 +283,51 @@ class Localizer(nn.Module):
         return self.head(self.features(x))
 
 
+class HandDetector(nn.Module):
+    """The whole-image hand detector: (B, 2, H, W) image -> (B, 4, H / 4, W / 4) cell outputs.
+
+    Input channels: depth / ``depth_max`` (0 where nothing was measured) and the measured
+    mask. A stride-2 5x5 conv, a 3x3 conv and max-pooling bring the image to the grid (a cell
+    is 4 x 4 input pixels); three 3x3 convs dilated 1, 2 and 4 widen the view to about 65 input
+    pixels (a hand at arm's length and its surroundings) and a 1x1 conv gives per cell: the
+    MCP's logit, its position in the cell (u, v, in cells) and its depth (decimetres). Every
+    conv but the last is followed by batch norm and ReLU.
+
+    Args:
+        channels: filters of the grid-resolution convs.
+    """
+
+    def __init__(self, channels: int = 48) -> None:
+        super().__init__()
+
+        def block(c_in: int, c_out: int, k: int, **kw: Any) -> list[nn.Module]:
+            conv = nn.Conv2d(c_in, c_out, k, bias=False, **kw)
+            return [conv, nn.BatchNorm2d(c_out), nn.ReLU(inplace=True)]
+
+        c = int(channels)
+        self.features = nn.Sequential(
+            *block(2, 16, 5, stride=2, padding=2),
+            *block(16, 32, 3, padding=1),
+            nn.MaxPool2d(2),
+            *block(32, c, 3, padding=1),
+            *block(c, c, 3, padding=2, dilation=2),
+            *block(c, c, 3, padding=4, dilation=4),
+        )
+        self.head = nn.Conv2d(c, 4, 1)
+        with torch.no_grad():  # start at half a cell and half a metre
+            self.head.bias.copy_(torch.tensor([0.0, 0.5, 0.5, 5.0]))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 2, H, W) -> (B, 4, H / 4, W / 4)."""
+        return self.head(self.features(x))
+
+
 def build_model(config: dict[str, Any]) -> nn.Module:
     """A network from its config (``arch`` plus the constructor's keyword arguments).
 
     Config keys: ``arch`` (:data:`ARCHITECTURES`), ``size``, ``fc``, ``dropout``, for pose
-    networks ``prior_dim`` (0 = no prior) and for ``resnet`` ``width`` (filter factor).
+    networks ``prior_dim`` (0 = no prior), for ``resnet`` ``width`` (filter factor) and for
+    ``detector`` ``channels``.
 
     Raises:
         ValueError: for an unknown ``arch``.
@@ -299,6 +344,8 @@ def build_model(config: dict[str, Any]) -> nn.Module:
         return DeepPriorPP(prior, size=size, fc=fc, dropout=dropout, width=width)
     if arch == "localizer":
         return Localizer(size=size, fc=fc, dropout=dropout)
+    if arch == "detector":
+        return HandDetector(channels=int(config.get("channels", 48)))
     raise ValueError(f"arch must be one of {', '.join(ARCHITECTURES)}; received {arch!r}")
 
 
@@ -343,6 +390,8 @@ def inference_forward(model: nn.Module) -> Callable[[torch.Tensor], torch.Tensor
         steps = [*_unrolled(model.branches[0]), nn.Flatten().forward, *_unrolled(model.head)]
     elif isinstance(model, DeepPriorPP | Localizer):
         steps = [*_unrolled(model.features), *_unrolled(model.head)]
+    elif isinstance(model, HandDetector):
+        steps = [*_unrolled(model.features), model.head.forward]
     else:
         return model
 

@@ -52,7 +52,7 @@ from .checkpoint import (
     save_checkpoint,
 )
 from .data import CropDataset, FrameSet, load_frames
-from .preprocess import CUBE_M, MIDDLE_MCP, PlaneRemovedLocalizer, fit_pca
+from .preprocess import CUBE_M, MIDDLE_MCP, fit_pca
 from .preprocess import sample_augmentation as _sample
 
 __all__ = [
@@ -98,6 +98,9 @@ class TrainConfig:
         rotation, scale, translation: online augmentations.
         offset_sigma_m: centre offset standard deviation, metres.
         localizer: localizer checkpoint whose centres the pose network is cropped at.
+        detector: the first centre the localizer refines (``RefinedLocalizer``'s
+            ``detector``: ``plane``, ``com``, ``learned`` or a detector checkpoint), as at
+            inference.
         init: checkpoint whose weights the run starts from (a run folder, a ``.pt`` path or a
             shipped name), e.g. to fine-tune shipped weights; its network must be this run's.
         max_frames: use at most this many training frames (0: all).
@@ -124,6 +127,7 @@ class TrainConfig:
     translation: bool = True
     offset_sigma_m: float = 0.005
     localizer: str | None = None
+    detector: str = "plane"
     init: str | None = None
     max_frames: int = 0
     seed: int = 0
@@ -184,17 +188,34 @@ def _refiner(checkpoint: str, iterations: int, device: str) -> Any:
     """The localizer of one :func:`localizer_centers` call, loaded once, not per chunk."""
     from .estimator import RefinedLocalizer
 
-    return RefinedLocalizer(checkpoint, iterations=iterations, device=device)
+    # Only its refinement is used: the first centres come from _detector.
+    return RefinedLocalizer(checkpoint, iterations=iterations, device=device, detector="plane")
+
+
+@functools.lru_cache(maxsize=2)
+def _detector(detector: str, device: str) -> Any:
+    """The first-centre detector of one :func:`localizer_centers` call, made once."""
+    from .estimator import _first_centre
+
+    return _first_centre(detector, device)
 
 
 def _chunk_centers(
-    indices: range, checkpoint: str | None, iterations: int, device: str
+    indices: range, checkpoint: str | None, iterations: int, detector: str, device: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop centres and ``found`` of the frames ``indices`` (see :func:`localizer_centers`)."""
+    from .detector import LearnedDetector
+
     f = _FRAMES
     assert f is not None
-    base = PlaneRemovedLocalizer()
-    coms = [base.localize(f.depth(i), f.K[i]) for i in indices]
+    base = _detector(detector, device)
+    if isinstance(base, LearnedDetector):  # one network call for the chunk
+        depths = [f.depth(i) for i in indices]
+        found_any = [bool(np.any(d > 0)) for d in depths]
+        located = base.localize_batch(depths, f.K[indices.start : indices.stop])
+        coms = [c if ok else None for c, ok in zip(located, found_any, strict=True)]
+    else:
+        coms = [base.localize(f.depth(i), f.K[i]) for i in indices]
     found = np.array([c is not None for c in coms], dtype=bool)
     centers = f.keypoints_cam[indices.start : indices.stop, MIDDLE_MCP].copy()
     if found.any():
@@ -221,8 +242,9 @@ def localizer_centers(
     *,
     workers: int = 0,
     device: str = "cpu",
+    detector: str = "plane",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Crop centres of every frame: the plane-removed CoM, refined by ``checkpoint`` if given.
+    """Crop centres of every frame: the detector's centre, refined by ``checkpoint`` if given.
 
     Frames go in chunks of 256, each located and refined as one batch, so the centres do not
     depend on ``workers`` (on one device).
@@ -234,6 +256,8 @@ def localizer_centers(
         workers: processes (forked, on Linux) that fit the planes and run the refinement
             network on the CPU, one thread each; 0 or 1: this process, on ``device``.
         device: torch device of the refinement network when ``workers`` is 0 or 1.
+        detector: the first centre (``RefinedLocalizer``'s ``detector``; default: the
+            plane-removed centre of mass).
 
     Returns:
         ``(centers (N, 3) metres, found (N,) bool)``; a frame without a blob gets the true
@@ -245,14 +269,15 @@ def localizer_centers(
     _FRAMES = frames
     try:
         if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
-            tasks = [(c, checkpoint, iterations) for c in chunks]
+            tasks = [(c, checkpoint, iterations, detector) for c in chunks]
             with multiprocessing.get_context("fork").Pool(workers) as pool:
                 parts = pool.map(_chunk_centers_cpu, tasks, chunksize=1)
         else:
-            parts = [_chunk_centers(c, checkpoint, iterations, device) for c in chunks]
+            parts = [_chunk_centers(c, checkpoint, iterations, detector, device) for c in chunks]
     finally:
         _FRAMES = None
-        _refiner.cache_clear()  # a checkpoint retrained at the same path is read again
+        _refiner.cache_clear()
+        _detector.cache_clear()  # a checkpoint retrained at the same path is read again
     if not parts:
         return np.zeros((0, 3)), np.zeros(0, dtype=bool)
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
@@ -361,10 +386,11 @@ def open_run(out: Path, config: Any, data: list, error: type[HandSimError]) -> N
     run = {"config": dataclasses.asdict(config), "data": [str(Path(d).resolve()) for d in data]}
     if run_json.is_file():
         previous = json.loads(run_json.read_text())
-        if previous["config"] != run["config"]:
-            changed = sorted(
-                k for k in run["config"] if previous["config"].get(k) != run["config"][k]
-            )
+        # An option added after the run was made has its default there.
+        defaults = {f.name: f.default for f in dataclasses.fields(config)}
+        before = {k: previous["config"].get(k, defaults.get(k)) for k in run["config"]}
+        if before != run["config"]:
+            changed = sorted(k for k in run["config"] if before[k] != run["config"][k])
             raise error(
                 f"{out} holds a run with other options ({', '.join(changed)}); use a new --out "
                 "or the same options to resume"
@@ -455,7 +481,9 @@ def train(
             centers = np.load(path)
             if centers.shape == (len(frames), 3):
                 return centers
-        centers, _ = localizer_centers(frames, checkpoint, workers=loader_workers, device=device)
+        centers, _ = localizer_centers(
+            frames, checkpoint, workers=loader_workers, device=device, detector=config.detector
+        )
         np.save(path, centers)
         return centers
 

@@ -55,7 +55,8 @@ class FeedbackEstimator(EstimatorBase):
         hand_length_m: the hand's length, metres; default: fitted to each pose.
         is_left: the hand's side (see :meth:`set_side`).
         device: torch device.
-        detector: the localizer's first centre (``"plane"`` or ``"com"``).
+        detector: the localizer's first centre (``DeepPriorEstimator``'s ``detector``:
+            ``"learned"``, ``"plane"``, ``"com"`` or a detector checkpoint).
 
     Raises:
         InvalidCheckpoint: for a checkpoint that cannot be loaded or does not fit the others.
@@ -74,7 +75,7 @@ class FeedbackEstimator(EstimatorBase):
         hand_length_m: float | None = None,
         is_left: bool = False,
         device: str = "cpu",
-        detector: str = "plane",
+        detector: str | os.PathLike[str] = "learned",
     ) -> None:
         from ..deepprior.checkpoint import InvalidCheckpoint
         from ..deepprior.estimator import DeepPriorEstimator

@@ -2,6 +2,8 @@
 
 - ``handsim train deepprior|deepprior++|localizer --data DIR [DIR ...] --out RUN``: train (or
   resume: the same command again continues a killed run) and write ``RUN/metrics.json``.
+- ``handsim train detector --data DIR [DIR ...] --out RUN``: the whole-image hand detector
+  (:mod:`handsim.estimators.deepprior.detector`), with the same run rules.
 - ``handsim train synthesizer|updater --data DIR [DIR ...] --out RUN``: the feedback loop's
   networks (:mod:`handsim.estimators.feedback.train`), with the same run rules.
 - ``handsim evaluate --estimator CKPT|deepprior|deepprior++ --data DIR --out OUT``: the whole
@@ -72,7 +74,7 @@ def _train_feedback(args: argparse.Namespace) -> int:
         train_updater,
     )
 
-    checks = [("--init", args.init)]
+    checks = [("--init", args.init), ("--detector", args.detector)]
     if args.kind == "synthesizer":
         checks.append(("--localizer", args.localizer))
     for option, value in checks:
@@ -126,6 +128,47 @@ def _train_feedback(args: argparse.Namespace) -> int:
     return 0
 
 
+# Options of the pose networks that the detector does not take (None or 0: not given).
+_NOT_DETECTOR = {
+    "--size": "size",
+    "--fc": "fc",
+    "--offset-sigma-mm": "offset_sigma_mm",
+    "--localizer": "localizer",
+    "--init": "init",
+    "--detector": "detector",
+}
+
+
+def _train_detector(args: argparse.Namespace) -> int:
+    from handsim.estimators.deepprior.detector import DetectorTrainConfig, train_detector
+
+    for option, name in _NOT_DETECTOR.items():
+        if getattr(args, name):
+            args.parser.error(f"argument {option}: not allowed with detector")
+    config = DetectorTrainConfig(
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        weight_decay=args.weight_decay,
+        max_frames=args.max_frames,
+        seed=args.seed,
+        canonical_side=not args.no_canonical_side,
+    )
+    _check_device(args.device)
+    metrics = train_detector(
+        args.data,
+        args.out,
+        config,
+        device=args.device,
+        progress=not args.quiet,
+        log=lambda line: print(line, file=sys.stderr, flush=True),
+    )
+    keys = ("kind", "epochs_done", "best_val_mean_error_mm", "train_time_s")
+    summary = {k: metrics[k] for k in (*keys, "train_frames", "val_frames")}
+    print(strict_json({**summary, "out": str(args.out)}))
+    return 0
+
+
 def _train(args: argparse.Namespace) -> int:
     import torch
 
@@ -140,6 +183,8 @@ def _train(args: argparse.Namespace) -> int:
             args.parser.error(
                 f"argument {option}: not allowed with {args.kind} (synthesizer and updater only)"
             )
+    if args.kind == "detector":
+        return _train_detector(args)
     size = args.size if args.size else (64 if args.kind == "localizer" else 128)
     fc = args.fc if args.fc else (256 if args.kind == "localizer" else 1024)
     offset = (
@@ -164,6 +209,7 @@ def _train(args: argparse.Namespace) -> int:
         translation="translation" in args.augment,
         offset_sigma_m=offset / 1000.0,
         localizer=args.localizer,
+        detector=args.detector or "plane",
         init=args.init,
         max_frames=args.max_frames,
         seed=args.seed,
@@ -226,6 +272,7 @@ def _evaluate(args: argparse.Namespace) -> int:
         args.out,
         split="test" if args.split is None else args.split,
         localizer=None if args.localizer == "none" else args.localizer,
+        detector=args.detector,
         max_frames=args.max_frames,
         progress=not args.quiet,
         threads=args.threads,
@@ -246,10 +293,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     from handsim.envs import ENV_IDS
     from handsim.estimators.deepprior.train import KINDS
 
-    kinds = (*KINDS, *_FEEDBACK_KINDS)
+    kinds = (*KINDS, "detector", *_FEEDBACK_KINDS)
     tr = sub.add_parser(
         "train",
-        help="train DeepPrior, DeepPrior++, the hand localizer or the feedback loop's networks",
+        help="train DeepPrior, DeepPrior++, the hand localizer and detector or the feedback "
+        "loop's networks",
         description="Train a learned estimator on the train split of dataset folders (handsim "
         "generate), validating on their val split. Checkpoints (last.pt, best.pt + JSON "
         "configs) go to --out; the same command again resumes a killed run.",
@@ -325,6 +373,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         help="crop pose training frames at this localizer's refined centres "
         "(default: at the true middle MCP; updater: the shipped localizer, none: at the true "
         "middle MCP plus --offset-sigma-mm)",
+    )
+    tr.add_argument(
+        "--detector",
+        default=None,
+        metavar="NAME|CKPT",
+        help="the first centre the --localizer refines (plane, com, learned or a detector "
+        "checkpoint; default: plane), as at inference",
     )
     tr.add_argument(
         "--init",
@@ -470,7 +525,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "--localizer",
         default="localizer",
         metavar="CKPT|none",
-        help="localizer checkpoint (default: the shipped one; none: plane-removed centre of mass)",
+        help="localizer checkpoint (default: the shipped one; none: the detector's centre alone)",
+    )
+    ev.add_argument(
+        "--detector",
+        default="learned",
+        metavar="NAME|CKPT",
+        help="the first centre: learned (default: the shipped whole-image hand detector), "
+        "plane, com or a detector checkpoint",
     )
     ev.add_argument(
         "--max-frames",

@@ -124,7 +124,8 @@ def test_cli_train_and_evaluate_write_metrics(tiny_data, tmp_path, capsys):
     assert main(args) == 0
     report = json.loads((out / "metrics.json").read_text())
     assert report["mean_error_mm"] > 0 and report["n_frames"] == 30
-    assert set(report["localization_mm"]) == {"com", "plane_removed_com", "refined"}
+    assert set(report["localization_mm"]) == {"com", "plane_removed_com", "detector", "refined"}
+    assert "detector='learned'" in report["estimator"]
     assert len(report["per_joint_mean_mm"]) == 21
     assert "structured_light" in report["by_sensor"]
     for name in ("f_tau.png", "pck.png", "error_by_occlusion.png", "error_by_joint.png"):

@@ -101,7 +101,7 @@ def test_threads_sets_torch_and_opencv(tmp_path):
 
 
 def test_a_hand_alone_is_found_at_the_detectors_centre():
-    """HandPose-v0 (a hand alone, its gesture formed): cropped at the detector's centre.
+    """HandPose-v0 (a hand alone, its gesture formed): cropped at the plane detector's centre.
 
     The shipped refinement CNN walks up the arm on these frames (docs/deepprior.md, "A hand
     alone"); the guard (the default) sees that it has not converged and keeps the detector's
@@ -128,9 +128,9 @@ def test_a_hand_alone_is_found_at_the_detectors_centre():
             "guarded": {},
             "unguarded": {"refine_guard": False},
         }.items():
-            estimate = DeepPriorEstimator("deepprior++", threads=1, **kwargs).predict(
-                obs["depth"], K
-            )
+            estimate = DeepPriorEstimator(
+                "deepprior++", threads=1, detector="plane", **kwargs
+            ).predict(obs["depth"], K)
             centre = hand_center(estimate.keypoints_cam) - hand_center(truth)
             centre_mm[name] = 1000 * np.linalg.norm(centre)
     finally:

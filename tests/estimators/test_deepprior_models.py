@@ -219,8 +219,14 @@ def test_every_shipped_network_loads_in_float32_and_predicts(name):
     model, config = C.load_model(name)
     assert config["canonical_side"] is True
     assert all(p.dtype == torch.float32 for p in model.parameters())
-    size = int(config["model"]["size"])
+    if name == "detector":  # the whole image in, a grid out
+        from handsim.estimators.deepprior.detector import GRID_H, GRID_W, INPUT_H, INPUT_W
+
+        x, shape = torch.zeros(1, 2, INPUT_H, INPUT_W), (1, 4, GRID_H, GRID_W)
+    else:
+        size = int(config["model"]["size"])
+        x, shape = torch.zeros(1, 1, size, size), (1, 3 if name == "localizer" else 63)
     with torch.inference_mode():
-        out = model(torch.zeros(1, 1, size, size))
-    assert out.shape == (1, 3 if name == "localizer" else 63)
+        out = model(x)
+    assert out.shape == shape
     assert torch.isfinite(out).all()
