@@ -3,13 +3,15 @@
 Measured in one run, on this machine, with ``torch.set_num_threads(1)`` (and OpenCV's
 ``cv2.setNumThreads(1)``), on hand-only structured-light frames (320 x 240):
 
-- preprocessing alone: RANSAC plane removal + nearest-blob centre of mass; the refined
+- preprocessing alone: the learned whole-image hand detector (the default first centre);
+  RANSAC plane removal + nearest-blob centre of mass (``detector="plane"``); the refined
   localizer (3 iterations of the 64 x 64 CNN); the 128 x 128 crop;
 - the centre of mass of the nearest depth slab (``detector="com"``) alone;
 - the whole pipeline (``DeepPriorEstimator.predict``: checks, localization, refinement, crop,
   network, inverse normalization) for DeepPrior (the paper's deep network, FC 1024, with the
   prior; and the shipped one, ``weights/deepprior.json``, when its config differs) and for
-  DeepPrior++ at the paper's width and at the shipped width (``weights/deepprior_pp.json``);
+  DeepPrior++ at the paper's width and at the shipped width (``weights/deepprior_pp.json``),
+  each with the learned detector (the default) and with ``detector="plane"``;
 - DeepPrior as its paper ran it (``detector="com"``, no refinement CNN: the centre of mass of
   the nearest depth slab, which fits hand-only frames, not a table scene), for both DeepPrior
   networks;
@@ -25,8 +27,9 @@ machine is slower).
 
 ``--profile`` adds the time of each stage of one frame through the shipped DeepPrior and
 DeepPrior++ pipelines and DeepPrior's with the paper's FC 1024 network
-(``DeepPriorEstimator``'s own steps, in its order: the input checks, plane removal, the blob,
-each refinement step's crop and network, the pose crop, the pose network, the keypoints),
+(``DeepPriorEstimator``'s own steps, in its order: the input checks, the detector (learned, as
+shipped), each refinement step's crop and network, the pose crop, the pose network, the
+keypoints),
 median and mean ms over the frames and repeats, beside the whole ``predict`` on the same
 frames.
 
@@ -104,9 +107,7 @@ def _estimator(config: dict, folder: Path, **kwargs):
 def _profile(estimator, items: list, repeat: int = 5) -> dict:
     """Ms of each stage of the shipped pipeline on one frame, and of the whole predict.
 
-    The stages call what ``DeepPriorEstimator.predict`` calls, in its order (the blob after
-    :func:`remove_plane` as :func:`nearest_blob_com`; the localizer shares the box of the
-    measured pixels between the two, a few microseconds less).
+    The stages call what ``DeepPriorEstimator.predict`` calls, in its order.
     """
     import numpy as np
     import torch
@@ -123,9 +124,7 @@ def _profile(estimator, items: list, repeat: int = 5) -> dict:
         t = [clock()]
         depth_m, K_cv = validate_depth_input(depth, K)  # noqa: N806
         t.append(clock())
-        cleaned = P.remove_plane(depth_m, K_cv)
-        t.append(clock())
-        c = P.nearest_blob_com(cleaned, K_cv)
+        c = loc.base.localize(depth_m, K_cv)
         t.append(clock())
         if c is None:
             return None
@@ -152,7 +151,7 @@ def _profile(estimator, items: list, repeat: int = 5) -> dict:
         t.append(clock())
         return np.diff(t)
 
-    names = ["checks", "plane removal", "blob"]
+    names = ["checks", "detector"]
     for i in range(loc.iterations):
         names += [f"refine {i + 1} crop", f"refine {i + 1} network"]
     names += ["pose crop", "pose network", "keypoints"]
@@ -277,6 +276,7 @@ def main() -> None:
     from handsim.estimators.com import CenterOfMassLocalizer
     from handsim.estimators.deepprior import preprocess as P
     from handsim.estimators.deepprior.checkpoint import WEIGHTS_DIR
+    from handsim.estimators.deepprior.detector import LearnedDetector
     from handsim.estimators.deepprior.estimator import RefinedLocalizer
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -315,6 +315,7 @@ def main() -> None:
         "fps": {},
     }
     fps = results["fps"]
+    fps["learned_detector"] = _rate(LearnedDetector().localize, items)
     fps["plane_removed_com"] = _rate(base.localize, items)
     fps["com_detector"] = _rate(CenterOfMassLocalizer().localize, items)
     fps["refine_3_iterations"] = _rate(loc.refine, found)
@@ -338,10 +339,11 @@ def main() -> None:
     ratios = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name, config in configs.items():
-            est = _estimator(config, Path(tmp))
-            fps[f"pipeline {name}"] = _rate(est.predict, items)
             target = TARGET_FPS["deepprior++" if name.startswith("deepprior++") else "deepprior"]
-            ratios[name] = fps[f"pipeline {name}"] / target
+            for detector, label in (("learned", name), ("plane", f"{name}, plane detector")):
+                est = _estimator(config, Path(tmp), detector=detector)
+                fps[f"pipeline {label}"] = _rate(est.predict, items)
+                ratios[label] = fps[f"pipeline {label}"] / target
         # DeepPrior as its paper ran it: the centre of mass of the nearest slab, no refinement
         # CNN (the refinement came with DeepPrior++; the plane fit is for table scenes).
         for net in [n for n in configs if n.startswith("deepprior ") or n == "deepprior"]:

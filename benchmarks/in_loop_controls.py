@@ -12,7 +12,13 @@ so every estimator sees the same frames), then runs fresh estimators on them off
   pipeline (with the localizer's guard, the default, and without it), cropped at the true MCP,
   at the first centre without the refinement CNN, after one refinement step, and, unguarded,
   with the arm's pixels removed and with a flat wall 0.1 m behind the hand; ``--checkpoint``
-  picks the pose network (a run's ``best.pt``), e.g. to compare two trainings on these frames.
+  picks the pose network (a run's ``best.pt``), e.g. to compare two trainings on these frames,
+  and ``--detector`` the first centre (``learned``, as shipped, or ``plane``; also for
+  ``walk``).
+- ``detectors``: ``handsim/Grasp-v0`` (as ``grasp``): for each detector of ``--detectors``
+  (``plane``, ``learned`` or a detector checkpoint), its first centre's and its refined
+  centre's distance from the true middle-finger MCP (mm) and the DeepPrior++ pipeline's error
+  behind it, per phase of the expert's episode.
 - ``walk``: where the localizer's refinement goes, unguarded, on every set of a benchmark
   (``--bench``) and on the HandPose-v0 frames: its displacement from the detector's centre
   after each step, the move the network still asks for at the refined centre (the guard's
@@ -21,7 +27,8 @@ so every estimator sees the same frames), then runs fresh estimators on them off
   refined and guarded (mm, median / 90th percentile / max, or mean).
 
 Usage: ``python benchmarks/in_loop_controls.py grasp --seeds 0 1 2 3 4 --stride 3 --out
-grasp.json``, ``python benchmarks/in_loop_controls.py handpose --seeds 0 --stride 5`` or
+grasp.json``, ``python benchmarks/in_loop_controls.py handpose --seeds 0 --stride 5``, ``python
+benchmarks/in_loop_controls.py detectors --seeds 0 1 2 3 --stride 6`` or
 ``python benchmarks/in_loop_controls.py walk --bench BENCH --seeds 0 1 2 --stride 5``.
 Figures are mean keypoint errors over the 21 joints, mm, unless named otherwise.
 """
@@ -129,19 +136,52 @@ def grasp(seeds: list[int], stride: int) -> dict:
     return _table(frames, columns)
 
 
+def detectors(seeds: list[int], stride: int, names: list[str]) -> dict:
+    """Grasp-v0: each detector's centres and the pipeline behind it, on the same frames."""
+    kwargs = {"obs_mode": "depth", "sensor": "structured_light", "camera": "icvl"}
+    ests = {name: DeepPriorEstimator("deepprior++", detector=name) for name in names}
+    frames = record("handsim/Grasp-v0", kwargs, ests[names[0]], seeds, stride)
+
+    def centre_mm(est: DeepPriorEstimator, fr: dict, refined: bool) -> float:
+        depth, K, mcp = fr["depth"], fr["K"], fr["truth"][MIDDLE_MCP]  # noqa: N806
+        if est.canonical_side and fr["is_left"]:
+            depth, K = mirror_depth(depth), mirror_intrinsics(K, depth.shape[1])  # noqa: N806
+            mcp = mirror_points(mcp)
+        c = est.localizer.base.localize(depth, K)
+        if c is None:
+            return float("nan")
+        if refined:
+            c = est.localizer.refine(depth, K, c)
+        return float(np.linalg.norm(c - mcp) * 1000.0)
+
+    def pipeline(est: DeepPriorEstimator, fr: dict) -> float:
+        est.reset()
+        est.set_side(fr["is_left"])
+        return _error_mm(est.predict(fr["depth"], fr["K"]).keypoints_cam, fr["truth"])
+
+    columns: dict[str, Callable[[dict], float]] = {}
+    for name, est in ests.items():
+        columns[f"{name}: centre"] = lambda fr, est=est: centre_mm(est, fr, False)
+        columns[f"{name}: refined centre"] = lambda fr, est=est: centre_mm(est, fr, True)
+        columns[f"{name}: pipeline"] = lambda fr, est=est: pipeline(est, fr)
+    return _table(frames, columns)
+
+
 def _handpose_frames(seeds: list[int], stride: int, estimator) -> list[dict]:
     kwargs = {"obs_mode": "depth+segmentation", "sensor": "none", "camera": "icvl"}
     return record("handsim/HandPose-v0", kwargs, estimator, seeds, stride)
 
 
-def handpose(seeds: list[int], stride: int, checkpoint: str = "deepprior++") -> dict:
+def handpose(
+    seeds: list[int], stride: int, checkpoint: str = "deepprior++", detector: str = "learned"
+) -> dict:
     """HandPose-v0: where DeepPrior++'s crop centre goes, one change at a time.
 
     The frames are recorded with the expert on the truth, so they are the same for every
     ``checkpoint`` (a pose network behind the shipped localizer).
     """
-    est = DeepPriorEstimator(checkpoint)
-    raw = DeepPriorEstimator(checkpoint, refine_guard=False)
+    est = DeepPriorEstimator(checkpoint, detector=detector)
+    raw = DeepPriorEstimator(checkpoint, refine_guard=False, detector=detector)
     frames = _handpose_frames(seeds, stride, est)
     loc = raw.localizer
 
@@ -226,13 +266,13 @@ def _walk_rows(items, est: DeepPriorEstimator) -> dict:
     }
 
 
-def walk(seeds: list[int], stride: int, bench: str | None) -> dict:
+def walk(seeds: list[int], stride: int, bench: str | None, detector: str = "learned") -> dict:
     """The refinement's path on a benchmark's sets and on HandPose-v0's frames."""
     from pathlib import Path
 
     from handsim.cli.benchmark_sets import read_benchmark, valid_frames
 
-    est = DeepPriorEstimator("deepprior++", refine_guard=False)
+    est = DeepPriorEstimator("deepprior++", refine_guard=False, detector=detector)
     out = {}
     if bench:
         for name, info in read_benchmark(bench)["sets"].items():
@@ -256,21 +296,29 @@ def walk(seeds: list[int], stride: int, bench: str | None) -> dict:
 def main() -> None:
     """Print the tables as JSON; ``--out`` writes them too."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("env", choices=("grasp", "handpose", "walk"))
+    parser.add_argument("env", choices=("grasp", "handpose", "walk", "detectors"))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--stride", type=int, default=3, help="keep every N-th step")
     parser.add_argument("--bench", default=None, help="walk: a handsim-bench folder")
     parser.add_argument(
         "--checkpoint", default="deepprior++", help="handpose: the pose network (default: shipped)"
     )
+    parser.add_argument(
+        "--detector", default="learned", help="handpose, walk: the first centre (or plane)"
+    )
+    parser.add_argument(
+        "--detectors", nargs="+", default=["plane", "learned"], help="detectors: which"
+    )
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     if args.env == "walk":
-        result = walk(args.seeds, args.stride, args.bench)
+        result = walk(args.seeds, args.stride, args.bench, args.detector)
     elif args.env == "grasp":
         result = grasp(args.seeds, args.stride)
+    elif args.env == "detectors":
+        result = detectors(args.seeds, args.stride, args.detectors)
     else:
-        result = handpose(args.seeds, args.stride, args.checkpoint)
+        result = handpose(args.seeds, args.stride, args.checkpoint, args.detector)
     result.update({"env": args.env, "seeds": args.seeds, "stride": args.stride})
     if args.env == "handpose":
         result["checkpoint"] = args.checkpoint

@@ -172,6 +172,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--synthesizer-checkpoint", default=None)
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default: 1)")
     parser.add_argument(
+        "--detector",
+        default="learned",
+        help="the first centre: learned (default), plane, com or a detector checkpoint",
+    )
+    parser.add_argument(
         "--true-center",
         action="store_true",
         help="crop at the true middle MCP instead of the localizer's centre (a control)",
@@ -187,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
             args.updater,
             synthesizer=args.synthesizer,
             synthesizer_checkpoint=args.synthesizer_checkpoint,
+            detector=args.detector,
         )
         iterations = 3 if args.iterations is None else args.iterations
         report = bench_iteration_errors(
