@@ -2,8 +2,8 @@
 
 Modules: :mod:`.preprocess` (localization, crop, augmentation, PCA; NumPy only),
 :mod:`.models`, :mod:`.data`, :mod:`.train`, :mod:`.evaluate`, :mod:`.checkpoint`,
-:mod:`.detector` (the whole-image hand detector) and :mod:`.estimator` (torch). Importing this package does not import torch; the names below are
-loaded on first access.
+:mod:`.detector` (the whole-image hand detector) and :mod:`.estimator` (torch). Importing this
+package does not import torch; the names below are loaded on first access.
 """
 
 from __future__ import annotations
