@@ -204,16 +204,17 @@ def _chunk_centers(
     indices: range, checkpoint: str | None, iterations: int, detector: str, device: str
 ) -> tuple[np.ndarray, np.ndarray]:
     """Crop centres and ``found`` of the frames ``indices`` (see :func:`localizer_centers`)."""
-    from .detector import LearnedDetector
+    from .detector import DEPTH_MAX_M, LearnedDetector
 
     f = _FRAMES
     assert f is not None
     base = _detector(detector, device)
     if isinstance(base, LearnedDetector):  # one network call for the chunk
         depths = [f.depth(i) for i in indices]
-        found_any = [bool(np.any(d > 0)) for d in depths]
+        # As LearnedDetector.localize: no centre without a measured pixel in its range.
+        seen = [bool(np.any((d > 0) & (d < DEPTH_MAX_M))) for d in depths]
         located = base.localize_batch(depths, f.K[indices.start : indices.stop])
-        coms = [c if ok else None for c, ok in zip(located, found_any, strict=True)]
+        coms = [c if ok else None for c, ok in zip(located, seen, strict=True)]
     else:
         coms = [base.localize(f.depth(i), f.K[i]) for i in indices]
     found = np.array([c is not None for c in coms], dtype=bool)

@@ -201,3 +201,16 @@ def test_cli_train_detector_and_its_refused_options(tiny_data, tmp_path):
     assert bad.returncode == 2
     assert "argument --localizer: not allowed with detector" in bad.stderr
     assert "Traceback" not in bad.stderr
+
+
+def test_training_centres_from_the_detector_equal_its_frame_by_frame_centres(tiny_data, tiny_run):
+    """localizer_centers(detector=RUN) runs the detector in batches: each frame's own centre."""
+    from handsim.estimators.deepprior.data import load_frames
+    from handsim.estimators.deepprior.train import localizer_centers
+
+    frames = load_frames([tiny_data], "all", canonical_side=True)
+    centres, found = localizer_centers(frames, None, detector=str(tiny_run))
+    det = LearnedDetector(tiny_run)
+    assert found.all()
+    one = np.stack([det.localize(frames.depth(i), frames.K[i]) for i in range(len(frames))])
+    np.testing.assert_allclose(centres, one, rtol=1e-6, atol=1e-9)
