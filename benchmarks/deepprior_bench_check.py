@@ -92,7 +92,9 @@ def main() -> None:
     parser.add_argument("bench", type=Path)
     parser.add_argument("--checkpoint", default="deepprior++")
     parser.add_argument("--localizer", default="localizer")
-    parser.add_argument("--detector", default="plane", help="plane, com, learned or a CKPT")
+    parser.add_argument(
+        "--detector", default="learned", help="learned (as shipped), plane, com or a CKPT"
+    )
     parser.add_argument("--refine-iterations", type=int, default=3)
     parser.add_argument("--sets", nargs="+", default=None, help="default: every set")
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
