@@ -26,6 +26,7 @@ __all__ = [
     "save_checkpoint",
     "load_checkpoint",
     "load_resume_state",
+    "save_resume_state",
     "load_model",
     "built_from",
     "ship_weights",
@@ -130,6 +131,34 @@ def load_checkpoint(name_or_path: str | os.PathLike[str]) -> tuple[dict[str, Any
 
 
 _RESUME_KEYS = ("model", "optimizer", "epoch", "best_val_mm", "history", "elapsed_s", "torch_rng")
+
+
+def save_resume_state(
+    path: str | os.PathLike[str],
+    model: Any,
+    optimizer: Any,
+    *,
+    epoch: int,
+    best_val_mm: float,
+    history: list,
+    elapsed_s: float,
+    config: dict,
+    extra: dict[str, Any] | None = None,
+) -> None:
+    """Write a run's ``last.pt``: what :func:`load_resume_state` reads (``extra``: more tensors)."""
+    import torch
+
+    state = {
+        "model": model.state_dict(),
+        "optimizer": optimizer.state_dict(),
+        "epoch": epoch,
+        "best_val_mm": best_val_mm,
+        "history": json.dumps(history),
+        "elapsed_s": elapsed_s,
+        "torch_rng": torch.get_rng_state(),
+        **(extra or {}),
+    }
+    save_checkpoint(path, state, config)
 
 
 def load_resume_state(

@@ -359,7 +359,7 @@ def train_detector(
     import torch
     from tqdm import tqdm
 
-    from .checkpoint import load_resume_state, save_checkpoint
+    from .checkpoint import load_resume_state, save_checkpoint, save_resume_state
     from .data import load_frames
     from .models import build_model
     from .train import open_run, precise_bn
@@ -445,19 +445,10 @@ def train_detector(
             "elapsed_s": elapsed,
         }
         history.append(entry)
-        save_checkpoint(
-            last,
-            {
-                "model": model.state_dict(),
-                "optimizer": optimizer.state_dict(),
-                "epoch": epoch + 1,
-                "best_val_mm": best,
-                "history": json.dumps(history),
-                "elapsed_s": elapsed,
-                "torch_rng": torch.get_rng_state(),
-            },
-            ckpt_config,
-        )
+        save_resume_state(
+            last, model, optimizer, epoch=epoch + 1, best_val_mm=best, history=history,
+            elapsed_s=elapsed, config=ckpt_config,
+        )  # fmt: skip
         log(json.dumps(entry))
     metrics = {
         "kind": "detector",

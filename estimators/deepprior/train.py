@@ -50,6 +50,7 @@ from .checkpoint import (
     load_resume_state,
     resolve_checkpoint,
     save_checkpoint,
+    save_resume_state,
 )
 from .data import CropDataset, FrameSet, load_frames
 from .preprocess import CUBE_M, MIDDLE_MCP, fit_pca
@@ -599,19 +600,10 @@ def train(
         elapsed += time.perf_counter() - t0
         entry["elapsed_s"] = elapsed
         history.append(entry)
-        save_checkpoint(
-            last,
-            {
-                "model": model.state_dict(),
-                "optimizer": optimizer.state_dict(),
-                "epoch": epoch + 1,
-                "best_val_mm": best,
-                "history": json.dumps(history),
-                "elapsed_s": elapsed,
-                "torch_rng": torch.get_rng_state(),
-            },
-            ckpt_config,
-        )
+        save_resume_state(
+            last, model, optimizer, epoch=epoch + 1, best_val_mm=best, history=history,
+            elapsed_s=elapsed, config=ckpt_config,
+        )  # fmt: skip
         log(json.dumps(entry))  # after the checkpoint: a run killed from here loses nothing
     metrics = {
         "kind": config.kind,

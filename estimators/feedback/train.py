@@ -38,7 +38,7 @@ import numpy as np
 
 from handsim.errors import HandSimError
 
-from ..deepprior.checkpoint import save_checkpoint
+from ..deepprior.checkpoint import save_checkpoint, save_resume_state
 from ..deepprior.data import CropDataset, FrameSet, load_frames
 from ..deepprior.preprocess import CUBE_M, MIDDLE_MCP, crop_depth, crop_matrix, normalize_keypoints
 from ..deepprior.train import open_run
@@ -372,14 +372,9 @@ def train_synthesizer(
         elapsed += time.perf_counter() - t0
         entry["elapsed_s"] = elapsed
         history.append(entry)
-        save_checkpoint(
-            last,
-            {
-                "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                "epoch": epoch + 1, "best_val_mm": best, "history": json.dumps(history),
-                "elapsed_s": elapsed, "torch_rng": torch.get_rng_state(),
-            },
-            ckpt_config,
+        save_resume_state(
+            last, model, optimizer, epoch=epoch + 1, best_val_mm=best, history=history,
+            elapsed_s=elapsed, config=ckpt_config,
         )  # fmt: skip
         log(json.dumps(entry))  # after the checkpoint: a run killed from here loses nothing
     metrics = {
@@ -695,15 +690,13 @@ def train_updater(
         elapsed += time.perf_counter() - t0
         entry["elapsed_s"] = elapsed
         history.append(entry)
-        save_checkpoint(
-            last,
-            {
-                "model": model.state_dict(), "optimizer": optimizer.state_dict(),
-                "epoch": epoch + 1, "best_val_mm": best, "history": json.dumps(history),
-                "elapsed_s": elapsed, "torch_rng": torch.get_rng_state(),
-                "pool_idx": torch.from_numpy(idx_all), "pool_start": torch.from_numpy(start_all),
+        save_resume_state(
+            last, model, optimizer, epoch=epoch + 1, best_val_mm=best, history=history,
+            elapsed_s=elapsed, config=ckpt_config,
+            extra={
+                "pool_idx": torch.from_numpy(idx_all),
+                "pool_start": torch.from_numpy(start_all),
             },
-            ckpt_config,
         )  # fmt: skip
         log(json.dumps(entry))  # after the checkpoint: a run killed from here loses nothing
     synth.close()
