@@ -95,7 +95,9 @@ def main() -> None:
     parser.add_argument(
         "--detector", default="learned", help="learned (as shipped), plane, com or a CKPT"
     )
-    parser.add_argument("--refine-iterations", type=int, default=3)
+    parser.add_argument(
+        "--refine-iterations", type=int, default=None, help="default: as the checkpoint trained"
+    )
     parser.add_argument("--sets", nargs="+", default=None, help="default: every set")
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=MODES)
     parser.add_argument("--max-frames", type=int, default=0, help="per set (0: all)")
@@ -118,7 +120,7 @@ def main() -> None:
         "checkpoint": args.checkpoint,
         "localizer": args.localizer,
         "detector": args.detector,
-        "refine_iterations": args.refine_iterations,
+        "refine_iterations": ests["pipeline"].localizer.iterations,
         "sets": {},
     }
     print(

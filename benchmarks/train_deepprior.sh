@@ -26,6 +26,8 @@
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
 # networks, e.g. `localizer` for the shipped one); DETECTOR [plane] (the first centre of the
 # pose networks' training crops; the shipped DeepPrior++ was cropped at `plane` centres);
+# REFINE [3] (the localizer's steps from that centre; 0: the detector's centre as it is; the
+# checkpoints record it and the estimator crops alike);
 # STAGES [data detector localizer dpp bench] picks the stages (also: deep, DeepPrior's `deep`
 # network). The defaults fit a 2-core CPU in about an
 # hour (DeepPrior++ alone: 32 min); on a GPU (`--amp`, bfloat16) raise the frames, epochs and
@@ -59,6 +61,7 @@ EPISODES=${EPISODES:-5}
 STAGES=${STAGES:-"data detector localizer dpp bench"}
 LOCALIZER=${LOCALIZER:-$OUT/localizer/best.pt}
 DETECTOR=${DETECTOR:-plane}
+REFINE=${REFINE:-3}
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
@@ -98,13 +101,13 @@ if has dpp; then
   stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
     --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$DETECTOR" \
-    "${COMMON[@]}" >/dev/null
+    --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
 fi
 if has deep; then
   stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
     --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" --detector "$DETECTOR" \
-    "${COMMON[@]}" >/dev/null
+    --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"

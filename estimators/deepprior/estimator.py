@@ -265,7 +265,9 @@ class DeepPriorEstimator(EstimatorBase):
             a checkpoint path (``NAME.pt`` with ``NAME.json``, or a training folder).
         localizer: the refinement CNN's checkpoint (default: the shipped one), or ``None`` to
             crop at the plane-removed centre of mass.
-        refine_iterations: refinement steps of the localizer.
+        refine_iterations: refinement steps of the localizer; ``None`` (default): as the
+            network's training crops were centred (its checkpoint's ``crop``; 3 for a
+            checkpoint without one). 0: the detector's centre as it is.
         refine_guard: keep the detector's centre when the refinement has not converged
             (:class:`RefinedLocalizer`'s ``guard``: it walked off the hand, e.g. up an arm).
         device: torch device (``"cpu"`` or ``"cuda"``).
@@ -298,7 +300,7 @@ class DeepPriorEstimator(EstimatorBase):
         checkpoint: str | os.PathLike[str] = "deepprior++",
         *,
         localizer: str | os.PathLike[str] | None = "localizer",
-        refine_iterations: int = 3,
+        refine_iterations: int | None = None,
         refine_guard: bool = True,
         device: str = "cpu",
         threads: int | None = None,
@@ -336,6 +338,8 @@ class DeepPriorEstimator(EstimatorBase):
         self.size = int(config["model"]["size"])
         stored = config.get("canonical_side", False)
         self.canonical_side = bool(stored) if canonical_side is None else canonical_side
+        if refine_iterations is None:
+            refine_iterations = int((config.get("crop") or {}).get("refine_iterations", 3))
         self.localizer = RefinedLocalizer(
             localizer,
             iterations=refine_iterations,
@@ -423,6 +427,7 @@ class DeepPriorEstimator(EstimatorBase):
             "checkpoint": self.checkpoint,
             "localizer": self.localizer.checkpoint,
             "detector": self.localizer.detector,
+            "refine_iterations": self.localizer.iterations,
             "refine_guard": self.localizer.guard,
             "cube_m": self.cube_m,
             "size": self.size,

@@ -102,6 +102,9 @@ class TrainConfig:
         detector: the first centre the localizer refines (``RefinedLocalizer``'s
             ``detector``: ``plane``, ``com``, ``learned`` or a detector checkpoint), as at
             inference.
+        refine_iterations: the localizer's refinement steps from the detector's centre (0: the
+            detector's centre as it is). Recorded in the checkpoint (``crop``): the estimator
+            crops as the network was trained.
         init: checkpoint whose weights the run starts from (a run folder, a ``.pt`` path or a
             shipped name), e.g. to fine-tune shipped weights; its network must be this run's.
         max_frames: use at most this many training frames (0: all).
@@ -129,6 +132,7 @@ class TrainConfig:
     offset_sigma_m: float = 0.005
     localizer: str | None = None
     detector: str = "plane"
+    refine_iterations: int = 3
     init: str | None = None
     max_frames: int = 0
     seed: int = 0
@@ -179,6 +183,11 @@ def _check(config: TrainConfig) -> None:
         positive = name in ("cube_m", "width")
         if not lo <= value <= hi or (positive and value == lo):
             raise InvalidTrainConfig(f"{name} must be {valid}; received {value}")
+    steps = config.refine_iterations
+    if not isinstance(steps, int) or not 0 <= steps <= 10:
+        raise InvalidTrainConfig(
+            f"refine_iterations must be an integer in [0, 10]; received {steps!r}"
+        )
 
 
 _FRAMES: FrameSet | None = None  # the frames of localizer_centers, inherited by forked workers
@@ -474,6 +483,13 @@ def train(
         "kind": config.kind,
         "canonical_side": config.canonical_side,
     }
+    if config.kind != "localizer" and config.localizer:
+        # How the training crops were centred: the estimator's default pipeline.
+        ckpt_config["crop"] = {
+            "detector": config.detector,
+            "localizer": config.localizer,
+            "refine_iterations": config.refine_iterations,
+        }
     flags = {"rotation": config.rotation, "scale": config.scale, "translation": config.translation}
 
     def cached_centers(frames: FrameSet, split: str, checkpoint: str | None) -> np.ndarray:
@@ -484,7 +500,12 @@ def train(
             if centers.shape == (len(frames), 3):
                 return centers
         centers, _ = localizer_centers(
-            frames, checkpoint, workers=loader_workers, device=device, detector=config.detector
+            frames,
+            checkpoint,
+            config.refine_iterations,
+            workers=loader_workers,
+            device=device,
+            detector=config.detector,
         )
         np.save(path, centers)
         return centers

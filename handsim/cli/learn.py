@@ -74,7 +74,11 @@ def _train_feedback(args: argparse.Namespace) -> int:
         train_updater,
     )
 
-    checks = [("--init", args.init), ("--detector", args.detector)]
+    checks = [
+        ("--init", args.init),
+        ("--detector", args.detector),
+        ("--refine-iterations", args.refine_iterations),
+    ]
     if args.kind == "synthesizer":
         checks.append(("--localizer", args.localizer))
     for option, value in checks:
@@ -136,6 +140,7 @@ _NOT_DETECTOR = {
     "--localizer": "localizer",
     "--init": "init",
     "--detector": "detector",
+    "--refine-iterations": "refine_iterations",
 }
 
 
@@ -143,7 +148,7 @@ def _train_detector(args: argparse.Namespace) -> int:
     from handsim.estimators.deepprior.detector import DetectorTrainConfig, train_detector
 
     for option, name in _NOT_DETECTOR.items():
-        if getattr(args, name):
+        if getattr(args, name) or (name == "refine_iterations" and args.refine_iterations == 0):
             args.parser.error(f"argument {option}: not allowed with detector")
     config = DetectorTrainConfig(
         epochs=args.epochs,
@@ -185,6 +190,11 @@ def _train(args: argparse.Namespace) -> int:
             )
     if args.kind == "detector":
         return _train_detector(args)
+    if args.refine_iterations is not None and (args.kind == "localizer" or not args.localizer):
+        args.parser.error(
+            "argument --refine-iterations: needs --localizer, with a pose network (without one "
+            "the crops are at the true middle MCP)"
+        )
     size = args.size if args.size else (64 if args.kind == "localizer" else 128)
     fc = args.fc if args.fc else (256 if args.kind == "localizer" else 1024)
     offset = (
@@ -210,6 +220,7 @@ def _train(args: argparse.Namespace) -> int:
         offset_sigma_m=offset / 1000.0,
         localizer=args.localizer,
         detector=args.detector or "plane",
+        refine_iterations=3 if args.refine_iterations is None else args.refine_iterations,
         init=args.init,
         max_frames=args.max_frames,
         seed=args.seed,
@@ -380,6 +391,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="NAME|CKPT",
         help="the first centre the --localizer refines (plane, com, learned or a detector "
         "checkpoint; default: plane), as at inference",
+    )
+    tr.add_argument(
+        "--refine-iterations",
+        type=integer(0, 10),
+        default=None,
+        metavar="N",
+        help="refinement steps of the --localizer from the detector's centre (default: 3; 0: "
+        "the detector's centre as it is); the estimator crops as the network was trained",
     )
     tr.add_argument(
         "--init",

@@ -240,6 +240,10 @@ def test_cli_device_cuda_without_a_gpu_is_one_error_line(command, tmp_path, caps
         ({"lr": float("inf")}, r"lr must be in \[0, 1\]"),
         ({"cube_m": 0.0}, r"cube_m must be in \(0, 1\] metres; received 0.0"),
         ({"width": -0.5}, r"width must be in \(0, 8\]"),
+        (
+            {"refine_iterations": -1},
+            r"refine_iterations must be an integer in \[0, 10\]; received -1",
+        ),
     ],
 )
 def test_train_config_out_of_range_is_refused_before_any_work(change, message, tmp_path):
@@ -337,3 +341,34 @@ def test_closed_loop_cli_takes_the_refinement_guard(tmp_path):
     report = json.loads((tmp_path / "closed_loop.json").read_text())
     assert "refine_guard=False" in report["estimator"]["repr"]
     assert report["modes"]["feedback_off"]["kp_mean_mm"] > 150.0
+
+
+def test_the_estimator_crops_as_its_network_was_trained(tiny_data, tmp_path, capsys):
+    """A network trained at the detector's centres unrefined runs without the refinement."""
+    from handsim.estimators.deepprior.estimator import DeepPriorEstimator
+    from handsim.estimators.deepprior.preprocess import PlaneRemovedLocalizer
+
+    run = tmp_path / "run"
+    args = ["train", "deepprior++", "--data", str(tiny_data), "--out", str(run), "--epochs", "1",
+            "--size", "32", "--fc", "16", "--width", "0.125", "--prior-dim", "4",
+            "--batch-size", "8", "-q", "--threads", "1", "--localizer", "localizer",
+            "--detector", "plane", "--refine-iterations", "0"]  # fmt: skip
+    assert main(args) == 0
+    capsys.readouterr()
+    crop = json.loads((run / "best.json").read_text())["crop"]
+    assert crop == {"detector": "plane", "localizer": "localizer", "refine_iterations": 0}
+    frames = load_frames(tiny_data, "train", canonical_side=True)  # as training sees them
+    centers = np.load(run / "centers_train.npy")
+    plane = PlaneRemovedLocalizer()
+    for i in range(0, len(frames), 5):  # the plane detector's centres, not refined
+        np.testing.assert_allclose(centers[i], plane.localize(frames.depth(i), frames.K[i]))
+    est = DeepPriorEstimator(run)
+    assert est.localizer.iterations == 0 and est.info()["refine_iterations"] == 0
+    assert DeepPriorEstimator(run, refine_iterations=2).localizer.iterations == 2
+    # A checkpoint from before the record: the three steps it was trained with.
+    assert DeepPriorEstimator("deepprior++").localizer.iterations == 3
+    # Without a localizer the crops are at the true MCP: no refinement to set.
+    bad = args[: args.index("--localizer")] + ["--refine-iterations", "1"]
+    with pytest.raises(SystemExit, match="2"):
+        main(bad)
+    assert "argument --refine-iterations: needs --localizer" in capsys.readouterr().err
