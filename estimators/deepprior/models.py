@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import torch
 from torch import nn
+from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 __all__ = [
     "N_OUT",
@@ -353,25 +354,57 @@ def build_model(config: dict[str, Any]) -> nn.Module:
 _LEAVES = (nn.Conv2d, nn.Linear, nn.ReLU, nn.MaxPool2d, nn.BatchNorm2d, nn.Flatten)
 
 
+def _folded(conv: nn.Conv2d, bn: nn.BatchNorm2d) -> nn.Conv2d:
+    """``conv`` then eval-mode ``bn`` as one conv (torch's fusion), in ``conv``'s layout."""
+    fused = fuse_conv_bn_eval(conv, bn)
+    if conv.weight.is_contiguous(memory_format=torch.channels_last):
+        fused = fused.to(memory_format=torch.channels_last)
+    return fused
+
+
 def _unrolled(module: nn.Module) -> list[Callable[[torch.Tensor], torch.Tensor]]:
-    """The eval-mode steps of ``module``: containers unrolled, dropout (identity) left out."""
+    """The eval-mode steps of ``module``: unrolled, no dropout, batch norm folded."""
     if isinstance(module, nn.Sequential):
-        return [step for child in module for step in _unrolled(child)]
+        children, steps = list(module), []
+        i = 0
+        while i < len(children):
+            child = children[i]
+            after = children[i + 1] if i + 1 < len(children) else None
+            if isinstance(child, nn.Conv2d) and isinstance(after, nn.BatchNorm2d):
+                steps.append(_folded(child, after).forward)
+                i += 2
+            else:
+                steps += _unrolled(child)
+                i += 1
+        return steps
+    if isinstance(module, _Residual):
+        body, skip = _unrolled(module.body), _unrolled(module.skip)
+        return [lambda x: torch.relu_(_chain(body, x) + _chain(skip, x))]
     if isinstance(module, PriorLayer):
         return [module.encode.forward, module.decode.forward]
     if isinstance(module, nn.Dropout):
         return []
+    if isinstance(module, nn.ReLU):
+        return [torch.relu_ if module.inplace else torch.relu]
     return [module.forward if isinstance(module, _LEAVES) else module]
 
 
-def inference_forward(model: nn.Module) -> Callable[[torch.Tensor], torch.Tensor]:
-    """``model``'s forward pass for inference, with fewer Python calls per layer.
+def _chain(steps: list[Callable[[torch.Tensor], torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
+    for step in steps:
+        x = step(x)
+    return x
 
-    At batch 1 on a CPU core, ``nn.Module.__call__`` of every layer (hooks, containers) is a
-    measurable part of a small network's time. The returned function runs the same layers in
-    the same order on the same weights (the same results), calling their ``forward`` directly
-    and skipping dropout. Use it under ``torch.inference_mode()`` with ``model`` in eval mode
-    (it is built once: it follows later changes of the weights, not of the layers).
+
+def inference_forward(model: nn.Module) -> Callable[[torch.Tensor], torch.Tensor]:
+    """``model``'s forward pass for inference, with fewer Python calls and layers.
+
+    At batch 1 on a CPU core, ``nn.Module.__call__`` of every layer (hooks, containers) and
+    every batch norm are a measurable part of a small network's time. The returned function
+    runs the same layers in the same order, calling their ``forward`` directly, skipping
+    dropout and with each eval-mode batch norm folded into the conv before it
+    (``torch.nn.utils.fusion.fuse_conv_bn_eval``): the module's results up to float rounding
+    (about 1e-6 relative). Use it under ``torch.inference_mode()`` with ``model`` in eval mode;
+    it is built once, from the weights of that moment: build it again after changing them.
 
     Args:
         model: a network of :func:`build_model`, in eval mode.
@@ -396,8 +429,6 @@ def inference_forward(model: nn.Module) -> Callable[[torch.Tensor], torch.Tensor
         return model
 
     def forward(x: torch.Tensor) -> torch.Tensor:
-        for step in steps:
-            x = step(x)
-        return x
+        return _chain(steps, x)
 
     return forward
