@@ -22,8 +22,9 @@ Measured in one run, on this machine, with ``torch.set_num_threads(1)`` (and Ope
   the mean keypoint error of each (tracking must not cost accuracy), against 50 steps/s.
 
 Speed does not depend on the weights: every pose network is timed with random weights of its
-config (the shipped localizer refines). The machine's load average is recorded (a shared
-machine is slower).
+config (the shipped localizer refines), cropped as the shipped network of its family was
+trained (its checkpoint's ``crop``: the refinement steps the pipeline runs; 3 without one).
+The machine's load average is recorded (a shared machine is slower).
 
 ``--profile`` adds the time of each stage of one frame through the shipped DeepPrior and
 DeepPrior++ pipelines and DeepPrior's with the paper's FC 1024 network
@@ -88,8 +89,20 @@ def _rate(fn, items, repeat: int = 2) -> float:
     return repeat * len(items) / (time.perf_counter() - start)
 
 
+def _shipped_crop(name: str) -> dict | None:
+    """How the shipped network ``name`` (deepprior, deepprior_pp) was cropped in training."""
+    from handsim.estimators.deepprior.checkpoint import WEIGHTS_DIR
+
+    path = WEIGHTS_DIR / f"{name}.json"
+    return json.loads(path.read_text()).get("crop") if path.is_file() else None
+
+
 def _estimator(config: dict, folder: Path, **kwargs):
-    """A DeepPriorEstimator of a model config (random weights of that config)."""
+    """A DeepPriorEstimator of a model config (random weights of that config).
+
+    Its refinement steps are those of the shipped network of its family (the checkpoint's
+    ``crop``): the pipeline as shipped, with this network in it.
+    """
     import torch
 
     from handsim.estimators.deepprior.checkpoint import save_checkpoint
@@ -98,9 +111,11 @@ def _estimator(config: dict, folder: Path, **kwargs):
 
     torch.manual_seed(0)
     path = folder / f"{config['arch']}_{config.get('width', 1)}_{config.get('fc', 1024)}.pt"
-    save_checkpoint(
-        path, {"model": build_model(config).state_dict()}, {"model": config, "cube_m": 0.25}
-    )
+    meta = {"model": config, "cube_m": 0.25}
+    crop = _shipped_crop("deepprior_pp" if config["arch"] == "resnet" else "deepprior")
+    if crop:
+        meta["crop"] = crop
+    save_checkpoint(path, {"model": build_model(config).state_dict()}, meta)
     return DeepPriorEstimator(path, **kwargs)
 
 
