@@ -257,7 +257,9 @@ def _loop(episodes: int) -> dict:
     out = {}
     for name, track in (("deepprior++ detector every frame", False), ("deepprior++ track", True)):
         env = EstimatorLoop(
-            gym.make("handsim/Grasp-v0", obs_mode="depth"), DeepPriorEstimator(track=track)
+            gym.make("handsim/Grasp-v0", obs_mode="depth"),
+            # Tracking follows the hand through the refinement: three steps, as before.
+            DeepPriorEstimator(track=True, refine_iterations=3) if track else DeepPriorEstimator(),
         )
         steps, errors, elapsed, est_s = 0, [], 0.0, 0.0
         for seed in range(episodes):

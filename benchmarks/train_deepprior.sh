@@ -24,10 +24,11 @@
 # DEEP_FC [512] (units of the `deep` network's two fully connected layers; the paper's 1024
 # makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
-# networks, e.g. `localizer` for the shipped one); DETECTOR [plane] (the first centre of the
-# pose networks' training crops; the shipped DeepPrior++ was cropped at `plane` centres);
-# REFINE [3] (the localizer's steps from that centre; 0: the detector's centre as it is; the
-# checkpoints record it and the estimator crops alike);
+# networks, e.g. `localizer` for the shipped one); DETECTOR [the run's detector,
+# OUT/detector/best.pt, once trained, else `learned`, the shipped one] (the first centre of
+# the pose networks' training crops, and of the bench stage's pipeline; `plane` or `com` also);
+# REFINE [0] (the localizer's steps from that centre; 0: the detector's centre as it is, as
+# the shipped networks were trained; the checkpoints record it and the estimator crops alike);
 # STAGES [data detector localizer dpp bench] picks the stages (also: deep, DeepPrior's `deep`
 # network). The defaults fit a 2-core CPU in about an
 # hour (DeepPrior++ alone: 32 min); on a GPU (`--amp`, bfloat16) raise the frames, epochs and
@@ -60,8 +61,13 @@ BENCH=${BENCH:-$OUT/bench}
 EPISODES=${EPISODES:-5}
 STAGES=${STAGES:-"data detector localizer dpp bench"}
 LOCALIZER=${LOCALIZER:-$OUT/localizer/best.pt}
-DETECTOR=${DETECTOR:-plane}
-REFINE=${REFINE:-3}
+REFINE=${REFINE:-0}
+# The first centre of the pose networks' crops: DETECTOR, else the run's detector once trained.
+detector() {
+  if [[ -n ${DETECTOR:-} ]]; then echo "$DETECTOR"
+  elif [[ -f $OUT/detector/best.pt ]]; then echo "$OUT/detector/best.pt"
+  else echo learned; fi
+}
 mkdir -p "$OUT"
 has() { [[ " $STAGES " == *" $1 "* ]]; }
 stamp() { echo "[$(date -u +%H:%M:%S)] $*" >&2; }
@@ -100,22 +106,20 @@ fi
 if has dpp; then
   stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
-    --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$DETECTOR" \
+    --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$(detector)" \
     --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
 fi
 if has deep; then
   stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
-    --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" --detector "$DETECTOR" \
+    --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" --detector "$(detector)" \
     --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
   # spec CHECKPOINT [EXTRA_KWARGS]: the run's network behind the shipped pipeline class.
-  # The run's detector if it trained one, else the shipped one.
-  RUN_DETECTOR=learned
-  [[ -f $OUT/detector/best.pt ]] && RUN_DETECTOR=$OUT/detector/best.pt
+  RUN_DETECTOR=$(detector)  # as the networks were trained
   spec() {
     echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$LOCALIZER\", \"detector\": \"$RUN_DETECTOR\", \"threads\": $THREADS${2:-}}"
   }

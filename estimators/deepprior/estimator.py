@@ -284,15 +284,16 @@ class DeepPriorEstimator(EstimatorBase):
             none: checkpoints trained before the flag saw both sides as they came).
         is_left: the side of the hands this estimator is given (:meth:`set_side` changes it).
         track: start each frame's refinement from the previous frame's refined centre instead
-            of the detector, as a tracker does. The detector runs again after :meth:`reset`,
-            after a frame without an estimate, when the side changes, and when the tracked
-            centre has lost the hand (under :data:`TRACK_MIN_FILL` of its cube's crop holds
-            depth inside the cube).
+            of the detector, as a tracker does (needs ``refine_iterations`` >= 1). The
+            detector runs again after :meth:`reset`, after a frame without an estimate,
+            when the side changes, and when the tracked centre has lost the hand (under
+            :data:`TRACK_MIN_FILL` of its cube's crop holds depth inside the cube).
 
     Raises:
         InvalidCheckpoint: for a checkpoint that cannot be loaded, or a ``canonical_side`` or
             ``is_left`` that is not a bool.
-        InvalidEstimatorParams: for a ``refine_guard`` that is not a bool.
+        InvalidEstimatorParams: for a ``refine_guard`` that is not a bool, or ``track``
+            without refinement.
     """
 
     def __init__(
@@ -348,6 +349,13 @@ class DeepPriorEstimator(EstimatorBase):
             guard=refine_guard,
         )
         self.track = bool(track)
+        if self.track and self.localizer.iterations == 0:
+            raise InvalidEstimatorParams(
+                "track=True refines the previous frame's centre, and refine_iterations=0 (the "
+                "default for a network trained at the detector's centres) has no refinement: "
+                "the centre would not follow the hand. Give refine_iterations >= 1, or "
+                "track=False (the detector in every frame)"
+            )
         self._tracked: np.ndarray | None = None
         self.is_left = False
         self.set_side(is_left)

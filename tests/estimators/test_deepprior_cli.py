@@ -10,6 +10,7 @@ import torch
 
 from handsim.cli import main
 from handsim.data.generation import GenerationConfig, generate
+from handsim.errors import InvalidEstimatorParams
 from handsim.estimators.deepprior.data import CropDataset, load_frames
 from handsim.estimators.deepprior.train import InvalidTrainConfig, TrainConfig, train
 
@@ -332,7 +333,11 @@ def test_closed_loop_cli_takes_the_refinement_guard(tmp_path):
     assert "refine_guard must be True" in bad.stderr and "received 'no'" in bad.stderr
     assert "Traceback" not in bad.stderr
     ok = subprocess.run(
-        [*cmd, "--estimator", spec + '{"refine_guard": false, "threads": 1}'],
+        [
+            *cmd,
+            "--estimator",
+            spec + '{"refine_guard": false, "refine_iterations": 3, "threads": 1}',
+        ],
         capture_output=True,
         text=True,
         timeout=600,
@@ -365,8 +370,15 @@ def test_the_estimator_crops_as_its_network_was_trained(tiny_data, tmp_path, cap
     est = DeepPriorEstimator(run)
     assert est.localizer.iterations == 0 and est.info()["refine_iterations"] == 0
     assert DeepPriorEstimator(run, refine_iterations=2).localizer.iterations == 2
+    with pytest.raises(InvalidEstimatorParams, match="track=True refines the previous frame"):
+        DeepPriorEstimator(run, track=True)  # nothing would move the tracked centre
     # A checkpoint from before the record: the three steps it was trained with.
-    assert DeepPriorEstimator("deepprior++").localizer.iterations == 3
+    from handsim.estimators.deepprior.checkpoint import load_checkpoint, save_checkpoint
+
+    state, config = load_checkpoint(run)
+    del config["crop"]
+    save_checkpoint(tmp_path / "old.pt", {"model": state["model"]}, config)
+    assert DeepPriorEstimator(tmp_path / "old.pt").localizer.iterations == 3
     # Without a localizer the crops are at the true MCP: no refinement to set.
     bad = args[: args.index("--localizer")] + ["--refine-iterations", "1"]
     with pytest.raises(SystemExit, match="2"):

@@ -104,9 +104,10 @@ def test_a_hand_alone_is_found_at_the_detectors_centre():
     """HandPose-v0 (a hand alone, its gesture formed): cropped at the plane detector's centre.
 
     The shipped refinement CNN walks up the arm on these frames (docs/deepprior.md, "A hand
-    alone"); the guard (the default) sees that it has not converged and keeps the detector's
-    centre, as ``refine_iterations=0`` does: the hand centre within 8 cm (measured: 44.5 mm at
-    this step; with the three refinement steps unguarded 287.7 mm).
+    alone"); the guard (the default) sees that three steps have not converged and keeps the
+    detector's centre, as ``refine_iterations=0`` (the shipped networks' default) does: the
+    hand centre within 8 cm (measured: 44.5 mm at this step; with the three refinement steps
+    unguarded 287.7 mm).
     """
     import gymnasium as gym
 
@@ -125,8 +126,8 @@ def test_a_hand_alone_is_found_at_the_detectors_centre():
         centre_mm = {}
         for name, kwargs in {
             "detector": {"refine_iterations": 0},
-            "guarded": {},
-            "unguarded": {"refine_guard": False},
+            "guarded": {"refine_iterations": 3},
+            "unguarded": {"refine_iterations": 3, "refine_guard": False},
         }.items():
             estimate = DeepPriorEstimator(
                 "deepprior++", threads=1, detector="plane", **kwargs
