@@ -11,7 +11,9 @@
 # Seeds 10 and 14 (handsim-bench-v1 uses 2601-2606).
 #
 # The updater: side-canonical (left frames mirrored into the right-hand frame, as DeepPrior++),
-# crops at the shipped localizer's centres, starting poses from the shipped DeepPrior++ there,
+# crops where its predictor's training crops were centred (the predictor checkpoint's `crop`
+# record; without one, the plane detector's centres refined three times by the shipped
+# localizer), starting poses from the predictor there (PREDICTOR [deepprior++], the shipped one),
 # the renderer synthesizer (every pool entry's crop is rendered once and cached in the run
 # folder). Environment (defaults in brackets): HANDSIM [handsim], PYTHON [python3], THREADS [1],
 # EPOCHS [8], FILTERS [16], FC [256], BATCH [64], SIGMA_MM [15] (perturbations of the starting
@@ -37,6 +39,7 @@ OUT=${1:?usage: train_feedback.sh OUT_DIR}
 PYTHON=${PYTHON:-python3}
 HANDSIM=${HANDSIM:-handsim}
 THREADS=${THREADS:-1}
+PREDICTOR=${PREDICTOR:-deepprior++}
 THIRD_FRAMES=${THIRD_FRAMES:-2500}
 OBJECT_FRAMES=${OBJECT_FRAMES:-2500}
 EPOCHS=${EPOCHS:-8}
@@ -94,18 +97,20 @@ if has updater; then
   $HANDSIM train updater --data "${DATA[@]}" --out "$UPDATER" --epochs "$EPOCHS" \
     --filters "$FILTERS" --fc "$FC" --batch-size "$BATCH" --perturb-sigma-mm "$SIGMA_MM" \
     --iterations "$ITERATIONS" --max-val-frames "$VAL_FRAMES" --threads "$THREADS" -q \
+    --predictor "$PREDICTOR" \
     "${SYNTH_ARGS[@]}" $([[ $TRUTH_STARTS == 1 ]] || echo --no-truth-starts)
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"
   $HANDSIM benchmark make --out "$BENCH" -q >/dev/null
   stamp "handsim-bench: the feedback estimator, offline"
-  ARGS="\"updater\": \"$UPDATER/best.pt\""
+  ARGS="\"updater\": \"$UPDATER/best.pt\", \"predictor\": \"$PREDICTOR\""
   [[ $SYNTH == learned ]] && ARGS+=", \"synthesizer\": \"learned\", \"synthesizer_checkpoint\": \"$SYNTH_CHECKPOINT\""
   $HANDSIM benchmark run --estimator "handsim.estimators:FeedbackEstimator:{$ARGS}" \
     --bench "$BENCH" --episodes 0 --out "$UPDATER/bench_feedback" -q
   stamp "error after each update, per set and occlusion bucket"
   $PYTHON -m handsim.estimators.feedback.evaluate --updater "$UPDATER/best.pt" \
+    --predictor "$PREDICTOR" \
     --bench "$BENCH" "${SYNTH_ARGS[@]}" --out "$UPDATER/iterations.json"
 fi
 stamp done

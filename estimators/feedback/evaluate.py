@@ -163,6 +163,9 @@ def main(argv: list[str] | None = None) -> int:
         "set and occlusion bucket (update 0: DeepPrior++ alone on the same frames).",
     )
     parser.add_argument("--updater", default="feedback", help="updater checkpoint or run folder")
+    parser.add_argument(
+        "--predictor", default="deepprior++", help="the pose network (default: deepprior++)"
+    )
     parser.add_argument("--bench", required=True, help="a `handsim benchmark make` folder")
     parser.add_argument("--out", required=True, help="JSON file to write")
     parser.add_argument("--iterations", type=int, default=None, help="updates (default: 3)")
@@ -190,6 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         est = FeedbackEstimator(
             args.updater,
+            predictor=args.predictor,
             synthesizer=args.synthesizer,
             synthesizer_checkpoint=args.synthesizer_checkpoint,
             detector=args.detector,

@@ -415,7 +415,14 @@ def _images(frames: FrameSet, centers: np.ndarray, config: FeedbackTrainConfig) 
 def _updater_centers(
     frames: FrameSet, config: FeedbackTrainConfig, out: Path, split: str, salt: int
 ) -> np.ndarray:
-    """The localizer's refined centres (cached in the run folder), or the offset middle MCP."""
+    """The predictor's crop centres (cached in the run folder), or the offset middle MCP.
+
+    Centred as the predictor's own training crops were (its checkpoint's ``crop``: the
+    detector's centre refined by ``localizer`` that many times), which is where
+    :class:`~.estimator.FeedbackEstimator` crops at inference; a predictor without the record
+    (or none) was trained at the plane detector's centres refined three times.
+    """
+    from ..deepprior.checkpoint import load_checkpoint
     from ..deepprior.train import localizer_centers
 
     if config.localizer is None:
@@ -425,8 +432,14 @@ def _updater_centers(
         centers = np.load(path)
         if centers.shape == (len(frames), 3):
             return centers
+    crop = (load_checkpoint(config.predictor)[1].get("crop") if config.predictor else None) or {}
     # A frame without a hand blob gets the true middle MCP (the estimator would miss it).
-    centers, _ = localizer_centers(frames, config.localizer)
+    centers, _ = localizer_centers(
+        frames,
+        config.localizer,
+        int(crop.get("refine_iterations", 3)),
+        detector=crop.get("detector", "plane"),
+    )
     np.save(path, centers)
     return centers
 

@@ -259,3 +259,32 @@ def test_the_recipe_script_trains_the_learned_synthesizer_and_its_updater(data, 
     bad = subprocess.run(["bash", str(script), str(out)], env={**env, "SYNTH": "gan"},
                          capture_output=True, text=True)  # fmt: skip
     assert bad.returncode == 2 and "SYNTH must be renderer or learned; received 'gan'" in bad.stderr
+
+
+def test_the_updaters_crops_are_centred_as_its_predictors(data, tmp_path):
+    """The updater trains where the pipeline crops: at its predictor's recorded centres."""
+    from handsim.estimators.deepprior.models import build_model
+    from handsim.estimators.deepprior.preprocess import PlaneRemovedLocalizer
+    from handsim.estimators.deepprior.train import localizer_centers
+    from handsim.estimators.feedback.train import _updater_centers
+
+    frames = load_frames(data, canonical_side=True)
+    model_config = {"arch": "deep", "size": 128, "fc": 16, "prior_dim": 4}
+    state = {"model": build_model(model_config).state_dict()}
+    base = {"model": model_config, "cube_m": 0.25, "kind": "deepprior", "canonical_side": True}
+    crop = {"detector": "plane", "localizer": "localizer", "refine_iterations": 0}
+    save_checkpoint(tmp_path / "unrefined.pt", state, {**base, "crop": crop})
+    save_checkpoint(tmp_path / "before.pt", state, base)  # trained before the record
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    config = FeedbackTrainConfig(predictor=str(tmp_path / "unrefined.pt"))
+    unrefined = _updater_centers(frames, config, tmp_path / "a", "train", 1)
+    plane = PlaneRemovedLocalizer()
+    for i in range(len(frames)):
+        found = plane.localize(frames.depth(i), frames.K[i])
+        expected = frames.keypoints_cam[i, MIDDLE_MCP] if found is None else found
+        np.testing.assert_allclose(unrefined[i], expected)
+    config = FeedbackTrainConfig(predictor=str(tmp_path / "before.pt"))
+    refined = _updater_centers(frames, config, tmp_path / "b", "train", 1)
+    np.testing.assert_allclose(refined, localizer_centers(frames, "localizer")[0])
+    assert not np.allclose(refined, unrefined)
