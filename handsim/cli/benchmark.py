@@ -44,12 +44,14 @@ from handsim.cli._args import (
     strict_json,
 )
 from handsim.cli.benchmark_sets import (
+    BLAS_KERNEL,
     DIGESTS,
     SETS,
     VERSION,
     BenchmarkError,
     make_benchmark,
     read_benchmark,
+    recorded_blas_environment,
     set_digest,
     valid_frames,
 )
@@ -513,6 +515,16 @@ def _cell(stats: dict[str, Any]) -> str:
 
 
 def _make(args: argparse.Namespace) -> int:
+    env = recorded_blas_environment()
+    if env is not None:  # the kernels are chosen when NumPy loads: generate in a new process
+        import subprocess
+        import sys
+
+        again = ["--out", str(args.out), *(["-q"] if args.quiet else [])]
+        if args.frames_per_set is not None:
+            again += ["--frames-per-set", str(args.frames_per_set)]
+        command = [sys.executable, "-m", "handsim.cli", "benchmark", "make", *again]
+        return subprocess.run(command, env=env, check=False).returncode
     start = time.perf_counter()
     n = args.frames_per_set
     total = sum(s.frames for s in SETS) if n is None else n * len(SETS)
@@ -598,7 +610,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         + ". Both sides in every set. The same command gives bit-identical sets; rerunning it "
         "resumes a killed make; a folder holding another version is refused, and so is a set "
         "whose content digest differs from the one the version records (a generator change "
-        "needs a new version).",
+        f"needs a new version). It generates with OpenBLAS's {BLAS_KERNEL} kernels "
+        "(OPENBLAS_CORETYPE, unless set), as the digests were recorded: the simulated grasps "
+        "carry the last bits of NumPy's matrix products.",
     )
     make.add_argument("--out", required=True, type=Path, metavar="DIR", help="benchmark folder")
     # Tests build a tiny benchmark (its version name carries its size): not for users.

@@ -45,6 +45,8 @@ __all__ = [
     "version_name",
     "set_digest",
     "make_benchmark",
+    "BLAS_KERNEL",
+    "recorded_blas_environment",
     "read_benchmark",
     "valid_frames",
 ]
@@ -58,6 +60,37 @@ definition changes every digest."""
 
 DIGEST_FLOAT_STEP = 1e-6
 """Float labels are hashed rounded to this step of their unit (m, rad, px, N)."""
+
+BLAS_KERNEL = "Haswell"
+"""OpenBLAS's kernels (``OPENBLAS_CORETYPE``) that the digests were recorded with. The sets of
+grasps in contact are simulated, and a simulation carries a last-bit difference of its inputs
+into a different grasp: with the kernels OpenBLAS picks on an AVX-512 CPU (NumPy's matrix
+products round differently) ``hand_object`` differs. ``handsim benchmark make`` generates with
+these kernels where the CPU runs them (x86-64 with AVX2 and FMA)."""
+
+
+def recorded_blas_environment() -> dict[str, str] | None:
+    """The environment for a process that generates with :data:`BLAS_KERNEL`, or ``None``.
+
+    ``None`` when this process already chose (``OPENBLAS_CORETYPE`` is set: the kernel is picked
+    when NumPy loads OpenBLAS, so only a new process can change it) or when the CPU cannot run
+    the kernels (not x86-64 Linux with AVX2 and FMA: such a machine makes what it makes, and
+    ``make`` refuses sets that differ).
+    """
+    import os
+    import platform
+
+    if "OPENBLAS_CORETYPE" in os.environ or platform.machine() != "x86_64":
+        return None
+    try:
+        cpuinfo = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return None
+    flags = next((line for line in cpuinfo.splitlines() if line.startswith("flags")), "")
+    if not {"avx2", "fma"} <= set(flags.split()):
+        return None
+    return {**os.environ, "OPENBLAS_CORETYPE": BLAS_KERNEL}
+
 
 _HAND_ONLY = {"num_objects_range": (0, 0), "frames_per_episode": 5}
 
@@ -230,8 +263,16 @@ def _refuse(name: str, set_name: str, expected: str, found: str, where: str) -> 
         f"changed (poses, objects, views, rendering, sensor noise), give the new sets a new "
         f"version name (handsim.cli.benchmark_sets.VERSION) and record their digests in "
         f"handsim.cli.benchmark_sets.DIGESTS; to compare with results of {name}, make it with the "
-        f"handsim release that recorded them"
+        f"handsim release that recorded them, through `handsim benchmark make` (it generates "
+        f"with OpenBLAS's {BLAS_KERNEL} kernels, as the digests were recorded; this process: "
+        f"OPENBLAS_CORETYPE={_coretype()})"
     )
+
+
+def _coretype() -> str:
+    import os
+
+    return os.environ.get("OPENBLAS_CORETYPE", "unset")
 
 
 def _increments(progress: Callable[[int], None] | None) -> Callable[[int, int], None] | None:
@@ -257,7 +298,10 @@ def make_benchmark(
 
     Every set's :func:`set_digest` is compared with the one its version records
     (:data:`DIGESTS`; a resized version: the one its folder recorded when first made) and
-    written into ``benchmark.json`` once it agrees.
+    written into ``benchmark.json`` once it agrees. The recorded sets of grasps come out only
+    with OpenBLAS's :data:`BLAS_KERNEL` kernels, chosen when NumPy loads: the command line
+    (``handsim benchmark make``) runs this in a process started with them; from Python, set
+    ``OPENBLAS_CORETYPE`` before NumPy is imported (:func:`recorded_blas_environment`).
 
     Args:
         out: benchmark folder (created).
@@ -300,7 +344,12 @@ def make_benchmark(
     held_sets = held.get("sets") if isinstance(held.get("sets"), dict) else {}
     if held.get("digest_scheme") != DIGEST_SCHEME:
         held_sets = {}  # digests of another definition (or none) are not compared
-    record: dict[str, Any] = {"version": name, "digest_scheme": DIGEST_SCHEME, "sets": {}}
+    record: dict[str, Any] = {
+        "version": name,
+        "digest_scheme": DIGEST_SCHEME,
+        "openblas_coretype": _coretype(),
+        "sets": {},
+    }
     for s in SETS:
         entry = {"what": s.what, "frames": configs[s.name].frames, "folder": s.name}
         old = held_sets.get(s.name)

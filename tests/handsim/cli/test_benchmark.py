@@ -1,6 +1,7 @@
 """`handsim benchmark make / run`: versioned, bit-identical sets; one table, strict JSON."""
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -18,6 +19,7 @@ from handsim.cli.benchmark import (
     make_benchmark,
     run_benchmark,
 )
+from handsim.cli.benchmark_sets import BLAS_KERNEL, recorded_blas_environment
 from handsim.data.manifest import Manifest
 from handsim.data.shards import ShardReader
 
@@ -128,9 +130,22 @@ def test_make_cli_refuses_sets_other_than_its_folder_recorded(bench, tmp_path):
     assert "Traceback" not in result.stderr
 
 
+def test_make_generates_with_the_recorded_blas_kernels(bench):
+    """`make` runs OpenBLAS's recorded kernels where the CPU can, or the ones the user set."""
+    record = json.loads((bench / "benchmark.json").read_text())
+    if "OPENBLAS_CORETYPE" in os.environ:
+        assert record["openblas_coretype"] == os.environ["OPENBLAS_CORETYPE"]
+    elif recorded_blas_environment() is not None:
+        assert record["openblas_coretype"] == BLAS_KERNEL == "Haswell"
+    else:
+        assert record["openblas_coretype"] == "unset"
+
+
 def test_make_is_bit_identical_on_repeat(bench, tmp_path):
-    """The same make elsewhere gives the same shards, byte for byte."""
-    make_benchmark(tmp_path / "again", frames_per_set=N)
+    """The same command elsewhere gives the same shards, byte for byte."""
+    result = _cli("benchmark", "make", "--out", str(tmp_path / "again"), "--frames-per-set",
+                  str(N), "-q")  # fmt: skip
+    assert result.returncode == 0, result.stderr
     for s in SETS:
         a, b = Manifest.read(bench / s.name), Manifest.read(tmp_path / "again" / s.name)
         assert {k: v.sha256 for k, v in a.shards.items()} == {
