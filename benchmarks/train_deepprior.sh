@@ -21,6 +21,7 @@
 # DPP_EPOCHS [30], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), DPP_AUGMENT [scale translation] (DeepPrior++'s online augmentations; `rotation`
 # adds the in-plane rotation, which cost 8 mm of validation error in the recipe's control),
+# BONE_LOSS [0] (weight of the pose networks' bone-length term, `handsim train --bone-loss`),
 # DEEP_FC [512] (units of the `deep` network's two fully connected layers; the paper's 1024
 # makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
@@ -55,6 +56,7 @@ DPP_EPOCHS=${DPP_EPOCHS:-30}
 DPP_AUGMENT=${DPP_AUGMENT:-scale translation}
 DEEP_EPOCHS=${DEEP_EPOCHS:-15}
 DEEP_FC=${DEEP_FC:-512}
+BONE_LOSS=${BONE_LOSS:-0}
 WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
 BENCH=${BENCH:-$OUT/bench}
@@ -107,13 +109,13 @@ if has dpp; then
   stamp "train DeepPrior++ (width $WIDTH)"
   $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp" --epochs "$DPP_EPOCHS" \
     --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$(detector)" \
-    --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
+    --refine-iterations "$REFINE" --bone-loss "$BONE_LOSS" "${COMMON[@]}" >/dev/null
 fi
 if has deep; then
   stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
     --epochs "$DEEP_EPOCHS" --fc "$DEEP_FC" --localizer "$LOCALIZER" --detector "$(detector)" \
-    --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
+    --refine-iterations "$REFINE" --bone-loss "$BONE_LOSS" "${COMMON[@]}" >/dev/null
 fi
 if has bench; then
   stamp "handsim-bench: make $BENCH"

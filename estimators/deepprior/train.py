@@ -68,6 +68,15 @@ __all__ = [
 ]
 
 KINDS = ("deepprior", "deepprior++", "localizer")
+
+BONE_PAIRS = tuple((0 if j % 4 == 1 else j - 1, j) for j in range(1, 21)) + (
+    (5, 9),
+    (9, 13),
+    (13, 17),
+    (5, 17),
+)
+"""The keypoint pairs of the bone-length term: each keypoint with its parent, then the palm's
+transverse links between the index, middle, ring and little MCPs (and index to little)."""
 """What ``handsim train`` trains."""
 
 PRECISE_BN_BATCHES = 32
@@ -91,6 +100,9 @@ class TrainConfig:
         lr: Adam learning rate (decayed by 10x over the run, cosine).
         weight_decay: Adam weight decay.
         huber_delta: Huber loss threshold, normalized units.
+        bone_loss: weight of the bone-length term (0: none; pose networks only): the mean
+            absolute difference between predicted and true lengths of the hand's 20 bones and
+            the palm's four transverse links (index to little MCP), normalized units.
         cube_m: cube edge, metres.
         size: crop side, pixels (localizer default 64).
         fc: fully connected units.
@@ -121,6 +133,7 @@ class TrainConfig:
     lr: float = 1e-3
     weight_decay: float = 1e-4
     huber_delta: float = 0.05
+    bone_loss: float = 0.0
     cube_m: float = CUBE_M
     size: int = 128
     fc: int = 1024
@@ -178,11 +191,14 @@ def _check(config: TrainConfig) -> None:
         "cube_m": (config.cube_m, 0.0, 1.0, "in (0, 1] metres"),
         "offset_sigma_m": (config.offset_sigma_m, 0.0, 0.5, "in [0, 0.5] metres"),
         "width": (config.width, 0.0, 8.0, "in (0, 8]"),
+        "bone_loss": (config.bone_loss, 0.0, 100.0, "in [0, 100]"),
     }
     for name, (value, lo, hi, valid) in ranges.items():
         positive = name in ("cube_m", "width")
         if not lo <= value <= hi or (positive and value == lo):
             raise InvalidTrainConfig(f"{name} must be {valid}; received {value}")
+    if config.bone_loss and config.kind == "localizer":
+        raise InvalidTrainConfig("bone_loss is for the pose networks; the localizer has no bones")
     steps = config.refine_iterations
     if not isinstance(steps, int) or not 0 <= steps <= 10:
         raise InvalidTrainConfig(
@@ -292,6 +308,25 @@ def localizer_centers(
     if not parts:
         return np.zeros((0, 3)), np.zeros(0, dtype=bool)
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def bone_length_error(pred: Any, target: Any, a: Any, b: Any) -> Any:
+    """Mean ``| |pred_a - pred_b| - |target_a - target_b| |`` over the pairs ``(a, b)``.
+
+    A loss on the joints alone is met, under doubt about the hand's roll, by the mean of the
+    hypotheses, whose palm is narrower than any of them; this term asks for a hand whose
+    bones have their true lengths.
+
+    Args:
+        pred: (B, 63) normalized keypoints, flattened (21, 3).
+        target: (B, 63) the same, true.
+        a: (P,) first keypoint index of each pair.
+        b: (P,) second keypoint index of each pair.
+    """
+    p, t = pred.view(len(pred), -1, 3), target.view(len(target), -1, 3)
+    length_pred = (p[:, a] - p[:, b]).norm(dim=-1)
+    length_true = (t[:, a] - t[:, b]).norm(dim=-1)
+    return (length_pred - length_true).abs().mean()
 
 
 def _augmented_poses(frames: FrameSet, config: TrainConfig, copies: int = 2) -> np.ndarray:
@@ -565,6 +600,7 @@ def train(
         history, elapsed = state["history"], state["elapsed_s"]
         log(f"resuming {out} after epoch {start_epoch}")
     loss_fn = torch.nn.HuberLoss(delta=config.huber_delta)
+    bone_a, bone_b = (torch.as_tensor(v, device=device) for v in zip(*BONE_PAIRS, strict=True))
     use_amp = bool(amp) and device.startswith("cuda")
     for epoch in range(start_epoch, config.epochs):
         t0 = time.perf_counter()
@@ -597,6 +633,8 @@ def train(
             with torch.autocast("cuda", dtype=torch.bfloat16) if use_amp else nullcontext():
                 pred = model(x)
             loss = loss_fn(pred.float(), y)
+            if config.bone_loss:
+                loss = loss + config.bone_loss * bone_length_error(pred.float(), y, bone_a, bone_b)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()

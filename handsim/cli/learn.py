@@ -78,6 +78,7 @@ def _train_feedback(args: argparse.Namespace) -> int:
         ("--init", args.init),
         ("--detector", args.detector),
         ("--refine-iterations", args.refine_iterations),
+        ("--bone-loss", args.bone_loss),
     ]
     if args.kind == "synthesizer":
         checks.append(("--localizer", args.localizer))
@@ -141,6 +142,7 @@ _NOT_DETECTOR = {
     "--init": "init",
     "--detector": "detector",
     "--refine-iterations": "refine_iterations",
+    "--bone-loss": "bone_loss",
 }
 
 
@@ -195,6 +197,8 @@ def _train(args: argparse.Namespace) -> int:
             "argument --refine-iterations: needs --localizer, with a pose network (without one "
             "the crops are at the true middle MCP)"
         )
+    if args.bone_loss is not None and args.kind == "localizer":
+        args.parser.error("argument --bone-loss: not allowed with localizer (pose networks only)")
     size = args.size if args.size else (64 if args.kind == "localizer" else 128)
     fc = args.fc if args.fc else (256 if args.kind == "localizer" else 1024)
     offset = (
@@ -210,6 +214,7 @@ def _train(args: argparse.Namespace) -> int:
         batch_size=args.batch_size,
         lr=args.lr,
         weight_decay=args.weight_decay,
+        bone_loss=args.bone_loss or 0.0,
         cube_m=args.cube_mm / 1000.0,
         size=size,
         fc=fc,
@@ -399,6 +404,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="refinement steps of the --localizer from the detector's centre (default: 3; 0: "
         "the detector's centre as it is); the estimator crops as the network was trained",
+    )
+    tr.add_argument(
+        "--bone-loss",
+        type=number(0, 100),
+        default=None,
+        metavar="W",
+        help="weight of a bone-length term beside the joints' loss (pose networks; default: 0): "
+        "predicted against true lengths of the 20 bones and the palm's transverse links",
     )
     tr.add_argument(
         "--init",

@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from handsim.cli import main
-from handsim.data.generation import GenerationConfig, generate
 from handsim.errors import InvalidEstimatorParams
 from handsim.estimators.deepprior.data import CropDataset, load_frames
 from handsim.estimators.deepprior.train import InvalidTrainConfig, TrainConfig, train
@@ -18,19 +17,6 @@ TINY = dict(
     kind="deepprior++", epochs=2, batch_size=8, size=32, fc=16, width=0.125, prior_dim=4,
     max_frames=16, seed=3,
 )  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def tiny_data(tmp_path_factory):
-    """30 hand-only frames, one per episode (so every split has frames)."""
-    out = tmp_path_factory.mktemp("tiny")
-    config = GenerationConfig(
-        frames=30, frames_per_shard=15, frames_per_episode=1, seed=5,
-        num_objects_range=(0, 0), viewpoints=("third_person",), sensor="structured_light",
-        hand_length_range_m=(0.18, 0.18),  # one skin build for every episode
-    )  # fmt: skip
-    generate(config, out)
-    return out
 
 
 class _Killed(Exception):
