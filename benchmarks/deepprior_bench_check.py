@@ -7,7 +7,8 @@
 
 For every set and every mode it prints the mean and median 3D keypoint error (mm, over the
 frames where a hand was found) and the palm width (index MCP to little MCP, mm), predicted
-against true, per side; for ``pipeline`` also the crop centre's distance from the true middle
+against true, per side (and, over both sides, its ratio per quartile of the frames' error, in
+the JSON); for ``pipeline`` also the crop centre's distance from the true middle
 MCP (mean, median, share over 50 mm: the localization's failures). Modes (one network, one
 change each):
 
@@ -83,7 +84,21 @@ def _summary(err: list[float], pw_pred: list[float], pw_true: list[float], n: in
         "palm_width_abs_rel_error": float(np.mean(np.abs(pred - true) / true))
         if len(pred)
         else None,
+        "palm_width_ratio_by_error_quartile": _by_quartile(err_a, pred / true)
+        if len(pred) >= 4
+        else None,
     }
+
+
+def _by_quartile(err: np.ndarray, ratio: np.ndarray) -> list[float]:
+    """Mean predicted / true palm width of the frames in each quartile of the error, best first.
+
+    Where a loss on the joints is met by averaging the poses the network doubts between, the
+    palm narrows most on the frames it gets worst.
+    """
+    edges = np.quantile(err, [0.25, 0.5, 0.75])
+    bins = np.digitize(err, edges)
+    return [float(ratio[bins == b].mean()) for b in range(4)]
 
 
 def main() -> None:

@@ -21,7 +21,10 @@
 # DPP_EPOCHS [30], DEEP_EPOCHS [15], WIDTH [0.25] (DeepPrior++ conv filter factor; 1 = the
 # paper's), DPP_AUGMENT [scale translation] (DeepPrior++'s online augmentations; `rotation`
 # adds the in-plane rotation, which cost 8 mm of validation error in the recipe's control),
-# BONE_LOSS [0] (weight of the pose networks' bone-length term, `handsim train --bone-loss`),
+# BONE_LOSS [0] (weight of the pose networks' bone-length term from the first epoch, `handsim
+# train --bone-loss`), BONE_FT_LOSS [0.01], BONE_FT_EPOCHS [5], BONE_FT_LR [1e-4] (the `bone`
+# stage: DeepPrior++ of the `dpp` stage fine-tuned with the bone-length term into OUT/dpp_bone,
+# as the shipped network was made; the bench stage then runs it),
 # DEEP_FC [512] (units of the `deep` network's two fully connected layers; the paper's 1024
 # makes 6.4 MB of float16 weights, 512 makes 2.8 MB), BATCH [64], BENCH
 # [OUT/bench], EPISODES [5], LOCALIZER [OUT/localizer/best.pt] (the crop centres of the pose
@@ -30,7 +33,7 @@
 # the pose networks' training crops, and of the bench stage's pipeline; `plane` or `com` also);
 # REFINE [0] (the localizer's steps from that centre; 0: the detector's centre as it is, as
 # the shipped networks were trained; the checkpoints record it and the estimator crops alike);
-# STAGES [data detector localizer dpp bench] picks the stages (also: deep, DeepPrior's `deep`
+# STAGES [data detector localizer dpp bone bench] picks the stages (also: deep, DeepPrior's `deep`
 # network). The defaults fit a 2-core CPU in about an
 # hour (DeepPrior++ alone: 32 min); on a GPU (`--amp`, bfloat16) raise the frames, epochs and
 # WIDTH. Every stage resumes: run the same command again after an interruption
@@ -57,11 +60,14 @@ DPP_AUGMENT=${DPP_AUGMENT:-scale translation}
 DEEP_EPOCHS=${DEEP_EPOCHS:-15}
 DEEP_FC=${DEEP_FC:-512}
 BONE_LOSS=${BONE_LOSS:-0}
+BONE_FT_LOSS=${BONE_FT_LOSS:-0.01}
+BONE_FT_EPOCHS=${BONE_FT_EPOCHS:-5}
+BONE_FT_LR=${BONE_FT_LR:-1e-4}
 WIDTH=${WIDTH:-0.25}
 BATCH=${BATCH:-64}
 BENCH=${BENCH:-$OUT/bench}
 EPISODES=${EPISODES:-5}
-STAGES=${STAGES:-"data detector localizer dpp bench"}
+STAGES=${STAGES:-"data detector localizer dpp bone bench"}
 LOCALIZER=${LOCALIZER:-$OUT/localizer/best.pt}
 REFINE=${REFINE:-0}
 # The first centre of the pose networks' crops: DETECTOR, else the run's detector once trained.
@@ -111,6 +117,13 @@ if has dpp; then
     --width "$WIDTH" --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$(detector)" \
     --refine-iterations "$REFINE" --bone-loss "$BONE_LOSS" "${COMMON[@]}" >/dev/null
 fi
+if has bone; then
+  stamp "fine-tune DeepPrior++ with the bone-length term ($BONE_FT_LOSS)"
+  $HANDSIM train deepprior++ --data "${DATA[@]}" --out "$OUT/dpp_bone" --init "$OUT/dpp/best.pt" \
+    --epochs "$BONE_FT_EPOCHS" --lr "$BONE_FT_LR" --bone-loss "$BONE_FT_LOSS" --width "$WIDTH" \
+    --augment $DPP_AUGMENT --localizer "$LOCALIZER" --detector "$(detector)" \
+    --refine-iterations "$REFINE" "${COMMON[@]}" >/dev/null
+fi
 if has deep; then
   stamp "train DeepPrior (deep, FC $DEEP_FC)"
   $HANDSIM train deepprior --arch deep --data "${DATA[@]}" --out "$OUT/deep" \
@@ -125,11 +138,13 @@ if has bench; then
   spec() {
     echo "handsim.estimators:DeepPriorEstimator:{\"checkpoint\": \"$1\", \"localizer\": \"$LOCALIZER\", \"detector\": \"$RUN_DETECTOR\", \"threads\": $THREADS${2:-}}"
   }
-  stamp "handsim-bench: run DeepPrior++, $EPISODES closed-loop episodes"
-  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt")" --bench "$BENCH" \
+  DPP=$OUT/dpp/best.pt  # the fine-tuned network where the bone stage ran
+  [[ -f $OUT/dpp_bone/best.pt ]] && DPP=$OUT/dpp_bone/best.pt
+  stamp "handsim-bench: run DeepPrior++ ($DPP), $EPISODES closed-loop episodes"
+  $HANDSIM benchmark run --estimator "$(spec "$DPP")" --bench "$BENCH" \
     --episodes "$EPISODES" --out "$OUT/bench_dpp" -q
   stamp "handsim-bench: the same network without canonicalization (offline)"
-  $HANDSIM benchmark run --estimator "$(spec "$OUT/dpp/best.pt" ', "canonical_side": false')" \
+  $HANDSIM benchmark run --estimator "$(spec "$DPP" ', "canonical_side": false')" \
     --bench "$BENCH" --episodes 0 --out "$OUT/bench_dpp_unmirrored" -q
   if [[ -f $OUT/deep/best.pt ]]; then
     stamp "handsim-bench: DeepPrior (deep), offline"
