@@ -68,6 +68,7 @@ __all__ = [
 ]
 
 KINDS = ("deepprior", "deepprior++", "localizer")
+"""What ``handsim train`` trains."""
 
 BONE_PAIRS = tuple((0 if j % 4 == 1 else j - 1, j) for j in range(1, 21)) + (
     (5, 9),
@@ -77,7 +78,6 @@ BONE_PAIRS = tuple((0 if j % 4 == 1 else j - 1, j) for j in range(1, 21)) + (
 )
 """The keypoint pairs of the bone-length term: each keypoint with its parent, then the palm's
 transverse links between the index, middle, ring and little MCPs (and index to little)."""
-"""What ``handsim train`` trains."""
 
 PRECISE_BN_BATCHES = 32
 """Training batches whose plain average gives the batch-norm statistics after each epoch."""
