@@ -28,7 +28,9 @@ Geometry per world. The upper arm is turned per frame toward a shoulder placed f
 (:func:`~handsim.data.kinematic.alone_shoulder_m`): the host computes every geom's pose and the
 arm's length, and the renderer takes them per world. The hand's length changes per episode
 (its skin's vertices): the device model is made once per scene and the skin's vertices are
-copied to it and their BVH refitted per episode, so a batch never spans two episodes.
+copied to it and their BVH refitted per episode, so a batch never spans two episodes: a launch
+holds at most ``frames_per_episode`` worlds (a larger ``batch`` is capped there) and draws no
+more candidates than the episode still needs.
 """
 
 from __future__ import annotations
@@ -212,7 +214,8 @@ class WarpKinematicSource(KinematicSource):
     Args:
         config: the generation config, a hand alone (:func:`batched`).
         device: Warp device (``"cpu"``, ``"cuda"``, ``"cuda:N"``; default: Warp's).
-        batch: candidate frames rendered per launch, >= 1.
+        batch: candidate frames rendered per launch, >= 1; capped at the config's
+            ``frames_per_episode`` (:attr:`worlds`), since a launch never spans two episodes.
 
     Raises:
         InvalidGenerationConfig: for a config that is not a hand alone, or a bad ``batch``.
@@ -233,6 +236,9 @@ class WarpKinematicSource(KinematicSource):
             raise InvalidGenerationConfig(f"batch must be an integer >= 1; received {batch!r}")
         super().__init__(config)
         self.device, self.batch = device, int(batch)
+        # A launch never spans two episodes (each has its own hand length, so its own skin
+        # on the device): worlds past an episode's frames would be drawn and never used.
+        self.worlds = min(self.batch, config.frames_per_episode)
         self._warp = None  # [id(scene), hand geometry version, renderer]
 
     timings_s: dict[str, float] | None = None
@@ -256,7 +262,7 @@ class WarpKinematicSource(KinematicSource):
         if self._warp is None or self._warp[0] != id(scene):
             self._warp = None
             renderer = WarpDepthRenderer(
-                scene.model, "camera", self.intrinsics, self.batch, device=self.device
+                scene.model, "camera", self.intrinsics, self.worlds, device=self.device
             )
             self._warp = [id(scene), version, renderer]
         elif self._warp[1] != version:
@@ -335,8 +341,10 @@ class WarpKinematicSource(KinematicSource):
         k, done, tries = 0, 0, 0
         while True:
             start = time.perf_counter()
+            # No more candidates than the frames still wanted: each is drawn from its own
+            # generator and kept in order, so the frames do not depend on how many are drawn.
             candidates = []
-            for _ in range(self.batch):
+            for _ in range(min(self.worlds, frames - done)):
                 candidates.append(self._candidate(scene, seed, k, postures, source))
                 k += 1
             if self.timings_s is not None:
@@ -346,7 +354,7 @@ class WarpKinematicSource(KinematicSource):
             drawn = [c for c in candidates if c is not None]
             if drawn:
                 # Worlds past the drawn ones repeat the last (their images are not used).
-                worlds = drawn + [drawn[-1]] * (self.batch - len(drawn))
+                worlds = drawn + [drawn[-1]] * (self.worlds - len(drawn))
                 depth_m, labels = render_labels(scene, warp, worlds, self.timings_s)
             i = 0
             for candidate in candidates:

@@ -86,12 +86,33 @@ def test_warp_dataset_checks_resumes_and_does_not_depend_on_batch(tmp_path):
         path.unlink()
     generate(config, tmp_path / "a", backend="warp", device="cpu", batch=4)
     _assert_same(first, _arrays(tmp_path / "a"))
-    # Another batch size draws the same frames.
-    generate(config, tmp_path / "b", backend="warp", device="cpu", batch=3)
+    # Another batch size draws the same frames (launches of 2 and 1 in place of 3).
+    generate(config, tmp_path / "b", backend="warp", device="cpu", batch=2)
     _assert_same(first, _arrays(tmp_path / "b"))
     # A resume with the other backend is refused.
     with pytest.raises(InvalidGenerationConfig, match="fields differ: backend"):
         generate(config, tmp_path / "a")
+
+
+@needs_warp
+def test_a_launch_holds_no_more_worlds_than_the_episode_needs(monkeypatch):
+    """A batch past frames_per_episode is capped; no candidate is drawn past the frames wanted."""
+    from handsim.data.warp_source import WarpKinematicSource
+
+    config = GenerationConfig.from_mapping(SMALL)  # episodes of 3 frames
+    source = WarpKinematicSource(config, device="cpu", batch=16)
+    drawn = []
+    draw = source._candidate
+    monkeypatch.setattr(source, "_candidate", lambda *args: drawn.append(draw(*args)) or drawn[-1])
+    try:
+        assert source.worlds == 3
+        frames = list(source.episode(np.random.default_rng(0), lambda *args: True, 2))
+        assert len(frames) == 2
+        assert source._warp[2].nworld == 3
+        # Every candidate of this episode is kept: two frames wanted, two drawn (not 16).
+        assert len(drawn) == 2 and all(c is not None for c in drawn)
+    finally:
+        source.close()
 
 
 @needs_warp
@@ -107,13 +128,15 @@ def test_labels_agree_with_the_opengl_path_on_the_same_draws():
         kp_equal = visible_equal = total = 0
         for _ in range(2):  # two episodes: two hand lengths
             scene, renderer = source._scene(rng)
-            # Candidates 2 and 3 are past the episode's postures: they draw their own motion.
+            # Candidate 2 is past the episode's postures: it draws its own motion.
             postures = source._postures(rng, "motion", 2)
-            candidates = [source._candidate(scene, 7, k, postures, "motion") for k in range(4)]
+            candidates = [
+                source._candidate(scene, 7, k, postures, "motion") for k in range(source.worlds)
+            ]
             candidates = [c for c in candidates if c is not None]
             assert candidates
             warp = source._warp_renderer(scene)
-            worlds = candidates + [candidates[-1]] * (4 - len(candidates))
+            worlds = candidates + [candidates[-1]] * (source.worlds - len(candidates))
             depth_m, labels = render_labels(scene, warp, worlds)
             saved = (scene.data, scene.model.geom_size.copy())
             # A new OpenGL renderer: the source's own one is never drawn with (nor rescaled).
