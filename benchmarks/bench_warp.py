@@ -89,10 +89,12 @@ def _end_to_end(args: argparse.Namespace) -> dict:
         generate(config, root / "warp", backend="warp", device=args.device, batch=args.batch)
         warp_s = time.perf_counter() - t0
         timed.timings_s = None
-        generate(small, root / "gl-warm")  # the OpenGL path's one-off set-up (numba, skin)
-        t0 = time.perf_counter()
-        generate(config, root / "opengl")
-        gl_s = time.perf_counter() - t0
+        gl_s = None
+        if not args.no_opengl:
+            generate(small, root / "gl-warm")  # the OpenGL path's one-off set-up (numba, skin)
+            t0 = time.perf_counter()
+            generate(config, root / "opengl")
+            gl_s = time.perf_counter() - t0
     finally:
         shutil.rmtree(root, ignore_errors=True)
     device = str(wp.get_device(args.device))
@@ -106,6 +108,7 @@ def _end_to_end(args: argparse.Namespace) -> dict:
         "mode": f"end to end to shards (handsim generate, preset {args.preset})",
         "renders_per_frame": None if renders is None else round(renders / n, 2),
         "device": device,
+        "device_name": wp.get_device(args.device).name,
         "gpu": gpu,
         "note": "" if gpu else "no CUDA device: the Warp figure is the CPU device's",
         "batch": args.batch,
@@ -115,8 +118,8 @@ def _end_to_end(args: argparse.Namespace) -> dict:
         "warm_up_s_incl_compile_or_cache_load": round(first_s, 2),
         "warp_frames_per_s": round(n / warp_s, 1),
         "warp_breakdown_ms_per_frame": per_frame,
-        "opengl_frames_per_s": round(n / gl_s, 1),
-        "warp_over_opengl": round(gl_s / warp_s, 3),
+        "opengl_frames_per_s": None if gl_s is None else round(n / gl_s, 1),
+        "warp_over_opengl": None if gl_s is None else round(gl_s / warp_s, 3),
         "load_average": os.getloadavg(),
         "versions": {"mujoco": mujoco.__version__, "warp": wp.config.version},
     }
@@ -136,6 +139,9 @@ def main() -> None:
     parser.add_argument("--gen-camera", default="icvl")
     parser.add_argument("--preset", default="hand-only", help="--generate: the preset")
     parser.add_argument("--out", default=None)
+    parser.add_argument(
+        "--no-opengl", action="store_true", help="measure Warp alone (no OpenGL context here)"
+    )
     args = parser.parse_args()
     if not warp_available():
         raise SystemExit("mujoco-warp is not installed: pip install 'handsim[gpu]'")
@@ -176,16 +182,19 @@ def main() -> None:
     frames = args.rounds * args.batch
     warp_fps = frames / warp_s
 
-    with DepthRenderer(scene.model, "camera", intr) as gl:
-        gl.render(datas[0])
-        t0 = time.perf_counter()
-        for _ in range(args.rounds):
-            for data in datas:
-                gl.render(data)
-        gl_fps = frames / (time.perf_counter() - t0)
+    gl_fps = None
+    if not args.no_opengl:
+        with DepthRenderer(scene.model, "camera", intr) as gl:
+            gl.render(datas[0])
+            t0 = time.perf_counter()
+            for _ in range(args.rounds):
+                for data in datas:
+                    gl.render(data)
+            gl_fps = frames / (time.perf_counter() - t0)
 
     result = {
         "device": device,
+        "device_name": warp.device.name,
         "gpu": gpu,
         "note": "" if gpu else "no CUDA device: the Warp figure is the CPU device's",
         "batch": args.batch,
@@ -196,8 +205,8 @@ def main() -> None:
         "first_render_s_incl_compile_or_cache_load": round(first_s, 2),
         "warp_frames_per_s": round(warp_fps, 1),
         "warp_breakdown_ms_per_frame": {k: round(1e3 * v / frames, 3) for k, v in stages.items()},
-        "opengl_frames_per_s": round(gl_fps, 1),
-        "warp_over_opengl": round(warp_fps / gl_fps, 3),
+        "opengl_frames_per_s": None if gl_fps is None else round(gl_fps, 1),
+        "warp_over_opengl": None if gl_fps is None else round(warp_fps / gl_fps, 3),
         "load_average": os.getloadavg(),
         "versions": {"mujoco": mujoco.__version__, "warp": wp.config.version},
     }
