@@ -150,6 +150,7 @@ class WarpDepthRenderer:
         # Cameras render in model order among the active ones: ours is the only one.
         self._offset = 0
         self._out = None  # the post-processed images on the device, made at the first render
+        self._host = None  # page-locked host buffers for them (CUDA), made at the first render
         self._values: tuple[bytes, object] | None = None
 
     def _upload(self, datas: Sequence[mujoco.MjData]) -> None:
@@ -308,12 +309,31 @@ class WarpDepthRenderer:
                 outputs=[self._out[0], self._out[1]],
             )  # fmt: skip
             clock("postprocess")
-            depth_m = self._out[0].numpy().reshape(-1, h, w)
-            ids = self._out[1].numpy().reshape(-1, h, w)
+            depth_m, ids = (image.reshape(-1, h, w) for image in self._readback())
             clock("readback")
         if geom_values is not None:
             ids = ids.astype(np.asarray(geom_values).dtype, copy=False)
         return depth_m, ids
+
+    def _readback(self) -> tuple[np.ndarray, np.ndarray]:
+        """The post-processed images on the host, arrays of their own (not the buffers the
+        next render writes: on the CPU device ``numpy()`` is a view of them).
+
+        From a CUDA device through page-locked buffers kept between renders: on an H200 a
+        copy into pageable memory moved 1.2-7 GB/s, into page-locked memory 46-55 GB/s.
+        """
+        wp = self._wp
+        if not self.device.is_cuda:
+            return self._out[0].numpy().copy(), self._out[1].numpy().copy()
+        if self._host is None:
+            self._host = tuple(
+                wp.empty(out.shape, dtype=out.dtype, device="cpu", pinned=True)
+                for out in self._out[:2]
+            )
+        for host, out in zip(self._host, self._out[:2], strict=True):
+            wp.copy(host, out)
+        wp.synchronize_device(self.device)
+        return self._host[0].numpy().copy(), self._host[1].numpy().copy()
 
     def _values_on_device(self, geom_values: np.ndarray | None, fill: int) -> tuple[object, int]:
         """The (ngeom,) values on the device (kept while they are the same) and the fill."""

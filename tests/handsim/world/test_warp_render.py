@@ -115,6 +115,20 @@ def test_depth_and_segmentation_match_opengl(preset, objects):
 
 
 @needs_warp
+def test_a_render_returns_arrays_the_next_render_leaves_alone():
+    """The images are the caller's: a later render of other states does not overwrite them."""
+    scene = _scene("sr300", ("025_mug",), seed=1)
+    intr = scene.spec.cameras[0].intrinsics
+    warp = WarpDepthRenderer(scene.model, "camera", intr, nworld=2, device="cpu")
+    depth_a, ids_a = warp.render(_poses(scene, 2, seed=2))
+    kept = depth_a.copy(), ids_a.copy()
+    depth_b, ids_b = warp.render(_poses(scene, 2, seed=3))
+    np.testing.assert_array_equal(depth_a, kept[0])
+    np.testing.assert_array_equal(ids_a, kept[1])
+    assert (ids_a != ids_b).any()
+
+
+@needs_warp
 def test_each_world_has_its_own_camera_pose():
     """A camera moved per world (as data generation does) renders as OpenGL sees it."""
     scene = _scene("sr300", ("025_mug",), seed=1)
