@@ -239,7 +239,9 @@ class WarpKinematicSource(KinematicSource):
         # A launch never spans two episodes (each has its own hand length, so its own skin
         # on the device): worlds past an episode's frames would be drawn and never used.
         self.worlds = min(self.batch, config.frames_per_episode)
-        self._warp = None  # [id(scene), hand geometry version, renderer]
+        # A device model per kept scene (a hand alone: one per side), so that episodes that
+        # alternate sides do not rebuild it: id(scene) -> [scene, hand geometry version, renderer].
+        self._warps: dict[int, list] = {}
 
     timings_s: dict[str, float] | None = None
     """Set to a dict (on the class, for benchmarks) to add each stage's seconds to it.
@@ -259,24 +261,27 @@ class WarpKinematicSource(KinematicSource):
 
         start = time.perf_counter()
         version = scene.hand_geometry_version
-        if self._warp is None or self._warp[0] != id(scene):
-            self._warp = None
+        kept = self._warps.get(id(scene))
+        if kept is None or kept[0] is not scene:
+            # Only the kept scenes' models stay (an id can be reused by a later scene).
+            scenes = {id(s) for s, _ in self._scenes.values()}
+            self._warps = {k: v for k, v in self._warps.items() if k in scenes}
             renderer = WarpDepthRenderer(
                 scene.model, "camera", self.intrinsics, self.worlds, device=self.device
             )
-            self._warp = [id(scene), version, renderer]
-        elif self._warp[1] != version:
+            kept = self._warps[id(scene)] = [scene, version, renderer]
+        elif kept[1] != version:
             # A new hand length (Scene.set_hand_length): its skin's vertices on the device.
-            self._warp[2].refresh_meshes(scene.hand_mesh_ids)
-            self._warp[1] = version
+            kept[2].refresh_meshes(scene.hand_mesh_ids)
+            kept[1] = version
         if self.timings_s is not None:
             spent = time.perf_counter() - start
             self.timings_s["device_model"] = self.timings_s.get("device_model", 0.0) + spent
-        return self._warp[2]
+        return kept[2]
 
     def close(self) -> None:
-        """Free the device model and the kept scenes."""
-        self._warp = None
+        """Free the device models and the kept scenes."""
+        self._warps = {}
         super().close()
 
     def _candidate(

@@ -108,9 +108,35 @@ def test_a_launch_holds_no_more_worlds_than_the_episode_needs(monkeypatch):
         assert source.worlds == 3
         frames = list(source.episode(np.random.default_rng(0), lambda *args: True, 2))
         assert len(frames) == 2
-        assert source._warp[2].nworld == 3
+        assert [kept[2].nworld for kept in source._warps.values()] == [3]
         # Every candidate of this episode is kept: two frames wanted, two drawn (not 16).
         assert len(drawn) == 2 and all(c is not None for c in drawn)
+    finally:
+        source.close()
+
+
+@needs_warp
+def test_episodes_of_both_sides_keep_one_device_model_per_side(monkeypatch):
+    """Alternating left and right hands refit the skin; the device models are made once."""
+    import handsim.world.warp_render as warp_render
+    from handsim.data.warp_source import WarpKinematicSource
+
+    made = []
+    real = warp_render.WarpDepthRenderer
+    monkeypatch.setattr(
+        warp_render, "WarpDepthRenderer", lambda *a, **k: made.append(real(*a, **k)) or made[-1]
+    )
+    config = GenerationConfig.from_mapping(SMALL, left_fraction=0.5)
+    source = WarpKinematicSource(config, device="cpu", batch=4)
+    rng = np.random.default_rng(1)
+    try:
+        sides = []
+        for _ in range(6):
+            scene, _ = source._scene(rng)
+            sides.append(scene.spec.hand.side)
+            renderer = source._warp_renderer(scene)
+            assert renderer is source._warps[id(scene)][2]
+        assert set(sides) == {"left", "right"} and len(made) == 2
     finally:
         source.close()
 
