@@ -22,7 +22,7 @@ figure is ever estimated.
 
 Usage: ``WARP_CACHE_PATH=/tmp/warp_cache python benchmarks/bench_warp.py [--batch 16]
 [--rounds 5] [--device cpu|cuda] [--camera sr300] [--width 320] [--height 240] [--objects 3]
-[--generate FRAMES [--gen-camera icvl] [--preset hand-only]]``; writes
+[--generate FRAMES [--gen-camera icvl] [--preset hand-only]] [--no-opengl]``; writes
 ``benchmarks/results/bench_warp.json`` (``bench_warp_generate.json`` with ``--generate``).
 """
 
