@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from handsim._blas import blas_kernels
 from handsim.errors import HandSimError
 
 __all__ = [
@@ -265,7 +266,7 @@ def _refuse(name: str, set_name: str, expected: str, found: str, where: str) -> 
         f"handsim.cli.benchmark_sets.DIGESTS; to compare with results of {name}, make it with the "
         f"handsim release that recorded them, through `handsim benchmark make` (it generates "
         f"with OpenBLAS's {BLAS_KERNEL} kernels, as the digests were recorded; this process: "
-        f"OPENBLAS_CORETYPE={_coretype()})"
+        f"OPENBLAS_CORETYPE={_coretype()}, kernels {blas_kernels()})"
     )
 
 
@@ -348,6 +349,7 @@ def make_benchmark(
         "version": name,
         "digest_scheme": DIGEST_SCHEME,
         "openblas_coretype": _coretype(),
+        "blas_kernels": blas_kernels(),
         "sets": {},
     }
     for s in SETS:

@@ -58,6 +58,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from handsim._blas import blas_kernels
 from handsim.errors import InvalidHandParams
 from handsim.hand.lofting import loft_faces
 
@@ -466,13 +467,14 @@ def _palm_mesh(skeleton, sdf: Sdf, lo: np.ndarray, hi: np.ndarray, step: float):
     Meshing costs ~0.3 s, paid by every process that builds a hand (each dataset worker):
     the result is kept in a file named by a hash of everything it depends on (this module's
     and the lofting module's source, the hand's parameters and skeleton, the grid step,
-    NumPy's version),
+    NumPy's version and its BLAS kernels, which round differently),
     so a kept mesh is bitwise the one this process would make.
     """
     key = hashlib.sha256()
     for module in (__file__, loft_faces.__code__.co_filename):
         key.update(pathlib.Path(module).read_bytes())
     key.update(np.__version__.encode())
+    key.update(blas_kernels().encode())
     key.update(repr(skeleton.params).encode())
     key.update(np.float64(step).tobytes() + lo.tobytes() + hi.tobytes())
     for body in skeleton.bodies:

@@ -137,6 +137,7 @@ def test_make_generates_with_the_recorded_blas_kernels(bench):
         assert record["openblas_coretype"] == os.environ["OPENBLAS_CORETYPE"]
     elif recorded_blas_environment() is not None:
         assert record["openblas_coretype"] == BLAS_KERNEL == "Haswell"
+        assert "openblas:Haswell" in record["blas_kernels"].split(",")
     else:
         assert record["openblas_coretype"] == "unset"
 

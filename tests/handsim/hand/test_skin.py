@@ -1,5 +1,9 @@
 """The skin: closed meshes per body, joints without gaps, volume kept, close to the collision."""
 
+import os
+import subprocess
+import sys
+
 import mujoco
 import numpy as np
 import pytest
@@ -277,6 +281,44 @@ def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_
     (left,) = tmp_path.glob("palm-*.npz")
     with np.load(left) as kept:
         np.testing.assert_array_equal(kept["vertices"], newest[0].vertices)
+
+
+def test_a_palm_is_kept_per_blas_kernel(tmp_path, monkeypatch):
+    """Other BLAS kernels round differently: a palm made with them is another file."""
+    import handsim.hand.skin as skin
+    from handsim._blas import blas_kernels
+
+    assert blas_kernels().split(",")[0].count(":") == 1  # e.g. openblas:Haswell
+    monkeypatch.setattr(skin, "_CACHE_DIR", tmp_path)
+    shape = HandParams(hand_length=0.17, surface="capsules")
+    for kernels in ("openblas:Haswell", "openblas:SkylakeX", "openblas:Haswell"):
+        monkeypatch.setattr(skin, "blas_kernels", lambda kernels=kernels: kernels)
+        skin._right_parts.__wrapped__(shape, "coarse")
+    assert len(list(tmp_path.glob("palm-*.npz"))) == 2
+
+
+def test_a_palm_made_with_haswell_kernels_differs_from_the_default_ones():
+    """Why the kernels are in the key: on an AVX-512 CPU the two palms differ in the last bit."""
+    code = (
+        "import hashlib, pathlib, tempfile; import handsim.hand.skin as skin; "
+        "from handsim.hand import HandParams; "
+        "skin._CACHE_DIR = pathlib.Path(tempfile.mkdtemp()); "
+        "p = skin._right_parts.__wrapped__(HandParams(hand_length=0.17, surface='capsules'), "
+        "'coarse')[0]; from handsim._blas import blas_kernels; "
+        "print(blas_kernels(), hashlib.sha256(p.vertices.tobytes()).hexdigest())"
+    )
+    out = {}
+    for coretype in ("Haswell", None):
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"}
+        if coretype:
+            env["OPENBLAS_CORETYPE"] = coretype
+        run = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        )
+        out[coretype] = run.stdout.split()
+    if out["Haswell"][0] == out[None][0]:
+        pytest.skip(f"this CPU's default kernels are Haswell's ({out[None][0]})")
+    assert out["Haswell"][1] != out[None][1]
 
 
 def test_the_measures_stay_importable_from_skin():
