@@ -22,6 +22,7 @@ def collect_info() -> dict[str, Any]:
     import numpy as np
 
     import handsim
+    from handsim._blas import blas_kernels
     from handsim.cli.estimators import BUILTIN_ESTIMATORS
     from handsim.envs import ENV_IDS
     from handsim.envs.config import OBS_MODES, SENSORS, VIEWPOINTS
@@ -37,6 +38,8 @@ def collect_info() -> dict[str, Any]:
             "mujoco": mujoco.__version__,
             "gymnasium": gymnasium.__version__,
             "numpy": np.__version__,
+            # The kernels NumPy's BLAS picked: results (and datasets) differ between kernels.
+            "blas": blas_kernels(),
         },
         "envs": [
             {"id": env_id, "max_episode_steps": gymnasium.spec(env_id).max_episode_steps}
@@ -84,7 +87,7 @@ def _run(args: argparse.Namespace) -> int:
     v = info["versions"]
     print(
         f"handsim {v['handsim']}, MuJoCo {v['mujoco']}, Gymnasium {v['gymnasium']}, "
-        f"NumPy {v['numpy']}"
+        f"NumPy {v['numpy']} (BLAS {v['blas']})"
     )
     print("envs (gymnasium.make ids; import handsim.envs first):")
     for env in info["envs"]:

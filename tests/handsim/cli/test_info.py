@@ -38,3 +38,4 @@ def test_info_json_is_strict_and_complete(capsys):
     assert [e["name"] for e in info["estimators"]] == ["oracle", "com", "deepprior++", "deepprior"]
     assert list(info["hand"]["joint_limits_deg"]) == list(JOINT_NAMES)
     assert info["hand"]["nv"] == 27
+    assert info["versions"]["blas"].startswith("openblas:")  # NumPy's wheels bundle OpenBLAS
