@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from handsim._blas import blas_kernels
 from handsim.errors import HandSimError
+from handsim.hand.blas import blas_kernels
 
 __all__ = [
     "VERSION",

@@ -22,10 +22,10 @@ def collect_info() -> dict[str, Any]:
     import numpy as np
 
     import handsim
-    from handsim._blas import blas_kernels
     from handsim.cli.estimators import BUILTIN_ESTIMATORS
     from handsim.envs import ENV_IDS
     from handsim.envs.config import OBS_MODES, SENSORS, VIEWPOINTS
+    from handsim.hand.blas import blas_kernels
     from handsim.hand.model import HAND_SIZES, Hand
     from handsim.hand.pose import JOINT_LIMITS_DEG, JOINT_NAMES
     from handsim.world.camera import CAMERA_PRESETS

@@ -58,8 +58,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from handsim._blas import blas_kernels
 from handsim.errors import InvalidHandParams
+from handsim.hand.blas import blas_kernels
 from handsim.hand.lofting import loft_faces
 
 __all__ = [

@@ -286,7 +286,7 @@ def test_a_palm_kept_on_disk_is_the_one_meshed_and_a_damaged_file_is_remade(tmp_
 def test_a_palm_is_kept_per_blas_kernel(tmp_path, monkeypatch):
     """Other BLAS kernels round differently: a palm made with them is another file."""
     import handsim.hand.skin as skin
-    from handsim._blas import blas_kernels
+    from handsim.hand.blas import blas_kernels
 
     assert blas_kernels().split(",")[0].count(":") == 1  # e.g. openblas:Haswell
     monkeypatch.setattr(skin, "_CACHE_DIR", tmp_path)
@@ -304,7 +304,7 @@ def test_a_palm_made_with_haswell_kernels_differs_from_the_default_ones():
         "from handsim.hand import HandParams; "
         "skin._CACHE_DIR = pathlib.Path(tempfile.mkdtemp()); "
         "p = skin._right_parts.__wrapped__(HandParams(hand_length=0.17, surface='capsules'), "
-        "'coarse')[0]; from handsim._blas import blas_kernels; "
+        "'coarse')[0]; from handsim.hand.blas import blas_kernels; "
         "print(blas_kernels(), hashlib.sha256(p.vertices.tobytes()).hexdigest())"
     )
     out = {}
