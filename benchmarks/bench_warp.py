@@ -97,7 +97,8 @@ def _end_to_end(args: argparse.Namespace) -> dict:
             gl_s = time.perf_counter() - t0
     finally:
         shutil.rmtree(root, ignore_errors=True)
-    device = str(wp.get_device(args.device))
+    warp_device = wp.get_device(args.device)
+    device = str(warp_device)
     gpu = device.startswith("cuda")
     n = args.generate
     renders = stages.pop("renders", None)
@@ -108,7 +109,7 @@ def _end_to_end(args: argparse.Namespace) -> dict:
         "mode": f"end to end to shards (handsim generate, preset {args.preset})",
         "renders_per_frame": None if renders is None else round(renders / n, 2),
         "device": device,
-        "device_name": wp.get_device(args.device).name,
+        "device_name": warp_device.name,
         "gpu": gpu,
         "note": "" if gpu else "no CUDA device: the Warp figure is the CPU device's",
         "batch": args.batch,
